@@ -1,0 +1,1 @@
+"""Wallpaper groups, garment model, fit measure, alignment, reshaping and nesting."""

@@ -1,0 +1,1 @@
+"""The cutting station: configuration, job store, daemon and the `station` console command."""

@@ -1,0 +1,1 @@
+"""Camera access, calibration to table millimetres, lattice and wallpaper-group detection."""
