@@ -1,0 +1,109 @@
+"""Where the print lies on each pattern piece: ``p2D = R(angle) p_wp + t`` per piece.
+
+A `Placement` is what alignment produces and what fitting, reshaping, nesting and the
+previews consume. On disk it is PLACEMENT.json, with angles in degrees for people.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from solver.wallpaper import Wallpaper
+
+
+def rotation_matrices(angles: np.ndarray) -> np.ndarray:
+    """(P,) angles in radians -> (P, 2, 2) rotation matrices."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+@dataclass
+class Placement:
+    """Per piece the rigid map from wallpaper space to pattern space.
+
+    ``angles`` (P,) radians and ``translations`` (P, 2) mm, as in the paper
+    (Sec. 3): ``p2D = R_c p_wp + t_c``.
+    """
+
+    angles: np.ndarray
+    translations: np.ndarray
+    fabric: Wallpaper
+    garment: str | None = None
+    piece_names: list[str] | None = None
+    report: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.angles = np.asarray(self.angles, float).reshape(-1)
+        self.translations = np.asarray(self.translations, float).reshape(-1, 2)
+        if len(self.angles) != len(self.translations):
+            raise ValueError(f"placement has {len(self.angles)} angles but "
+                             f"{len(self.translations)} translations")
+        if not (np.all(np.isfinite(self.angles)) and np.all(np.isfinite(self.translations))):
+            raise ValueError("placement angles and translations must be finite")
+
+    @classmethod
+    def identity(cls, n_pieces: int, fabric: Wallpaper, **kw) -> Placement:
+        return cls(np.zeros(n_pieces), np.zeros((n_pieces, 2)), fabric, **kw)
+
+    @property
+    def n_pieces(self) -> int:
+        return len(self.angles)
+
+    def to_wallpaper(self, points: np.ndarray, piece: np.ndarray) -> np.ndarray:
+        """Pattern points (N, 2) on pieces ``piece`` (N,) -> wallpaper space."""
+        r = rotation_matrices(self.angles[piece])
+        return np.einsum("nji,nj->ni", r, points - self.translations[piece])
+
+    def to_pattern(self, points: np.ndarray, piece: np.ndarray) -> np.ndarray:
+        """Wallpaper points (N, 2) seen on pieces ``piece`` (N,) -> pattern space."""
+        r = rotation_matrices(self.angles[piece])
+        return np.einsum("nij,nj->ni", r, points) + self.translations[piece]
+
+    # ------------------------------------------------------------------ files
+    def to_dict(self) -> dict[str, Any]:
+        names = self.piece_names or [f"piece{i}" for i in range(self.n_pieces)]
+        return {
+            "version": 1,
+            "garment": self.garment,
+            "fabric": self.fabric.to_dict(),
+            "convention": "p2D = R(angle_deg) p_wp + translation_mm",
+            "pieces": [
+                {"index": i, "name": names[i], "angle_deg": float(np.degrees(a)),
+                 "translation_mm": [float(t[0]), float(t[1])]}
+                for i, (a, t) in enumerate(zip(self.angles, self.translations))
+            ],
+            "report": self.report,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Placement:
+        try:
+            pieces = sorted(d["pieces"], key=lambda p: p["index"])
+            return cls(
+                angles=np.radians([p["angle_deg"] for p in pieces]),
+                translations=[p["translation_mm"] for p in pieces],
+                fabric=Wallpaper.from_dict(d["fabric"]),
+                garment=d.get("garment"),
+                piece_names=[p.get("name", f"piece{p['index']}") for p in pieces],
+                report=d.get("report", {}),
+            )
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"placement lacks or misstates {exc}") from None
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: str | Path) -> Placement:
+        path = Path(path)
+        try:
+            return cls.from_dict(json.loads(path.read_text()))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
