@@ -1,0 +1,34 @@
+"""Arguments and loaders shared by the `station` commands that read garments and fabrics."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from solver.wallpaper import Wallpaper
+
+UNIT_CHOICES = ("m", "cm", "mm", "in")
+
+
+def add_garment_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("garment", metavar="GARMENT",
+                        help="garment: OBJ (v = drape, vt = pattern) or JSON pattern spec")
+    parser.add_argument("--units", choices=UNIT_CHOICES,
+                        help="units of the file's coordinates (default: what the file says, "
+                        "else mm)")
+
+
+def load_garment_arg(args: argparse.Namespace):
+    from solver.garment import load_garment
+
+    path = Path(args.garment)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such garment file")
+    return load_garment(path, units=args.units)
+
+
+def load_fabric(path: str | Path) -> Wallpaper:
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such fabric file")
+    return Wallpaper.load(path)

@@ -1,0 +1,66 @@
+"""`station fit`: E_fit of a garment under a print, with an optional picture."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from solver.fit import fit_report
+from solver.placement import Placement
+from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "fit",
+        help="measure how well the print matches across the seams (paper Eq. 1)",
+        description="Compute E_fit = sum over seam edges of weight x length x mismatch, "
+        "for the print FABRIC placed on each piece as PLACEMENT says (identity if omitted).",
+    )
+    add_garment_arguments(p)
+    p.add_argument("--fabric", required=True, metavar="FABRIC.json",
+                   help='print: {"group", "w1", "w2", "origin", "units"}')
+    p.add_argument("--placement", metavar="PLACEMENT.json",
+                   help="per-piece rotation and translation of the print (default: identity)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--png", metavar="OUT.png",
+                   help="draw the pieces over the print, seams coloured by mismatch")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    garment = load_garment_arg(args)
+    fabric = load_fabric(args.fabric)
+    if args.placement:
+        placement = Placement.load(args.placement)
+        if placement.n_pieces != garment.n_pieces:
+            raise ValueError(f"{args.placement}: placement has {placement.n_pieces} pieces, "
+                             f"{args.garment} has {garment.n_pieces}")
+        placement.fabric = fabric
+    else:
+        placement = Placement.identity(garment.n_pieces, fabric)
+    report = fit_report(garment, placement)
+    result = {
+        "garment": str(args.garment),
+        "group": fabric.group,
+        "pieces": garment.n_pieces,
+        "seam_lines": len(garment.seam_lines),
+        "seam_edges": len(garment.seam_edges),
+        **report.summary(),
+        "seconds": time.perf_counter() - start,
+    }
+    if args.png:
+        from station.render import draw_fit
+
+        draw_fit(garment, placement, report, args.png)
+        result["png"] = str(args.png)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"{args.garment}: {garment.n_pieces} pieces, {len(garment.seam_edges)} seam edges "
+              f"under {fabric.group}: E_fit = {report.e_fit_mm2:.1f} mm² "
+              f"({report.e_fit_cm2:.2f} cm²), mean mismatch "
+              f"{result['mismatch_mean_mm']:.2f} mm, worst {result['mismatch_max_mm']:.2f} mm")
+    return 0
