@@ -1,0 +1,199 @@
+"""Machine profiles (TOML): work area, feeds, power and cutting parameters.
+
+Profiles are checked when loaded, Klipper-style: unknown keys, wrong types and values out
+of range are errors naming the file and the key, so a typo fails before anything is cut.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomllib
+
+__all__ = ["CutParams", "KnifeParams", "Machine", "default_machine", "load_machine"]
+
+
+@dataclass(frozen=True)
+class CutParams:
+    """How to cut: feed, power, passes, kerf, tolerance, notches, marks, tabs."""
+
+    feed: float = 3000.0
+    power: float = 700.0
+    passes: int = 1
+    air_assist: bool = True
+    kerf: float = 0.2
+    tolerance: float = 0.05
+    arcs: bool = True
+    lead_in: float = 0.0
+    notch: str = "slit"
+    notch_depth: float = 3.0
+    notch_width: float = 2.0
+    mark_size: float = 1.0
+    mark_power: float = 300.0
+    tabs: int = 0
+    tab_width: float = 3.0
+
+
+@dataclass(frozen=True)
+class KnifeParams:
+    """Knife or drag-knife: Z heights for tool up/down and the corner rule."""
+
+    z_up: float = 5.0
+    z_down: float = -1.0
+    plunge_feed: float = 600.0
+    corner_angle: float = 30.0
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A GRBL machine profile (millimetres, mm/min)."""
+
+    name: str = "GRBL laser table 1600x1000"
+    tool: str = "laser"
+    work_area: tuple[float, float, float, float] = (0.0, 0.0, 1600.0, 1000.0)
+    max_feed: float = 12000.0
+    rapid_feed: float = 12000.0
+    acceleration: float = 1500.0
+    max_s: float = 1000.0
+    laser_mode: bool = True
+    park: tuple[float, float] = (0.0, 0.0)
+    rx_buffer: int = 128
+    cut: CutParams = field(default_factory=CutParams)
+    knife: KnifeParams = field(default_factory=KnifeParams)
+    source: str = "<built-in>"
+
+    def with_cut(self, **changes: Any) -> Machine:
+        """A copy with some cutting parameters changed (validated like the TOML)."""
+        from dataclasses import replace
+
+        cut = replace(self.cut, **changes)
+        _check_cut(cut, self.source)
+        return replace(self, cut=cut)
+
+
+def _coerce(cls: type, table: dict, section: str, source: str) -> dict:
+    known = {f.name: f for f in fields(cls)}
+    out: dict[str, Any] = {}
+    for key, val in table.items():
+        if key not in known:
+            raise ValueError(f"{source}: unknown key {key!r} in [{section}] "
+                             f"(known: {', '.join(sorted(k for k in known if k != 'source'))})")
+        default = getattr(cls(), key) if key not in ("cut", "knife") else None
+        try:
+            if isinstance(default, bool):
+                if not isinstance(val, bool):
+                    raise TypeError("expected true or false")
+                out[key] = val
+            elif isinstance(default, int):
+                if isinstance(val, bool) or not isinstance(val, int):
+                    raise TypeError("expected an integer")
+                out[key] = val
+            elif isinstance(default, float):
+                if isinstance(val, bool) or not isinstance(val, int | float):
+                    raise TypeError("expected a number")
+                out[key] = float(val)
+            elif isinstance(default, tuple):
+                if not isinstance(val, list) or len(val) != len(default):
+                    raise TypeError(f"expected a list of {len(default)} numbers")
+                out[key] = tuple(float(v) for v in val)
+            elif isinstance(default, str):
+                if not isinstance(val, str):
+                    raise TypeError("expected a string")
+                out[key] = val
+            else:
+                out[key] = val
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{source}: [{section}] {key} = {val!r}: {exc}") from None
+    return out
+
+
+def _check_cut(c: CutParams, source: str) -> None:
+    checks = [
+        (c.feed > 0, "feed must be > 0"),
+        (c.power >= 0, "power must be >= 0"),
+        (c.passes >= 1, "passes must be >= 1"),
+        (c.kerf >= 0, "kerf must be >= 0"),
+        (c.tolerance > 0, "tolerance must be > 0"),
+        (c.lead_in >= 0, "lead_in must be >= 0"),
+        (c.notch in ("slit", "v"), "notch must be \"slit\" or \"v\""),
+        (c.notch_depth > 0, "notch_depth must be > 0"),
+        (c.notch_width > 0, "notch_width must be > 0"),
+        (c.mark_size > 0, "mark_size must be > 0"),
+        (c.mark_power >= 0, "mark_power must be >= 0"),
+        (c.tabs >= 0, "tabs must be >= 0"),
+        (c.tab_width > 0, "tab_width must be > 0"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise ValueError(f"{source}: [cut] {msg}")
+
+
+def _check(m: Machine) -> None:
+    src = m.source
+    x0, y0, x1, y1 = m.work_area
+    checks = [
+        (m.tool in ("laser", "knife"), "[machine] tool must be \"laser\" or \"knife\""),
+        (x1 > x0 and y1 > y0, "[machine] work_area must be [x_min, y_min, x_max, y_max] "
+                              "with x_max > x_min and y_max > y_min"),
+        (m.max_feed > 0 and m.rapid_feed > 0, "[machine] max_feed and rapid_feed must be > 0"),
+        (m.acceleration > 0, "[machine] acceleration must be > 0"),
+        (m.max_s > 0, "[machine] max_s must be > 0"),
+        (m.rx_buffer >= 16, "[machine] rx_buffer must be >= 16"),
+        (x0 <= m.park[0] <= x1 and y0 <= m.park[1] <= y1,
+         "[machine] park must lie inside work_area"),
+        (m.cut.feed <= m.max_feed, f"[cut] feed {m.cut.feed:g} exceeds max_feed {m.max_feed:g}"),
+        (m.tool != "laser" or m.cut.power <= m.max_s,
+         f"[cut] power {m.cut.power:g} exceeds max_s {m.max_s:g}"),
+        (m.tool != "laser" or m.cut.mark_power <= m.max_s,
+         f"[cut] mark_power {m.cut.mark_power:g} exceeds max_s {m.max_s:g}"),
+        (m.tool != "laser" or m.laser_mode,
+         "[machine] a laser profile needs laser_mode = true (GRBL $32=1)"),
+        (m.knife.z_up > m.knife.z_down, "[knife] z_up must be above z_down"),
+        (m.knife.plunge_feed > 0, "[knife] plunge_feed must be > 0"),
+        (0 < m.knife.corner_angle <= 180, "[knife] corner_angle must be in (0, 180]"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise ValueError(f"{src}: {msg}")
+    _check_cut(m.cut, src)
+
+
+def machine_from_dict(data: dict, source: str = "<dict>") -> Machine:
+    """Build and check a profile from a TOML-shaped dict."""
+    unknown = set(data) - {"machine", "cut", "knife"}
+    if unknown:
+        raise ValueError(f"{source}: unknown section(s) {sorted(unknown)} "
+                         "(known: [machine], [cut], [knife])")
+    for sec in ("machine", "cut", "knife"):
+        if sec in data and not isinstance(data[sec], dict):
+            raise ValueError(f"{source}: [{sec}] must be a table")
+    mtab = dict(data.get("machine", {}))
+    for k in ("cut", "knife", "source"):
+        if k in mtab:
+            raise ValueError(f"{source}: unknown key {k!r} in [machine]")
+    cut = CutParams(**_coerce(CutParams, data.get("cut", {}), "cut", source))
+    knife = KnifeParams(**_coerce(KnifeParams, data.get("knife", {}), "knife", source))
+    m = Machine(**_coerce(Machine, mtab, "machine", source), cut=cut, knife=knife, source=source)
+    _check(m)
+    return m
+
+
+def load_machine(path: str | Path) -> Machine:
+    """Read and check a machine profile TOML file."""
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{p}: machine profile not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{p}: not valid TOML: {exc}") from None
+    return machine_from_dict(data, str(p))
+
+
+def default_machine() -> Machine:
+    """The built-in profile (``gcode/default_machine.toml``): a 1600 x 1000 mm laser table."""
+    text = resources.files("gcode").joinpath("default_machine.toml").read_text(encoding="utf-8")
+    return machine_from_dict(tomllib.loads(text), "gcode/default_machine.toml")
