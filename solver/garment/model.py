@@ -1,0 +1,424 @@
+"""The garment model: a sewing pattern (2D mesh, mm), its optional drape, and its seams.
+
+A garment is one triangle mesh in pattern space whose connected components are the pieces.
+Every pattern vertex also carries the id of the 3D point it is sewn to
+(``point_of_vertex``): twin vertices on the two sides of a seam share it. A seam edge is one
+3D edge used by two pattern boundary edges; seam edges between the same two pieces that
+follow each other along the boundary form a seam line, which carries the weight the fit
+measure uses. Deriving everything from (uv, faces, point_of_vertex) lets every importer
+(OBJ, OBJ pairs, JSON specifications) share one vectorised topology pass.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from solver.garment.errors import GarmentError
+
+
+@dataclass(frozen=True)
+class SeamLine:
+    """A maximal run of sewn twin edges between two pieces (or one piece and itself)."""
+
+    piece_a: int
+    piece_b: int
+    weight: float = 1.0
+    name: str = ""
+
+
+@dataclass(eq=False)
+class Garment:
+    """Sewing pattern in millimetres with its seams and optional 3D drape.
+
+    Attributes
+    ----------
+    uv : (V,2) float array
+        Pattern coordinates in mm.
+    faces : (F,3) int array
+        Triangles, counter-clockwise in ``uv``.
+    xyz : (V,3) float array or None
+        Draped (or placed) 3D position of each pattern vertex in mm; None for 2D-only input.
+    point_of_vertex : (V,) int array
+        Id of the 3D point each pattern vertex is sewn to; twins share an id.
+    piece_of_vertex : (V,) int array
+        Piece (connected component of the pattern mesh) of each vertex.
+    seam_edges : (E,4) int array
+        ``[a, b, a2, b2]``: pattern edge a->b is sewn to a2->b2 with a~a2 and b~b2.
+    seam_line_of_edge : (E,) int array
+        Index into ``seam_lines`` of each seam edge.
+    """
+
+    uv: np.ndarray
+    faces: np.ndarray
+    xyz: np.ndarray | None
+    point_of_vertex: np.ndarray
+    piece_of_vertex: np.ndarray
+    piece_names: list[str]
+    seam_edges: np.ndarray
+    seam_line_of_edge: np.ndarray
+    seam_lines: list[SeamLine]
+    boundary_3d_edges: int = 0
+    grainlines: dict[int, tuple[tuple[float, float], tuple[float, float]]] = field(
+        default_factory=dict
+    )
+    notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    units_in_file: str = "mm"
+    scale_recovered: float | None = None
+    source: str = ""
+    kind: str = "obj"
+    _loops: list[list[np.ndarray]] | None = field(default=None, repr=False, compare=False)
+
+    # ------------------------------------------------------------------ basic facts
+    @property
+    def n_pieces(self) -> int:
+        return len(self.piece_names)
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.uv.shape[0])
+
+    def piece_of_face(self) -> np.ndarray:
+        """(F,) int piece of each face."""
+        return self.piece_of_vertex[self.faces[:, 0]]
+
+    def seam_weights(self) -> np.ndarray:
+        """(E,) float weight of each seam edge, taken from its seam line."""
+        w = np.array([s.weight for s in self.seam_lines], dtype=float)
+        if w.size == 0:
+            return np.zeros(0)
+        return w[self.seam_line_of_edge]
+
+    def with_seam_weights(self, mapping: Mapping[int | str, float]) -> Garment:
+        """Copy with seam-line weights replaced; keys are seam-line indices or names."""
+        names = {s.name: i for i, s in enumerate(self.seam_lines)}
+        lines = list(self.seam_lines)
+        for key, weight in mapping.items():
+            idx = names.get(key) if isinstance(key, str) else int(key)
+            if idx is None or not 0 <= idx < len(lines):
+                raise ValueError(f"no seam line {key!r} (there are {len(lines)})")
+            if not np.isfinite(weight) or weight < 0:
+                raise ValueError(f"seam weight for {key!r} must be finite and >= 0")
+            lines[idx] = dataclasses.replace(lines[idx], weight=float(weight))
+        out = self.copy()
+        out.seam_lines = lines
+        return out
+
+    def with_uv(self, new_uv: np.ndarray) -> Garment:
+        """Copy with the pattern replaced (same topology), as reshaping produces."""
+        new_uv = np.asarray(new_uv, dtype=float)
+        if new_uv.shape != self.uv.shape:
+            raise ValueError(f"new uv has shape {new_uv.shape}, expected {self.uv.shape}")
+        out = self.copy()
+        out.uv = new_uv.copy()
+        return out
+
+    def copy(self) -> Garment:
+        """Deep copy of arrays and per-piece dictionaries."""
+        return dataclasses.replace(
+            self,
+            uv=self.uv.copy(),
+            faces=self.faces.copy(),
+            xyz=None if self.xyz is None else self.xyz.copy(),
+            point_of_vertex=self.point_of_vertex.copy(),
+            piece_of_vertex=self.piece_of_vertex.copy(),
+            piece_names=list(self.piece_names),
+            seam_edges=self.seam_edges.copy(),
+            seam_line_of_edge=self.seam_line_of_edge.copy(),
+            seam_lines=list(self.seam_lines),
+            grainlines=dict(self.grainlines),
+            notches={k: list(v) for k, v in self.notches.items()},
+            _loops=None,
+        )
+
+    # ------------------------------------------------------------------ outlines
+    def boundary_half_edges(self) -> np.ndarray:
+        """(B,2) int pattern boundary edges oriented as in their face (interior on the left)."""
+        he = self.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        return _boundary_half_edges(he, self.n_vertices)
+
+    def piece_loops(self, i: int) -> list[np.ndarray]:
+        """Vertex-index loops of piece ``i``: outer boundary first (CCW), then holes (CW)."""
+        if self._loops is None:
+            self._loops = _piece_loops(self)
+        if not 0 <= i < self.n_pieces:
+            raise IndexError(f"piece {i} out of range (garment has {self.n_pieces})")
+        return self._loops[i]
+
+    def piece_outline(self, i: int) -> np.ndarray:
+        """(k,2) float outer boundary of piece ``i``, counter-clockwise, in mm."""
+        return self.uv[self.piece_loops(i)[0]]
+
+    def piece_holes(self, i: int) -> list[np.ndarray]:
+        """Inner boundary loops of piece ``i`` as (k,2) arrays (clockwise), in mm."""
+        return [self.uv[loop] for loop in self.piece_loops(i)[1:]]
+
+    def piece_areas(self) -> np.ndarray:
+        """(n_pieces,) float pattern area of each piece in mm^2."""
+        area = triangle_areas(self.uv, self.faces)
+        return np.bincount(self.piece_of_face(), weights=area, minlength=self.n_pieces)
+
+    def piece_bboxes(self) -> np.ndarray:
+        """(n_pieces,4) float [xmin, ymin, xmax, ymax] of each piece in mm."""
+        out = np.empty((self.n_pieces, 4))
+        for k in range(2):
+            out[:, k] = np.full(self.n_pieces, np.inf)
+            np.minimum.at(out[:, k], self.piece_of_vertex, self.uv[:, k])
+            out[:, k + 2] = np.full(self.n_pieces, -np.inf)
+            np.maximum.at(out[:, k + 2], self.piece_of_vertex, self.uv[:, k])
+        return out
+
+
+# ---------------------------------------------------------------------- helpers
+
+
+def triangle_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) signed area of each triangle in ``uv`` (positive = counter-clockwise)."""
+    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
+    return 0.5 * (
+        (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    )
+
+
+def _boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
+    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
+    key = lo.astype(np.int64) * n + hi
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return he[counts[inv] == 1]
+
+
+def _components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of an n-vertex graph given (k,2) vertex pairs."""
+    graph = coo_matrix(
+        (np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n)
+    )
+    return connected_components(graph, directed=False)
+
+
+def _piece_loops(g: Garment) -> list[list[np.ndarray]]:
+    """Walk boundary half-edges into loops; the outer loop of a piece has the largest area."""
+    bhe = g.boundary_half_edges()
+    nxt: dict[int, list[int]] = {}
+    for a, b in bhe.tolist():
+        nxt.setdefault(a, []).append(b)
+    loops_by_piece: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
+    for start in list(nxt):
+        while nxt.get(start):
+            loop = [start]
+            cur = nxt[start].pop()
+            while cur != start and nxt.get(cur):
+                loop.append(cur)
+                cur = nxt[cur].pop()
+            loops_by_piece[int(g.piece_of_vertex[start])].append(np.array(loop, dtype=np.int64))
+    out: list[list[np.ndarray]] = []
+    for loops in loops_by_piece:
+        if not loops:
+            out.append([np.zeros(0, dtype=np.int64)])
+            continue
+        areas = [_polygon_area(g.uv[lp]) for lp in loops]
+        order = np.argsort(-np.abs(areas), kind="stable")
+        out.append([loops[k] for k in order])
+    return out
+
+
+def _polygon_area(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def build_garment(
+    uv: np.ndarray,
+    faces: np.ndarray,
+    point_of_vertex: np.ndarray,
+    *,
+    xyz: np.ndarray | None,
+    source: str | Path,
+    kind: str,
+    units_in_file: str = "mm",
+    scale_recovered: float | None = None,
+    piece_names: list[str] | None = None,
+    grainlines: dict | None = None,
+    notches: dict | None = None,
+) -> Garment:
+    """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
+
+    ``piece_names`` are given per connected component in order of first appearance in
+    ``faces`` (importers emit pieces in order). Degenerate faces are dropped and unused
+    vertices removed, each with a warning that says how many.
+    """
+    uv = np.asarray(uv, dtype=float)
+    faces = np.asarray(faces, dtype=np.int64)
+    point_of_vertex = np.asarray(point_of_vertex, dtype=np.int64)
+    n = uv.shape[0]
+    if faces.size == 0:
+        raise GarmentError(source, "no faces")
+
+    # degenerate slivers: repeated corner or (numerically) zero pattern area
+    area = triangle_areas(uv, faces)
+    scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if n else 0.0
+    repeated = (
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    )
+    degenerate = repeated | (np.abs(area) <= 1e-14 * max(scale2, 1e-300))
+    if degenerate.any():
+        warnings.warn(
+            f"{source}: removed {int(degenerate.sum())} degenerate (zero-area) faces",
+            stacklevel=3,
+        )
+        faces, area = faces[~degenerate], area[~degenerate]
+        if faces.size == 0:
+            raise GarmentError(source, "all faces are degenerate")
+
+    # renumber vertices by first appearance so that exports re-import in the same order
+    flat = faces.ravel()
+    used, first = np.unique(flat, return_index=True)
+    order = used[np.argsort(first, kind="stable")]
+    if len(order) < n:
+        warnings.warn(f"{source}: removed {n - len(order)} unused vertices", stacklevel=3)
+    remap = np.full(n, -1, dtype=np.int64)
+    remap[order] = np.arange(len(order))
+    faces = remap[faces]
+    uv = uv[order]
+    xyz = None if xyz is None else np.asarray(xyz, dtype=float)[order]
+    # compact 3D point ids too, numbered by first appearance
+    pts = point_of_vertex[order]
+    _, pfirst, pinv = np.unique(pts, return_index=True, return_inverse=True)
+    prank = np.empty(len(pfirst), dtype=np.int64)
+    prank[np.argsort(pfirst, kind="stable")] = np.arange(len(pfirst))
+    point_of_vertex = prank[pinv.ravel()]
+    n = len(order)
+
+    # pieces: connected components of the pattern mesh (labels follow vertex order)
+    he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    n_pieces, piece_of_vertex = _components(n, he)
+    piece_of_face = piece_of_vertex[faces[:, 0]]
+
+    # orientation: make every piece counter-clockwise in the pattern
+    piece_area = np.bincount(piece_of_face, weights=area, minlength=n_pieces)
+    flip = piece_area[piece_of_face] < 0
+    if flip.any():
+        faces[flip] = faces[flip][:, [0, 2, 1]]
+        he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+
+    # pattern edges used by more than two faces make no sense in a sewing pattern
+    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
+    _, inv, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
+    if counts.max() > 2:
+        bad = he[np.argmax(counts[inv])]
+        raise GarmentError(
+            source,
+            f"pattern edge {int(bad[0]) + 1}-{int(bad[1]) + 1} is used by "
+            f"{int(counts.max())} faces (non-manifold pattern)",
+        )
+    bhe = he[counts[inv] == 1]
+
+    # seam edges: one 3D edge used by two pattern boundary edges
+    pa, pb = point_of_vertex[bhe[:, 0]], point_of_vertex[bhe[:, 1]]
+    collapsed = pa == pb
+    if collapsed.any():
+        warnings.warn(
+            f"{source}: ignored {int(collapsed.sum())} boundary edges whose two ends are "
+            "sewn to the same point",
+            stacklevel=3,
+        )
+        bhe, pa, pb = bhe[~collapsed], pa[~collapsed], pb[~collapsed]
+    n_points = int(point_of_vertex.max()) + 1
+    key3 = np.minimum(pa, pb) * n_points + np.maximum(pa, pb)
+    # sort by 3D key, then piece, then vertex so the first twin is deterministic
+    order = np.lexsort((bhe[:, 0], piece_of_vertex[bhe[:, 0]], key3))
+    bhe, key3 = bhe[order], key3[order]
+    uniq, start, counts3 = np.unique(key3, return_index=True, return_counts=True)
+    if counts3.size and counts3.max() > 2:
+        k = int(np.argmax(counts3))
+        users = bhe[start[k] : start[k] + counts3[k]]
+        pieces = sorted({int(p) for p in piece_of_vertex[users[:, 0]]})
+        raise GarmentError(
+            source,
+            f"3D edge between points {int(uniq[k] // n_points) + 1} and "
+            f"{int(uniq[k] % n_points) + 1} is used by {int(counts3[k])} pattern edges "
+            f"(pieces {', '.join(map(str, pieces))}): an edge can join only two pieces",
+        )
+    twin = start[counts3 == 2]
+    first_e, second_e = bhe[twin], bhe[twin + 1]
+    same = point_of_vertex[second_e[:, 0]] == point_of_vertex[first_e[:, 0]]
+    a2 = np.where(same, second_e[:, 0], second_e[:, 1])
+    b2 = np.where(same, second_e[:, 1], second_e[:, 0])
+    seam_edges = np.column_stack([first_e, a2, b2]).astype(np.int64)
+    # keep seam edges in a stable, readable order: by piece, then by vertex
+    so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
+    seam_edges = seam_edges[so]
+    boundary_3d = int((counts3 == 1).sum())
+
+    names = list(piece_names) if piece_names is not None else []
+    if len(names) != n_pieces:
+        if piece_names is not None:
+            warnings.warn(
+                f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
+                "connected pieces; using generic names",
+                stacklevel=3,
+            )
+        names = [f"piece{i}" for i in range(n_pieces)]
+
+    seam_line_of_edge, seam_lines = _seam_lines(seam_edges, piece_of_vertex, n, names)
+    return Garment(
+        uv=uv,
+        faces=faces,
+        xyz=xyz,
+        point_of_vertex=point_of_vertex,
+        piece_of_vertex=piece_of_vertex.astype(np.int64),
+        piece_names=names,
+        seam_edges=seam_edges,
+        seam_line_of_edge=seam_line_of_edge,
+        seam_lines=seam_lines,
+        boundary_3d_edges=boundary_3d,
+        grainlines=dict(grainlines or {}),
+        notches=dict(notches or {}),
+        units_in_file=units_in_file,
+        scale_recovered=scale_recovered,
+        source=str(source),
+        kind=kind,
+    )
+
+
+def _seam_lines(
+    seam_edges: np.ndarray, piece_of_vertex: np.ndarray, n: int, names: list[str]
+) -> tuple[np.ndarray, list[SeamLine]]:
+    """Group twin pairs into seam lines: same two pieces, connected along the boundary."""
+    e = len(seam_edges)
+    if e == 0:
+        return np.zeros(0, dtype=np.int64), []
+    pa = piece_of_vertex[seam_edges[:, 0]]
+    pb = piece_of_vertex[seam_edges[:, 2]]
+    lo, hi = np.minimum(pa, pb), np.maximum(pa, pb)
+    pair_key = lo * (int(piece_of_vertex.max()) + 1) + hi
+    # seam edge <-> pattern vertex incidence; edges sharing a vertex and a piece pair connect
+    rows = np.repeat(np.arange(e), 4)
+    inc = coo_matrix((np.ones(4 * e, dtype=np.int32), (rows, seam_edges.ravel())), shape=(e, n))
+    inc = inc.tocsr()
+    inc.data[:] = 1
+    adj = (inc @ inc.T).tocoo()
+    keep = pair_key[adj.row] == pair_key[adj.col]
+    _, label = _components(e, np.column_stack([adj.row[keep], adj.col[keep]]))
+    # number seam lines by their first seam edge
+    _, first, inv = np.unique(label, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    line_of_edge = rank[inv.ravel()]
+    firsts = np.sort(first)
+    pairs = [(int(lo[f]), int(hi[f])) for f in firsts.tolist()]
+    total = {p: pairs.count(p) for p in set(pairs)}
+    seen: dict[tuple[int, int], int] = {}
+    lines: list[SeamLine] = []
+    for a, b in pairs:
+        k = seen.get((a, b), 0)
+        seen[(a, b)] = k + 1
+        suffix = f"#{k + 1}" if total[(a, b)] > 1 else ""
+        lines.append(SeamLine(a, b, 1.0, f"{names[a]}~{names[b]}{suffix}"))
+    return line_of_edge, lines

@@ -1,0 +1,325 @@
+"""OBJ garments: ``v`` = draped 3D garment, ``vt`` = sewing pattern (or -m/-w file pairs).
+
+Conventions handled (see ``shared/data/garments/*/SOURCE.md``):
+
+* one ``vt`` per face corner (Berkeley combined files): pattern vertices are recovered by
+  welding corners on (v index, identical vt value);
+* shared ``vt`` (ARCSim, GarmentCode box meshes): the same welding, which also merges
+  duplicated ``vt`` lines (reported as a warning);
+* ``name-m.obj`` (pattern in ``v``, z = 0) plus ``name-w.obj`` (world) with identical faces:
+  seam partners are vertices with bit-identical world positions.
+
+A seam edge is one 3D edge used by two pattern edges (see :mod:`solver.garment.model`).
+The files are parsed with NumPy over whole blocks of lines, not line by line.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from solver.garment.errors import GarmentError
+from solver.garment.model import Garment, build_garment
+from solver.garment.units import mm_per_unit
+
+_UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
+_UNITS_HINT_RE = re.compile(r"\((mm|cm|m)[,)\s]|\bin (mm|cm|m)\b")
+_TWO_D_MARK = "station: 2d-only"
+
+
+@dataclass
+class ObjData:
+    """Raw arrays of an OBJ file (0-based indices)."""
+
+    v: np.ndarray  # (n,3)
+    vt: np.ndarray  # (m,2)
+    f_v: np.ndarray  # (F,3)
+    f_vt: np.ndarray | None  # (F,3) or None when faces carry no vt
+    comments: list[str]
+
+
+def _floats(path: Path, lines: list[str], width: int, what: str) -> np.ndarray:
+    """Parse ``width`` leading numbers from each line; a short line means a truncated file."""
+    if not lines:
+        return np.zeros((0, width))
+    tokens = " ".join(lines).split()
+    try:
+        if len(tokens) == width * len(lines):
+            arr = np.array(tokens, dtype=float).reshape(-1, width)
+        else:
+            rows = [ln.split()[:width] for ln in lines]
+            short = [i for i, r in enumerate(rows) if len(r) < width]
+            if short:
+                raise GarmentError(
+                    path, f"{what} line {short[0] + 1} has fewer than {width} numbers (truncated?)"
+                )
+            arr = np.array(rows, dtype=float)
+    except ValueError as exc:
+        if isinstance(exc, GarmentError):
+            raise
+        raise GarmentError(path, f"bad number in {what} lines ({exc})") from None
+    if not np.isfinite(arr).all():
+        bad = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+        raise GarmentError(path, f"{what} {bad + 1} is not finite (NaN or inf)")
+    return arr
+
+
+def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]:
+    """Face lines -> (F,3) v indices and (F,3) vt indices (or None), 0-based, fan-split."""
+    if not lines:
+        raise GarmentError(path, "no faces (empty or truncated file)")
+    first = lines[0].split()[0] if lines[0].split() else ""
+    parts = first.split("/")
+    has_vt = len(parts) >= 2 and parts[1] != ""
+    per = len(parts)  # numbers per corner once '/' is replaced by ' ' (v//vn -> 2 tokens)
+    if len(parts) == 3 and parts[1] == "":
+        per = 2
+    tokens = " ".join(lines).replace("/", " ").split()
+    try:
+        if len(tokens) == 3 * per * len(lines):
+            arr = np.array(tokens, dtype=np.int64).reshape(len(lines), 3, per)
+            f_v = arr[:, :, 0]
+            f_vt = arr[:, :, 1] if has_vt else None
+        else:
+            f_v, f_vt = _faces_slow(path, lines, per, has_vt)
+    except ValueError as exc:
+        if isinstance(exc, GarmentError):
+            raise
+        raise GarmentError(path, f"bad face line ({exc})") from None
+    return f_v, f_vt
+
+
+def _faces_slow(
+    path: Path, lines: list[str], per: int, has_vt: bool
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Polygons or mixed lines: fan-triangulate; a face with < 3 corners is a truncation."""
+    fv: list[list[int]] = []
+    ft: list[list[int]] = []
+    for i, line in enumerate(lines):
+        corners = [c.split("/") for c in line.split()]
+        if len(corners) < 3 or any(len(c) != len(corners[0]) or c[0] == "" for c in corners):
+            raise GarmentError(path, f"face line {i + 1} is incomplete (truncated?): 'f {line}'")
+        vi = [int(c[0]) for c in corners]
+        ti = [int(c[1]) for c in corners] if has_vt else vi
+        for k in range(1, len(corners) - 1):
+            fv.append([vi[0], vi[k], vi[k + 1]])
+            ft.append([ti[0], ti[k], ti[k + 1]])
+    return np.array(fv, dtype=np.int64), (np.array(ft, dtype=np.int64) if has_vt else None)
+
+
+def read_obj(path: str | Path) -> ObjData:
+    """Read v, vt and faces of an OBJ file; ARCSim extras (vv, t, ...) are ignored."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        raise GarmentError(path, f"cannot read ({exc.strerror})") from None
+    if not text.strip():
+        raise GarmentError(path, "empty file")
+    lines = text.splitlines()
+    v_lines = [ln[2:] for ln in lines if ln.startswith("v ")]
+    vt_lines = [ln[3:] for ln in lines if ln.startswith("vt ")]
+    f_lines = [ln[2:] for ln in lines if ln.startswith("f ")]
+    comments = [ln[1:].strip() for ln in lines[:50] if ln.startswith("#")]
+    if not v_lines:
+        raise GarmentError(path, "no vertices (empty or truncated file)")
+    v = _floats(path, v_lines, 3, "vertex")
+    vt = _floats(path, vt_lines, 2, "texture vertex")
+    f_v, f_vt = _faces(path, f_lines)
+    f_v = _resolve(path, f_v, len(v), "vertex")
+    if f_vt is not None:
+        f_vt = _resolve(path, f_vt, len(vt), "texture vertex")
+    return ObjData(v, vt, f_v, f_vt, comments)
+
+
+def _resolve(path: Path, idx: np.ndarray, count: int, what: str) -> np.ndarray:
+    """1-based (or negative, relative-to-end) OBJ indices -> 0-based, range-checked."""
+    out = np.where(idx < 0, idx + count, idx - 1)
+    bad = (out < 0) | (out >= count)
+    if bad.any():
+        f = int(np.argmax(bad.any(axis=1)))
+        raise GarmentError(
+            path,
+            f"face {f + 1} points at missing {what} {int(idx[f][bad[f]][0])} (file has {count})",
+        )
+    return out
+
+
+def declared_piece_names(comments: list[str]) -> list[str] | None:
+    """Piece names from the ``# pieces: a, b`` header that :func:`save_obj` writes."""
+    for c in comments:
+        if c.startswith("pieces:"):
+            return [p.strip() for p in c[len("pieces:") :].split(",")]
+    return None
+
+
+def declared_units(comments: list[str]) -> str | None:
+    """Units the file states in its header comments (``# units: cm``, ``(cm, ...``)."""
+    for c in comments:
+        m = _UNITS_RE.search(c)
+        if m:
+            return m.group(1).lower()
+    for c in comments:
+        m = _UNITS_HINT_RE.search(c)
+        if m:
+            return (m.group(1) or m.group(2)).lower()
+    return None
+
+
+def _recover_scale(uv: np.ndarray, xyz: np.ndarray, faces: np.ndarray) -> float | None:
+    """Scale of normalised [0,1] texture coordinates, fitted to the 3D edge lengths.
+
+    Returns None unless the pattern spans exactly [0,1] along one axis and stays inside the
+    unit square, the usual sign of normalised UVs. The median 3D/2D edge-length ratio is
+    robust to the stretched faces that meshes have along seams.
+    """
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    tol = 1e-4
+    inside = (lo >= -tol).all() and (hi <= 1 + tol).all()
+    spans = ((np.abs(lo) <= tol) & (np.abs(hi - 1) <= tol)).any()
+    if not (inside and spans):
+        return None
+    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    l2 = np.linalg.norm(uv[e[:, 0]] - uv[e[:, 1]], axis=1)
+    l3 = np.linalg.norm(xyz[e[:, 0]] - xyz[e[:, 1]], axis=1)
+    ok = l2 > 1e-12
+    if not ok.any():
+        return None
+    return float(np.median(l3[ok] / l2[ok]))
+
+
+def load_obj(
+    path: str | Path, *, units: str | None = None, world: str | Path | None = None
+) -> Garment:
+    """Load an OBJ garment, or a pattern/world pair when ``world`` is given."""
+    path = Path(path)
+    if world is not None:
+        return load_obj_pair(path, Path(world), units=units)
+    obj = read_obj(path)
+    unit = units or declared_units(obj.comments) or "mm"
+    k = mm_per_unit(unit)
+    two_d = any(_TWO_D_MARK in c for c in obj.comments)
+    if obj.f_vt is None or len(obj.vt) == 0:
+        if np.abs(obj.v[:, 2]).max() > 0:
+            raise GarmentError(path, "faces carry no texture coordinates: no sewing pattern")
+        # a flat mesh on its own (e.g. a -m file without its -w partner): pattern only
+        return build_garment(
+            obj.v[:, :2] * k,
+            obj.f_v,
+            np.arange(len(obj.v)),
+            xyz=None,
+            source=path,
+            kind="obj",
+            units_in_file=unit,
+        )
+    corner_v = obj.f_v.ravel()
+    corner_vt = obj.f_vt.ravel()
+    key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    per_corner = np.bincount(corner_vt, minlength=len(obj.vt)).max() <= 1
+    if not per_corner:
+        by_index = len(np.unique(corner_v * len(obj.vt) + corner_vt))
+        if by_index > len(uniq):
+            warnings.warn(
+                f"{path}: welded {by_index - len(uniq)} duplicate texture vertices",
+                stacklevel=2,
+            )
+    point = uniq[:, 0].astype(np.int64)
+    uv = uniq[:, 1:]
+    faces = inv.reshape(-1, 3)
+    xyz = obj.v[point]
+    scale = None if two_d else _recover_scale(uv, xyz, faces)
+    if scale is not None:
+        uv = uv * scale
+    return build_garment(
+        uv * k,
+        faces,
+        point,
+        xyz=None if two_d else xyz * k,
+        source=path,
+        kind="obj",
+        units_in_file=unit,
+        scale_recovered=scale,
+        piece_names=declared_piece_names(obj.comments),
+    )
+
+
+def pair_partner(path: Path) -> Path | None:
+    """The other file of a Berkeley ``-m``/``-w`` pair, if it exists beside ``path``."""
+    stem = path.stem
+    for mine, other in (("-m", "-w"), ("-w", "-m")):
+        if stem.endswith(mine):
+            cand = path.with_name(stem[: -len(mine)] + other + path.suffix)
+            if cand.is_file():
+                return cand
+    return None
+
+
+def load_obj_pair(pattern: Path, world: Path, *, units: str | None = None) -> Garment:
+    """Pattern (-m, z = 0) and world (-w) meshes with identical faces; twins coincide in -w."""
+    m = read_obj(pattern)
+    w = read_obj(world)
+    if len(m.v) != len(w.v):
+        raise GarmentError(
+            world,
+            f"pattern and world files have different vertex counts ({len(m.v)} in "
+            f"{pattern.name}, {len(w.v)} here)",
+        )
+    if m.f_v.shape != w.f_v.shape or not np.array_equal(m.f_v, w.f_v):
+        nf = min(len(m.f_v), len(w.f_v))
+        diff = np.flatnonzero((m.f_v[:nf] != w.f_v[:nf]).any(axis=1))
+        where = f"first at face {int(diff[0]) + 1}" if diff.size else "face counts differ"
+        raise GarmentError(world, f"pattern and world files have different faces ({where})")
+    unit = units or declared_units(m.comments) or declared_units(w.comments) or "mm"
+    k = mm_per_unit(unit)
+    if np.abs(m.v[:, 2]).max() > 1e-9 * max(1.0, np.abs(m.v).max()):
+        warnings.warn(f"{pattern}: pattern file has non-zero z; z ignored", stacklevel=2)
+    _, point = np.unique(w.v, axis=0, return_inverse=True)
+    return build_garment(
+        m.v[:, :2] * k,
+        m.f_v,
+        point.ravel(),
+        xyz=w.v * k,
+        source=pattern,
+        kind="obj-pair",
+        units_in_file=unit,
+    )
+
+
+def save_obj(g: Garment, path: str | Path) -> None:
+    """Write ``g`` as OBJ: one ``v`` per 3D point, one ``vt`` per pattern vertex, in mm.
+
+    Twins share their ``v`` line, so the seams survive the round trip. A 2D-only garment
+    gets placeholder ``v`` (the pattern position, z = 0) and a header mark telling the
+    importer to ignore them.
+    """
+    path = Path(path)
+    n_points = int(g.point_of_vertex.max()) + 1
+    rep = np.zeros(n_points, dtype=np.int64)
+    rep[g.point_of_vertex[::-1]] = np.arange(g.n_vertices)[::-1]
+    if g.xyz is not None:
+        v = g.xyz[rep]
+    else:
+        v = np.column_stack([g.uv[rep], np.zeros(n_points)])
+    lines = [
+        "# garment written by the cutting station (solver.garment.save_obj)",
+        "# units: mm",
+        f"# pieces: {', '.join(g.piece_names)}",
+    ]
+    if g.xyz is None:
+        lines.append(f"# {_TWO_D_MARK} (v are placeholders; vt is the pattern)")
+    fv = g.point_of_vertex[g.faces] + 1
+    ft = g.faces + 1
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("\n".join(lines) + "\n")
+        np.savetxt(fh, v, fmt="v %.12g %.12g %.12g")
+        np.savetxt(fh, g.uv, fmt="vt %.12g %.12g")
+        corners = np.stack([fv, ft], axis=2).reshape(-1, 6)
+        np.savetxt(fh, corners, fmt="f %d/%d %d/%d %d/%d")
