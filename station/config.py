@@ -1,0 +1,169 @@
+"""station.toml: the one configuration file of a station, checked in full at startup.
+
+A bad configuration must fail when the daemon starts, not in the middle of a cut, so every
+key has a type and a range here, unknown sections and keys are errors (a typo would
+otherwise silently fall back to a default), and each error names the file, the key and
+what is expected.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+@dataclass(frozen=True)
+class Key:
+    """One configuration key: its type, default (None = required) and allowed range."""
+
+    kind: type
+    default: Any
+    help: str
+    minimum: float | None = None
+    choices: tuple[str, ...] | None = None
+
+
+SCHEMA: dict[str, dict[str, Key]] = {
+    "serial": {
+        "port": Key(str, "grblsim://?speed=50", "serial device, pty or pyserial URL"),
+        "baud": Key(int, 115200, "baud rate", minimum=1200),
+    },
+    "camera": {
+        "source": Key(str, "simulated", '"simulated", a device index, a video file or a '
+                      "GStreamer pipeline"),
+        "calibration": Key(str, "", "calibration JSON (empty: the simulated camera's truth)"),
+        "frames": Key(int, 4, "frames averaged per capture", minimum=1),
+    },
+    "machine": {
+        "profile": Key(str, "", "machine profile TOML (empty: the built-in 1600 x 1000 laser)"),
+        "check_mode": Key(bool, True, "validate every program with $C before cutting"),
+        "fabric_origin": Key(list, [0.0, 0.0], "table position (mm) of the fabric's corner"),
+    },
+    "store": {
+        "path": Key(str, "station-data/jobs.db", "SQLite job store"),
+        "work_dir": Key(str, "station-data/jobs", "per-job files (frames, plans, G-code)"),
+    },
+    "control": {
+        "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),
+        "group": Key(str, "", "group allowed to use the socket besides the station's user"),
+    },
+    "align": {
+        "method": Key(str, "global", "alignment method", choices=("paper", "global")),
+        "restarts": Key(int, 15, "random restarts", minimum=1),
+        "seed": Key(int, 0, "random seed"),
+        "reflect": Key(bool, False, "allow mirror-symmetric fits across seams"),
+        "grain_tolerance_deg": Key(float, -1.0, "keep pieces on grain within this many "
+                                   "degrees (negative: off)"),
+    },
+    "reshape": {
+        "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
+    },
+    "nest": {
+        "width_mm": Key(float, 1000.0, "usable fabric width across the table", minimum=1.0),
+        "length_mm": Key(float, 1600.0, "usable fabric length along the table", minimum=1.0),
+        "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0),
+        "seconds": Key(float, 10.0, "time for nesting", minimum=0.1),
+    },
+    "cut": {
+        "kerf_mm": Key(float, 0.2, "cut width", minimum=0.0),
+        "feed_mm_min": Key(float, 3000.0, "cutting feed", minimum=1.0),
+        "power": Key(float, 800.0, "laser power S", minimum=0.0),
+        "passes": Key(int, 1, "passes per contour", minimum=1),
+    },
+}
+
+
+class ConfigError(ValueError):
+    """A fault in station.toml, naming the file and the key."""
+
+
+@dataclass(frozen=True)
+class Config:
+    """The checked configuration: ``config["section"]["key"]``; paths are resolved."""
+
+    path: Path | None
+    values: dict[str, dict[str, Any]]
+
+    def __getitem__(self, section: str) -> dict[str, Any]:
+        return self.values[section]
+
+    def resolve(self, value: str) -> Path:
+        """A path from the file, relative to the file's folder (or the working folder)."""
+        p = Path(value).expanduser()
+        if p.is_absolute() or self.path is None:
+            return p
+        return self.path.parent / p
+
+
+def defaults() -> Config:
+    return Config(None, {s: {k: key.default for k, key in keys.items()}
+                         for s, keys in SCHEMA.items()})
+
+
+def load_config(path: str | Path | None, overrides: dict[str, dict[str, Any]] | None = None
+                ) -> Config:
+    """Read and check station.toml (None: the defaults); ``overrides`` win over the file."""
+    raw: dict[str, Any] = {}
+    where = "defaults"
+    if path is not None:
+        path = Path(path)
+        where = str(path)
+        try:
+            raw = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise ConfigError(f"{path}: no such configuration file") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    for section, keys in (overrides or {}).items():
+        raw.setdefault(section, {}).update(keys)
+    values: dict[str, dict[str, Any]] = {}
+    for section, given in raw.items():
+        if section not in SCHEMA:
+            raise ConfigError(f"{where}: unknown section [{section}]; known sections: "
+                              f"{', '.join(SCHEMA)}")
+        if not isinstance(given, dict):
+            raise ConfigError(f"{where}: [{section}] must be a table of keys")
+    for section, keys in SCHEMA.items():
+        given = raw.get(section, {})
+        unknown = sorted(set(given) - set(keys))
+        if unknown:
+            raise ConfigError(f"{where}: unknown key {section}.{unknown[0]}; [{section}] "
+                              f"takes {', '.join(keys)}")
+        values[section] = {name: _check(where, section, name, key, given.get(name, key.default))
+                           for name, key in keys.items()}
+    return Config(path, values)
+
+
+def _check(where: str, section: str, name: str, key: Key, value: Any) -> Any:
+    label = f"{where}: {section}.{name}"
+    if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if key.kind is not bool and isinstance(value, bool) or not isinstance(value, key.kind):
+        raise ConfigError(f"{label} must be {key.kind.__name__} ({key.help}), "
+                          f"got {value!r}")
+    if key.minimum is not None and value < key.minimum:
+        raise ConfigError(f"{label} must be at least {key.minimum:g}, got {value!r}")
+    if key.choices is not None and value not in key.choices:
+        raise ConfigError(f"{label} must be one of {', '.join(key.choices)}, got {value!r}")
+    return value
+
+
+def example_toml() -> str:
+    """A complete station.toml with every key, its default and what it means."""
+    lines = ["# station.toml: every key with its default", ""]
+    for section, keys in SCHEMA.items():
+        lines.append(f"[{section}]")
+        for name, key in keys.items():
+            value = key.default
+            text = (str(value).lower() if isinstance(value, bool)
+                    else f'"{value}"' if isinstance(value, str) else repr(value))
+            lines.append(f"{name} = {text}  # {key.help}")
+        lines.append("")
+    return "\n".join(lines)
