@@ -1,0 +1,580 @@
+"""Streaming a program to GRBL 1.1 over any pyserial-like port, knowing exactly what was cut.
+
+The streamer follows GRBL's character-counting protocol: it keeps the bytes of every line
+sent but not yet answered, and sends the next line only while they fit in the controller's
+receive buffer (127 of its 128 bytes). Only ``ok`` and ``error:N`` answer a line; everything
+else (status reports, messages, alarms, the banner) is pushed and handled on its own.
+
+A piece goes pending -> cutting when its first line is sent and -> cut only when the ``ok``
+of its sync line (``G4 P0.01`` after its last cut) arrives: GRBL answers a dwell only after
+every motion before it has finished. Once anything goes wrong (error, alarm, reset banner,
+garbled answer, silence, disconnect) piece states freeze, so no piece is ever reported cut
+on an answer that might have been misattributed.
+
+Works with a real serial port, a pseudo-terminal, or a pyserial URL (the emulator), because
+it only uses ``read``, ``write``, ``in_waiting`` and ``timeout``.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from gcode.grbl import Response, Status, error_message, parse_response, parse_settings
+from gcode.program import Program, strip_comment
+
+__all__ = ["PieceState", "Progress", "StreamError", "StreamResult", "Streamer", "is_sync_command"]
+
+log = logging.getLogger("gcode.stream")
+
+FEED_HOLD = b"!"
+CYCLE_START = b"~"
+STATUS = b"?"
+SOFT_RESET = b"\x18"
+
+# Commands GRBL must execute alone: they write EEPROM (which stalls the serial interrupt on
+# AVR) or change state that the lines behind them depend on.
+_SYNC_CMD = re.compile(r"^(\$|G10L[0-9]|G28\.1|G30\.1)", re.IGNORECASE)
+
+
+def is_sync_command(code: str) -> bool:
+    """True for ``$`` system commands and EEPROM-writing G-codes (sent one at a time)."""
+    return bool(_SYNC_CMD.match(code.replace(" ", "")))
+
+
+class StreamError(Exception):
+    """The streamer could not start (no banner, controller in alarm, port unusable)."""
+
+
+class _Disconnect(Exception):
+    pass
+
+
+@dataclass
+class PieceState:
+    """The cut record of one piece; ``state`` is ``pending``, ``cutting`` or ``cut``."""
+
+    number: int
+    id: str
+    name: str
+    sync_line: int  # 0-based index into the program's lines
+    state: str = "pending"
+
+
+@dataclass
+class Progress:
+    lines_total: int
+    lines_sent: int
+    lines_acked: int
+    fraction: float
+    elapsed: float
+    eta_seconds: float | None
+    state: str | None  # last machine state reported
+    pieces_cut: int
+
+
+@dataclass
+class StreamResult:
+    """What happened: ``reason`` is ``done``, ``checked``, ``error``, ``alarm``, ``reset``,
+    ``garbled``, ``unmatched``, ``timeout``, ``disconnect``, ``stopped`` or ``interrupted``."""
+
+    completed: bool
+    reason: str
+    lines_total: int
+    lines_sent: int = 0
+    lines_acked: int = 0
+    errors: list[dict] = field(default_factory=list)
+    alarms: list[dict] = field(default_factory=list)
+    pieces: list[PieceState] = field(default_factory=list)
+    fault: dict | None = None
+    position: tuple[float, ...] | None = None
+    seconds: float = 0.0
+    check: bool = False
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def pieces_cut(self) -> int:
+        return sum(p.state == "cut" for p in self.pieces)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["pieces_cut"] = self.pieces_cut
+        d["position"] = list(self.position) if self.position else None
+        return d
+
+
+class _Fault(Exception):
+    def __init__(self, reason: str, detail: str, line: int | None = None):
+        super().__init__(detail)
+        self.reason, self.detail, self.line = reason, detail, line
+
+
+class Streamer:
+    """Stream G-code to a GRBL 1.1 controller with character counting.
+
+    ``port`` is anything with ``read(n)``, ``write(b)``, ``in_waiting`` and ``timeout``
+    (``serial.Serial``, ``serial.serial_for_url(...)``). Hooks: ``on_piece(PieceState)`` on
+    every change of a piece's state (the job store persists it there), ``on_progress``
+    (``Progress``) at most 10 times a second, ``on_fault(dict)`` once when a run stops early.
+    """
+
+    def __init__(self, port, *, rx_buffer: int = 128, poll_hz: float = 5.0,
+                 response_timeout: float = 5.0, stall_timeout: float = 5.0,
+                 banner_timeout: float = 6.0, compact: bool = True,
+                 on_piece: Callable[[PieceState], None] | None = None,
+                 on_progress: Callable[[Progress], None] | None = None,
+                 on_fault: Callable[[dict], None] | None = None,
+                 name: str = "grbl"):
+        if poll_hz <= 0 or poll_hz > 5.0:
+            raise ValueError("poll_hz must be in (0, 5]: GRBL answers status queries within "
+                             "~5-20 ms but each one costs it serial time")
+        self.port = port
+        self.budget = rx_buffer - 1
+        self.poll_interval = 1.0 / poll_hz
+        self.response_timeout = response_timeout
+        self.stall_timeout = stall_timeout
+        self.banner_timeout = banner_timeout
+        self.compact = compact
+        self.on_piece = on_piece
+        self.on_progress = on_progress
+        self.on_fault = on_fault
+        self.prefix = f"{name}: "
+        self._rxbuf = b""
+        self._inflight: deque[tuple[int, int]] = deque()  # (stream index, bytes)
+        self._inflight_bytes = 0
+        self.status: Status | None = None
+        self.banner: str | None = None
+        self._banners = 0
+        self._last_poll = -1e9
+        self._status_pending_since: float | None = None
+        self._last_rx = time.monotonic()
+        self._last_ack = time.monotonic()
+        self._pause = self._resume = self._stop = False
+        self._frozen = False
+        self._messages: list[str] = []
+        self._collect: list[Response] | None = None
+        try:
+            self.port.timeout = 0.02
+        except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
+            pass
+
+    # ------------------------------------------------------------ control (any thread)
+    def pause(self) -> None:
+        """Feed hold (``!``) at the next loop turn; lines keep filling the buffer."""
+        self._pause = True
+
+    def resume(self) -> None:
+        """Cycle start (``~``)."""
+        self._resume = True
+
+    def stop(self) -> None:
+        """Safe stop: feed hold, wait for Hold:0, soft reset, laser off."""
+        self._stop = True
+
+    # ------------------------------------------------------------ low level I/O
+    def _write(self, data: bytes) -> None:
+        try:
+            self.port.write(data)
+        except Exception as exc:  # serial.SerialException, OSError, PortNotOpenError
+            raise _Disconnect(f"write failed: {exc}") from exc
+
+    def _read_lines(self) -> list[str]:
+        try:
+            n = self.port.in_waiting
+            data = self.port.read(n if n else 1)
+        except Exception as exc:
+            raise _Disconnect(f"read failed: {exc}") from exc
+        if data is None:
+            data = b""
+        if data:
+            self._last_rx = time.monotonic()
+        self._rxbuf += data
+        *lines, self._rxbuf = self._rxbuf.split(b"\n")
+        return [ln.rstrip(b"\r").decode("ascii", errors="replace") for ln in lines]
+
+    def _poll(self, now: float, interval: float | None = None) -> None:
+        if now - self._last_poll >= (interval or self.poll_interval):
+            self._write(STATUS)
+            self._last_poll = now
+            if self._status_pending_since is None:
+                self._status_pending_since = now
+
+    # ------------------------------------------------------------ connecting
+    def connect(self, *, reset_if_silent: bool = True, quiet: float = 1.5) -> str:
+        """Wait for GRBL's banner (soft-resetting once if it stays silent); return it.
+
+        Raises StreamError if no banner arrives or the controller boots in alarm.
+        """
+        start = time.monotonic()
+        reset_sent = False
+        seen = self._banners
+        alarm_boot = False
+        while self._banners == seen:
+            now = time.monotonic()
+            if now - start > self.banner_timeout:
+                raise StreamError(f"{self.prefix}no GRBL banner within {self.banner_timeout:g} s")
+            if reset_if_silent and not reset_sent and now - start > quiet:
+                self._write(SOFT_RESET)
+                reset_sent = True
+            for line in self._read_lines():
+                r = parse_response(line)
+                if r.kind == "banner":
+                    self._on_banner(r)
+        # a boot in alarm announces itself right after the banner
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:
+            for line in self._read_lines():
+                r = parse_response(line)
+                if r.kind == "msg" and "unlock" in (r.text or ""):
+                    alarm_boot = True
+                elif r.kind == "banner":
+                    self._on_banner(r)
+        st = self.query_status()
+        if alarm_boot or (st is not None and st.state == "Alarm"):
+            raise StreamError(f"{self.prefix}controller is in ALARM after start-up: home ($H) or "
+                              "unlock ($X) it first (station stream --unlock)")
+        return self.banner or ""
+
+    def _on_banner(self, r: Response) -> None:
+        """GRBL restarted: whatever was in flight is gone, so counters start afresh."""
+        self.banner = r.text
+        self._banners += 1
+        self._inflight.clear()
+        self._inflight_bytes = 0
+        self._status_pending_since = None
+        log.info("%sbanner Grbl %s", self.prefix, r.text)
+
+    def query_status(self, timeout: float = 2.0) -> Status | None:
+        """Ask ``?`` and wait for the report (None if none came)."""
+        before = self.status
+        self._write(STATUS)
+        self._last_poll = time.monotonic()
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for line in self._read_lines():
+                r = parse_response(line)
+                if r.kind == "status":
+                    self.status = r.status
+                    return r.status
+                if r.kind == "banner":
+                    self._on_banner(r)
+        return None if before is self.status else self.status
+
+    def command(self, line: str, timeout: float = 10.0) -> tuple[Response, list[Response]]:
+        """Send one command alone (nothing else in flight) and wait for its ok/error.
+
+        Returns the answer and the pushed lines that came with it (settings, [GC:], ...).
+        This is how ``$`` settings and EEPROM writes go out: one at a time.
+        """
+        if self._inflight:
+            raise StreamError(f"{self.prefix}command {line!r} while lines are in flight")
+        data = line.strip().encode("ascii") + b"\n"
+        if len(data) > self.budget:
+            raise StreamError(f"{self.prefix}command longer than the receive buffer: {line!r}")
+        self._write(data)
+        got: list[Response] = []
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for raw in self._read_lines():
+                r = parse_response(raw)
+                if r.kind in ("ok", "error"):
+                    return r, got
+                if r.kind == "status":
+                    self.status = r.status
+                elif r.kind == "banner":
+                    self._on_banner(r)
+                    got.append(r)
+                elif r.kind != "empty":
+                    got.append(r)
+        raise StreamError(f"{self.prefix}no answer to {line!r} within {timeout:g} s")
+
+    def read_settings(self) -> dict[int, float]:
+        """``$$`` -> {n: value}."""
+        r, pushed = self.command("$$")
+        if r.kind != "ok":
+            raise StreamError(f"{self.prefix}$$ failed: {r.message}")
+        return parse_settings([p.raw for p in pushed])
+
+    def unlock(self) -> None:
+        """``$X``: leave the alarm lock (after the operator has made the machine safe)."""
+        r, _ = self.command("$X")
+        if r.kind != "ok":
+            raise StreamError(f"{self.prefix}$X failed: {r.message}")
+
+    # ------------------------------------------------------------ streaming
+    def run(self, program: Program, *, check: bool = False) -> StreamResult:
+        """Stream ``program``; with ``check`` run it in GRBL's check mode ($C) instead.
+
+        Returns when the job is done or has stopped safely; never raises for machine faults
+        (they are in the result), only StreamError when it cannot start.
+        """
+        t0 = time.monotonic()
+        stream: list[tuple[int, str]] = []  # (program line index, code to send)
+        for i, line in enumerate(program.lines):
+            code = strip_comment(line)
+            if self.compact:
+                code = code.replace(" ", "")
+            if code:
+                stream.append((i, code))
+        pos_of_line = {i: k for k, (i, _) in enumerate(stream)}
+        pieces = [PieceState(p.number, p.id, p.name, p.sync_line) for p in program.pieces]
+        sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)
+                   if p.sync_line in pos_of_line}
+        piece_of = np.full(len(stream), -1)
+        for n, p in enumerate(program.pieces):
+            lo = np.searchsorted([i for i, _ in stream], p.first_line)
+            hi = pos_of_line.get(p.sync_line, lo)
+            piece_of[lo:hi + 1] = n
+        weights = (np.array([program.check.seconds[i] for i, _ in stream])
+                   if program.check is not None and len(stream) else np.ones(len(stream)))
+        weights = np.maximum(weights, 1e-3)
+        cum = np.concatenate([[0.0], np.cumsum(weights)])
+        res = StreamResult(completed=False, reason="", lines_total=len(stream), check=check,
+                           pieces=pieces)
+        self._frozen = check  # check mode proves nothing was cut
+        self._messages = res.messages
+        sent = 0
+        acked = 0
+        last_progress = 0.0
+        banners_at_start = self._banners
+
+        def set_piece(n: int, state: str) -> None:
+            if self._frozen or pieces[n].state == state or pieces[n].state == "cut":
+                return
+            pieces[n].state = state
+            log.info("%spiece %d %s %s", self.prefix, pieces[n].number, pieces[n].id, state)
+            if self.on_piece:
+                self.on_piece(pieces[n])
+
+        def progress(force: bool = False) -> None:
+            nonlocal last_progress
+            now = time.monotonic()
+            if not self.on_progress or (not force and now - last_progress < 0.1):
+                return
+            last_progress = now
+            frac = float(cum[acked] / cum[-1]) if len(stream) else 1.0
+            el = now - t0
+            eta = el * (1 - frac) / frac if frac > 0.02 else None
+            self.on_progress(Progress(len(stream), sent, acked, frac, el, eta,
+                                      self.status.state if self.status else None,
+                                      sum(p.state == "cut" for p in pieces)))
+
+        try:
+            try:
+                if check:
+                    self._enter_check()
+                    banners_at_start = self._banners
+                while acked < len(stream):
+                    now = time.monotonic()
+                    if self._stop:
+                        raise _Fault("stopped", "stopped by the operator")
+                    if self._pause:
+                        self._pause = False
+                        self._write(FEED_HOLD)
+                    if self._resume:
+                        self._resume = False
+                        self._write(CYCLE_START)
+                    # send while the next line fits; sync commands go alone
+                    while sent < len(stream):
+                        code = stream[sent][1]
+                        n_bytes = len(code) + 1
+                        if n_bytes > self.budget:
+                            raise _Fault("error", f"line longer than the receive buffer "
+                                         f"({n_bytes} bytes)", stream[sent][0])
+                        if is_sync_command(code) and self._inflight:
+                            break
+                        if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
+                            break
+                        if self._inflight_bytes + n_bytes > self.budget:
+                            break
+                        if not self._inflight:
+                            self._last_ack = time.monotonic()
+                        self._write(code.encode("ascii") + b"\n")
+                        self._inflight.append((sent, n_bytes))
+                        self._inflight_bytes += n_bytes
+                        if piece_of[sent] >= 0:
+                            set_piece(int(piece_of[sent]), "cutting")
+                        sent += 1
+                    self._poll(now)
+                    for raw in self._read_lines():
+                        r = parse_response(raw)
+                        if r.kind in ("ok", "error"):
+                            if not self._inflight:
+                                raise _Fault("unmatched", f"{raw!r} with no line in flight")
+                            k, nb = self._inflight.popleft()
+                            self._inflight_bytes -= nb
+                            self._last_ack = time.monotonic()
+                            acked = k + 1
+                            if r.kind == "error":
+                                err = {"line": stream[k][0] + 1, "text": stream[k][1],
+                                       "code": r.code, "message": error_message(r.code or 0)}
+                                res.errors.append(err)
+                                log.warning("%sline %d %r: %s", self.prefix, err["line"],
+                                            err["text"], err["message"])
+                                if not check:
+                                    raise _Fault("error", err["message"], stream[k][0])
+                            elif k in sync_at:
+                                set_piece(sync_at[k], "cut")
+                        elif r.kind == "alarm":
+                            res.alarms.append({"code": r.code, "message": r.message})
+                            raise _Fault("alarm", r.message, self._oldest_line(stream))
+                        elif r.kind == "banner":
+                            self._on_banner(r)
+                            if self._banners != banners_at_start:
+                                raise _Fault("reset", "the controller restarted (banner) "
+                                             "mid-job: lines in flight were lost")
+                        elif r.kind == "unknown":
+                            raise _Fault("garbled", f"unreadable answer {raw!r}",
+                                         self._oldest_line(stream))
+                        else:
+                            self._handle_push(r)
+                    self._watchdog(stream)
+                    progress()
+                progress(force=True)
+                if check:
+                    self._leave_check()
+                    res.reason = "checked" if not res.errors else "error"
+                    res.completed = not res.errors
+                else:
+                    self._wait_idle()
+                    res.reason, res.completed = "done", True
+            except KeyboardInterrupt:
+                self._frozen = True
+                self._record_fault(res, _Fault("interrupted", "interrupted"), stream, sent, acked)
+                self._safe_stop(res)
+            except _Fault as f:
+                self._frozen = True
+                self._record_fault(res, f, stream, sent, acked)
+                if f.reason not in ("alarm",):
+                    self._safe_stop(res)
+        except _Disconnect as exc:
+            self._frozen = True
+            if not res.reason:
+                self._record_fault(res, _Fault("disconnect", str(exc)), stream, sent, acked)
+            else:
+                res.messages.append(f"disconnected during the safe stop: {exc}")
+        res.lines_sent, res.lines_acked = sent, acked
+        res.seconds = time.monotonic() - t0
+        if res.position is None and self.status is not None:
+            res.position = self.status.position()
+        return res
+
+    # ------------------------------------------------------------ helpers
+    def _oldest_line(self, stream: list[tuple[int, str]]) -> int | None:
+        return stream[self._inflight[0][0]][0] if self._inflight else None
+
+    def _handle_push(self, r: Response) -> None:
+        if r.kind == "status":
+            self.status = r.status
+            self._status_pending_since = None
+        elif r.kind in ("msg", "feedback", "gc", "ver", "opt", "help", "param", "echo",
+                        "startup_exec", "setting", "startup_line"):
+            self._messages.append(r.raw)
+            log.info("%s%s", self.prefix, r.raw)
+
+    def _watchdog(self, stream: list[tuple[int, str]]) -> None:
+        now = time.monotonic()
+        if (self._status_pending_since is not None
+                and now - self._status_pending_since > self.response_timeout):
+            raise _Fault("timeout", f"no status report for {self.response_timeout:g} s "
+                         "(controller silent: power cut or cable?)", self._oldest_line(stream))
+        st = self.status
+        if (self._inflight and st is not None and st.state == "Idle"
+                and now - self._last_ack > self.stall_timeout):
+            raise _Fault("timeout", "controller idle with lines unanswered (a lost byte?)",
+                         self._oldest_line(stream))
+
+    def _record_fault(self, res: StreamResult, f: _Fault, stream, sent: int, acked: int) -> None:
+        res.reason = f.reason
+        res.position = self.status.position() if self.status else None
+        line = f.line
+        res.fault = {
+            "reason": f.reason,
+            "detail": f.detail,
+            "line": None if line is None else line + 1,
+            "lines_sent": sent,
+            "lines_acked": acked,
+            "state": self.status.state if self.status else None,
+            "position": list(res.position) if res.position else None,
+        }
+        log.error("%sstopping: %s (%s)", self.prefix, f.detail, f.reason)
+        if self.on_fault:
+            self.on_fault(res.fault)
+
+    def _wait_status(self, pred: Callable[[Status], bool], timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            self._poll(time.monotonic(), 0.1)
+            for raw in self._read_lines():
+                r = parse_response(raw)
+                if r.kind == "status":
+                    self.status = r.status
+                    self._status_pending_since = None
+                    if pred(r.status):
+                        return True
+                elif r.kind == "banner":
+                    self._on_banner(r)
+                elif r.kind not in ("ok", "error", "empty", "unknown"):
+                    self._handle_push(r)
+        return False
+
+    def _wait_idle(self, timeout: float = 120.0) -> None:
+        if not self._wait_status(lambda s: s.state in ("Idle", "Check"), timeout):
+            raise _Fault("timeout", f"the controller did not come back to Idle in {timeout:g} s")
+
+    def _safe_stop(self, res: StreamResult, hold_timeout: float = 10.0) -> None:
+        """Feed hold, wait for Hold:0 (decelerated: a reset keeps position), soft reset,
+        then laser and air off."""
+        self._write(FEED_HOLD)
+        held = self._wait_status(
+            lambda s: (s.state == "Hold" and s.substate == 0) or s.state in ("Idle", "Alarm",
+                                                                             "Check"),
+            hold_timeout)
+        if not held:
+            res.messages.append("no Hold:0 before the reset (controller silent?)")
+        banners = self._banners
+        self._write(SOFT_RESET)
+        end = time.monotonic() + self.banner_timeout
+        while self._banners == banners and time.monotonic() < end:
+            for raw in self._read_lines():
+                r = parse_response(raw)
+                if r.kind == "banner":
+                    self._on_banner(r)
+                elif r.kind == "alarm":
+                    res.alarms.append({"code": r.code, "message": r.message})
+                elif r.kind not in ("ok", "error", "empty", "unknown"):
+                    self._handle_push(r)
+        if self._banners == banners:
+            res.messages.append("no banner after the soft reset")
+            return
+        st = self.query_status(1.0)
+        if st is not None and st.state not in ("Alarm",):
+            for cmd in ("M5", "M9"):  # a reset already stops them; say so explicitly anyway
+                try:
+                    self.command(cmd, timeout=2.0)
+                except StreamError as exc:
+                    res.messages.append(str(exc))
+
+    def _enter_check(self) -> None:
+        r, pushed = self.command("$C")
+        if r.kind != "ok" or not any("Enabled" in (p.text or "") for p in pushed):
+            raise StreamError(f"{self.prefix}could not enter check mode: {r.raw}")
+
+    def _leave_check(self) -> None:
+        """``$C`` again: GRBL leaves check mode with a soft reset (a banner follows)."""
+        banners = self._banners
+        r, pushed = self.command("$C")
+        end = time.monotonic() + self.banner_timeout
+        while self._banners == banners and time.monotonic() < end:
+            for raw in self._read_lines():
+                rr = parse_response(raw)
+                if rr.kind == "banner":
+                    self._on_banner(rr)
+        if r.kind != "ok":
+            raise _Fault("error", f"could not leave check mode: {r.raw}")

@@ -1,0 +1,76 @@
+"""`station gcode`: G-code for a layout, checked against the machine profile before writing."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from gcode.layout import load_layout
+from gcode.machine import default_machine, load_machine
+from gcode.program import build_program
+from gcode.toolpath import build_toolpaths
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "gcode",
+        help="make the G-code program that cuts a layout",
+        description="Toolpaths (kerf offset, notches, marks, inner contours first, short travel, "
+        "G2/G3 arcs) and a GRBL program for a laser or knife, with a sync point after each "
+        "piece. The program is checked against the machine profile (work area, feed, power, "
+        "no laser during rapid moves) and is not written if any check fails.",
+    )
+    p.add_argument("layout", metavar="LAYOUT.json", help="the nested pieces (fabric mm)")
+    p.add_argument("--machine", metavar="MACHINE.toml",
+                   help="machine profile (default: built-in 1600 x 1000 mm GRBL laser table)")
+    p.add_argument("-o", "--output", required=True, metavar="JOB.nc", help="program to write")
+    p.add_argument("--pieces", metavar="ID,ID,...",
+                   help="cut only these piece ids (e.g. the ones not cut yet)")
+    p.add_argument("--no-arcs", action="store_true", help="straight lines only (no G2/G3)")
+    p.add_argument("--kerf", type=float, help="override the profile's kerf (mm)")
+    p.add_argument("--passes", type=int, help="override the profile's passes")
+    p.add_argument("--lead-in", type=float, help="override the profile's lead-in (mm)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    machine = load_machine(args.machine) if args.machine else default_machine()
+    changes = {}
+    if args.no_arcs:
+        changes["arcs"] = False
+    if args.kerf is not None:
+        changes["kerf"] = args.kerf
+    if args.passes is not None:
+        changes["passes"] = args.passes
+    if args.lead_in is not None:
+        changes["lead_in"] = args.lead_in
+    if changes:
+        machine = machine.with_cut(**changes)
+    layout = load_layout(args.layout)
+    only = {s.strip() for s in args.pieces.split(",") if s.strip()} if args.pieces else None
+    toolpaths = build_toolpaths(layout, machine, only=only)
+    program = build_program(toolpaths, machine, title=f"station job {layout.source}")
+    program.write(args.output)
+    summary = program.summary()
+    summary.update({
+        "output": args.output,
+        "machine": machine.name,
+        "bytes": len(program.text()),
+        "arcs": sum(ln.startswith(("G2 ", "G3 ")) for ln in program.lines),
+        "warnings": program.warnings,
+        "seconds": round(time.perf_counter() - start, 3),
+    })
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        for w in program.warnings:
+            print(f"station gcode: warning: {w}", file=sys.stderr)
+        print(f"{args.output}: {summary['lines']} lines, {summary['pieces']} pieces, "
+              f"cut {summary['cut_length_mm'] / 1000:.2f} m, travel "
+              f"{summary['travel_length_mm'] / 1000:.2f} m, about "
+              f"{summary['estimated_seconds'] / 60:.1f} min on {machine.name}")
+    return 0
