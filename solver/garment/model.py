@@ -246,12 +246,15 @@ def build_garment(
     piece_names: list[str] | None = None,
     grainlines: dict | None = None,
     notches: dict | None = None,
+    twins: np.ndarray | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
     ``piece_names`` are given per connected component in order of first appearance in
     ``faces`` (importers emit pieces in order). Degenerate faces are dropped and unused
-    vertices removed, each with a warning that says how many.
+    vertices removed, each with a warning that says how many. ``twins`` (E,4) gives the seam
+    edges explicitly (in input vertex numbering) when the importer knows them (stitches);
+    otherwise they are inferred from shared 3D points.
     """
     uv = np.asarray(uv, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
@@ -319,42 +322,13 @@ def build_garment(
         )
     bhe = he[counts[inv] == 1]
 
-    # seam edges: one 3D edge used by two pattern boundary edges
-    pa, pb = point_of_vertex[bhe[:, 0]], point_of_vertex[bhe[:, 1]]
-    collapsed = pa == pb
-    if collapsed.any():
-        warnings.warn(
-            f"{source}: ignored {int(collapsed.sum())} boundary edges whose two ends are "
-            "sewn to the same point",
-            stacklevel=3,
-        )
-        bhe, pa, pb = bhe[~collapsed], pa[~collapsed], pb[~collapsed]
-    n_points = int(point_of_vertex.max()) + 1
-    key3 = np.minimum(pa, pb) * n_points + np.maximum(pa, pb)
-    # sort by 3D key, then piece, then vertex so the first twin is deterministic
-    order = np.lexsort((bhe[:, 0], piece_of_vertex[bhe[:, 0]], key3))
-    bhe, key3 = bhe[order], key3[order]
-    uniq, start, counts3 = np.unique(key3, return_index=True, return_counts=True)
-    if counts3.size and counts3.max() > 2:
-        k = int(np.argmax(counts3))
-        users = bhe[start[k] : start[k] + counts3[k]]
-        pieces = sorted({int(p) for p in piece_of_vertex[users[:, 0]]})
-        raise GarmentError(
-            source,
-            f"3D edge between points {int(uniq[k] // n_points) + 1} and "
-            f"{int(uniq[k] % n_points) + 1} is used by {int(counts3[k])} pattern edges "
-            f"(pieces {', '.join(map(str, pieces))}): an edge can join only two pieces",
-        )
-    twin = start[counts3 == 2]
-    first_e, second_e = bhe[twin], bhe[twin + 1]
-    same = point_of_vertex[second_e[:, 0]] == point_of_vertex[first_e[:, 0]]
-    a2 = np.where(same, second_e[:, 0], second_e[:, 1])
-    b2 = np.where(same, second_e[:, 1], second_e[:, 0])
-    seam_edges = np.column_stack([first_e, a2, b2]).astype(np.int64)
+    if twins is None:
+        seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
+    else:
+        seam_edges, boundary_3d = _explicit_twins(bhe, remap[np.asarray(twins)], source)
     # keep seam edges in a stable, readable order: by piece, then by vertex
     so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
     seam_edges = seam_edges[so]
-    boundary_3d = int((counts3 == 1).sum())
 
     names = list(piece_names) if piece_names is not None else []
     if len(names) != n_pieces:
@@ -422,3 +396,74 @@ def _seam_lines(
         suffix = f"#{k + 1}" if total[(a, b)] > 1 else ""
         lines.append(SeamLine(a, b, 1.0, f"{names[a]}~{names[b]}{suffix}"))
     return line_of_edge, lines
+
+
+def _infer_twins(
+    bhe: np.ndarray, point_of_vertex: np.ndarray, piece_of_vertex: np.ndarray, source: str | Path
+) -> tuple[np.ndarray, int]:
+    """Seam edges = 3D edges used by exactly two pattern boundary edges (vectorised)."""
+    # seam edges: one 3D edge used by two pattern boundary edges
+    pa, pb = point_of_vertex[bhe[:, 0]], point_of_vertex[bhe[:, 1]]
+    collapsed = pa == pb
+    if collapsed.any():
+        warnings.warn(
+            f"{source}: ignored {int(collapsed.sum())} boundary edges whose two ends are "
+            "sewn to the same point",
+            stacklevel=4,
+        )
+        bhe, pa, pb = bhe[~collapsed], pa[~collapsed], pb[~collapsed]
+    n_points = int(point_of_vertex.max()) + 1
+    key3 = np.minimum(pa, pb) * n_points + np.maximum(pa, pb)
+    # sort by 3D key, then piece, then vertex so the first twin is deterministic
+    order = np.lexsort((bhe[:, 0], piece_of_vertex[bhe[:, 0]], key3))
+    bhe, key3 = bhe[order], key3[order]
+    uniq, start, counts3 = np.unique(key3, return_index=True, return_counts=True)
+    if counts3.size and counts3.max() > 2:
+        k = int(np.argmax(counts3))
+        users = bhe[start[k] : start[k] + counts3[k]]
+        pieces = sorted({int(p) for p in piece_of_vertex[users[:, 0]]})
+        raise GarmentError(
+            source,
+            f"3D edge between points {int(uniq[k] // n_points) + 1} and "
+            f"{int(uniq[k] % n_points) + 1} is used by {int(counts3[k])} pattern edges "
+            f"(pieces {', '.join(map(str, pieces))}): an edge can join only two pieces",
+        )
+    twin = start[counts3 == 2]
+    first_e, second_e = bhe[twin], bhe[twin + 1]
+    same = point_of_vertex[second_e[:, 0]] == point_of_vertex[first_e[:, 0]]
+    a2 = np.where(same, second_e[:, 0], second_e[:, 1])
+    b2 = np.where(same, second_e[:, 1], second_e[:, 0])
+    seam_edges = np.column_stack([first_e, a2, b2]).astype(np.int64)
+    boundary_3d = int((counts3 == 1).sum())
+    return seam_edges, boundary_3d
+
+
+def _explicit_twins(
+    bhe: np.ndarray, twins: np.ndarray, source: str | Path
+) -> tuple[np.ndarray, int]:
+    """Twin pairs given by the importer (stitches), oriented like their first edge's face."""
+    if twins.size == 0:
+        return np.zeros((0, 4), dtype=np.int64), len(bhe)
+    if (twins < 0).any():
+        raise GarmentError(source, "a seam edge uses a vertex that is in no face")
+    n = int(max(bhe.max(initial=0), twins.max())) + 1
+    fwd = bhe[:, 0].astype(np.int64) * n + bhe[:, 1]
+    rev = bhe[:, 1].astype(np.int64) * n + bhe[:, 0]
+    k1 = twins[:, 0] * n + twins[:, 1]
+    k2 = twins[:, 2] * n + twins[:, 3]
+    ok1_f, ok1_r = np.isin(k1, fwd), np.isin(k1, rev)
+    ok2 = np.isin(k2, fwd) | np.isin(k2, rev)
+    if not ((ok1_f | ok1_r) & ok2).all():
+        raise GarmentError(source, "a stitched edge is not on a panel boundary")
+    out = np.where(ok1_f[:, None], twins, twins[:, [1, 0, 3, 2]]).astype(np.int64)
+    used = np.unique(
+        np.concatenate(
+            [
+                np.minimum(out[:, 0], out[:, 1]) * n + np.maximum(out[:, 0], out[:, 1]),
+                np.minimum(out[:, 2], out[:, 3]) * n + np.maximum(out[:, 2], out[:, 3]),
+            ]
+        )
+    )
+    if len(used) < 2 * len(out):
+        raise GarmentError(source, "a pattern edge is sewn more than once")
+    return out, len(bhe) - 2 * len(out)

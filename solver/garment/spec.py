@@ -1,0 +1,442 @@
+"""Sewing-pattern JSON specifications (GarmentCode and the older Garment-Pattern-Generator).
+
+A specification gives panels as closed loops of straight, quadratic, cubic and circular-arc
+edges plus stitches that sew one whole edge to another. To make it a :class:`Garment` each
+panel's loop is sampled at the chosen resolution, with the two edges of a stitch sampled at
+the same count so that their boundary segments pair one to one, then triangulated with
+Shewchuk's Triangle (quality mesh, no Steiner points on the boundary, so the seam samples
+stay exactly as chosen). Twin samples share a 3D point id, and the common topology pass in
+:func:`solver.garment.model.build_garment` turns them into seam edges and seam lines.
+
+Edge geometry (pygarment conventions): Bezier control points are relative to the edge,
+``p = start + x*e + y*perp(e)`` with ``e = end - start`` and ``perp(e) = (-e_y, e_x)``;
+circle params ``[radius, large_arc, right]`` describe an SVG arc whose sweep flag is
+``right``. Stitch orientation: by default edge 1's end meets edge 2's start (right side to
+right side); ``"right_wrong"`` sews them in the same direction.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import triangle
+
+from solver.garment.errors import GarmentError
+from solver.garment.model import Garment, _components, build_garment
+from solver.garment.units import mm_per_unit, units_from_meter_fraction
+
+DEFAULT_RESOLUTION_MM = 20.0
+#: gap left between panels when they are laid out side by side in the pattern plane
+PANEL_GAP_MM = 100.0
+_DENSE = 257  # samples used to measure and resample one curved edge
+
+
+# ---------------------------------------------------------------------- edge geometry
+
+
+def _rel_to_abs(start: np.ndarray, end: np.ndarray, rel: Any) -> np.ndarray:
+    e = end - start
+    perp = np.array([-e[1], e[0]])
+    rel = np.asarray(rel, dtype=float)
+    return start + rel[0] * e + rel[1] * perp
+
+
+def _bezier(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Points of a Bezier curve with control polygon ``ctrl`` (k,2) at parameters t."""
+    n = len(ctrl) - 1
+    coef = np.array([math.comb(n, i) for i in range(n + 1)], dtype=float)
+    i = np.arange(n + 1)
+    basis = coef * t[:, None] ** i * (1 - t[:, None]) ** (n - i)
+    return basis @ ctrl
+
+
+def _arc(start: np.ndarray, end: np.ndarray, params: Any, t: np.ndarray) -> np.ndarray:
+    """SVG-style circular arc from start to end (radius, large_arc, sweep=right)."""
+    radius, large_arc, right = float(params[0]), bool(params[1]), bool(params[2])
+    chord = end - start
+    d = float(np.hypot(*chord))
+    if d == 0:
+        return np.repeat(start[None], len(t), axis=0)
+    r = max(abs(radius), d / 2)  # SVG scales a too-small radius up to fit
+    h = math.sqrt(max(r * r - d * d / 4, 0.0))
+    left = np.array([-chord[1], chord[0]]) / d
+    side = 1.0 if large_arc != right else -1.0
+    centre = (start + end) / 2 + side * h * left
+    a0 = math.atan2(*(start - centre)[::-1])
+    a1 = math.atan2(*(end - centre)[::-1])
+    if right:  # sweep flag: angle increases
+        while a1 <= a0:
+            a1 += 2 * math.pi
+    else:
+        while a1 >= a0:
+            a1 -= 2 * math.pi
+    ang = a0 + (a1 - a0) * t
+    return centre + r * np.column_stack([np.cos(ang), np.sin(ang)])
+
+
+def edge_polyline(
+    start: np.ndarray, end: np.ndarray, curvature: Any, *, where: str = ""
+) -> np.ndarray:
+    """Dense polyline (m,2) of one specification edge, start and end included."""
+    if curvature is None:
+        return np.array([start, end], dtype=float)
+    t = np.linspace(0.0, 1.0, _DENSE)
+    if isinstance(curvature, list):  # Garment-Pattern-Generator: one quadratic control point
+        ctrl = np.array([start, _rel_to_abs(start, end, curvature), end])
+        return _bezier(ctrl, t)
+    if not isinstance(curvature, dict):
+        raise ValueError(f"{where}: curvature must be a list or an object")
+    kind = curvature.get("type")
+    params = curvature.get("params")
+    if kind in ("quadratic", "cubic"):
+        need = 1 if kind == "quadratic" else 2
+        if not isinstance(params, list) or len(params) != need:
+            raise ValueError(f"{where}: {kind} curvature needs {need} control point(s)")
+        ctrl = np.array([start, *(_rel_to_abs(start, end, p) for p in params), end])
+        return _bezier(ctrl, t)
+    if kind == "circle":
+        if not isinstance(params, list) or len(params) != 3:
+            raise ValueError(f"{where}: circle curvature needs [radius, large_arc, right]")
+        return _arc(start, end, params, t)
+    raise ValueError(f"{where}: unknown curvature type {kind!r}")
+
+
+def resample(poly: np.ndarray, n: int) -> np.ndarray:
+    """n+1 points at equal arc length along a polyline (ends kept exactly)."""
+    seg = np.linalg.norm(np.diff(poly, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] == 0:
+        return np.repeat(poly[:1], n + 1, axis=0)
+    target = np.linspace(0.0, s[-1], n + 1)
+    out = np.column_stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])])
+    out[0], out[-1] = poly[0], poly[-1]
+    return out
+
+
+def _length(poly: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(poly, axis=0), axis=1).sum())
+
+
+# ---------------------------------------------------------------------- import
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise GarmentError(path, "not a text (UTF-8) file") from None
+    if not text.strip():
+        raise GarmentError(path, "empty file")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise GarmentError(
+            path, f"not valid JSON (truncated?): {exc.msg} at line {exc.lineno}"
+        ) from None
+    if not isinstance(data, dict) or not isinstance(data.get("pattern"), dict):
+        raise GarmentError(path, "no 'pattern' object: not a sewing-pattern specification")
+    return data
+
+
+def _panel_geometry(path: Path, name: str, panel: Any) -> tuple[np.ndarray, list[dict]]:
+    """Vertices (n,2) and edges of one panel, validated: finite, closed loop in order."""
+    if not isinstance(panel, dict):
+        raise GarmentError(path, f"panel {name!r} is not an object")
+    try:
+        verts = np.asarray(panel["vertices"], dtype=float)
+        edges = list(panel["edges"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GarmentError(path, f"panel {name!r} has no usable vertices/edges ({exc})") from None
+    if verts.ndim != 2 or verts.shape[1] != 2 or len(verts) < 3 or len(edges) < 2:
+        raise GarmentError(path, f"panel {name!r} needs >= 3 2D vertices and >= 2 edges")
+    if not np.isfinite(verts).all():
+        raise GarmentError(path, f"panel {name!r} has a non-finite vertex (NaN or inf)")
+    ends = []
+    for k, e in enumerate(edges):
+        try:
+            i, j = (int(x) for x in e["endpoints"])
+        except (KeyError, TypeError, ValueError):
+            raise GarmentError(path, f"panel {name!r} edge {k} has no endpoints") from None
+        if not (0 <= i < len(verts) and 0 <= j < len(verts)):
+            raise GarmentError(path, f"panel {name!r} edge {k} points at missing vertex ({i}, {j})")
+        ends.append((i, j))
+    for k in range(len(ends)):
+        if ends[k][1] != ends[(k + 1) % len(ends)][0]:
+            raise GarmentError(
+                path, f"panel {name!r} edges {k} and {(k + 1) % len(ends)} do not form a loop"
+            )
+    return verts, edges
+
+
+def load_spec(
+    path: str | Path, *, units: str | None = None, resolution_mm: float | None = None
+) -> Garment:
+    """Triangulate a GarmentCode / Garment-Pattern-Generator specification (2D only)."""
+    path = Path(path)
+    data = _read_json(path)
+    pattern = data["pattern"]
+    panels = pattern.get("panels")
+    if not isinstance(panels, dict) or not panels:
+        raise GarmentError(path, "pattern has no panels")
+    props = data.get("properties") or {}
+    if units is not None:
+        unit, k = units, mm_per_unit(units)
+    else:
+        uim = props.get("units_in_meter")
+        if uim is None:
+            unit, k = "mm", 1.0
+        else:
+            try:
+                named, k = units_from_meter_fraction(float(uim))
+            except (TypeError, ValueError, ZeroDivisionError):
+                raise GarmentError(path, f"bad units_in_meter {uim!r}") from None
+            unit = named or f"1/{uim} m"
+    if props.get("curvature_coords", "relative") != "relative":
+        raise GarmentError(path, "only relative curvature coordinates are supported")
+    res = DEFAULT_RESOLUTION_MM if resolution_mm is None else float(resolution_mm)
+    if not res > 0:
+        raise ValueError(f"resolution_mm must be > 0, got {resolution_mm}")
+
+    order = [n for n in pattern.get("panel_order", []) if n in panels]
+    order += [n for n in panels if n not in order]
+    index = {n: i for i, n in enumerate(order)}
+
+    # dense geometry of every edge, in mm
+    geom: list[tuple[np.ndarray, list[dict]]] = []
+    dense: list[list[np.ndarray]] = []
+    for name in order:
+        verts, edges = _panel_geometry(path, name, panels[name])
+        verts = verts * k
+        polys = []
+        for ei, e in enumerate(edges):
+            i, j = (int(x) for x in e["endpoints"])
+            try:
+                polys.append(
+                    edge_polyline(verts[i], verts[j], e.get("curvature"), where=f"{name}/{ei}")
+                )
+            except ValueError as exc:
+                raise GarmentError(path, f"panel {exc}") from None
+        geom.append((verts, edges))
+        dense.append(polys)
+
+    # stitches: validate and give both edges the same sample count
+    counts = [[max(1, math.ceil(_length(p) / res)) for p in polys] for polys in dense]
+    stitches = _read_stitches(path, pattern.get("stitches", []), index, dense)
+    used: dict[tuple[int, int], int] = {}
+    for s, (pa, ea, pb, eb, _) in enumerate(stitches):
+        for key in ((pa, ea), (pb, eb)):
+            if key in used:
+                raise GarmentError(
+                    path,
+                    f"edge {key[1]} of panel {order[key[0]]!r} is in stitches {used[key]} "
+                    f"and {s}: an edge can be sewn only once",
+                )
+            used[key] = s
+        n = max(counts[pa][ea], counts[pb][eb])
+        counts[pa][ea] = counts[pb][eb] = n
+
+    # sample each panel loop, triangulate, lay panels out side by side
+    uv_parts, face_parts, offsets_v = [], [], []
+    edge_start: list[list[int]] = []
+    base = 0
+    boxes: list[np.ndarray] = []
+    absolute = props.get("pattern_layout") == "absolute"
+    zero_edges = 0
+    for p, polys in enumerate(dense):
+        pts, starts = [], []
+        for e, poly in enumerate(polys):
+            starts.append(len(pts))
+            samples = resample(poly, counts[p][e])[:-1]
+            pts.extend(samples)
+            if _length(poly) == 0:
+                zero_edges += 1
+        loop = np.array(pts)
+        loop, keep_map = _drop_duplicates(loop)
+        starts = [int(keep_map[s]) for s in starts]
+        tri = _triangulate(path, order[p], loop, res)
+        verts = tri["vertices"]
+        box = np.concatenate([verts.min(axis=0), verts.max(axis=0)])
+        if not absolute and any(_overlap(box, b) for b in boxes):
+            # panels live in their own frames: lay them out left to right, as BoxMesh does
+            shift = max(b[2] for b in boxes) + PANEL_GAP_MM - box[0]
+            verts = verts + np.array([shift, 0.0])
+            box = box + np.array([shift, 0.0, shift, 0.0])
+        boxes.append(box)
+        uv_parts.append(verts)
+        face_parts.append(tri["triangles"] + base)
+        offsets_v.append((base, len(loop)))
+        edge_start.append([base + s for s in starts])
+        base += len(verts)
+    if zero_edges:
+        warnings.warn(f"{path}: ignored {zero_edges} zero-length edges", stacklevel=2)
+    uv = np.concatenate(uv_parts)
+    faces = np.concatenate(face_parts)
+
+    # twin samples share a 3D point id: union them with connected components
+    # and each pair of consecutive twin samples is one seam edge
+    pairs, twins = [], []
+    for pa, ea, pb, eb, right_wrong in stitches:
+        ia = _edge_vertices(edge_start, offsets_v, pa, ea, counts[pa][ea])
+        ib = _edge_vertices(edge_start, offsets_v, pb, eb, counts[pb][eb])
+        ib = ib if right_wrong else ib[::-1]
+        pairs.append(np.column_stack([ia, ib]))
+        twins.append(np.column_stack([ia[:-1], ia[1:], ib[:-1], ib[1:]]))
+    all_pairs = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
+    _, point = _components(len(uv), all_pairs)
+    all_twins = np.concatenate(twins) if twins else np.zeros((0, 4), dtype=np.int64)
+    return build_garment(
+        uv,
+        faces,
+        point,
+        xyz=None,
+        source=path,
+        kind="spec",
+        units_in_file=unit,
+        piece_names=list(order),
+        twins=all_twins,
+    )
+
+
+def _read_stitches(
+    path: Path, raw: Any, index: dict[str, int], dense: list[list[np.ndarray]]
+) -> list[tuple[int, int, int, int, bool]]:
+    """[(panel a, edge a, panel b, edge b, right_wrong)], every reference checked."""
+    if not isinstance(raw, list):
+        raise GarmentError(path, "'stitches' is not a list")
+    out = []
+    for s, st in enumerate(raw):
+        if not isinstance(st, list) or len(st) < 2:
+            raise GarmentError(path, f"stitch {s} is not a pair of {{panel, edge}}")
+        ends = []
+        for side in st[:2]:
+            if not isinstance(side, dict) or "panel" not in side or "edge" not in side:
+                raise GarmentError(path, f"stitch {s} side is not {{panel, edge}}")
+            name = side["panel"]
+            if name not in index:
+                raise GarmentError(path, f"stitch {s} names missing panel {name!r}")
+            p = index[name]
+            try:
+                e = int(side["edge"])
+            except (TypeError, ValueError):
+                raise GarmentError(path, f"stitch {s} has a bad edge index") from None
+            if not 0 <= e < len(dense[p]):
+                raise GarmentError(
+                    path,
+                    f"stitch {s} names missing edge {e} of panel {name!r} (it has {len(dense[p])})",
+                )
+            ends += [p, e]
+        right_wrong = any(x == "right_wrong" for x in st[2:])
+        out.append((ends[0], ends[1], ends[2], ends[3], right_wrong))
+    return out
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Do two [xmin, ymin, xmax, ymax] boxes overlap?"""
+    return bool(a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3])
+
+
+def _edge_vertices(
+    edge_start: list[list[int]], offsets_v: list[tuple[int, int]], p: int, e: int, n: int
+) -> np.ndarray:
+    """Global vertex ids of the n+1 samples of edge e of panel p, start to end."""
+    base, loop_len = offsets_v[p]
+    first = edge_start[p][e] - base
+    return base + (first + np.arange(n + 1)) % loop_len
+
+
+def _drop_duplicates(loop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Remove consecutive coincident samples (zero-length edges); map old -> new index."""
+    nxt = np.roll(loop, -1, axis=0)
+    dup = np.all(np.abs(loop - nxt) <= 1e-9, axis=1)
+    keep = ~dup
+    new_index = np.cumsum(keep) - 1
+    # a dropped sample maps to the next kept one (it coincides with it)
+    mapping = np.where(keep, new_index, (new_index + 1) % max(int(keep.sum()), 1))
+    return loop[keep], mapping
+
+
+def _triangulate(path: Path, name: str, loop: np.ndarray, res: float) -> dict:
+    """Quality triangulation of one closed loop with Triangle; boundary kept as sampled."""
+    n = len(loop)
+    segs = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
+    max_area = math.sqrt(3) / 4 * res * res
+    try:
+        out = triangle.triangulate({"vertices": loop, "segments": segs}, f"pq28Ya{max_area:.6f}")
+    except Exception as exc:  # Triangle reports failures as generic errors
+        raise GarmentError(path, f"panel {name!r} cannot be triangulated ({exc})") from None
+    if "triangles" not in out or len(out["triangles"]) == 0:
+        raise GarmentError(path, f"panel {name!r} cannot be triangulated (no triangles)")
+    if len(out["vertices"]) < n or not np.allclose(out["vertices"][:n], loop):
+        raise GarmentError(path, f"panel {name!r}: triangulation changed its outline")
+    return out
+
+
+# ---------------------------------------------------------------------- export
+
+
+def save_spec(g: Garment, path: str | Path) -> None:
+    """Write a GarmentCode-style specification: one straight edge per outline segment.
+
+    Panel vertices are the piece outlines (in cm, ``units_in_meter`` 100, as GarmentCode
+    writes); each seam twin pair becomes one stitch, with ``right_wrong`` where the two
+    edges run the same way round their panels. Seams on holes cannot be expressed and are
+    dropped with a warning.
+    """
+    path = Path(path)
+    panels: dict[str, dict] = {}
+    edge_of: dict[tuple[int, int], tuple[str, int, int]] = {}
+    names = _unique_names(g.piece_names)
+    for i in range(g.n_pieces):
+        loop = g.piece_loops(i)[0]
+        n = len(loop)
+        panels[names[i]] = {
+            "translation": [0.0, 0.0, 0.0],
+            "rotation": [0.0, 0.0, 0.0],
+            "vertices": (g.uv[loop] / 10.0).tolist(),
+            "edges": [{"endpoints": [k, (k + 1) % n]} for k in range(n)],
+        }
+        for k in range(n):
+            a, b = int(loop[k]), int(loop[(k + 1) % n])
+            edge_of[(a, b)] = (names[i], k, +1)
+            edge_of[(b, a)] = (names[i], k, -1)
+    stitches = []
+    lost = 0
+    for a, b, a2, b2 in g.seam_edges.tolist():
+        e1, e2 = edge_of.get((a, b)), edge_of.get((a2, b2))
+        if e1 is None or e2 is None:
+            lost += 1
+            continue
+        st: list[Any] = [{"panel": e1[0], "edge": e1[1]}, {"panel": e2[0], "edge": e2[1]}]
+        if e1[2] == e2[2]:
+            st.append("right_wrong")
+        stitches.append(st)
+    if lost:
+        warnings.warn(f"{path}: dropped {lost} seam edges that lie on holes", stacklevel=2)
+    spec = {
+        "pattern": {"panels": panels, "stitches": stitches, "panel_order": names},
+        "properties": {
+            "curvature_coords": "relative",
+            "normalize_panel_translation": False,
+            "normalized_edge_loops": True,
+            "units_in_meter": 100,
+            # panel vertices are already where the pattern has them: no automatic layout
+            "pattern_layout": "absolute",
+            "written_by": "cutting station (solver.garment.save_spec)",
+        },
+    }
+    path.write_text(json.dumps(spec, indent=1) + "\n", encoding="utf-8")
+
+
+def _unique_names(names: list[str]) -> list[str]:
+    seen: dict[str, int] = {}
+    out = []
+    for n in names:
+        k = seen.get(n, 0)
+        seen[n] = k + 1
+        out.append(n if k == 0 else f"{n}_{k}")
+    return out
