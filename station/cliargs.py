@@ -32,3 +32,20 @@ def load_fabric(path: str | Path) -> Wallpaper:
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such fabric file")
     return Wallpaper.load(path)
+
+
+def add_config_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config", metavar="station.toml",
+                        help="station configuration (default: $STATION_CONFIG, else "
+                        "./station.toml if present, else the built-in defaults)")
+
+
+def load_config_arg(args: argparse.Namespace, overrides=None):
+    import os
+
+    from station.config import load_config
+
+    path = args.config or os.environ.get("STATION_CONFIG")
+    if path is None and Path("station.toml").is_file():
+        path = "station.toml"
+    return load_config(path, overrides)

@@ -1,0 +1,121 @@
+"""The operator's console: `station submit|jobs|status|pause|resume|abort|retry|log`.
+
+Each command sends one request to the running daemon over its control socket and prints
+the answer, for people or (``--json``) for programs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from station.cli import UserError
+from station.cliargs import add_config_argument, load_config_arg
+from station.control import ControlError, request
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("submit", help="queue a garment to be aligned, nested and cut",
+                       description="Queue a job on the running daemon.")
+    p.add_argument("garment", metavar="GARMENT")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--fabric", metavar="FABRIC.json", help="the print, as measured")
+    source.add_argument("--detect", action="store_true",
+                        help="photograph the fabric and detect its print")
+    p.add_argument("--units", choices=("m", "cm", "mm", "in"))
+    p.add_argument("--reshape", action="store_true", help="nudge the pieces' shapes")
+    p.add_argument("--method", choices=("paper", "global"))
+    p.add_argument("--restarts", type=int)
+    _common(p, run_submit)
+
+    for name, text in (("jobs", "list every job"), ("status", "state, pieces and progress")):
+        p = sub.add_parser(name, help=text, description=text)
+        if name == "status":
+            p.add_argument("job", nargs="?", type=int)
+        _common(p, run_simple)
+    for name, text in (("pause", "feed hold now (cutting) or after the current step"),
+                       ("resume", "continue a paused or interrupted job"),
+                       ("abort", "stop the job safely (feed hold, reset, laser off)"),
+                       ("retry", "queue a failed or aborted job again")):
+        p = sub.add_parser(name, help=text, description=text)
+        p.add_argument("job", nargs="?" if name != "retry" else None, type=int)
+        _common(p, run_simple)
+    p = sub.add_parser("log", help="the job store's event log", description="Events, oldest first.")
+    p.add_argument("job", nargs="?", type=int)
+    p.add_argument("--limit", type=int, default=200)
+    _common(p, run_simple)
+
+
+def _common(p: argparse.ArgumentParser, func) -> None:
+    add_config_argument(p)
+    p.add_argument("--socket", metavar="PATH", help="control socket (default: from the config)")
+    p.add_argument("--json", action="store_true", help="print the daemon's answer as JSON")
+    p.set_defaults(func=func)
+
+
+def _socket(args: argparse.Namespace) -> Path:
+    if args.socket:
+        return Path(args.socket)
+    config = load_config_arg(args)
+    return config.resolve(config["control"]["socket"])
+
+
+def _ask(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
+    try:
+        return request(_socket(args), cmd, **fields)
+    except ControlError as exc:
+        raise UserError(str(exc)) from None
+
+
+def run_submit(args: argparse.Namespace) -> int:
+    options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
+                                 ("method", args.method), ("restarts", args.restarts))
+               if v is not None}
+    answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
+                  fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
+                  options=options)
+    if args.json:
+        print(json.dumps(answer))
+    else:
+        print(f"job {answer['job']['id']} submitted")
+    return 0
+
+
+def run_simple(args: argparse.Namespace) -> int:
+    fields = {k: getattr(args, k) for k in ("job", "limit") if getattr(args, k, None) is not None}
+    answer = _ask(args, args.command, **fields)
+    if args.json:
+        print(json.dumps(answer))
+    elif args.command == "jobs":
+        for job in answer["jobs"]:
+            print(_line(job))
+        if not answer["jobs"]:
+            print("no jobs")
+    elif args.command == "status":
+        print(_line(answer["job"]) if answer["job"] else "no jobs")
+    elif args.command == "log":
+        for e in answer["events"]:
+            stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(e["at"]))
+            job = f"job {e['job_id']}" if e["job_id"] is not None else "station"
+            print(f"{stamp}  {job:>8}  {e['kind']:<9} {e['message']}")
+    else:
+        print(f"job {answer['job']}: {answer['message']}")
+    return 0
+
+
+def _line(job: dict[str, Any]) -> str:
+    p = job["pieces"]
+    total = sum(p.values())
+    text = f"job {job['id']:>3}  {job['state']:<10} {p['cut']}/{total} pieces cut  " \
+           f"{Path(job['garment']).name}"
+    progress = job.get("progress") or {}
+    if "fraction" in progress:
+        text += f"  {100 * progress['fraction']:.0f}%"
+    if progress.get("seconds_left") is not None:
+        text += f"  {progress['seconds_left']:.0f} s left"
+    if job["reason"]:
+        text += f"  ({job['reason']})"
+    return text

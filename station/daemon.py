@@ -1,0 +1,337 @@
+"""`station serve`: takes jobs in order and runs each through capture, planning and cutting.
+
+One worker (the main thread) runs jobs; the control socket's threads only read the job
+store and raise flags (pause, abort, stop) that the worker and the streamer act on, as
+huey's consumer does with signals. Every state change goes through the job store first,
+so a daemon killed at any moment restarts knowing where each job was: a job found in an
+active state is marked paused ("interrupted"), its piece in progress goes back to
+pending, and the operator's `resume` re-homes or unlocks the machine and cuts only the
+pieces not yet cut.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from station.config import Config
+from station.control import ControlError, ControlServer
+from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
+
+log = logging.getLogger("station.daemon")
+
+
+class JobInterrupted(Exception):
+    """Raised inside a step when the operator paused or aborted, or the daemon stops."""
+
+    def __init__(self, state: str, reason: str) -> None:
+        super().__init__(reason)
+        self.state = state
+        self.reason = reason
+
+
+@dataclass
+class JobControl:
+    """Flags the control socket raises and the running step polls (thread-safe)."""
+
+    job_id: int
+    pause: threading.Event = field(default_factory=threading.Event)
+    abort: threading.Event = field(default_factory=threading.Event)
+    stop: threading.Event = field(default_factory=threading.Event)
+    progress: dict[str, Any] = field(default_factory=dict)
+
+    def checkpoint(self, hold_in_place: bool = False) -> None:
+        """Turn a raised flag into the matching interruption.
+
+        While cutting, a pause is a feed hold that the streamer keeps in place
+        (``hold_in_place``); between other steps it shelves the job.
+        """
+        if self.abort.is_set():
+            raise JobInterrupted("aborted", "aborted by the operator")
+        if self.stop.is_set():
+            raise JobInterrupted("paused", "interrupted: the daemon stopped")
+        if self.pause.is_set() and not hold_in_place:
+            raise JobInterrupted("paused", "paused by the operator")
+
+
+class Pipeline(Protocol):
+    """The work of one job; `station.pipeline.StationPipeline` is the real one."""
+
+    def capture(self, job: Job, workdir: Path, control: JobControl) -> str: ...
+
+    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl
+             ) -> dict[str, Any]: ...
+
+    def cut(self, job: Job, plan: dict[str, Any], store: JobStore, control: JobControl,
+            resuming: bool) -> None: ...
+
+
+def setup_logging(level: int = logging.INFO) -> None:
+    """Log to stderr as journald keeps it: one line per record, no timestamps of our own."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("<%(levelno)s>%(name)s: %(message)s"))
+    root = logging.getLogger()
+    root.handlers[:] = [handler]
+    root.setLevel(level)
+
+
+class Daemon:
+    """The station's job loop and its control endpoints."""
+
+    def __init__(self, config: Config, pipeline: Pipeline) -> None:
+        self.config = config
+        self.pipeline = pipeline
+        self.store = JobStore(config.resolve(config["store"]["path"]))
+        self.work_dir = config.resolve(config["store"]["work_dir"])
+        self.control = ControlServer(config.resolve(config["control"]["socket"]),
+                                     self.handle, config["control"]["group"])
+        self.running: JobControl | None = None
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ lifecycle
+    def serve(self, once: bool = False) -> int:
+        """Run until SIGTERM/SIGINT (or, with ``once``, until no job is left)."""
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(sig, self._on_signal)
+        self.recover()
+        self.control.start()
+        log.info("serving on %s, job store %s", self.control.path, self.store.path)
+        try:
+            self.run_loop(once)
+        finally:
+            self.control.stop()
+            log.info("stopped")
+        return 0
+
+    def run_loop(self, once: bool = False) -> None:
+        """Take jobs in order until stopped (or, with ``once``, until the queue is empty)."""
+        while not self._stop.is_set():
+            job = self.store.next_job()
+            if job is None:
+                if once:
+                    return
+                self._wake.wait(0.5)
+                self._wake.clear()
+                continue
+            self.run_job(job)
+
+    def shutdown(self) -> None:
+        """Ask the loop to stop safely, as SIGTERM does."""
+        self._stop.set()
+        self._wake.set()
+        if self.running is not None:
+            self.running.stop.set()
+
+    def _on_signal(self, signum: int, _frame: Any) -> None:
+        """Only raise flags: the worker stops the machine safely and saves the state."""
+        log.warning("signal %d: stopping safely", signum)
+        self.shutdown()
+
+    def recover(self) -> None:
+        """After a crash, a job found active was interrupted: pause it, say so."""
+        for job in self.store.jobs(ACTIVE):
+            reset = self.store.reset_unfinished_pieces(job.id)
+            self.store.transition(job.id, "paused", "interrupted: the daemon was not running"
+                                  + (f"; {reset} piece in progress not cut" if reset else ""))
+            log.warning("job %d was interrupted while %s; paused for the operator",
+                        job.id, job.state)
+
+    # ------------------------------------------------------------------ one job
+    def run_job(self, job: Job) -> None:
+        control = JobControl(job.id)
+        with self._lock:
+            self.running = control
+        workdir = self.work_dir / f"job-{job.id}"
+        workdir.mkdir(parents=True, exist_ok=True)
+        try:
+            resuming = job.state == "cutting"
+            if job.state in ("submitted", "capturing"):
+                job = self.store.transition(job.id, "capturing")
+                fabric = self.pipeline.capture(job, workdir, control)
+                control.checkpoint()
+                self.store.set_plan(job.id, {"fabric": fabric})
+                job = self.store.transition(job.id, "planning")
+            if job.state == "planning":
+                fabric = (job.plan or {}).get("fabric") or self.store.job(job.id).plan["fabric"]
+                plan = self.pipeline.plan(job, fabric, workdir, control)
+                self.store.set_plan(job.id, plan)
+                self.store.set_pieces(job.id, plan["pieces"])
+                control.checkpoint()
+                job = self.store.transition(job.id, "ready")
+            if job.state == "ready":
+                job = self.store.transition(job.id, "cutting")
+            if job.state == "cutting":
+                self.pipeline.cut(job, self.store.job(job.id).plan, self.store, control,
+                                  resuming)
+                control.checkpoint()
+                self.store.transition(job.id, "done")
+                log.info("job %d done", job.id)
+        except JobInterrupted as exc:
+            self._interrupt(job.id, exc.state, exc.reason)
+        except Exception as exc:
+            log.exception("job %d failed", job.id)
+            self.store.reset_unfinished_pieces(job.id)
+            self.store.transition(job.id, "failed", f"{type(exc).__name__}: {exc}")
+        finally:
+            with self._lock:
+                self.running = None
+
+    def _interrupt(self, job_id: int, state: str, reason: str) -> None:
+        self.store.reset_unfinished_pieces(job_id)
+        current = self.store.job(job_id).state
+        if current != state and state in TRANSITIONS[current]:
+            self.store.transition(job_id, state, reason)
+        log.info("job %d %s: %s", job_id, state, reason)
+
+    # ------------------------------------------------------------------ control
+    def handle(self, request: dict[str, Any]) -> dict[str, Any]:
+        cmd = request["cmd"]
+        handler = getattr(self, f"cmd_{cmd}", None)
+        if handler is None:
+            raise ControlError(f"unknown command {cmd!r}")
+        try:
+            return handler(request)
+        except JobStoreError as exc:
+            raise ControlError(str(exc)) from None
+
+    def cmd_ping(self, _req: dict[str, Any]) -> dict[str, Any]:
+        return {"pid": os.getpid(), "running": self.running.job_id if self.running else None}
+
+    def cmd_submit(self, req: dict[str, Any]) -> dict[str, Any]:
+        garment = req.get("garment")
+        if not isinstance(garment, str) or not Path(garment).is_file():
+            raise ControlError(f"{garment}: no such garment file")
+        fabric = req.get("fabric")
+        if fabric is not None and not Path(fabric).is_file():
+            raise ControlError(f"{fabric}: no such fabric file")
+        options = req.get("options") or {}
+        if not isinstance(options, dict):
+            raise ControlError("options must be a JSON object")
+        self.pipeline_check(garment, fabric, options)
+        job = self.store.submit(str(Path(garment).resolve()),
+                                str(Path(fabric).resolve()) if fabric else None, options)
+        self._wake.set()
+        return {"job": job.to_dict()}
+
+    def pipeline_check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
+        """Refuse a job the pipeline could never run, before it enters the queue."""
+        check = getattr(self.pipeline, "check", None)
+        if check is not None:
+            try:
+                check(garment, fabric, options)
+            except ValueError as exc:
+                raise ControlError(str(exc)) from None
+
+    def cmd_jobs(self, _req: dict[str, Any]) -> dict[str, Any]:
+        return {"jobs": [self._summary(j) for j in self.store.jobs()]}
+
+    def cmd_status(self, req: dict[str, Any]) -> dict[str, Any]:
+        job_id = req.get("job")
+        if job_id is None:
+            running = self.running
+            jobs = self.store.jobs()
+            job_id = running.job_id if running else (jobs[-1].id if jobs else None)
+            if job_id is None:
+                return {"job": None}
+        return {"job": self._summary(self.store.job(int(job_id)))}
+
+    def cmd_pause(self, req: dict[str, Any]) -> dict[str, Any]:
+        """Cutting: feed hold in place. Earlier steps: shelve the job at the next step."""
+        control = self._target(req)
+        if control.pause.is_set():
+            raise ControlError(f"job {control.job_id} is already paused")
+        control.pause.set()
+        if self.store.job(control.job_id).state == "cutting":
+            self.store.transition(control.job_id, "paused", "paused by the operator "
+                                  "(feed hold)")
+            return {"job": control.job_id, "message": "paused (feed hold)"}
+        return {"job": control.job_id, "message": "pausing after the current step"}
+
+    def cmd_resume(self, req: dict[str, Any]) -> dict[str, Any]:
+        job_id = req.get("job")
+        running = self.running
+        if running is not None and running.pause.is_set() and (
+                job_id is None or int(job_id) == running.job_id):
+            job = self.store.job(running.job_id)
+            if job.state == "paused":
+                self.store.transition(job.id, job.resume_state or "cutting",
+                                      "resumed by the operator")
+            running.pause.clear()
+            return {"job": running.job_id, "message": "resumed"}
+        paused = [j for j in self.store.jobs(("paused",))
+                  if job_id is None or j.id == int(job_id)]
+        if not paused:
+            raise ControlError("no paused job to resume")
+        job = paused[0]
+        self.store.transition(job.id, job.resume_state or "submitted", "resumed by the operator")
+        self._wake.set()
+        return {"job": job.id, "message": f"resumed at {job.resume_state}"}
+
+    def cmd_abort(self, req: dict[str, Any]) -> dict[str, Any]:
+        job_id = req.get("job")
+        running = self.running
+        if running is not None and (job_id is None or int(job_id) == running.job_id):
+            running.abort.set()
+            return {"job": running.job_id, "message": "aborting (safe stop)"}
+        if job_id is None:
+            raise ControlError("no job is running; name the job to abort")
+        job = self.store.job(int(job_id))
+        if job.state in FINAL:
+            raise ControlError(f"job {job.id} is already {job.state}")
+        self.store.transition(job.id, "aborted", "aborted by the operator")
+        return {"job": job.id, "message": "aborted"}
+
+    def cmd_retry(self, req: dict[str, Any]) -> dict[str, Any]:
+        if req.get("job") is None:
+            raise ControlError("retry needs a job number")
+        job = self.store.job(int(req["job"]))
+        if job.state not in ("failed", "aborted"):
+            raise ControlError(f"job {job.id} is {job.state}; only failed or aborted jobs "
+                               "can be retried")
+        self.store.transition(job.id, "submitted", "retried by the operator")
+        self._wake.set()
+        return {"job": job.id, "message": "queued again; pieces already cut stay cut"}
+
+    def cmd_log(self, req: dict[str, Any]) -> dict[str, Any]:
+        job_id = req.get("job")
+        events = self.store.events(None if job_id is None else int(job_id),
+                                   after=int(req.get("after", 0)))
+        return {"events": events[-int(req.get("limit", 200)):]}
+
+    def _target(self, req: dict[str, Any]) -> JobControl:
+        running = self.running
+        job_id = req.get("job")
+        if running is None or (job_id is not None and int(job_id) != running.job_id):
+            raise ControlError("that job is not running" if job_id is not None
+                               else "no job is running")
+        return running
+
+    def _summary(self, job: Job) -> dict[str, Any]:
+        pieces = self.store.pieces(job.id)
+        counts = {s: sum(p["state"] == s for p in pieces) for s in ("pending", "cutting", "cut")}
+        out = {"id": job.id, "state": job.state, "reason": job.reason,
+               "garment": job.garment, "fabric": job.fabric, "pieces": counts,
+               "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+        running = self.running
+        if running is not None and running.job_id == job.id:
+            out["progress"] = dict(running.progress)
+        return out
+
+
+def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:
+    """Poll ``predicate`` until true or ``timeout`` seconds pass (for tests and tools)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return bool(predicate())
