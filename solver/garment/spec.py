@@ -336,8 +336,9 @@ def _read_stitches(
 
 
 def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    """Do two [xmin, ymin, xmax, ymax] boxes overlap?"""
-    return bool(a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3])
+    """Do two [xmin, ymin, xmax, ymax] boxes overlap (or nearly touch)?"""
+    m = PANEL_GAP_MM / 10  # panels that merely touch also count: keep a visible gap
+    return bool(a[0] < b[2] + m and b[0] < a[2] + m and a[1] < b[3] + m and b[1] < a[3] + m)
 
 
 def _edge_vertices(

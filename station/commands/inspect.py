@@ -1,0 +1,122 @@
+"""`station inspect`: what the station sees in a garment file (pieces, seams, units, sizes)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from station.cliargs import add_garment_arguments
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "inspect",
+        help="show a garment's pieces, seam lines, seam edges, units and piece sizes",
+        description="Import GARMENT (OBJ with v = drape and vt = pattern, a -m/-w OBJ pair, "
+        "or a GarmentCode / Garment-Pattern-Generator JSON specification) and report what "
+        "the station will cut and align: pieces with their size, seam lines and seam edges.",
+    )
+    add_garment_arguments(p)
+    p.add_argument("--resolution-mm", type=float, metavar="MM",
+                   help="target edge length when meshing a JSON specification (default 20)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def garment_summary(g) -> dict:
+    """Plain-JSON description of a garment: counts, units and per-piece sizes in mm."""
+    bbox = g.piece_bboxes()
+    area = g.piece_areas()
+    seam_count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
+    weights = g.seam_weights()
+    uv_len = np.linalg.norm(g.uv[g.seam_edges[:, 1]] - g.uv[g.seam_edges[:, 0]], axis=1)
+    seam_len = np.bincount(g.seam_line_of_edge, weights=uv_len, minlength=len(g.seam_lines))
+    pieces = [
+        {
+            "index": i,
+            "name": g.piece_names[i],
+            "vertices": int(np.sum(g.piece_of_vertex == i)),
+            "bbox_mm": [round(float(x), 3) for x in bbox[i]],
+            "width_mm": round(float(bbox[i, 2] - bbox[i, 0]), 3),
+            "height_mm": round(float(bbox[i, 3] - bbox[i, 1]), 3),
+            "area_mm2": round(float(area[i]), 3),
+            "area_cm2": round(float(area[i]) / 100.0, 3),
+            "holes": len(g.piece_holes(i)),
+        }
+        for i in range(g.n_pieces)
+    ]
+    lines = [
+        {
+            "index": k,
+            "name": s.name,
+            "piece_a": s.piece_a,
+            "piece_b": s.piece_b,
+            "weight": s.weight,
+            "seam_edges": int(seam_count[k]),
+            "length_mm": round(float(seam_len[k]), 3),
+        }
+        for k, s in enumerate(g.seam_lines)
+    ]
+    return {
+        "garment": g.source,
+        "kind": g.kind,
+        "units_in_file": g.units_in_file,
+        "scale_recovered": g.scale_recovered,
+        "has_3d": g.xyz is not None,
+        "vertices": g.n_vertices,
+        "faces": int(len(g.faces)),
+        "pieces": g.n_pieces,
+        "seam_lines": len(g.seam_lines),
+        "seam_edges": int(len(g.seam_edges)),
+        "boundary_edges_3d": int(g.boundary_3d_edges),
+        "seam_weight_total": float(weights.sum()),
+        "piece_list": pieces,
+        "seam_line_list": lines,
+    }
+
+
+def _print_text(s: dict, out) -> None:
+    scale = ""
+    if s["scale_recovered"] is not None:
+        scale = f", vt scale recovered x{s['scale_recovered']:.6g}"
+    print(f"{s['garment']}: {s['kind']}, file units {s['units_in_file']}{scale}, "
+          f"{'3D drape' if s['has_3d'] else '2D only'}", file=out)
+    print(f"  {s['vertices']} pattern vertices, {s['faces']} faces, {s['pieces']} pieces, "
+          f"{s['seam_lines']} seam lines, {s['seam_edges']} seam edges, "
+          f"{s['boundary_edges_3d']} open boundary edges", file=out)
+    print("  pieces:", file=out)
+    for p in s["piece_list"]:
+        holes = f", {p['holes']} holes" if p["holes"] else ""
+        size = f"{p['width_mm']:8.1f} x {p['height_mm']:7.1f} mm"
+        print(f"    {p['index']:3d} {p['name']:<20s} {size}  area {p['area_cm2']:9.1f} cm2"
+              f"  ({p['vertices']} vertices{holes})", file=out)
+    print("  seam lines:", file=out)
+    for ln in s["seam_line_list"]:
+        print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
+              f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}",
+              file=out)
+
+
+def run(args: argparse.Namespace) -> int:
+    from solver.garment import load_garment
+
+    start = time.perf_counter()
+    path = Path(args.garment)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        g = load_garment(path, units=args.units, resolution_mm=args.resolution_mm)
+    for w in caught:  # repairs are worth telling, but on stderr so --json stays clean
+        print(f"station inspect: warning: {w.message}", file=sys.stderr)
+    summary = garment_summary(g)
+    summary["seconds"] = round(time.perf_counter() - start, 4)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_text(summary, sys.stdout)
+    return 0
