@@ -1,0 +1,223 @@
+"""pyserial URL handler `grblsim://`: a serial port wired to an emulated GRBL 1.1h controller.
+
+pyserial finds it as `<package>.protocol_grblsim` once `simulators.grbl` is in
+`serial.protocol_handler_packages` (importing `simulators.grbl` appends it). Options::
+
+    grblsim://?speed=20&name=cutter&error_at=12:20&alarm_at=30:1&drop_byte_at=500
+              &flip_byte_at=77&reset_at=40&disconnect_at=50&power_cut_at=60&force_origin=1
+
+speed: simulated seconds per wall second (default 1); name: share one machine between opens
+(reopen after a disconnect or power cut); *_at: fault injection (lines and bytes count from 1,
+several values separated by commas); force_origin: homing sets the origin at the home switches
+(build option Z). The port object exposes the machine as `port.emulator`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import urllib.parse
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+
+from simulators.grbl.emulator import Faults, GrblEmulator
+from simulators.grbl.registry import get_or_create
+
+EXPECTED = (
+    '"grblsim://[?speed=S][&name=NAME][&error_at=LINE:CODE][&alarm_at=LINE:CODE]'
+    "[&drop_byte_at=N][&flip_byte_at=N][&reset_at=LINE][&disconnect_at=LINE]"
+    '[&power_cut_at=LINE][&force_origin=0|1][&logging=debug|info|warning|error]"'
+)
+LOGGER_LEVELS = {"debug": logging.DEBUG, "info": logging.INFO,
+                 "warning": logging.WARNING, "error": logging.ERROR}
+
+
+def parse_url(url: str) -> tuple[dict, dict, str | None]:
+    """Split a grblsim URL into (machine options, faults given, logging level); ValueError."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme != "grblsim":
+        raise ValueError(f"not starting with grblsim:// ({parts.scheme!r})")
+    if parts.netloc or parts.path.strip("/"):
+        raise ValueError(f"unexpected host or path {parts.netloc + parts.path!r}")
+    options: dict = {}
+    faults: dict = {}
+    level = None
+    for option, values in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items():
+        items = [v for value in values for v in value.split(",") if v != ""]
+        if option == "speed":
+            speed = float(values[-1])
+            if not speed > 0:
+                raise ValueError(f"speed must be > 0, got {values[-1]!r}")
+            options["speed"] = speed
+        elif option == "name":
+            options["name"] = values[-1]
+        elif option == "force_origin":
+            options["force_origin"] = values[-1] not in ("0", "false", "")
+        elif option in ("error_at", "alarm_at"):
+            table = {}
+            for item in items:
+                line, sep, code = item.partition(":")
+                if not sep:
+                    raise ValueError(f"{option} needs LINE:CODE, got {item!r}")
+                table[int(line)] = int(code)
+            faults[option] = table
+        elif option in ("drop_byte_at", "flip_byte_at", "reset_at", "disconnect_at",
+                        "power_cut_at"):
+            faults[option] = {int(v) for v in items}
+        elif option == "logging":
+            if values[-1] not in LOGGER_LEVELS:
+                raise ValueError(f"unknown logging level {values[-1]!r}")
+            level = values[-1]
+        else:
+            raise ValueError(f"unknown option: {option!r}")
+    return options, faults, level
+
+
+class Serial(SerialBase):
+    """A serial port to an emulated GRBL controller (pyserial URL handler)."""
+
+    BAUDRATES = (9600, 19200, 38400, 57600, 115200, 230400)
+
+    def __init__(self, *args, **kwargs):
+        self.emulator: GrblEmulator | None = None
+        self.logger: logging.Logger | None = None
+        self._generation = -1
+        self._owns_machine = False
+        self._cancel = False
+        super().__init__(*args, **kwargs)
+
+    # -- pyserial contract --------------------------------------------------------------
+    def open(self) -> None:
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        self.from_url(self.port)
+        self._reconfigure_port()
+        self.is_open = True
+
+    def from_url(self, url: str) -> None:
+        try:
+            options, faults, level = parse_url(url)
+        except ValueError as exc:
+            raise SerialException(f"expected a string in the form {EXPECTED}: {exc}") from None
+        if level:
+            logging.basicConfig()
+            self.logger = logging.getLogger("pySerial.grblsim")
+            self.logger.setLevel(LOGGER_LEVELS[level])
+        name = options.pop("name", None)
+        machine, created = get_or_create(name, faults=Faults(**faults), **options)
+        if not created:
+            for key, value in faults.items():
+                setattr(machine.faults, key, value)
+            if "speed" in options:
+                machine.speed = options["speed"]
+            self._generation = machine.connect()
+        else:
+            self._generation = machine.generation
+        self._owns_machine = name is None
+        self.emulator = machine
+        self._cancel = False
+
+    def close(self) -> None:
+        if self.is_open:
+            self.is_open = False
+            machine = self.emulator
+            if machine is not None:
+                if self._owns_machine:
+                    machine.close()
+                elif machine.generation == self._generation:
+                    machine.disconnect()
+                machine.wake_readers()
+        super().close()
+
+    def _reconfigure_port(self) -> None:
+        if self.logger:
+            self.logger.info("_reconfigure_port()")
+
+    def _check(self) -> GrblEmulator:
+        if not self.is_open:
+            raise PortNotOpenError()
+        machine = self.emulator
+        if machine is None or machine.generation != self._generation or not machine.connected:
+            raise SerialException(f"device disconnected: {self.port}")
+        return machine
+
+    @property
+    def in_waiting(self) -> int:
+        return self._check().output_waiting()
+
+    def read(self, size: int = 1) -> bytes:
+        machine = self._check()
+        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        data = bytearray()
+        while len(data) < size:
+            data += machine.take_output(size - len(data))
+            if len(data) >= size or self._timeout == 0:
+                break
+            if self._cancel:
+                self._cancel = False
+                break
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                break
+            machine.wait_output(0.05 if remaining is None else min(remaining, 0.05))
+            if not self.is_open:
+                break
+            self._check()
+        if self.logger:
+            self.logger.debug("read %r", bytes(data))
+        return bytes(data)
+
+    def cancel_read(self) -> None:
+        self._cancel = True
+        if self.emulator is not None:
+            self.emulator.wake_readers()
+
+    def write(self, data) -> int:
+        machine = self._check()
+        data = to_bytes(data)
+        if self.logger:
+            self.logger.debug("write %r", data)
+        machine.receive(data)
+        return len(data)
+
+    def reset_input_buffer(self) -> None:
+        self._check().take_output()
+
+    def reset_output_buffer(self) -> None:
+        self._check()
+
+    @property
+    def out_waiting(self) -> int:
+        self._check()
+        return 0
+
+    def _update_break_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        self._check()
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        self._check()
+        return True
+
+    @property
+    def ri(self) -> bool:
+        self._check()
+        return False
+
+    @property
+    def cd(self) -> bool:
+        self._check()
+        return True
