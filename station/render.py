@@ -26,23 +26,50 @@ def mismatch_colours(distance: np.ndarray, red_mm: float = 20.0) -> np.ndarray:
     return (np.stack([np.zeros_like(s), green, red], -1) * 220).astype(np.uint8)
 
 
-def default_print_colours(wallpaper) -> ColourOf:
-    """The print as the simulators render it, sampled at wallpaper-space points."""
-    from simulators.fabric import print_colour_function
+def default_print_colours(wallpaper, pixel_mm: float, seed: int = 7) -> ColourOf:
+    """The print as the simulators render it (motif built from the group's operations)."""
+    from simulators.fabric import random_print, to_uint8
 
-    return print_colour_function(wallpaper)
+    fabric = random_print(wallpaper.group, w1=wallpaper.w1, w2=wallpaper.w2,
+                          origin=tuple(wallpaper.origin), seed=seed)
+
+    def colour_of(points: np.ndarray) -> np.ndarray:
+        # cv2.remap wants 2D maps no wider than 32767: lay the points out in rows.
+        n, width = len(points), 4096
+        rows = -(-n // width)
+        padded = np.zeros((rows * width, 2))
+        padded[:n] = points
+        grid = padded.reshape(rows, width, 2)
+        colours = fabric.colour_at(grid[..., 0], grid[..., 1], pixel_mm)
+        return to_uint8(colours.reshape(-1, 3)[:n])
+
+    return colour_of
+
+
+def garment_credit(source: str | Path) -> str | None:
+    """The acknowledgement a garment's licence asks for on every image made with it.
+
+    The UC Berkeley Garment Library's terms require it; its README travels beside
+    each copy of its files, so that is how we recognise them.
+    """
+    folder = Path(source).resolve().parent
+    for candidate in (folder / "README.txt", folder / "BERKELEY-README.txt"):
+        if candidate.is_file() and "UC Berkeley Garment Library" in candidate.read_text(
+                errors="replace"):
+            return "Garment model obtained from the UC Berkeley Garment Library"
+    return None
 
 
 def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path, *,
              width_px: int = 1600, red_mm: float = 20.0,
              colour_of: ColourOf | None = None, title: str | None = None) -> np.ndarray:
     """Draw the pieces (pattern space) over the print and save a PNG; returns the image."""
-    colour_of = colour_of or default_print_colours(placement.fabric)
     uv = garment.uv
     lo, hi = uv.min(axis=0), uv.max(axis=0)
     margin = 0.04 * float(np.max(hi - lo))
     lo, hi = lo - margin, hi + margin
     scale = width_px / float(hi[0] - lo[0])
+    colour_of = colour_of or default_print_colours(placement.fabric, 1.0 / scale)
     height_px = max(1, int(np.ceil((hi[1] - lo[1]) * scale)))
     banner = 60
 
@@ -82,7 +109,12 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
         cv2.polylines(image, list(segments[levels == level]), False, colour, 4,
                       cv2.LINE_AA, shift=4)
     _draw_legend(image, report, red_mm, title or f"{placement.fabric.group} print")
-    cv2.imwrite(str(path), image)
+    credit = garment_credit(garment.source) if garment.source else None
+    if credit:
+        cv2.putText(image, credit, (12, image.shape[0] - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                    (90, 90, 90), 1, cv2.LINE_AA)
+    if not cv2.imwrite(str(path), image):
+        raise ValueError(f"{path}: cannot write the picture (folder missing or not a .png?)")
     return image
 
 
