@@ -53,11 +53,13 @@ class GrblEmulator:
 
     Inspect `trace` (executed `Segment`s), `lines_received`, `lines_executed` (lines answered
     `ok`), `state`, `mpos`, `wpos`, `settings`; drive faults with `inject_reset()`,
-    `disconnect()`, `power_cut()`.
+    `disconnect()`, `power_cut()`. With `realtime=False` no thread runs and simulated time
+    moves only through `advance(dt)` (deterministic tests).
     """
 
     def __init__(self, *, speed: float = 1.0, faults: Faults | None = None,
-                 force_origin: bool = False, tick: float = 0.002, name: str | None = None):
+                 force_origin: bool = False, name: str | None = None,
+                 settings: dict[int, float] | None = None, realtime: bool = True):
         if not speed > 0:
             raise ValueError(f"speed must be > 0, got {speed!r}")
         self.speed = float(speed)
@@ -67,6 +69,10 @@ class GrblEmulator:
         self._cond = threading.Condition(threading.RLock())
         # Non-volatile (EEPROM) data survives resets and power cuts.
         self.settings: dict[int, float] = dict(C.DEFAULT_SETTINGS)
+        for key, value in (settings or {}).items():  # as if stored in EEPROM before power-up
+            if key not in self.settings:
+                raise ValueError(f"${key} is not a GRBL 1.1 setting")
+            self.settings[key] = int(value) if key in C.INT_SETTINGS else float(value)
         self.params = Params()
         self.startup_lines = [""] * C.N_STARTUP_LINES
         self.build_info = ""
@@ -84,9 +90,10 @@ class GrblEmulator:
         with self._cond:
             self._power_on(first=True)
         self._stopped = False
-        self._thread = threading.Thread(target=self._run, name=f"grblsim-{name or id(self)}",
-                                        daemon=True)
-        self._thread.start()
+        if realtime:  # else the caller drives simulated time with advance(dt)
+            self._thread = threading.Thread(target=self._run, daemon=True,
+                                            name=f"grblsim-{name or id(self)}")
+            self._thread.start()
 
     # ------------------------------------------------------------------ public API
     @property
@@ -686,7 +693,8 @@ class GrblEmulator:
                 if state == "Check":
                     self._emit(C.MSG_DISABLED)
                     self._ok()
-                    self._soft_reset()  # "When toggled off, Grbl will perform an automatic soft-reset"
+                    # "When toggled off, Grbl will perform an automatic soft-reset"
+                    self._soft_reset()
                     return None
                 if state != "Idle":
                     raise GrblError(C.E_IDLE_ERROR)

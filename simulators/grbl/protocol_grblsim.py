@@ -9,7 +9,8 @@ pyserial finds it as `<package>.protocol_grblsim` once `simulators.grbl` is in
 speed: simulated seconds per wall second (default 1); name: share one machine between opens
 (reopen after a disconnect or power cut); *_at: fault injection (lines and bytes count from 1,
 several values separated by commas); force_origin: homing sets the origin at the home switches
-(build option Z). The port object exposes the machine as `port.emulator`.
+(build option Z); settings: `$N` values stored before power-up, e.g. settings=22:1,20:1.
+The port object exposes the machine as `port.emulator`.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from simulators.grbl.registry import get_or_create
 EXPECTED = (
     '"grblsim://[?speed=S][&name=NAME][&error_at=LINE:CODE][&alarm_at=LINE:CODE]'
     "[&drop_byte_at=N][&flip_byte_at=N][&reset_at=LINE][&disconnect_at=LINE]"
-    '[&power_cut_at=LINE][&force_origin=0|1][&logging=debug|info|warning|error]"'
+    '[&power_cut_at=LINE][&settings=N:V,...][&force_origin=0|1]'
+    '[&logging=debug|info|warning|error]"'
 )
 LOGGER_LEVELS = {"debug": logging.DEBUG, "info": logging.INFO,
                  "warning": logging.WARNING, "error": logging.ERROR}
@@ -51,6 +53,14 @@ def parse_url(url: str) -> tuple[dict, dict, str | None]:
             options["speed"] = speed
         elif option == "name":
             options["name"] = values[-1]
+        elif option == "settings":
+            table = {}
+            for item in items:
+                key, sep, value = item.lstrip("$").partition(":")
+                if not sep:
+                    raise ValueError(f"settings needs N:VALUE, got {item!r}")
+                table[int(key)] = float(value)
+            options["settings"] = table
         elif option == "force_origin":
             options["force_origin"] = values[-1] not in ("0", "false", "")
         elif option in ("error_at", "alarm_at"):
