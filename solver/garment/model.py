@@ -187,6 +187,25 @@ def triangle_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     )
 
 
+def unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct rows of a finite (n,k) array (sorted) and the (n,) inverse index.
+
+    A lexsort over the columns: several times faster than ``np.unique(axis=0)``, which
+    sorts structured rows. Rows compare by exact value (so -0.0 equals 0.0).
+    """
+    a = np.asarray(a) + 0  # -0.0 -> 0.0
+    if len(a) == 0:
+        return a, np.zeros(0, dtype=np.int64)
+    order = np.lexsort(a.T[::-1])
+    srt = a[order]
+    new = np.empty(len(a), dtype=bool)
+    new[0] = True
+    new[1:] = (srt[1:] != srt[:-1]).any(axis=1)
+    inv = np.empty(len(a), dtype=np.int64)
+    inv[order] = np.cumsum(new) - 1
+    return srt[new], inv
+
+
 def _boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
     lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
     key = lo.astype(np.int64) * n + hi

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from solver.garment.errors import GarmentError
-from solver.garment.model import Garment, build_garment
+from solver.garment.model import Garment, build_garment, unique_rows
 from solver.garment.units import mm_per_unit
 
 _UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
@@ -218,10 +218,18 @@ def load_obj(
             kind="obj",
             units_in_file=unit,
         )
-    corner_v = obj.f_v.ravel()
+    # one v per 3D point: exact duplicates would hide the seams through them, so merge them
+    uniq_v, v_id = unique_rows(obj.v)
+    v_id = v_id.ravel()
+    if len(uniq_v) < len(obj.v):
+        warnings.warn(
+            f"{path}: merged {len(obj.v) - len(uniq_v)} duplicate vertices (identical positions)",
+            stacklevel=2,
+        )
+    corner_v = v_id[obj.f_v.ravel()]
     corner_vt = obj.f_vt.ravel()
     key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
-    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    uniq, inv = unique_rows(key)
     inv = inv.ravel()
     per_corner = np.bincount(corner_vt, minlength=len(obj.vt)).max() <= 1
     if not per_corner:
@@ -234,7 +242,7 @@ def load_obj(
     point = uniq[:, 0].astype(np.int64)
     uv = uniq[:, 1:]
     faces = inv.reshape(-1, 3)
-    xyz = obj.v[point]
+    xyz = uniq_v[point]
     scale = None if two_d else _recover_scale(uv, xyz, faces)
     if scale is not None:
         uv = uv * scale
@@ -281,7 +289,7 @@ def load_obj_pair(pattern: Path, world: Path, *, units: str | None = None) -> Ga
     k = mm_per_unit(unit)
     if np.abs(m.v[:, 2]).max() > 1e-9 * max(1.0, np.abs(m.v).max()):
         warnings.warn(f"{pattern}: pattern file has non-zero z; z ignored", stacklevel=2)
-    _, point = np.unique(w.v, axis=0, return_inverse=True)
+    _, point = unique_rows(w.v)
     return build_garment(
         m.v[:, :2] * k,
         m.f_v,
