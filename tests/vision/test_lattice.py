@@ -1,0 +1,82 @@
+"""Lattice detection on simulator prints, stripes, plain cloth and noise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import lattice_error, perturb
+
+from solver.wallpaper import GROUP_NAMES
+from vision.lattice import detect_lattice, gauss_reduce
+
+
+def test_gauss_reduce_gives_shortest_basis_of_same_lattice():
+    b1, b2 = np.array([10.0, 1.0]), np.array([37.0, 9.0])  # = 3 b1 + (7, 6)
+    r1, r2 = gauss_reduce(b1, b2)
+    assert np.hypot(*r1) <= np.hypot(*r2)
+    assert r1 @ r2 <= 1e-9
+    u = np.linalg.solve(np.column_stack([b1, b2]), np.column_stack([r1, r2]))
+    assert np.allclose(u, np.round(u)) and abs(abs(np.linalg.det(u)) - 1) < 1e-9
+    assert np.hypot(*r2) <= np.hypot(7, 6) + 1e-9
+
+
+@pytest.mark.parametrize("group", GROUP_NAMES)
+def test_clean_print_lattice_subpixel(make_print, group):
+    img, truth = make_print(group, seed=7, period=38.0, shape=(240, 320))
+    res = detect_lattice(img, mm_per_px=0.5)
+    assert res.kind == "lattice", res.message
+    assert lattice_error(res.basis_px, truth.basis) < 1e-3
+    assert np.hypot(*res.w1) <= np.hypot(*res.w2) + 1e-9
+    assert 0 < res.sigma_w1[0] < 0.01 * np.hypot(*res.w1)
+
+
+def test_perturbed_prints_lattice_within_half_percent(make_print):
+    errs = []
+    for i, group in enumerate(GROUP_NAMES):
+        rng = np.random.default_rng(100 + i)
+        img, truth = make_print(group, seed=100 + i, period=rng.uniform(25, 60),
+                                shape=(240, 320), blur=rng.uniform(0, 2.5),
+                                noise=rng.uniform(0, 0.04), jpeg=int(rng.uniform(60, 95)),
+                                ramp=rng.uniform(0, 0.4))
+        res = detect_lattice(img)
+        errs.append(lattice_error(res.basis_px, truth.basis) if res.found else np.inf)
+    assert max(errs) < 5e-3, errs
+
+
+def test_mild_perspective_and_fold_keep_the_lattice(make_print):
+    for i, group in enumerate(("p1", "pmg", "p4g", "p31m")):
+        img, truth = make_print(group, seed=40 + i, period=30.0, shape=(300, 400),
+                                persp=0.005, fold=1.0, noise=0.02, blur=1.0)
+        res = detect_lattice(img)
+        assert res.found, (group, res.message)
+        assert lattice_error(res.basis_px, truth.basis) < 0.02
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_stripes_are_a_frieze_not_a_lattice(make_stripes, seed):
+    rng = np.random.default_rng(seed)
+    img, period, direction = make_stripes(seed, blur=rng.uniform(0, 2.5),
+                                          noise=rng.uniform(0, 0.04), jpeg=70,
+                                          ramp=0.3)
+    res = detect_lattice(img, mm_per_px=2.0)
+    assert res.kind == "stripes", res.message
+    assert res.period == pytest.approx(2.0 * period, rel=0.01)
+    diff = (res.direction_deg - direction + 90) % 180 - 90
+    assert abs(diff) < 1.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_noise_and_plain_cloth_have_no_lattice(seed):
+    rng = np.random.default_rng(seed)
+    img = perturb(np.full((240, 320), 0.5), rng, blur=0.7 * seed, noise=0.04,
+                  jpeg=60 if seed % 2 else None, ramp=0.4)
+    res = detect_lattice(img)
+    assert res.kind == "none"
+    assert "no periodic print" in res.message
+
+
+def test_bad_input_is_refused_with_a_reason():
+    with pytest.raises(ValueError, match="mm_per_px"):
+        detect_lattice(np.zeros((64, 64), np.uint8), mm_per_px=0)
+    with pytest.raises(ValueError, match="too small"):
+        detect_lattice(np.zeros((8, 8), np.uint8))
