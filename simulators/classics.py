@@ -1,0 +1,240 @@
+"""Textile classics with their true symmetry groups, as :class:`~simulators.fabric.Print`.
+
+The groups were not taken on trust: each pattern is built from its construction
+(colour order of warp and weft, weave, or drawing) and the group below is the one the
+construction has, confirmed on the rendered images by ``tests/simulators/test_fabric.py``
+(every operation of the group gives correlation ~1, every other isometry of the lattice
+clearly less). Facts that surprise:
+
+- ``houndstooth`` woven the classic way (2/2 twill, four dark and four light threads in
+  warp and weft) is **p1**: the twill steps of the "claws" are offset by half a twill
+  period between the two sides of a tooth, which breaks the diagonal mirror and the
+  half-turn that the colour blocks alone would have (an exhaustive search over all
+  isometries of the thread grid finds none). p4/p4g appear only as *colour-reversing*
+  groups of idealised drawings.
+- ``herringbone`` twill (2/2 twill whose direction reverses every 6 warp threads) is
+  **pmg**: mirrors at the reversals, glides along the warp direction. (Parquet-style
+  herringbone of interlocking bricks is pgg; that is not the fabric.)
+- ``tartan`` with a symmetric sett, the same in warp and weft, rendered as its printed
+  look (warp and weft colours mixed) is **p4m**; ``plaid`` with different symmetric
+  setts in warp and weft is **pmm**.
+- ``gingham`` (a two-colour even check) is **p4m**; polka dots on a square grid are p4m,
+  on a hexagonal grid p6m; uniform ``diamonds`` (harlequin) on a rhombic lattice are
+  **cmm**.
+- ``stripes`` repeat in one direction only: a frieze, reported as
+  :class:`~simulators.fabric.Frieze` (p11m for an asymmetric colour order), never as a
+  lattice.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from simulators.fabric import Frieze, Print
+from solver.wallpaper import Wallpaper
+
+__all__ = ["CLASSICS", "CLASSIC_GROUPS", "classic_print"]
+
+CLASSIC_GROUPS: dict[str, str] = {
+    "stripes": "p11m (frieze)",
+    "gingham": "p4m",
+    "tartan": "p4m",
+    "plaid": "pmm",
+    "houndstooth": "p1",
+    "herringbone": "pmg",
+    "polka-square": "p4m",
+    "polka-hex": "p6m",
+    "diamonds": "cmm",
+}
+CLASSICS: tuple[str, ...] = tuple(CLASSIC_GROUPS)
+
+# BGR colours in [0, 1].
+_NAVY = (0.32, 0.12, 0.06)
+_GREEN = (0.18, 0.36, 0.08)
+_BLACK = (0.08, 0.08, 0.09)
+_RED = (0.14, 0.12, 0.70)
+_YELLOW = (0.20, 0.78, 0.88)
+_WHITE = (0.93, 0.95, 0.96)
+_CREAM = (0.80, 0.90, 0.95)
+_BROWN = (0.12, 0.20, 0.34)
+
+
+def _wrap(u: np.ndarray) -> np.ndarray:
+    """Fractional coordinate -> [-0.5, 0.5)."""
+    return u - np.floor(u + 0.5)
+
+
+def _supersampled(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], m: int,
+                  ss: int = 4) -> np.ndarray:
+    """(m, m, 3) box-filtered samples of ``fn(u, v) -> (..., 3)`` at (col/m, row/m).
+
+    The sub-sample offsets are symmetric about each sample, so a pattern edge that
+    falls exactly on a sample is averaged, not decided by floating-point rounding.
+    """
+    base = np.arange(m) / m
+    out = np.zeros((m, m, 3), np.float64)
+    offs = ((np.arange(ss) + 0.5) / ss - 0.5) / m
+    for dv in offs:
+        for du in offs:
+            u, v = np.meshgrid(base + du, base + dv)
+            out += fn(u, v)
+    return (out / (ss * ss)).astype(np.float32)
+
+
+def _stripe_profile(bands: list[tuple[tuple[float, float, float], float]]):
+    """Colour along s in [0, 1) from (colour, width) bands, widths summing to 1."""
+    edges = np.cumsum([w for _, w in bands])
+    cols = np.array([c for c, _ in bands], np.float64)
+
+    def profile(s: np.ndarray) -> np.ndarray:
+        idx = np.searchsorted(edges, np.mod(s, 1.0), side="right")
+        return cols[np.minimum(idx, len(cols) - 1)]
+
+    return profile
+
+
+def _sett(half: list[tuple[tuple[float, float, float], float]]):
+    """Colour of a reflective sett at fractional s: ``half`` fills [0, 1/2] (widths sum
+    to 1/2) and is mirrored about the pivots at 0 and 1/2."""
+    prof = _stripe_profile([(c, 2.0 * w) for c, w in half])
+    return lambda s: prof(2.0 * np.abs(_wrap(s)))
+
+
+def _weave(warp: np.ndarray, weft: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """(n, n, 3) colours of a woven cell: warp shows where ``up`` else weft.
+
+    ``warp`` colours are indexed by the thread across (column, u), ``weft`` by row (v).
+    """
+    return np.where(up[..., None], warp[None, :, :], weft[:, None, :])
+
+
+def _thread_texture(cell: np.ndarray,
+                    shift: tuple[float, float] = (0.0, 0.0)) -> Callable[[int], np.ndarray]:
+    """Texture function of a thread grid (rows = v, cols = u), one flat colour per
+    crossing, box-supersampled so thread edges are exact. ``shift`` (fractional) is
+    where the texture's origin lies in the thread grid."""
+    rows, cols = cell.shape[:2]
+
+    def fn(u, v):
+        i = np.floor(np.mod(u + shift[0], 1.0) * cols).astype(int) % cols
+        j = np.floor(np.mod(v + shift[1], 1.0) * rows).astype(int) % rows
+        return cell[j, i]
+
+    return lambda m: _supersampled(fn, m)
+
+
+def _rot(deg: float) -> np.ndarray:
+    r = math.radians(deg)
+    return np.array([[math.cos(r), -math.sin(r)], [math.sin(r), math.cos(r)]])
+
+
+def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
+                  origin: tuple[float, float] = (0.0, 0.0)) -> Print:
+    """A textile classic (see :data:`CLASSICS`) with repeat ``|w1| = repeat`` mm.
+
+    ``rotation`` turns the print (degrees, mathematical sense in x/y); ``origin`` is
+    where the cell's symmetry origin (the group table's origin) lies, in mm.
+    """
+    if name not in CLASSIC_GROUPS:
+        raise ValueError(f"unknown classic {name!r}; expected one of {', '.join(CLASSICS)}")
+    if not repeat > 0:
+        raise ValueError(f"repeat must be positive, got {repeat}")
+    rot = _rot(rotation)
+    o = np.asarray(origin, float)
+    r = float(repeat)
+
+    def wallpaper(group: str, w1, w2) -> Wallpaper:
+        return Wallpaper(group, rot @ np.asarray(w1, float), rot @ np.asarray(w2, float), o)
+
+    if name == "stripes":
+        prof = _stripe_profile([(_NAVY, 0.34), (_WHITE, 0.18), (_RED, 0.08), (_WHITE, 0.1),
+                                (_YELLOW, 0.05), (_CREAM, 0.25)])
+        w1 = rot @ np.array([r, 0.0])
+        basis = np.column_stack([w1, rot @ np.array([0.0, r])])
+        truth = Frieze("p11m", w1, o.copy())
+        return Print(name, truth, lambda m: _supersampled(lambda u, v: prof(u), m),
+                     basis=basis, origin=o.copy())
+
+    if name == "gingham":
+        col = np.array(_RED)
+        white = np.array(_WHITE)
+        mid = 0.5 * (col + white)
+        dark = col * 0.75
+
+        def fn(u, v):
+            bu = (np.abs(_wrap(u)) < 0.25)[..., None]
+            bv = (np.abs(_wrap(v)) < 0.25)[..., None]
+            return np.where(bu & bv, dark, np.where(bu | bv, mid, white))
+
+        return Print(name, wallpaper("p4m", (r, 0), (0, r)), lambda m: _supersampled(fn, m))
+
+    if name in ("tartan", "plaid"):
+        warp = _sett([(_NAVY, 0.13), (_BLACK, 0.05), (_GREEN, 0.16), (_BLACK, 0.03),
+                      (_GREEN, 0.05), (_BLACK, 0.02), (_YELLOW, 0.01), (_BLACK, 0.05)])
+        if name == "tartan":
+            weft, ratio, group = warp, 1.0, "p4m"
+        else:
+            weft = _sett([(_RED, 0.17), (_BLACK, 0.04), (_CREAM, 0.02), (_BLACK, 0.04),
+                          (_BROWN, 0.15), (_BLACK, 0.08)])
+            ratio, group = 0.75, "pmm"
+        return Print(name, wallpaper(group, (r, 0), (0, r * ratio)),
+                     lambda m: _supersampled(lambda u, v: 0.5 * (warp(u) + weft(v)), m))
+
+    if name == "houndstooth":
+        n = 8
+        block = (np.arange(n) % 8 < 4)
+        dark, light = np.array(_BLACK), np.array(_CREAM)
+        threads = np.where(block[:, None], dark, light)
+        i, j = np.meshgrid(np.arange(n), np.arange(n))  # i across (u), j down (v)
+        up = (i + j) % 4 < 2  # 2/2 twill
+        return Print(name, wallpaper("p1", (r, 0), (0, r)),
+                     _thread_texture(_weave(threads, threads, up)))
+
+    if name == "herringbone":
+        n = 6  # warp threads per twill direction; cell = 2n threads x 4 picks
+        p = r / (2 * n)
+        i, j = np.meshgrid(np.arange(2 * n), np.arange(4))
+        s = np.where(i < n, 1, -1)
+        up = (j + s * i) % 4 < 2
+        warp = np.tile(np.array(_BROWN), (2 * n, 1))
+        weft = np.tile(np.array(_CREAM), (4, 1))
+        # The half-turn centre (3.5, 2) threads is the pmg origin; mirrors then lie at
+        # the twill reversals (0.5 and 6.5 threads), glide lines along the warp axis.
+        return Print(name, wallpaper("pmg", (r, 0), (0, 4 * p)),
+                     _thread_texture(_weave(warp, weft, up), shift=(3.5 / (2 * n), 2 / 4)))
+
+    if name in ("polka-square", "polka-hex"):
+        hexagonal = name == "polka-hex"
+        w2 = r * np.array([-0.5, math.sqrt(3) / 2]) if hexagonal else np.array([0.0, r])
+        wp = wallpaper("p6m" if hexagonal else "p4m", (r, 0), w2)
+        basis = np.column_stack([np.array([r, 0.0]), w2])
+        dot, ground = np.array(_WHITE), np.array(_NAVY)
+        radius = 0.3 * r
+
+        def fn(u, v):
+            best = np.full(u.shape, np.inf)
+            fu, fv = _wrap(u), _wrap(v)
+            for a in (-1, 0, 1):  # nearest lattice point among the neighbours
+                for b in (-1, 0, 1):
+                    x = (fu + a) * basis[0, 0] + (fv + b) * basis[0, 1]
+                    y = (fu + a) * basis[1, 0] + (fv + b) * basis[1, 1]
+                    best = np.minimum(best, np.hypot(x, y))
+            return np.where((best < radius)[..., None], dot, ground)
+
+        return Print(name, wp, lambda m: _supersampled(fn, m))
+
+    # diamonds: uniform outlined diamonds on a rhombic (centred rectangular) lattice.
+    half = math.radians(34.0)  # half-angle of the diamond at its top vertex
+    w1 = r * np.array([math.sin(half), math.cos(half)])
+    w2 = r * np.array([-math.sin(half), math.cos(half)])
+    fill, line, ground = np.array(_GREEN), np.array(_YELLOW), np.array(_CREAM)
+
+    def fn(u, v):
+        d = np.maximum(np.abs(_wrap(u)), np.abs(_wrap(v)))
+        return np.where((d < 0.33)[..., None], fill,
+                        np.where((d < 0.41)[..., None], ground, line))
+
+    return Print(name, wallpaper("cmm", w1, w2), lambda m: _supersampled(fn, m))
