@@ -1,0 +1,45 @@
+"""Sewing-pattern shape optimisation (paper Sec. 5): ideal seams, Eq. (10), L-BFGS.
+
+    from solver.reshape import reshape
+    new_garment, report = reshape(garment, placement)   # placement from solver.align
+
+Wolff and Sorkine-Hornung, "Wallpaper Pattern Alignment along Garment Seams",
+ACM Trans. Graph. 38(4), 2019, Sec. 5.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solver.reshape.ideal import IdealSeams, ideal_seams
+from solver.reshape.optimise import (
+    OptimiseResult,
+    OptimiseState,
+    ReshapeOptions,
+    optimise,
+    optimise_step,
+)
+from solver.reshape.report import ReshapeReport, reshape_report
+
+__all__ = [
+    "IdealSeams",
+    "OptimiseResult",
+    "OptimiseState",
+    "ReshapeOptions",
+    "ReshapeReport",
+    "ideal_seams",
+    "optimise",
+    "optimise_step",
+    "reshape",
+    "reshape_report",
+]
+
+
+def reshape(garment, placement, *, fixed: np.ndarray | None = None,
+            options: ReshapeOptions | None = None):
+    """Reshaped copy of ``garment`` (3D kept, pattern replaced) and its `ReshapeReport`."""
+    if placement.n_pieces != garment.n_pieces:
+        raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
+                         f"has {garment.n_pieces}")
+    result = optimise(garment, placement, fixed=fixed, options=options)
+    return garment.with_uv(result.uv), reshape_report(garment, placement, result)

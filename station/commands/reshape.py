@@ -1,0 +1,118 @@
+"""`station reshape`: nudge the pattern pieces' shapes so the print matches across seams."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from solver.placement import Placement
+from station.cli import UserError
+from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
+
+FORMATS = (".obj", ".json", ".dxf")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "reshape",
+        help="deform the pattern so the print fits perfectly along the seams (paper Sec. 5)",
+        description="Keep the print's placement and move each seam towards its ideal line "
+        "(conformal, flip-free, twin seam lengths kept equal). Writes the reshaped garment as "
+        "OBJ (3D kept, pattern replaced), JSON specification (if the input was one) or "
+        "DXF-AAMA.",
+    )
+    add_garment_arguments(p)
+    p.add_argument("--fabric", required=True, metavar="FABRIC.json",
+                   help='print: {"group", "w1", "w2", "origin", "units"}')
+    p.add_argument("--placement", required=True, metavar="PLACEMENT.json",
+                   help="per-piece rotation and translation of the print (from `station align`)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.(obj|json|dxf)",
+                   help="reshaped garment; the suffix picks the format")
+    p.add_argument("--fix", action="append", default=[], metavar="PIECE",
+                   help="piece (name or index) that must keep its shape; repeatable")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--png", metavar="OUT.png",
+                   help="draw the reshaped pieces over the print, seams coloured by mismatch")
+    p.set_defaults(func=run)
+
+
+def _fixed_mask(garment, names: list[str]):
+    import numpy as np
+
+    mask = np.zeros(garment.n_pieces, bool)
+    for name in names:
+        if name in garment.piece_names:
+            mask[garment.piece_names.index(name)] = True
+        elif name.isdigit() and int(name) < garment.n_pieces:
+            mask[int(name)] = True
+        else:
+            raise UserError(f"--fix {name}: no such piece (pieces: "
+                            f"{', '.join(garment.piece_names)})")
+    return mask
+
+
+def write_garment(garment, path: Path) -> None:
+    """Write the reshaped garment in the format its suffix names."""
+    suffix = path.suffix.lower()
+    if suffix == ".obj":
+        from solver.garment import save_obj
+
+        save_obj(garment, path)
+    elif suffix == ".json":
+        if garment.kind != "spec":
+            raise UserError(f"{path}: JSON output needs a JSON specification as input "
+                            f"(this garment came from {garment.kind}); write .obj or .dxf")
+        from solver.garment import save_spec
+
+        save_spec(garment, path)
+    elif suffix == ".dxf":
+        try:
+            from solver.dxf_aama import write_dxf_aama
+        except ImportError:
+            raise UserError(f"{path}: DXF-AAMA output is not available in this build "
+                            "(solver.dxf_aama missing); write .obj or .json") from None
+        write_dxf_aama(garment, path)
+    else:
+        raise UserError(f"{path}: unknown output format {suffix!r} "
+                        f"(expected one of {', '.join(FORMATS)})")
+
+
+def run(args: argparse.Namespace) -> int:
+    from solver.reshape import reshape
+
+    out = Path(args.output)
+    if out.suffix.lower() not in FORMATS:
+        raise UserError(f"{out}: unknown output format {out.suffix!r} "
+                        f"(expected one of {', '.join(FORMATS)})")
+    garment = load_garment_arg(args)
+    fabric = load_fabric(args.fabric)
+    placement = Placement.load(args.placement)
+    if placement.n_pieces != garment.n_pieces:
+        raise ValueError(f"{args.placement}: placement has {placement.n_pieces} pieces, "
+                         f"{args.garment} has {garment.n_pieces}")
+    placement.fabric = fabric
+    fixed = _fixed_mask(garment, args.fix)
+    print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
+          f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
+    new, report = reshape(garment, placement, fixed=fixed)
+    write_garment(new, out)
+    result = {"garment": str(args.garment), "output": str(out), "group": fabric.group,
+              **report.to_dict()}
+    if args.png:
+        from solver.fit import fit_report
+        from station.render import draw_fit
+
+        draw_fit(new, placement, fit_report(new, placement), args.png)
+        result["png"] = str(args.png)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"{out}: E_fit {report.e_fit_before_mm2:.1f} -> {report.e_fit_after_mm2:.1f} mm² "
+              f"({report.e_fit_ratio:.3f}), L {report.length_mismatch_initial_mm:.2f} -> "
+              f"{report.length_mismatch_final_mm:.2f} mm, largest move "
+              f"{report.max_displacement_mm:.2f} mm, {report.flipped_triangles} flipped "
+              f"triangles, {report.iterations} iterations in {report.gamma_rounds} rounds, "
+              f"{report.seconds:.2f} s")
+    return 0

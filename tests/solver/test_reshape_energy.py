@@ -1,0 +1,104 @@
+"""Every term of Eq. (10) against central finite differences, on a real garment patch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from solver.garment import load_garment
+from solver.reshape.energy import (
+    barrier_energy,
+    conformal_energy,
+    conformal_matrix,
+    dirichlet_laplacian,
+    length_penalty,
+    max_flip_free_step,
+    prox_energy,
+    signed_areas,
+)
+
+
+@pytest.fixture(scope="module")
+def pants(data_dir_module):
+    return load_garment(data_dir_module / "garments" / "berkeley" / "pants-coarse.obj", units="m")
+
+
+@pytest.fixture(scope="module")
+def data_dir_module():
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[1] / "data"
+
+
+def _fd_check(fun, uv, rng, n_dirs=6, h=1e-4):
+    """Directional derivatives of fun against its analytic gradient."""
+    e0, g = fun(uv)
+    assert np.isfinite(e0)
+    for _ in range(n_dirs):
+        d = rng.normal(size=uv.shape)
+        num = (fun(uv + h * d)[0] - fun(uv - h * d)[0]) / (2 * h)
+        ana = float(np.sum(g * d))
+        assert num == pytest.approx(ana, rel=1e-5, abs=1e-7 * (1 + abs(e0)))
+
+
+def _perturbed(g, rng, scale=2.0):
+    return g.uv + rng.normal(scale=scale, size=g.uv.shape)
+
+
+def test_prox_gradient(pants):
+    rng = np.random.default_rng(1)
+    v = pants.seam_edges[:, :2].ravel()
+    target = pants.uv[v] + rng.normal(size=(len(v), 2))
+    w = rng.uniform(0.5, 2, len(v))
+    _fd_check(lambda u: prox_energy(u, v, target, w), _perturbed(pants, rng), rng)
+
+
+def test_conformal_gradient_and_similarity_invariance(pants):
+    rng = np.random.default_rng(2)
+    q = conformal_matrix(pants.uv, pants.faces)
+    _fd_check(lambda u: conformal_energy(u, q), _perturbed(pants, rng), rng)
+    # zero for the input and for any similarity of it (per-face conformal)
+    c, s = np.cos(0.7) * 1.3, np.sin(0.7) * 1.3
+    moved = pants.uv @ np.array([[c, -s], [s, c]]).T + [5.0, -3.0]
+    assert conformal_energy(pants.uv, q)[0] == pytest.approx(0, abs=1e-6)
+    assert conformal_energy(moved, q)[0] == pytest.approx(0, abs=1e-6)
+    # a shear is not conformal
+    sheared = pants.uv @ np.array([[1.0, 0.2], [0.0, 1.0]]).T
+    assert conformal_energy(sheared, q)[0] > 1.0
+    # E_conf = E_D - A: the Dirichlet Laplacian bounds it from above
+    lap = dirichlet_laplacian(pants.uv, pants.faces)
+    e_d = 0.5 * float(np.sum(sheared * (lap @ sheared)))
+    area = signed_areas(sheared, pants.faces).sum()
+    assert conformal_energy(sheared, q)[0] == pytest.approx(e_d - area, rel=1e-9)
+
+
+def test_barrier_gradient_and_flip_is_infinite(pants):
+    rng = np.random.default_rng(3)
+    area0 = signed_areas(pants.uv, pants.faces)
+    thr = 0.9 * area0  # many faces active after a perturbation
+    uv = _perturbed(pants, rng, scale=1.0)
+    e, _ = barrier_energy(uv, pants.faces, thr)
+    assert 0 < e < np.inf
+    _fd_check(lambda u: barrier_energy(u, pants.faces, thr), uv, rng, h=1e-6)
+    flipped = pants.uv.copy()
+    f = pants.faces[0]
+    flipped[f[0]] = flipped[f[1]] + (flipped[f[1]] - flipped[f[0]])  # fold one corner over
+    flipped[f[2]] = pants.uv[f[2]]
+    assert barrier_energy(flipped, pants.faces, thr)[0] == np.inf
+
+
+def test_length_penalty_gradient(pants):
+    rng = np.random.default_rng(4)
+    e = pants.seam_edges
+    l0 = np.linalg.norm(pants.uv[e[:, 1]] - pants.uv[e[:, 0]], axis=1)
+    w = rng.uniform(0.5, 2, len(e))
+    _fd_check(lambda u: length_penalty(u, e, w, l0, 0.25), _perturbed(pants, rng), rng)
+
+
+def test_max_flip_free_step_is_first_zero_area(pants):
+    rng = np.random.default_rng(5)
+    d = rng.normal(scale=50.0, size=pants.uv.shape)
+    t = max_flip_free_step(pants.uv, pants.faces, d)
+    assert 0 < t < np.inf
+    assert signed_areas(pants.uv + 0.999 * t * d, pants.faces).min() > 0
+    assert signed_areas(pants.uv + 1.001 * t * d, pants.faces).min() < 0
