@@ -1,0 +1,125 @@
+"""Plain-fabric nesting with spyrrow (the Python binding of sparrow, Gardeyn & Vanden Berghe).
+
+sparrow is the best published strip packer (ESICUP records, 2025), so we adapt rather
+than rewrite: the gap is obtained by buffering every shape by half the gap (mitred, so
+it only grows) and nesting on a strip narrowed by the gap, then shifting back; quantities
+become demands; a mirrored copy is its own item; the allowed orientations pass through.
+
+.. [1] J. Gardeyn, T. Wauters, G. Vanden Berghe, "An open-source, state-of-the-art
+   algorithm for 2D irregular strip packing", 2025 (sparrow). https://github.com/JeroenGar/sparrow
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+import shapely
+import spyrrow
+
+from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose, rotation
+from solver.nest.layout import Layout, build_layout
+
+Progress = Callable[[str], None]
+
+
+def stderr_progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def inflate(ring: np.ndarray, d: float) -> np.ndarray:
+    """Outline grown by ``d`` with mitred corners (never smaller than the true offset)."""
+    if d <= 0:
+        return ring
+    poly = shapely.Polygon(ring).buffer(d, join_style="mitre", mitre_limit=2.0)
+    poly = shapely.simplify(poly, d * 0.05)  # drops collinear points only, well under the gap
+    return np.asarray(poly.exterior.coords)[:-1]
+
+
+def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | None,
+                 workers: int = 1, progress: Progress | None = None,
+                 label: str = "spyrrow") -> tuple[dict, float]:
+    """Run sparrow on ``{key: (ring, demand, orientations|None)}``.
+
+    Returns ``{key: [(angle_deg, (tx, ty)), ...]}`` (one entry per copy) and the strip
+    length found. Rotations are about the shape's own origin, then the translation.
+    """
+    items = [spyrrow.Item(str(k), [tuple(map(float, p)) for p in ring], int(n),
+                          None if orient is None else [float(a) for a in orient])
+             for k, (ring, n, orient) in shapes.items()]
+    inst = spyrrow.StripPackingInstance("nest", float(height), items)
+    cfg = spyrrow.StripPackingConfig(early_termination=True,
+                                     total_computation_time=max(1, int(round(time_limit))),
+                                     num_workers=workers, seed=seed)
+    queue = spyrrow.ProgressQueue() if progress else None
+    result: dict = {}
+
+    def work() -> None:
+        result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+
+    thread = threading.Thread(target=work, daemon=True)
+    t0 = time.monotonic()
+    thread.start()
+    last = 0.0
+    while thread.is_alive():
+        thread.join(0.5)
+        if queue is not None:
+            reports = queue.drain()
+            if reports and time.monotonic() - last > 2.0:
+                _, sol = reports[-1]
+                progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
+                         f"density {sol.density:.1%}")
+                last = time.monotonic()
+    sol = result["sol"]
+    keys = {str(k): k for k in shapes}
+    out: dict = {k: [] for k in shapes}
+    for pi in sol.placed_items:
+        out[keys[pi.id]].append((float(pi.rotation) % 360.0, tuple(map(float, pi.translation))))
+    return out, float(sol.width)
+
+
+def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
+                time_limit: float = 30.0, seed: int | None = 0,
+                progress: Progress | None = None) -> tuple[list[np.ndarray], float]:
+    """Per item the map ``G`` (reference frame -> fabric) of a free nest by sparrow.
+
+    ``extra`` is added to every side of every shape (the naive print baseline uses it).
+    """
+    g = problem.gap
+    grow = g / 2 + extra
+    shapes: dict = {}
+    for it in items:
+        if it.key not in shapes:
+            ring = it.ref @ MIRROR_X[:, :2].T if it.mirrored else it.ref
+            orient = problem.pieces[it.piece].orientations
+            if problem.fabric is not None:
+                # the print allows only its own operations: give sparrow exactly those
+                orient = sorted({round(angle_of(c, it.mirrored), 9) for c in it.candidates})
+            shapes[it.key] = [inflate(ring, grow), 0, orient]
+        shapes[it.key][1] += 1
+    shapes = {k: tuple(v) for k, v in shapes.items()}
+    # buffered shapes lie in [0, L] x [0, W - g]; true outlines keep ``grow`` inside that,
+    # so shifting by g/2 leaves g + extra to every fabric edge and g + 2 extra between pieces
+    placed, length = spyrrow_pack(shapes, problem.width - g, time_limit=time_limit, seed=seed,
+                                  progress=progress)
+    shift = np.array([g / 2, g / 2])
+    moves = []
+    used: dict = {k: 0 for k in placed}
+    for it in items:
+        ang, t = placed[it.key][used[it.key]]
+        used[it.key] += 1
+        m = rotation(ang)
+        m[:, 2] = np.asarray(t) + shift
+        moves.append(compose(m, MIRROR_X) if it.mirrored else m)
+    return moves, length + g
+
+
+def nest_plain(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+               progress: Progress | None = None) -> Layout:
+    """Free strip packing of the problem's pieces (no print) with sparrow."""
+    items = problem.items()
+    moves, _ = plain_moves(problem, items, time_limit=time_limit, seed=seed, progress=progress)
+    return build_layout(problem, items, moves)
