@@ -227,6 +227,7 @@ class GrblEmulator:
     def _reinit(self) -> None:
         """GRBL's main-loop initialisation after power-up or soft reset."""
         self._rx = bytearray()
+        self._line = bytearray()
         self._planner: deque[Block] = deque()
         self._pending: deque[tuple] = deque()
         self._v = 0.0
@@ -426,11 +427,16 @@ class GrblEmulator:
 
     # ------------------------------------------------------------------ line processing
     def _take_line(self) -> bytes | None:
+        """Move received bytes into the line being read (GRBL reads characters out of the RX
+        ring as they come whenever its main loop is free); return the line at its EOL."""
         for i, b in enumerate(self._rx):
             if b in (0x0A, 0x0D):
-                line = bytes(self._rx[:i])
+                line = bytes(self._line + self._rx[:i])
                 del self._rx[: i + 1]
+                self._line.clear()
                 return line
+        self._line += self._rx
+        self._rx.clear()
         return None
 
     def _service(self) -> None:
