@@ -298,6 +298,15 @@ def build_garment(
         if faces.size == 0:
             raise GarmentError(source, "all faces are degenerate")
 
+    # orientation: make every piece counter-clockwise in the pattern (before renumbering,
+    # so that the numbering below is that of the faces as they will be written out)
+    _, comp = _components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
+    comp_of_face = comp[faces[:, 0]]
+    comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
+    flip = comp_area[comp_of_face] < 0
+    if flip.any():
+        faces[flip] = faces[flip][:, [0, 2, 1]]
+
     # renumber vertices by first appearance so that exports re-import in the same order
     flat = faces.ravel()
     used, first = np.unique(flat, return_index=True)
@@ -317,17 +326,10 @@ def build_garment(
     point_of_vertex = prank[pinv.ravel()]
     n = len(order)
 
-    # pieces: connected components of the pattern mesh (labels follow vertex order)
+    # pieces: connected components of the pattern mesh (labels follow vertex order, which
+    # is the order in which pieces first appear in the faces)
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     n_pieces, piece_of_vertex = _components(n, he)
-    piece_of_face = piece_of_vertex[faces[:, 0]]
-
-    # orientation: make every piece counter-clockwise in the pattern
-    piece_area = np.bincount(piece_of_face, weights=area, minlength=n_pieces)
-    flip = piece_area[piece_of_face] < 0
-    if flip.any():
-        faces[flip] = faces[flip][:, [0, 2, 1]]
-        he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
 
     # pattern edges used by more than two faces make no sense in a sewing pattern
     lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
