@@ -120,7 +120,7 @@ def test_unknown_url_option_is_a_clear_error():
     ("line", "code"),
     [
         ("#1", 1),  # "G-code words consist of a letter and a value. Letter was not found."
-        ("G1 X", 2),  # "Missing the expected G-code word value or numeric value format is not valid."
+        ("G1 X", 2),  # "Missing the expected G-code word value or numeric value format is ..."
         ("$10", 3),  # "Grbl '$' system command was not recognized or supported."
         ("$Q", 2),  # GRBL reads an unknown "$x" as a setting number: bad number format
         ("F-100", 4),  # "Negative value received for an expected positive value."
@@ -398,7 +398,8 @@ def test_jog_and_jog_cancel(port):
         assert send(p, "$J=G91 X-50 F600") == ["ok"]
         assert send(p, "$J=G91 Y-50 F600") == ["ok"]
         assert status(p).startswith("<Jog|")
-        assert send(p, "G1 X0 F100") == ["error:9"]  # "G-code commands are locked out during ... jog"
+        # error 9: "G-code commands are locked out during alarm or jog state."
+        assert send(p, "G1 X0 F100") == ["error:9"]
         time.sleep(0.05)
         p.write(b"\x85")
         wait_state(p, "Idle")
