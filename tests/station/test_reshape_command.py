@@ -1,0 +1,86 @@
+"""`station reshape` end to end: JSON report, OBJ/JSON outputs and `station fit` agreement."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from solver.garment import load_garment
+from solver.placement import Placement
+from solver.wallpaper import Wallpaper
+from station.cli import main
+
+FABRIC = {"group": "p4m", "w1": [5, 0], "w2": [0, 5], "origin": [0, 0], "units": "cm"}
+KEYS = ("e_fit_before_mm2", "e_fit_after_mm2", "length_mismatch_initial_mm",
+        "length_mismatch_final_mm", "max_displacement_mm", "flipped_triangles", "seconds")
+
+
+@pytest.fixture
+def inputs(tmp_path, data_dir):
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps(FABRIC))
+    garment = data_dir / "garments" / "berkeley" / "shorts-iso.obj"
+    g = load_garment(garment, units="m")
+    rng = np.random.default_rng(3)
+    placement = tmp_path / "placement.json"
+    wp = Wallpaper.from_dict(FABRIC)
+    Placement(np.zeros(g.n_pieces), rng.uniform(0, 50, (g.n_pieces, 2)), wp).save(placement)
+    return garment, fabric, placement
+
+
+def run_json(capsys, *argv) -> dict:
+    assert main(list(argv)) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_reshape_obj_then_fit_reports_the_same_e_fit(tmp_path, inputs, capsys):
+    garment, fabric, placement = inputs
+    out = tmp_path / "reshaped.obj"
+    rep = run_json(capsys, "reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+                   "--placement", str(placement), "-o", str(out), "--json")
+    for key in KEYS:
+        assert key in rep
+    assert rep["flipped_triangles"] == 0
+    assert rep["e_fit_after_mm2"] < rep["e_fit_before_mm2"]
+    fit = run_json(capsys, "fit", str(out), "--fabric", str(fabric), "--placement",
+                   str(placement), "--json")
+    assert fit["e_fit_mm2"] == pytest.approx(rep["e_fit_after_mm2"], rel=1e-9)
+
+
+def test_reshape_json_spec_roundtrip(tmp_path, data_dir, capsys):
+    spec = data_dir / "garments" / "garmentcode" / "pants_specification.json"
+    g = load_garment(spec)
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps(FABRIC))
+    placement = tmp_path / "placement.json"
+    Placement.identity(g.n_pieces, Wallpaper.from_dict(FABRIC)).save(placement)
+    out = tmp_path / "reshaped.json"
+    rep = run_json(capsys, "reshape", str(spec), "--fabric", str(fabric), "--placement",
+                   str(placement), "-o", str(out), "--json")
+    assert rep["flipped_triangles"] == 0
+    # the file holds the reshaped outlines (cm, units_in_meter 100) within 1e-6 mm
+    from solver.reshape import reshape
+
+    new, _ = reshape(g, Placement.load(placement))
+    written = json.loads(out.read_text())
+    assert written["properties"]["units_in_meter"] == 100
+    panels = written["pattern"]["panels"]
+    assert len(panels) == g.n_pieces
+    for i, panel in enumerate(panels.values()):
+        verts = np.asarray(panel["vertices"], float) * 10.0
+        np.testing.assert_allclose(verts, new.piece_outline(i), rtol=0, atol=1e-6)
+    assert not np.allclose(new.uv, g.uv)  # it was reshaped, not copied
+
+
+def test_reshape_errors_name_the_fault(tmp_path, inputs, capsys):
+    garment, fabric, placement = inputs
+    code = main(["reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(placement), "-o", str(tmp_path / "x.svg")])
+    assert code == 2
+    assert "unknown output format" in capsys.readouterr().err
+    code = main(["reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(placement), "-o", str(tmp_path / "x.json")])
+    assert code == 2
+    assert "JSON output needs a JSON specification" in capsys.readouterr().err
