@@ -146,6 +146,7 @@ class Streamer:
         self.on_fault = on_fault
         self.prefix = f"{name}: "
         self._rxbuf = b""
+        self._lines: deque[str] = deque()
         self._inflight: deque[tuple[int, int]] = deque()  # (stream index, bytes)
         self._inflight_bytes = 0
         self.status: Status | None = None
@@ -184,19 +185,25 @@ class Streamer:
         except Exception as exc:  # serial.SerialException, OSError, PortNotOpenError
             raise _Disconnect(f"write failed: {exc}") from exc
 
-    def _read_lines(self) -> list[str]:
+    def _read_lines(self):
+        """Yield complete lines received, one at a time.
+
+        Lines not consumed (a caller that returns early) stay queued for the next caller,
+        so an answer that arrives in the same read as the one awaited is never lost.
+        """
         try:
             n = self.port.in_waiting
             data = self.port.read(n if n else 1)
         except Exception as exc:
             raise _Disconnect(f"read failed: {exc}") from exc
-        if data is None:
-            data = b""
         if data:
             self._last_rx = time.monotonic()
-        self._rxbuf += data
-        *lines, self._rxbuf = self._rxbuf.split(b"\n")
-        return [ln.rstrip(b"\r").decode("ascii", errors="replace") for ln in lines]
+            self._rxbuf += data
+            *lines, self._rxbuf = self._rxbuf.split(b"\n")
+            self._lines.extend(ln.rstrip(b"\r").decode("ascii", errors="replace")
+                               for ln in lines)
+        while self._lines:
+            yield self._lines.popleft()
 
     def _poll(self, now: float, interval: float | None = None) -> None:
         if now - self._last_poll >= (interval or self.poll_interval):
@@ -206,7 +213,7 @@ class Streamer:
                 self._status_pending_since = now
 
     # ------------------------------------------------------------ connecting
-    def connect(self, *, reset_if_silent: bool = True, quiet: float = 1.5) -> str:
+    def connect(self, *, reset_if_silent: bool = True, quiet: float = 0.5) -> str:
         """Wait for GRBL's banner (soft-resetting once if it stays silent); return it.
 
         Raises StreamError if no banner arrives or the controller boots in alarm.
