@@ -65,7 +65,7 @@ class Frieze:
     def direction(self) -> np.ndarray:
         """Unit vector along the stripes (the continuous-translation direction)."""
         d = np.array([-self.w1[1], self.w1[0]])
-        return d / np.hypot(*d)
+        return d / np.hypot(*d) + 0.0  # + 0.0: no negative zeros in JSON
 
     def to_dict(self) -> dict[str, Any]:
         return {
