@@ -1,0 +1,284 @@
+"""DXF-AAMA / ASTM D6673 pattern files: read pieces for nesting, and write them back.
+
+A cutting room receives its pieces from pattern CAD (Gerber AccuMark, Lectra, CLO) as
+AutoCAD R12 DXF where every piece is a BLOCK (placed by one INSERT) and the meaning of an
+entity is its layer number (AAMA/ASTM D6673):
+
+    1 boundary (cut line; often split in several open POLYLINEs), 4 notches,
+    6 mirror line (the block holds half the piece), 7 grain line, 8 internal lines,
+    11 internal cut-outs, 13 drill holes, 84 ASTM boundary curve (duplicate of 1)
+
+and TEXT entities in the block say ``Piece Name:``, ``Size:``, ``Quantity:``; the
+modelspace says ``Units: ENGLISH`` (inches) or ``METRIC`` (mm). ezdxf does the file
+format; this module only interprets the layers.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import ezdxf
+import numpy as np
+import shapely
+
+from solver.nest.instance import Piece, affine, rotation
+
+__all__ = ["dxf_sizes", "read_dxf_aama", "write_dxf_aama"]
+
+_INSUNITS_MM = {1: 25.4, 2: 304.8, 4: 1.0, 5: 10.0, 6: 1000.0}
+_TEXT = re.compile(r"^\s*([A-Za-z ]+?)\s*:\s*(.*?)\s*$")
+
+
+def _texts(entities) -> dict[str, str]:
+    out = {}
+    for e in entities:
+        if e.dxftype() == "TEXT":
+            m = _TEXT.match(e.dxf.text)
+            if m:
+                out.setdefault(m.group(1).lower(), m.group(2))
+    return out
+
+
+def _scale(doc, path: Path, units: str | None) -> float:
+    if units is not None:
+        table = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "inch": 25.4}
+        if units not in table:
+            raise ValueError(f"unknown units {units!r}; expected mm, cm, m or in")
+        return table[units]
+    declared = _texts(doc.modelspace()).get("units", "").upper()
+    if declared.startswith("ENGLISH") or declared.startswith("INCH"):
+        return 25.4
+    if declared.startswith("METRIC"):
+        return 1.0
+    code = doc.header.get("$INSUNITS", 0)
+    if code in _INSUNITS_MM:
+        return _INSUNITS_MM[code]
+    raise ValueError(f"{path}: the file does not say its units (no 'Units:' text, no $INSUNITS);"
+                     " give them with units='mm' or 'in'")
+
+
+def _chain(parts: list[np.ndarray], tol: float) -> list[np.ndarray]:
+    """Join open polylines end to end into closed rings (AccuMark splits the boundary)."""
+    parts = [p for p in parts if len(p) >= 2]
+    rings = []
+    while parts:
+        cur = parts.pop(0)
+        grown = True
+        while grown and np.linalg.norm(cur[0] - cur[-1]) > tol:
+            grown = False
+            for k, p in enumerate(parts):
+                if np.linalg.norm(p[0] - cur[-1]) <= tol:
+                    cur = np.vstack([cur, p[1:]])
+                elif np.linalg.norm(p[-1] - cur[-1]) <= tol:
+                    cur = np.vstack([cur, p[::-1][1:]])
+                elif np.linalg.norm(p[-1] - cur[0]) <= tol:
+                    cur = np.vstack([p, cur[1:]])
+                elif np.linalg.norm(p[0] - cur[0]) <= tol:
+                    cur = np.vstack([p[::-1], cur[1:]])
+                else:
+                    continue
+                parts.pop(k)
+                grown = True
+                break
+        if len(cur) >= 4 and np.linalg.norm(cur[0] - cur[-1]) <= tol:
+            rings.append(cur[:-1])
+        elif len(cur) >= 3:
+            rings.append(cur)  # an open boundary: closed by its last segment
+    return rings
+
+
+def _reflect(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    a, b = line
+    d = (b - a) / np.linalg.norm(b - a)
+    v = points - a
+    return a + 2 * np.outer(v @ d, d) - v
+
+
+def _piece_from_block(entities: list, name_default: str, scale: float, unfold: bool,
+                      where: str) -> Piece:
+    by_layer = defaultdict(list)
+    for e in entities:
+        by_layer[str(e.dxf.layer)].append(e)
+    text = _texts(entities)
+    name = text.get("piece name", name_default) or name_default
+
+    def polylines(layer: str) -> list[np.ndarray]:
+        out = []
+        for e in by_layer.get(layer, []):
+            if e.dxftype() == "POLYLINE":
+                pts = np.array([tuple(p)[:2] for p in e.points()], float)
+                out.append(np.vstack([pts, pts[:1]]) if e.is_closed else pts)
+            elif e.dxftype() == "LWPOLYLINE":
+                pts = np.array([tuple(p)[:2] for p in e.get_points("xy")], float)
+                out.append(np.vstack([pts, pts[:1]]) if e.closed else pts)
+            elif e.dxftype() == "LINE":
+                out.append(np.array([tuple(e.dxf.start)[:2], tuple(e.dxf.end)[:2]], float))
+        return [p * scale for p in out]
+
+    boundary = polylines("1") or polylines("84")
+    if not boundary:
+        raise ValueError(f"{where}: piece {name!r} has no boundary on layer 1")
+    span = max(float(np.ptp(np.vstack(boundary), axis=0).max()), 1e-9)
+    rings = _chain(boundary, 1e-6 * span + 1e-6)
+    if not rings:
+        raise ValueError(f"{where}: piece {name!r}: the boundary on layer 1 is not a closed line")
+    outline = max(rings, key=lambda r: abs(shapely.Polygon(r).area))
+    holes = [r for r in _chain(polylines("11"), 1e-6 * span + 1e-6)]
+    grain = polylines("7")
+    grainline = grain[0][[0, -1]] if grain else None
+    notches = []
+    for e in by_layer.get("4", []):
+        if e.dxftype() == "POINT":
+            at = np.array(tuple(e.dxf.location)[:2]) * scale
+            ang = math.radians(e.dxf.get("angle", 0.0) or 0.0)
+            notches.append((at, np.array([math.cos(ang), math.sin(ang)])))
+        elif e.dxftype() == "LINE":
+            a = np.array(tuple(e.dxf.start)[:2]) * scale
+            b = np.array(tuple(e.dxf.end)[:2]) * scale
+            n = np.linalg.norm(b - a)
+            notches.append((a, (b - a) / n if n > 0 else np.array([1.0, 0.0])))
+    marks = np.array([tuple(e.dxf.location)[:2] for e in by_layer.get("13", [])
+                      if e.dxftype() == "POINT"], float).reshape(-1, 2) * scale
+    mirror = polylines("6")
+    if unfold and mirror:
+        line = mirror[0][[0, -1]]
+        tol = 1e-4 * span
+        whole = shapely.union(shapely.Polygon(outline),
+                              shapely.Polygon(_reflect(outline, line)).buffer(0))
+        whole = whole.buffer(tol, join_style="mitre").buffer(-tol, join_style="mitre")
+        if whole.geom_type == "MultiPolygon":
+            whole = max(whole.geoms, key=lambda g: g.area)
+        outline = shapely.simplify(whole, tol).exterior.coords[:-1]
+        notches += [(_reflect(a[None], line)[0], _reflect(a[None] + d[None], line)[0]
+                     - _reflect(a[None], line)[0]) for a, d in notches]
+        if len(marks):
+            marks = np.vstack([marks, _reflect(marks, line)])
+    try:
+        quantity = int(float(text.get("quantity", "1") or 1))
+    except ValueError:
+        quantity = 1
+    piece = Piece(name, np.asarray(outline, float), quantity=max(quantity, 1), holes=holes,
+                  grainline=grainline, notches=notches, marks=marks,
+                  size=text.get("size") or None)
+    if grainline is not None:  # reference frame: the grain along the roll (+x)
+        d = grainline[1] - grainline[0]
+        if np.linalg.norm(d) > 0:
+            piece.base = rotation(-math.degrees(math.atan2(d[1], d[0])))
+    return piece
+
+
+def _blocks(path: str | Path):
+    path = Path(path)
+    try:
+        doc = ezdxf.readfile(path)
+    except OSError:
+        raise FileNotFoundError(f"{path}: cannot read the file") from None
+    except ezdxf.DXFStructureError as exc:
+        raise ValueError(f"{path}: not a valid DXF file ({exc})") from None
+    out = []
+    for ins in doc.modelspace().query("INSERT"):
+        ents = list(ins.virtual_entities())  # applies the INSERT's placement
+        if any(str(e.dxf.layer) in ("1", "84") for e in ents):
+            out.append((ins.dxf.name, ents))
+    return doc, path, out
+
+
+def dxf_sizes(path: str | Path) -> list[str]:
+    """The sizes present in a graded file, in file order."""
+    _, _, blocks = _blocks(path)
+    sizes = []
+    for _, ents in blocks:
+        s = _texts(ents).get("size")
+        if s and s not in sizes:
+            sizes.append(s)
+    return sizes
+
+
+def read_dxf_aama(path: str | Path, *, size: str | list[str] | None = None,
+                  units: str | None = None, unfold: bool = True) -> list[Piece]:
+    """Pieces (mm) of a DXF-AAMA/ASTM file.
+
+    ``size`` picks the size(s) to cut when the file is graded (several sizes); by default
+    a graded file gives its sample size (``Sample Size:``) or else its first size.
+    ``unfold`` makes whole pieces of half pieces that carry a mirror line (layer 6).
+    Each piece's ``base`` turns its grain line along +x.
+    """
+    doc, path, blocks = _blocks(path)
+    if not blocks:
+        raise ValueError(f"{path}: no pattern pieces (no INSERTed block with a layer-1 boundary)")
+    scale = _scale(doc, path, units)
+    sizes = [s for s in dict.fromkeys(_texts(e).get("size") for _, e in blocks) if s]
+    if size is None and len(sizes) > 1:
+        sample = _texts(doc.modelspace()).get("sample size")
+        size = sample if sample in sizes else sizes[0]
+    wanted = None if size is None else ([size] if isinstance(size, str) else list(size))
+    if wanted is not None and sizes:
+        unknown = [s for s in wanted if s not in sizes]
+        if unknown:
+            raise ValueError(f"{path}: no size {', '.join(unknown)}; sizes are "
+                             f"{', '.join(sizes)}")
+    pieces = []
+    for name, ents in blocks:
+        s = _texts(ents).get("size")
+        if wanted is not None and sizes and s not in wanted:
+            continue
+        p = _piece_from_block(ents, name, scale, unfold, str(path))
+        if wanted is not None and len(wanted) > 1 and s:
+            p.name = f"{p.name} {s}"
+        pieces.append(p)
+    return pieces
+
+
+def write_dxf_aama(pieces: list[Piece], path: str | Path, *, style: str = "station") -> None:
+    """Write pieces (mm, input coordinates) as DXF-AAMA R12: one BLOCK + INSERT per piece.
+
+    Each block holds the outline (layer 1, closed), cut-outs (11), the grain line (7),
+    notches as POINTs with their direction angle (4), drill holes (13) and the TEXTs
+    ``Piece Name``, ``Size``, ``Quantity``; it round-trips through :func:`read_dxf_aama`.
+    """
+    doc = ezdxf.new("R12")
+    msp = doc.modelspace()
+    for k, line in enumerate([f"Style Name: {style}", "Units: METRIC"]):
+        msp.add_text(line, dxfattribs={"layer": "1", "height": 5.0, "insert": (0, -10 * k)})
+    used = set()
+    for p in pieces:
+        bname = re.sub(r"[^A-Za-z0-9_ -]", "_", f"{p.name}_{p.size}" if p.size else p.name)
+        while bname in used:
+            bname += "_"
+        used.add(bname)
+        blk = doc.blocks.new(name=bname)
+        blk.add_polyline2d([tuple(map(float, q)) for q in p.outline], close=True,
+                           dxfattribs={"layer": "1"})
+        for h in p.holes:
+            blk.add_polyline2d([tuple(map(float, q)) for q in h], close=True,
+                               dxfattribs={"layer": "11"})
+        if p.grainline is not None:
+            blk.add_line(tuple(map(float, p.grainline[0])), tuple(map(float, p.grainline[1])),
+                         dxfattribs={"layer": "7"})
+        for at, d in p.notches:
+            blk.add_point(tuple(map(float, at)), dxfattribs={
+                "layer": "4", "angle": math.degrees(math.atan2(d[1], d[0])) % 360.0})
+        for m in np.asarray(p.marks, float).reshape(-1, 2):
+            blk.add_point(tuple(map(float, m)), dxfattribs={"layer": "13"})
+        texts = [f"Piece Name: {p.name}", f"Quantity: {p.quantity}"]
+        if p.size:
+            texts.insert(1, f"Size: {p.size}")
+        x0, y0 = p.outline.min(0)
+        for k, line in enumerate(texts):
+            blk.add_text(line, dxfattribs={"layer": "1", "height": 3.0,
+                                           "insert": (float(x0), float(y0) - 5.0 * (k + 1))})
+        msp.add_blockref(bname, (0, 0), dxfattribs={"layer": "1"})
+    doc.saveas(Path(path))
+
+
+def transformed(piece: Piece, m: np.ndarray) -> Piece:
+    """A copy of ``piece`` with every geometric part mapped by the (2, 3) affine ``m``."""
+    lin = m[:, :2]
+    return Piece(piece.name, affine(m, piece.outline), piece.quantity, piece.orientations,
+                 piece.mirrored_pair, holes=[affine(m, h) for h in piece.holes],
+                 grainline=None if piece.grainline is None else affine(m, piece.grainline),
+                 notches=[(affine(m, a)[0], lin @ d) for a, d in piece.notches],
+                 marks=affine(m, piece.marks), size=piece.size)

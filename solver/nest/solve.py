@@ -1,0 +1,60 @@
+"""One entry point for nesting: plain or printed fabric, window, keep-outs."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solver.nest.instance import NestProblem
+from solver.nest.layout import Layout, build_layout
+from solver.nest.plain import Progress, plain_moves
+
+METHODS = ("auto", "fill", "repair", "naive")
+
+
+def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+         progress: Progress | None = None, method: str = "auto") -> Layout:
+    """Nest ``problem``; on a print ``method`` picks the search (auto: fill and repair, best).
+
+    Plain fabric goes to sparrow; when the operator marked keep-outs or the table is
+    shorter than sparrow's marker, the offending pieces are re-inserted around the rest.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown nesting method {method!r}; expected one of {METHODS}")
+    if problem.fabric is not None:
+        if method == "naive":
+            from solver.nest.naive import nest_naive
+
+            layout = nest_naive(problem, time_limit=time_limit, seed=seed, progress=progress)
+        else:
+            from solver.nest.lattice import nest_lattice
+
+            strategies = ("fill", "repair") if method == "auto" else (method,)
+            layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
+                                  strategies=strategies)
+    else:
+        items = problem.items()
+        regions = bool(problem.keepouts) or problem.length is not None
+        share = 0.7 if regions else 1.0
+        moves, length = plain_moves(problem, items, time_limit=share * time_limit, seed=seed,
+                                    progress=progress)
+        if regions and (problem.keepouts or length > problem.length):
+            from solver.nest.regions import repair
+
+            r = repair(problem, items, moves, time_limit=(1 - share) * time_limit, seed=seed,
+                       progress=progress)
+            if r is None:
+                raise ValueError(_no_fit(problem))
+            moves = r[0]
+        layout = build_layout(problem, items, moves)
+    if problem.length is not None and layout.length > problem.length + 1e-9:
+        raise ValueError(_no_fit(problem) + f" (needs {layout.length:.1f} mm)")
+    return layout
+
+
+def _no_fit(problem: NestProblem) -> str:
+    return (f"the pieces do not fit on the fabric window {problem.length:g} x "
+            f"{problem.width:g} mm")
+
+
+def piece_area(layout: Layout) -> float:
+    return float(np.sum([p.polygon().area for p in layout.pieces]))

@@ -1,0 +1,100 @@
+"""Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from solver.nest.instance import NestProblem, Piece, load_esicup
+
+
+def kind_of(path: str | Path) -> str:
+    """"dxf", "instance" (ESICUP strip packing) or "placement" (PLACEMENT.json)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    if path.suffix.lower() == ".dxf":
+        return "dxf"
+    if path.suffix.lower() == ".json":
+        try:
+            d = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        if isinstance(d, dict) and "strip_height" in d:
+            return "instance"
+        if isinstance(d, dict) and "pieces" in d and "fabric" in d:
+            return "placement"
+    raise ValueError(f"{path}: not a DXF-AAMA file, a strip-packing instance or a PLACEMENT.json")
+
+
+def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0)):
+    """Garment pieces at their aligned position on the print, and that print.
+
+    PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
+    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``.
+    """
+    from solver.garment import load_garment
+    from solver.placement import Placement
+
+    path = Path(path)
+    placement = Placement.load(path)
+    if not placement.garment:
+        raise ValueError(f"{path}: the placement names no garment file")
+    gpath = Path(placement.garment)
+    if not gpath.is_absolute():
+        gpath = (path.parent / gpath) if (path.parent / gpath).exists() else gpath
+    garment = load_garment(gpath)
+    if garment.n_pieces != placement.n_pieces:
+        raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
+                         f"{garment.n_pieces}")
+    names = placement.piece_names or list(garment.piece_names)
+    pieces = []
+    for i in range(garment.n_pieces):
+        a = placement.angles[i]
+        r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        base = np.column_stack([r.T, -r.T @ placement.translations[i]])
+        grain = None
+        if getattr(garment, "grainlines", None) is not None:
+            g = garment.grainlines[i]
+            grain = None if g is None else np.asarray(g, float).reshape(2, 2)
+        pieces.append(Piece(str(names[i]), garment.piece_outline(i), orientations=orientations,
+                            base=base, holes=list(garment.piece_holes(i)), grainline=grain))
+    return pieces, placement.fabric
+
+
+def load_problem(paths: list[str | Path], *, width: float | None = None,
+                 length: float | None = None, gap: float = 0.0, fabric=None,
+                 sizes: list[str] | None = None, units: str | None = None,
+                 quantity: int = 1, pairs: bool = False,
+                 keepouts: list[np.ndarray] | None = None) -> NestProblem:
+    """Several inputs (garments, sizes) in one marker; ``fabric`` overrides any given print."""
+    pieces: list[Piece] = []
+    found_width, found_fabric = None, None
+    for path in paths:
+        kind = kind_of(path)
+        if kind == "instance":
+            inst = load_esicup(path)
+            pieces += inst.pieces
+            found_width = found_width or inst.width
+        elif kind == "dxf":
+            from solver.dxf_aama import read_dxf_aama
+
+            pieces += read_dxf_aama(path, size=sizes, units=units)
+        else:
+            got, wp = pieces_from_placement(path)
+            pieces += got
+            found_fabric = found_fabric or wp
+    for p in pieces:
+        p.quantity *= quantity
+        p.mirrored_pair = p.mirrored_pair or pairs
+    names = [p.name for p in pieces]
+    for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
+        if names.count(p.name) > 1:
+            p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
+    width = width if width is not None else found_width
+    if width is None:
+        raise ValueError("give the fabric width with --width (the input does not say it)")
+    return NestProblem(pieces, float(width), length, gap, fabric or found_fabric,
+                       list(keepouts or []))

@@ -1,0 +1,85 @@
+"""`station nest`: place the pieces on the roll (plain or printed fabric) -> LAYOUT.json."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "nest", help="nest pieces on the fabric roll (LAYOUT.json)",
+        description="Nest pieces on a roll of fabric. INPUT is a PLACEMENT.json (garment and "
+        "print), a DXF-AAMA/ASTM pattern file, or a strip-packing instance JSON (its "
+        "strip_height is the width). With a print (--fabric, or the placement's), every "
+        "piece moves only by symmetries of the print, so the alignment is kept. The layout "
+        "is verified independently before it is written.")
+    p.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="PLACEMENT.json, DXF or instance JSON (several: one marker)")
+    p.add_argument("-o", "--output", required=True, metavar="LAYOUT.json")
+    p.add_argument("--fabric", metavar="FABRIC.json", help="the print under the pieces")
+    p.add_argument("--width", type=float, help="fabric width in mm (across the roll)")
+    p.add_argument("--length", type=float, help="usable length in mm (the table window)")
+    p.add_argument("--gap", type=float, default=0.0, help="minimum gap between pieces and "
+                   "to the fabric edge, mm (default 0)")
+    p.add_argument("--time", type=float, default=30.0, metavar="SECONDS",
+                   help="search time (default 30)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--keepout", metavar="FLAWS.json",
+                   help="keep-out polygons on the fabric: {\"keepouts\": [[[x, y], ...], ...]}")
+    p.add_argument("--size", help="sizes to cut from a graded DXF, comma-separated")
+    p.add_argument("--units", help="units of a DXF that does not say (mm, cm, in)")
+    p.add_argument("--quantity", type=int, default=1, help="markers' worth of each piece")
+    p.add_argument("--pairs", action="store_true",
+                   help="cut every piece also mirrored (left and right)")
+    p.add_argument("--method", default="auto", choices=("auto", "fill", "repair", "naive"),
+                   help="search on a print (default auto: best of fill and repair)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.add_argument("--png", metavar="OUT.png", help="draw the marker")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from solver.nest.layout import verify_layout
+    from solver.nest.plain import stderr_progress
+    from solver.nest.regions import load_keepouts
+    from solver.nest.solve import nest
+    from solver.nest.sources import load_problem
+    from solver.wallpaper import Wallpaper
+    from station.cli import UserError
+
+    if args.time <= 0:
+        raise UserError("--time must be positive")
+    if args.gap < 0:
+        raise UserError("--gap must not be negative")
+    fabric = Wallpaper.load(args.fabric) if args.fabric else None
+    problem = load_problem(
+        args.inputs, width=args.width, length=args.length, gap=args.gap, fabric=fabric,
+        sizes=args.size.split(",") if args.size else None, units=args.units,
+        quantity=args.quantity, pairs=args.pairs,
+        keepouts=load_keepouts(args.keepout) if args.keepout else None)
+    progress = None if args.json and not sys.stderr.isatty() else stderr_progress
+    t0 = time.monotonic()
+    layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
+                  method=args.method)
+    seconds = time.monotonic() - t0
+    faults = verify_layout(layout, problem)
+    if faults:
+        raise UserError(f"the layout failed verification: {faults[0]} "
+                        f"({len(faults)} faults); nothing written")
+    layout.save(args.output)
+    if args.png:
+        from solver.nest.render import render_layout
+
+        render_layout(layout, args.png)
+    summary = {"length": round(layout.length, 6), "width": layout.width,
+               "density": round(layout.density, 6), "pieces": len(layout.pieces),
+               "seconds": round(seconds, 3), "printed": problem.fabric is not None,
+               "output": str(args.output)}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"{summary['pieces']} pieces, length {layout.length:.1f} mm, "
+              f"density {layout.density:.1%}, {seconds:.1f} s -> {args.output}")
+    return 0
