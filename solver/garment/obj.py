@@ -79,8 +79,11 @@ def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]
     if len(parts) == 3 and parts[1] == "":
         per = 2
     tokens = " ".join(lines).replace("/", " ").split()
+    # the fast path needs every line to be a triangle (a quad plus a truncated line could
+    # otherwise add up to the same token count)
+    corners = np.fromiter(map(len, map(str.split, lines)), dtype=np.int64, count=len(lines))
     try:
-        if len(tokens) == 3 * per * len(lines):
+        if (corners == 3).all() and len(tokens) == 3 * per * len(lines):
             arr = np.array(tokens, dtype=np.int64).reshape(len(lines), 3, per)
             f_v = arr[:, :, 0]
             f_vt = arr[:, :, 1] if has_vt else None
@@ -117,7 +120,7 @@ def read_obj(path: str | Path) -> ObjData:
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except FileNotFoundError:
-        raise
+        raise FileNotFoundError(f"{path}: no such garment file") from None
     except OSError as exc:
         raise GarmentError(path, f"cannot read ({exc.strerror})") from None
     if not text.strip():

@@ -98,6 +98,24 @@ def test_obj_edge_used_by_three_pieces(tmp_path: Path) -> None:
     expect_error(tmp_path / "three.obj", "used by 3 pattern edges .pieces 0, 1, 2.")
 
 
+def test_obj_pattern_edge_used_by_three_faces(tmp_path: Path) -> None:
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 1 1 0\n"
+    text += "vt 0 0\nvt 1 0\nvt 0 1\nvt 0 -1\nvt 1 1\n"
+    text += "f 1/1 2/2 3/3\nf 2/2 1/1 4/4\nf 1/1 2/2 5/5\n"
+    (tmp_path / "fan.obj").write_text(text)
+    expect_error(tmp_path / "fan.obj", "pattern edge 1-2 is used by 3 faces", units="mm")
+
+
+def test_obj_quads_are_split_and_mixed_truncation_caught(tmp_path: Path) -> None:
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+    (tmp_path / "quad.obj").write_text(quad + "f 1/1 2/2 3/3 4/4\n")
+    g = load_garment(tmp_path / "quad.obj", units="mm")
+    assert len(g.faces) == 2 and g.piece_areas()[0] == pytest.approx(1.0)
+    # a quad and a two-corner line have as many numbers as two triangles
+    (tmp_path / "mixed.obj").write_text(quad + "f 1/1 2/2 3/3 4/4\nf 1/1 3/3\n")
+    expect_error(tmp_path / "mixed.obj", "face line 2 is incomplete")
+
+
 def test_obj_without_pattern(tmp_path: Path) -> None:
     (tmp_path / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n")
     expect_error(tmp_path / "mesh.obj", "no texture coordinates")
