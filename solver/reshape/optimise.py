@@ -56,6 +56,7 @@ class ReshapeOptions:
     max_iterations_per_round: int = 200
     ftol: float = 1e-9  # relative energy decrease that ends a round
     xtol_mm: float = 1e-7  # largest vertex step (mm) that ends a round
+    refresh_every: int = 15  # fewest iterations between two factorisations in a round
 
 
 class _Preconditioner:
@@ -106,6 +107,7 @@ class OptimiseState:
     precond: _Preconditioner | None = None
     dofs: np.ndarray | None = None  # free coordinates, interleaved x/y
     refreshes: int = 0
+    since_refresh: int = 0
     history: list = field(default_factory=list)  # per round: gamma, L, energy, iterations
 
 
@@ -152,11 +154,18 @@ def _gauss_newton_matrix(energy: PatternEnergy, uv: np.ndarray, gamma: float) ->
     return (m + reg * sp.eye(2 * n)).tocsr()
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Inner product without BLAS: on a busy machine BLAS threads spin and a dot of 10^5
+    numbers can take milliseconds; einsum stays single-threaded and predictable."""
+    return float(np.einsum("i,i->", a, b))
+
+
 def refresh_preconditioner(state: OptimiseState, energy: PatternEnergy) -> None:
     """Factorise the convex model of Eq. (10) at the current pattern."""
     m = _gauss_newton_matrix(energy, state.uv, state.gamma)
     state.precond = _Preconditioner(m[state.dofs][:, state.dofs])
     state.refreshes += 1
+    state.since_refresh = 0
 
 
 def optimise_step(state: OptimiseState, energy: PatternEnergy,
@@ -173,21 +182,21 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     q = gf.copy()
     alphas = []
     for s, y in zip(reversed(state.s_hist), reversed(state.y_hist)):
-        rho = 1.0 / float(y @ s)
-        a = rho * float(s @ q)
+        rho = 1.0 / _dot(y, s)
+        a = rho * _dot(s, q)
         q -= a * y
         alphas.append((a, rho, s, y))
     r = state.precond.solve(q)
     for a, rho, s, y in reversed(alphas):
-        b = rho * float(y @ r)
+        b = rho * _dot(y, r)
         r += s * (a - b)
     d = -r
-    slope = float(gf @ d)
+    slope = _dot(gf, d)
     if not slope < 0:  # lost descent: restart from the model's Newton direction
         state.s_hist.clear()
         state.y_hist.clear()
         d = -state.precond.solve(gf)
-        slope = float(gf @ d)
+        slope = _dot(gf, d)
     direction = np.zeros_like(state.uv)
     direction[free] = d.reshape(-1, 2)
     t = min(1.0, 0.9 * max_flip_free_step(state.uv, energy.faces, direction))
@@ -204,7 +213,7 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     g1[~free] = 0.0
     step = t * d
     yv = g1[free].ravel() - gf
-    if float(yv @ step) > 1e-12 * float(step @ step):
+    if _dot(yv, step) > 1e-12 * _dot(step, step):
         state.s_hist.append(step)
         state.y_hist.append(yv)
         while len(state.s_hist) > options.memory:
@@ -214,7 +223,9 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     state.iterations += 1
     state.round_iterations += 1
     state.last_step_mm = float(np.abs(step).max())
-    if t < 0.5:  # the barrier binds: the model is stale, refactorise before the next step
+    state.since_refresh += 1
+    if t < 0.5 and state.since_refresh >= options.refresh_every:
+        # the barrier binds: the model is stale, refactorise before the next step
         state.precond = None
     small_f = (e0 - e1) <= options.ftol * max(1.0, abs(e1))
     small_x = state.last_step_mm <= options.xtol_mm
