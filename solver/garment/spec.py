@@ -244,6 +244,8 @@ def load_spec(
     uv_parts, face_parts, offsets_v = [], [], []
     edge_start: list[list[int]] = []
     base = 0
+    grainlines: dict[int, tuple[tuple[float, float], tuple[float, float]]] = {}
+    notches: dict[int, list[tuple[float, float]]] = {}
     boxes: list[np.ndarray] = []
     absolute = props.get("pattern_layout") == "absolute"
     zero_edges = 0
@@ -261,12 +263,18 @@ def load_spec(
         tri = _triangulate(path, order[p], loop, res)
         verts = tri["vertices"]
         box = np.concatenate([verts.min(axis=0), verts.max(axis=0)])
+        shift = 0.0
         if not absolute and any(_overlap(box, b) for b in boxes):
             # panels live in their own frames: lay them out left to right, as BoxMesh does
             shift = max(b[2] for b in boxes) + PANEL_GAP_MM - box[0]
             verts = verts + np.array([shift, 0.0])
             box = box + np.array([shift, 0.0, shift, 0.0])
         boxes.append(box)
+        marks = _panel_marks(path, order[p], panels[order[p]], k, np.array([shift, 0.0]))
+        if marks[0] is not None:
+            grainlines[p] = marks[0]
+        if marks[1]:
+            notches[p] = marks[1]
         uv_parts.append(verts)
         face_parts.append(tri["triangles"] + base)
         offsets_v.append((base, len(loop)))
@@ -298,8 +306,40 @@ def load_spec(
         kind="spec",
         units_in_file=unit,
         piece_names=list(order),
+        grainlines=grainlines,
+        notches=notches,
         twins=all_twins,
     )
+
+
+def _panel_marks(
+    path: Path, name: str, panel: dict, k: float, shift: np.ndarray
+) -> tuple[tuple[tuple[float, float], tuple[float, float]] | None, list[tuple[float, float]]]:
+    """Optional ``grainline`` [[x0,y0],[x1,y1]] and ``notches`` [[x,y],...] of a panel.
+
+    Not part of GarmentCode; :func:`save_spec` writes them so that grain lines and
+    notches from other sources (e.g. DXF) survive a round trip through JSON.
+    """
+    grain = None
+    if "grainline" in panel:
+        try:
+            g = np.asarray(panel["grainline"], dtype=float).reshape(2, 2)
+        except (TypeError, ValueError):
+            raise GarmentError(path, f"panel {name!r} grainline is not two 2D points") from None
+        if not np.isfinite(g).all():
+            raise GarmentError(path, f"panel {name!r} grainline is not finite")
+        g = g * k + shift
+        grain = ((float(g[0, 0]), float(g[0, 1])), (float(g[1, 0]), float(g[1, 1])))
+    marks: list[tuple[float, float]] = []
+    if panel.get("notches"):
+        try:
+            n = np.asarray(panel["notches"], dtype=float).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise GarmentError(path, f"panel {name!r} notches are not 2D points") from None
+        if not np.isfinite(n).all():
+            raise GarmentError(path, f"panel {name!r} has a non-finite notch")
+        marks = [(float(x), float(y)) for x, y in (n * k + shift).tolist()]
+    return grain, marks
 
 
 def _read_stitches(
@@ -385,7 +425,8 @@ def save_spec(g: Garment, path: str | Path) -> None:
 
     Panel vertices are the piece outlines (in cm, ``units_in_meter`` 100, as GarmentCode
     writes); each seam twin pair becomes one stitch, with ``right_wrong`` where the two
-    edges run the same way round their panels. Seams on holes cannot be expressed and are
+    edges run the same way round their panels. Grain lines and notches are kept as panel
+    entries ``grainline`` and ``notches``. Seams on holes cannot be expressed and are
     dropped with a warning.
     """
     path = Path(path)
@@ -401,6 +442,10 @@ def save_spec(g: Garment, path: str | Path) -> None:
             "vertices": (g.uv[loop] / 10.0).tolist(),
             "edges": [{"endpoints": [k, (k + 1) % n]} for k in range(n)],
         }
+        if i in g.grainlines:
+            panels[names[i]]["grainline"] = (np.asarray(g.grainlines[i]) / 10.0).tolist()
+        if g.notches.get(i):
+            panels[names[i]]["notches"] = (np.asarray(g.notches[i]) / 10.0).tolist()
         for k in range(n):
             a, b = int(loop[k]), int(loop[(k + 1) % n])
             edge_of[(a, b)] = (names[i], k, +1)

@@ -76,6 +76,8 @@ def garment_summary(g) -> dict:
         "seam_edges": int(len(g.seam_edges)),
         "boundary_edges_3d": int(g.boundary_3d_edges),
         "seam_weight_total": float(weights.sum()),
+        "grainlines": len(g.grainlines),
+        "notches": sum(len(v) for v in g.notches.values()),
         "piece_list": pieces,
         "seam_line_list": lines,
     }

@@ -83,6 +83,27 @@ def test_save_spec_round_trip(data_dir: Path, tmp_path: Path, name: str, units) 
     check_invariants(h)
 
 
+def test_grainlines_and_notches_survive_save_spec(data_dir: Path, tmp_path: Path) -> None:
+    g = load_garment(data_dir / "garments" / "berkeley" / "pants-coarse.obj", units="m")
+    assert g.grainlines == {} and g.notches == {}  # OBJ carries neither
+    box = g.piece_bboxes()
+    g.grainlines = {i: ((box[i, 0] + 10, box[i, 1] + 10), (box[i, 0] + 10, box[i, 3] - 10))
+                    for i in (0, 2)}
+    g.notches = {1: [tuple(g.piece_outline(1)[3]), tuple(g.piece_outline(1)[7])]}
+    save_spec(g, tmp_path / "marks.json")
+    h = load_garment(tmp_path / "marks.json", resolution_mm=1e6)
+    assert set(h.grainlines) == {0, 2} and set(h.notches) == {1}
+    for i in (0, 2):
+        assert np.allclose(h.grainlines[i], g.grainlines[i], atol=1e-9)
+    assert np.allclose(h.notches[1], g.notches[1], atol=1e-9)
+    # a panel with a bad grain line is one clear error
+    spec = json.loads((tmp_path / "marks.json").read_text())
+    spec["pattern"]["panels"][h.piece_names[0]]["grainline"] = [[0, 0]]
+    (tmp_path / "bad.json").write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="grainline is not two 2D points"):
+        load_garment(tmp_path / "bad.json")
+
+
 def test_with_uv_and_weights(data_dir: Path) -> None:
     g = load_garment(data_dir / "garments" / "berkeley" / "pants-coarse.obj", units="m")
     moved = g.with_uv(g.uv * 2)
