@@ -50,10 +50,26 @@ class Garment:
         Id of the 3D point each pattern vertex is sewn to; twins share an id.
     piece_of_vertex : (V,) int array
         Piece (connected component of the pattern mesh) of each vertex.
+    piece_names : list of str
+        One name per piece (panel names from JSON, ``piece0``... otherwise).
     seam_edges : (E,4) int array
-        ``[a, b, a2, b2]``: pattern edge a->b is sewn to a2->b2 with a~a2 and b~b2.
+        ``[a, b, a2, b2]``: pattern edge a->b (oriented as in its face, the piece on its
+        left) is sewn to a2->b2 with a~a2 and b~b2 the same 3D points; one row per twin pair.
     seam_line_of_edge : (E,) int array
         Index into ``seam_lines`` of each seam edge.
+    seam_lines : list of SeamLine
+        Maximal runs of twin pairs between the same two pieces, connected along the boundary.
+    boundary_3d_edges : int
+        Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
+    grainlines, notches : dict
+        Per piece index, where the input has them (mm, pattern coordinates).
+    units_in_file : str
+        Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
+    scale_recovered : float or None
+        Factor applied to normalised [0,1] texture coordinates to bring them to the file's
+        units (fitted to the 3D edge lengths); None when the file's vt were used as they are.
+    source, kind : str
+        The file read and its kind: "obj", "obj-pair" or "spec".
     """
 
     uv: np.ndarray
