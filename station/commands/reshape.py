@@ -53,6 +53,23 @@ def _fixed_mask(garment, names: list[str]):
     return mask
 
 
+def garment_pieces(garment) -> list:
+    """One DXF-AAMA piece per pattern piece: outline, holes, grain line and notches."""
+    import numpy as np
+
+    from solver.nest.instance import Piece
+
+    pieces = []
+    for i, name in enumerate(garment.piece_names):
+        grain = garment.grainlines.get(i)
+        notches = [(np.asarray(at, float), np.zeros(2)) for at in garment.notches.get(i, [])]
+        pieces.append(Piece(name=name, outline=garment.piece_outline(i),
+                            holes=garment.piece_holes(i),
+                            grainline=None if grain is None else np.asarray(grain, float),
+                            notches=notches))
+    return pieces
+
+
 def write_garment(garment, path: Path) -> None:
     """Write the reshaped garment in the format its suffix names."""
     suffix = path.suffix.lower()
@@ -68,12 +85,9 @@ def write_garment(garment, path: Path) -> None:
 
         save_spec(garment, path)
     elif suffix == ".dxf":
-        try:
-            from solver.dxf_aama import write_dxf_aama
-        except ImportError:
-            raise UserError(f"{path}: DXF-AAMA output is not available in this build "
-                            "(solver.dxf_aama missing); write .obj or .json") from None
-        write_dxf_aama(garment, path)
+        from solver.dxf_aama import write_dxf_aama
+
+        write_dxf_aama(garment_pieces(garment), path)
     else:
         raise UserError(f"{path}: unknown output format {suffix!r} "
                         f"(expected one of {', '.join(FORMATS)})")

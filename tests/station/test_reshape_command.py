@@ -84,3 +84,22 @@ def test_reshape_errors_name_the_fault(tmp_path, inputs, capsys):
                  "--placement", str(placement), "-o", str(tmp_path / "x.json")])
     assert code == 2
     assert "JSON output needs a JSON specification" in capsys.readouterr().err
+
+
+def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
+    from solver.dxf_aama import read_dxf_aama
+    from solver.reshape import reshape
+
+    garment, fabric, placement = inputs
+    out = tmp_path / "reshaped.dxf"
+    run_json(capsys, "reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+             "--placement", str(placement), "-o", str(out), "--json")
+    g = load_garment(garment, units="m")
+    new, _ = reshape(g, Placement.load(placement))
+    pieces = read_dxf_aama(out)
+    assert [p.name for p in pieces] == new.piece_names
+    for i, p in enumerate(pieces):
+        ours = new.piece_outline(i)
+        assert len(p.outline) == len(ours)
+        d = np.linalg.norm(ours[:, None] - p.outline[None], axis=-1).min(axis=1)
+        assert d.max() < 1e-6
