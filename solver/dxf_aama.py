@@ -172,10 +172,12 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
 
 def _blocks(path: str | Path):
     path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
     try:
         doc = ezdxf.readfile(path)
-    except OSError:
-        raise FileNotFoundError(f"{path}: cannot read the file") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable DXF file ({exc})") from None
     except ezdxf.DXFStructureError as exc:
         raise ValueError(f"{path}: not a valid DXF file ({exc})") from None
     out = []

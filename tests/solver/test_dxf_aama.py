@@ -1,0 +1,130 @@
+"""DXF-AAMA/ASTM import and export, on files this test writes (and the shared ones if present)."""
+
+from __future__ import annotations
+
+import json
+
+import ezdxf
+import numpy as np
+import pytest
+import shapely
+
+from solver.dxf_aama import dxf_sizes, read_dxf_aama, write_dxf_aama
+from solver.nest import NestProblem, Piece, verify_layout
+from solver.nest.instance import affine
+from station.cli import main
+
+
+def bodice(size: str, grow: float = 0.0) -> Piece:
+    w, h = 200.0 + grow, 300.0 + grow
+    outline = [[0, 0], [w, 0], [w, h], [w / 2, h + 40], [0, h]]
+    return Piece("front", outline, quantity=2, size=size,
+                 holes=[np.array([[50, 50], [70, 50], [70, 70], [50, 70]], float)],
+                 grainline=np.array([[100.0, 40.0], [100.0, 260.0]]),  # vertical in the CAD
+                 notches=[(np.array([w, 150.0]), np.array([-1.0, 0.0]))],
+                 marks=np.array([[100.0, 150.0]]))
+
+
+def test_round_trip_keeps_outline_grain_notches_marks(tmp_path):
+    path = tmp_path / "bodice.dxf"
+    write_dxf_aama([bodice("M")], path)
+    (p,) = read_dxf_aama(path)
+    src = bodice("M")
+    assert p.name == "front" and p.size == "M" and p.quantity == 2
+    assert shapely.Polygon(p.outline).area == pytest.approx(src.area, rel=1e-9)
+    assert np.allclose(p.grainline, src.grainline)
+    assert len(p.holes) == 1 and shapely.Polygon(p.holes[0]).area == pytest.approx(400)
+    (at, d), = p.notches
+    assert np.allclose(at, [200, 150]) and np.allclose(d, [-1, 0], atol=1e-9)
+    assert np.allclose(p.marks, [[100, 150]])
+    # the reference frame turns the grain along the roll (+x)
+    g = affine(p.base, p.grainline)
+    assert np.allclose(g[1] - g[0], [220, 0], atol=1e-9)
+
+
+def test_graded_file_sizes(tmp_path):
+    path = tmp_path / "graded.dxf"
+    write_dxf_aama([bodice("S", -10), bodice("M"), bodice("L", 10)], path)
+    assert dxf_sizes(path) == ["S", "M", "L"]
+    (m,) = read_dxf_aama(path, size="M")
+    assert m.area == pytest.approx(bodice("M").area)
+    two = read_dxf_aama(path, size=["S", "L"])
+    assert [p.name for p in two] == ["front S", "front L"]
+    assert read_dxf_aama(path)[0].size == "S"  # no sample size: the first
+    with pytest.raises(ValueError, match="no size XL"):
+        read_dxf_aama(path, size="XL")
+
+
+def test_accumark_style_split_boundary_inches_and_mirror_line(tmp_path):
+    """Boundary in open pieces, units only in a TEXT, a half piece with a mirror line."""
+    doc = ezdxf.new("R12")
+    msp = doc.modelspace()
+    msp.add_text("Units: ENGLISH", dxfattribs={"layer": "1"})
+    blk = doc.blocks.new("HALF_1")
+    blk.add_text("Piece Name: BACK", dxfattribs={"layer": "1"})
+    pts = [(0, 0), (4, 0), (4, 10), (0, 10)]
+    blk.add_polyline2d([pts[0], pts[1]], dxfattribs={"layer": "1"})
+    blk.add_polyline2d([pts[2], pts[1]], dxfattribs={"layer": "1"})  # reversed piece
+    blk.add_polyline2d([pts[2], pts[3], pts[0]], dxfattribs={"layer": "1"})
+    blk.add_line((0, 0), (0, 10), dxfattribs={"layer": "6"})  # mirror (fold) line
+    blk.add_line((2, 2), (2, 8), dxfattribs={"layer": "7"})
+    msp.add_blockref("HALF_1", (100, 0))
+    path = tmp_path / "half.dxf"
+    doc.saveas(path)
+    (p,) = read_dxf_aama(path)
+    assert p.name == "BACK"
+    assert p.area == pytest.approx(2 * 4 * 10 * 25.4**2, rel=1e-6)  # unfolded, in mm
+    lo, hi = p.outline.min(0), p.outline.max(0)
+    assert np.allclose(lo, [96 * 25.4, 0], atol=1e-6) and np.allclose(hi, [104 * 25.4, 254])
+    (q,) = read_dxf_aama(path, unfold=False)
+    assert q.area == pytest.approx(4 * 10 * 25.4**2, rel=1e-6)
+
+
+def test_bad_files_give_one_line_errors(tmp_path):
+    empty = tmp_path / "empty.dxf"
+    ezdxf.new("R12").saveas(empty)
+    with pytest.raises(ValueError, match="no pattern pieces"):
+        read_dxf_aama(empty)
+    junk = tmp_path / "junk.dxf"
+    junk.write_text("this is not a dxf\n")
+    with pytest.raises(ValueError, match="junk.dxf"):
+        read_dxf_aama(junk)
+
+
+def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
+    path = tmp_path / "marker.dxf"
+    write_dxf_aama([bodice("M"), Piece("sleeve", [[0, 0], [250, 0], [200, 120], [50, 120]],
+                                       grainline=np.array([[0.0, 60.0], [250.0, 60.0]]))], path)
+    out = tmp_path / "LAYOUT.json"
+    png = tmp_path / "marker.png"
+    rc = main(["nest", str(path), "-o", str(out), "--width", "900", "--gap", "3", "--time", "1",
+               "--pairs", "--json", "--png", str(png)])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["pieces"] == 6 and 0 < summary["density"] < 1
+    assert png.stat().st_size > 1000
+    from solver.nest import Layout
+
+    layout = Layout.load(out)
+    pieces = read_dxf_aama(path)
+    for p in pieces:
+        p.mirrored_pair = True
+    assert verify_layout(layout, NestProblem(pieces, 900.0, gap=3.0)) == []
+    # grain along the roll: every placed grain line is horizontal
+    for p in layout.pieces:
+        d = p.grainline[1] - p.grainline[0]
+        assert abs(d[1]) < 1e-6 * np.linalg.norm(d)
+    assert main(["nest", str(path), "-o", str(out), "--time", "1"]) == 2  # no width
+    assert "--width" in capsys.readouterr().err
+
+
+def test_shared_industry_files_import(shared_data):
+    files = sorted((shared_data / "garments" / "astm_aama_dxf").glob("*.[dD][xX][fF]"))
+    assert files
+    for f in files:
+        pieces = read_dxf_aama(f)
+        assert pieces, f
+        for p in pieces:
+            assert shapely.Polygon(p.outline).is_valid, (f.name, p.name)
+            assert p.area > 100.0 and p.grainline is not None
+        assert len(dxf_sizes(f)) >= 1
