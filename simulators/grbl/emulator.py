@@ -196,7 +196,7 @@ class GrblEmulator:
         """Power lost and restored: motion stops dead, position and RAM state are lost,
         EEPROM settings and offsets are kept, and GRBL boots again with its banner."""
         with self._cond:
-            self._stop_motion(complete=False)
+            self._stop_motion()
             self._power_on(first=True)
             self._cond.notify_all()
 
@@ -273,11 +273,11 @@ class GrblEmulator:
         ok_first = any(a[0] == "softlimit_ok" for a in self._pending)
         if moving:
             code = C.A_HOMING_FAIL_RESET if self._state == "Home" else C.A_ABORT_CYCLE
-            self._stop_motion(complete=False)
+            self._stop_motion()
             self._state = "Alarm"
             self._emit(f"ALARM:{code}")
         else:
-            self._stop_motion(complete=False)
+            self._stop_motion()
         if self._state in ("Check", "Hold", "Run", "Jog"):
             self._state = "Idle"
         if ok_first:
@@ -346,6 +346,9 @@ class GrblEmulator:
         if self._jog_cancel and self._v <= 0.0:
             self._record_partial()
             self._planner.clear()
+            # "automatically flushing any remaining jog commands": also a jog line that waits
+            # for planner room.
+            self._pending = deque(a for a in self._pending if not (a[0] == "move" and a[1].jog))
             self._jog_cancel = self._hold = self._hold_complete = False
             self._gc.position = self._pos.copy()
             self._state = "Idle"
@@ -623,7 +626,7 @@ class GrblEmulator:
 
     # ------------------------------------------------------------------ alarms
     def _alarm(self, code: int) -> None:
-        self._stop_motion(complete=False)
+        self._stop_motion()
         self._pending.clear()
         self._state = "Alarm"
         self._emit(f"ALARM:{code}")
@@ -633,7 +636,7 @@ class GrblEmulator:
 
     def _soft_limit_alarm(self) -> None:
         """Soft limit: stop (position kept), ALARM:2 and lock until reset (limits_soft_check)."""
-        self._stop_motion(complete=False)
+        self._stop_motion()
         remaining = [a for a in self._pending if a[0] == "softlimit_ok"]
         self._pending.clear()
         self._pending.extend(remaining)
@@ -642,7 +645,7 @@ class GrblEmulator:
         self._emit(C.MSG_RESET_TO_CONTINUE)
         self._critical = True
 
-    def _stop_motion(self, complete: bool) -> None:
+    def _stop_motion(self) -> None:
         self._record_partial()
         self._planner.clear()
         self._v = 0.0

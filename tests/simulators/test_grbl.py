@@ -166,6 +166,20 @@ def test_empty_line_and_comments_answer_ok(port):
     assert send(port, "") == ["ok"]
     assert send(port, "(just a comment) ; and another") == ["ok"]
     assert port.emulator.trace == []
+    # GRBL ends a line at '\n' or '\r', so CR LF is a line plus an empty line: two oks.
+    port.write(b"G0 X-1\r\n")
+    assert [read_line(port), read_line(port)] == ["ok", "ok"]
+
+
+def test_startup_lines_run_after_reset(port):
+    """interface.md: "`>G54G20:ok` : The open chevron indicates a startup line has just
+    executed." and commands.md `$N`: "startup blocks that Grbl runs every time you power on Grbl
+    or reset Grbl"."""
+    assert send(port, "$N0=G55 G91") == ["ok"]
+    assert send(port, "$N") == ["$N0=G55G91", "$N1=", "ok"]
+    port.write(b"\x18")
+    assert read_boot(port) == ["", C.BANNER, ">G55G91:ok"]
+    assert send(port, "$G")[0].startswith("[GC:G0 G55 G17 G21 G91 ")
 
 
 def test_line_over_79_characters_is_rejected(port):
