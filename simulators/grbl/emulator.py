@@ -147,6 +147,8 @@ class GrblEmulator:
                     self.bytes_lost += 1  # "Write data to buffer unless it is full."
                     continue
                 self._rx.append(byte)
+                if byte in (0x0A, 0x0D):
+                    self._service()  # GRBL parses a line as soon as its EOL arrives
             self._service()
             self._cond.notify_all()
 
