@@ -88,7 +88,7 @@ class GrblEmulator:
         self.connected = True
         self.generation = 0
         with self._cond:
-            self._power_on(first=True)
+            self._power_on()
         self._stopped = False
         if realtime:  # else the caller drives simulated time with advance(dt)
             self._thread = threading.Thread(target=self._run, daemon=True,
@@ -199,7 +199,7 @@ class GrblEmulator:
         EEPROM settings and offsets are kept, and GRBL boots again with its banner."""
         with self._cond:
             self._stop_motion()
-            self._power_on(first=True)
+            self._power_on()
             self._cond.notify_all()
 
     def wait_idle(self, timeout: float = 10.0) -> bool:
@@ -219,10 +219,10 @@ class GrblEmulator:
         self.wake_readers()
 
     # ------------------------------------------------------------------ boot / reset
-    def _power_on(self, first: bool) -> None:
+    def _power_on(self) -> None:
         self._pos = np.zeros(3)
         self._state = "Idle"
-        if first and self.settings[22]:
+        if self.settings[22]:
             self._state = "Alarm"  # homing enabled: position unknown at power-up
         self._reinit()
 
