@@ -197,17 +197,6 @@ def _recover_scale(uv: np.ndarray, xyz: np.ndarray, faces: np.ndarray) -> float 
     return float(np.median(l3[ok] / l2[ok]))
 
 
-def _warn_if_tiny(path: Path, unit: str, uv_mm: np.ndarray) -> None:
-    """A whole garment under 10 mm means the file is not in the assumed units."""
-    extent = float(np.ptp(uv_mm, axis=0).max()) if len(uv_mm) else 0.0
-    if 0 < extent < 10:
-        warnings.warn(
-            f"{path}: read in {unit}, the whole pattern spans only {extent:.3g} mm; "
-            "if the file is in metres pass units='m' (--units m)",
-            stacklevel=3,
-        )
-
-
 def load_obj(
     path: str | Path, *, units: str | None = None, world: str | Path | None = None
 ) -> Garment:
@@ -260,8 +249,6 @@ def load_obj(
     scale = None if two_d else _recover_scale(uv, xyz, faces)
     if scale is not None:
         uv = uv * scale
-    if units is None:
-        _warn_if_tiny(path, unit, uv * k)
     return build_garment(
         uv * k,
         faces,
@@ -305,8 +292,6 @@ def load_obj_pair(pattern: Path, world: Path, *, units: str | None = None) -> Ga
     k = mm_per_unit(unit)
     if np.abs(m.v[:, 2]).max() > 1e-9 * max(1.0, np.abs(m.v).max()):
         warnings.warn(f"{pattern}: pattern file has non-zero z; z ignored", stacklevel=2)
-    if units is None:
-        _warn_if_tiny(pattern, unit, m.v[:, :2] * k)
     _, point = unique_rows(w.v)
     return build_garment(
         m.v[:, :2] * k,

@@ -154,5 +154,10 @@ def test_inspect_command(data_dir: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["inspect", str(spec), "--resolution-mm", "20", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert (out["pieces"], out["seam_edges"], out["units_in_file"]) == (6, 204, "cm")
+    # Berkeley files are in metres but do not say so: inspect warns when read as mm
+    assert main(["inspect", str(path), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["units_in_file"] == "mm"
+    assert "spans only 1.64 mm; if the file is in metres pass --units m" in captured.err
     assert main(["inspect", str(path) + ".missing"]) == 2
     assert capsys.readouterr().err.startswith("station inspect: error:")
