@@ -85,6 +85,7 @@ class Check:
     cut_length_mm: float = 0.0
     travel_length_mm: float = 0.0
     bounds: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of all motion
+    path: np.ndarray | None = None  # (k,2) float, every XY motion sampled at most 1 mm apart
 
     @property
     def estimated_seconds(self) -> float:
@@ -297,7 +298,8 @@ def _arc_extent(s, e, c, cw: bool):
     return sweep, r, pts
 
 
-def validate(lines: list[str], machine: Machine, source: str = "<program>") -> Check:
+def validate(lines: list[str], machine: Machine, source: str = "<program>",
+             path_step: float = 1.0) -> Check:
     """Check a program against the machine profile; raise ProgramError at the first fault.
 
     Only what this checker understands passes: G0 G1 G2 G3 G4 G17 G21 G90 G94, M2 M3 M4 M5
@@ -316,6 +318,17 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>") -> C
     absolute = False
     seconds = np.zeros(len(lines))
     cut = travel = 0.0
+    samples: list[np.ndarray] = []
+
+    def sample_line(a, b) -> None:
+        k = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / path_step)))
+        t = np.linspace(0.0, 1.0, k + 1)[:, None]
+        samples.append(np.asarray(a[:2], float) * (1 - t) + np.asarray(b[:2], float) * t)
+
+    def sample_arc(a, c, r, sweep) -> None:
+        k = max(2, int(math.ceil(abs(sweep) * r / path_step)))
+        ang = math.atan2(a[1] - c[1], a[0] - c[0]) + sweep * np.linspace(0.0, 1.0, k + 1)
+        samples.append(np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)])
     bx = [math.inf, math.inf, -math.inf, -math.inf]
 
     def fail(i: int, msg: str):
@@ -433,6 +446,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>") -> C
             if pos[0] is not None and target[0] is not None:
                 d = math.hypot(target[0] - pos[0], target[1] - pos[1])
                 travel += d
+                sample_line(pos, target)
                 seconds[i] = _move_time(max(d, abs((target[2] or 0) - (pos[2] or 0))),
                                         machine.rapid_feed, machine.acceleration)
         else:
@@ -442,6 +456,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>") -> C
                 d = math.hypot(target[0] - pos[0], target[1] - pos[1])
                 dz = abs((target[2] or 0) - (pos[2] or 0))
                 length = max(d, dz)
+                sample_line(pos, target)
             else:
                 if "I" not in vals and "J" not in vals:
                     fail(i, "G2/G3 without I/J centre offsets (R form is not accepted)")
@@ -454,9 +469,12 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>") -> C
                     inside(i, ex, ey)
                 length = abs(sweep) * r
                 d = length
+                sample_arc(pos, c, r, sweep)
             if tool_on:
                 cut += d
             seconds[i] = _move_time(length, feed, machine.acceleration)
         pos = target
     bounds = None if math.isinf(bx[0]) else (bx[0], bx[1], bx[2], bx[3])
-    return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds)
+    path = np.vstack(samples) if samples else np.zeros((0, 2))
+    return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
+                 path=path)

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from gcode.grbl import Response, Status, error_message, parse_response, parse_settings
 from gcode.program import Program, strip_comment
@@ -82,7 +83,8 @@ class Progress:
 @dataclass
 class StreamResult:
     """What happened: ``reason`` is ``done``, ``checked``, ``error``, ``alarm``, ``reset``,
-    ``garbled``, ``unmatched``, ``timeout``, ``disconnect``, ``stopped`` or ``interrupted``."""
+    ``garbled``, ``unmatched``, ``off_path``, ``timeout``, ``disconnect``, ``stopped`` or
+    ``interrupted``."""
 
     completed: bool
     reason: str
@@ -127,6 +129,7 @@ class Streamer:
     def __init__(self, port, *, rx_buffer: int = 128, poll_hz: float = 5.0,
                  response_timeout: float = 5.0, stall_timeout: float = 5.0,
                  banner_timeout: float = 6.0, compact: bool = True,
+                 deviation_limit: float | None = 3.0,
                  on_piece: Callable[[PieceState], None] | None = None,
                  on_progress: Callable[[Progress], None] | None = None,
                  on_fault: Callable[[dict], None] | None = None,
@@ -141,6 +144,9 @@ class Streamer:
         self.stall_timeout = stall_timeout
         self.banner_timeout = banner_timeout
         self.compact = compact
+        self.deviation_limit = deviation_limit
+        self._wco = np.zeros(2)
+        self._status_seq = 0
         self.on_piece = on_piece
         self.on_progress = on_progress
         self.on_fault = on_fault
@@ -266,8 +272,8 @@ class Streamer:
         while time.monotonic() < end:
             for line in self._read_lines():
                 r = parse_response(line)
-                if r.kind == "status":
-                    self.status = r.status
+                if r.kind == "status" and r.status is not None:
+                    self._set_status(r.status)
                     return r.status
                 if r.kind == "banner":
                     self._on_banner(r)
@@ -292,8 +298,8 @@ class Streamer:
                 r = parse_response(raw)
                 if r.kind in ("ok", "error"):
                     return r, got
-                if r.kind == "status":
-                    self.status = r.status
+                if r.kind == "status" and r.status is not None:
+                    self._set_status(r.status)
                 elif r.kind == "banner":
                     self._on_banner(r)
                     got.append(r)
@@ -344,6 +350,16 @@ class Streamer:
         cum = np.concatenate([[0.0], np.cumsum(weights)])
         res = StreamResult(completed=False, reason="", lines_total=len(stream), check=check,
                            pieces=pieces)
+        tree = None
+        path = program.check.path if program.check is not None else None
+        if self.deviation_limit and path is not None and len(path) and not check:
+            here = self._work_xy() if self.status is not None else None
+            if here is not None:  # the first rapid starts wherever the head is
+                k = max(1, int(np.hypot(*(path[0] - here))))
+                path = np.vstack([here + (path[0] - here) * np.linspace(0, 1, k + 1)[:, None],
+                                  path])
+            tree = cKDTree(path)
+        seen_status = self._status_seq
         self._frozen = check  # check mode proves nothing was cut
         self._messages = res.messages
         sent = 0
@@ -441,6 +457,9 @@ class Streamer:
                                          self._oldest_line(stream))
                         else:
                             self._handle_push(r)
+                    if tree is not None and self._status_seq != seen_status:
+                        seen_status = self._status_seq
+                        self._check_on_path(tree, stream)
                     self._watchdog(stream)
                     progress()
                 progress(force=True)
@@ -458,8 +477,10 @@ class Streamer:
             except _Fault as f:
                 self._frozen = True
                 self._record_fault(res, f, stream, sent, acked)
-                if f.reason not in ("alarm",):
-                    self._safe_stop(res)
+                # after an alarm too: GRBL wants a reset to continue, and the reset clears
+                # the parser's spindle and coolant state (the beam is already off). Motion
+                # has already stopped and a critical alarm ignores status queries, so no hold.
+                self._safe_stop(res, hold=f.reason != "alarm")
         except _Disconnect as exc:
             self._frozen = True
             if not res.reason:
@@ -476,14 +497,42 @@ class Streamer:
     def _oldest_line(self, stream: list[tuple[int, str]]) -> int | None:
         return stream[self._inflight[0][0]][0] if self._inflight else None
 
+    def _set_status(self, st: Status) -> None:
+        self.status = st
+        self._status_seq += 1
+        self._status_pending_since = None
+        if st.wco is not None:
+            self._wco = np.asarray(st.wco[:2], float)
+
+    def _work_xy(self) -> np.ndarray | None:
+        """The head's X, Y in work coordinates (what the program speaks)."""
+        st = self.status
+        if st is None:
+            return None
+        if st.wpos is not None:
+            return np.asarray(st.wpos[:2], float)
+        if st.mpos is not None:
+            return np.asarray(st.mpos[:2], float) - self._wco
+        return None
+
     def _handle_push(self, r: Response) -> None:
-        if r.kind == "status":
-            self.status = r.status
-            self._status_pending_since = None
+        if r.kind == "status" and r.status is not None:
+            self._set_status(r.status)
         elif r.kind in ("msg", "feedback", "gc", "ver", "opt", "help", "param", "echo",
                         "startup_exec", "setting", "startup_line"):
             self._messages.append(r.raw)
             log.info("%s%s", self.prefix, r.raw)
+
+    def _check_on_path(self, tree: cKDTree, stream: list[tuple[int, str]]) -> None:
+        """Stop if the head is off every programmed path: GRBL has no checksum, so a byte
+        corrupted on the line can turn into a valid but wrong coordinate."""
+        xy = self._work_xy()
+        if xy is None or self.status is None or self.status.state not in ("Run", "Hold", "Jog"):
+            return
+        dist, _ = tree.query(xy)
+        if dist > self.deviation_limit + 0.5:  # + half the 1 mm path sampling
+            raise _Fault("off_path", f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is {dist:.1f} mm off "
+                         "the program's path (corrupted line?)", self._oldest_line(stream))
 
     def _watchdog(self, stream: list[tuple[int, str]]) -> None:
         now = time.monotonic()
@@ -520,9 +569,8 @@ class Streamer:
             self._poll(time.monotonic(), 0.1)
             for raw in self._read_lines():
                 r = parse_response(raw)
-                if r.kind == "status":
-                    self.status = r.status
-                    self._status_pending_since = None
+                if r.kind == "status" and r.status is not None:
+                    self._set_status(r.status)
                     if pred(r.status):
                         return True
                 elif r.kind == "banner":
@@ -535,16 +583,17 @@ class Streamer:
         if not self._wait_status(lambda s: s.state in ("Idle", "Check"), timeout):
             raise _Fault("timeout", f"the controller did not come back to Idle in {timeout:g} s")
 
-    def _safe_stop(self, res: StreamResult, hold_timeout: float = 10.0) -> None:
+    def _safe_stop(self, res: StreamResult, hold: bool = True, hold_timeout: float = 10.0
+                   ) -> None:
         """Feed hold, wait for Hold:0 (decelerated: a reset keeps position), soft reset,
         then laser and air off."""
-        self._write(FEED_HOLD)
-        held = self._wait_status(
-            lambda s: (s.state == "Hold" and s.substate == 0) or s.state in ("Idle", "Alarm",
-                                                                             "Check"),
-            hold_timeout)
-        if not held:
-            res.messages.append("no Hold:0 before the reset (controller silent?)")
+        if hold:
+            self._write(FEED_HOLD)
+            held = self._wait_status(
+                lambda s: (s.state == "Hold" and s.substate == 0)
+                or s.state in ("Idle", "Alarm", "Check"), hold_timeout)
+            if not held:
+                res.messages.append("no Hold:0 before the reset (controller silent?)")
         banners = self._banners
         self._write(SOFT_RESET)
         end = time.monotonic() + self.banner_timeout
