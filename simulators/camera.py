@@ -180,7 +180,8 @@ class Sheet:
         lx = c * (x - f(self.shift[0])) + s * (y - f(self.shift[1]))
         pos, depth, width = self.fold
         depth_ratio = f(0.35 * min(1.0, abs(depth) / max(width, 1e-6)))
-        return f(1.0) - depth_ratio / np.cosh((lx - f(pos)) * f(1.0 / max(width, 1e-6))) ** 2
+        z = np.clip((lx - f(pos)) * f(1.0 / max(width, 1e-6)), -30.0, 30.0)
+        return f(1.0) - depth_ratio / np.cosh(z) ** 2
 
     def fabric_to_table_affine(self) -> np.ndarray:
         """3x3 map fabric -> table for rotation, shift and skew (exact without bow/fold)."""
@@ -390,8 +391,10 @@ def calibration_poses(board: Board, n: int = 10, *, camera: CameraModel | None =
                       seed: int = 0, max_tilt_deg: float = 35.0) -> list[Pose]:
     """``n`` varied views of ``board`` (tilts, turns, distances) for calibration.
 
-    The board fills roughly half to three quarters of the frame, as calibration
-    guides recommend; the first view is straight down.
+    The board fills about half the frame and is seen from different sides and in
+    different parts of the frame (corners included, as calibration guides recommend,
+    so the distortion is measured where it is largest); the first view is straight
+    down and centred.
     """
     camera = camera or CameraModel.default()
     rng = np.random.default_rng(seed)
@@ -399,12 +402,17 @@ def calibration_poses(board: Board, n: int = 10, *, camera: CameraModel | None =
     centre = _rot2(board.rotation) @ np.array([bw / 2, bh / 2]) + np.asarray(board.shift)
     f = camera.K[0, 0]
     w, h = camera.resolution
-    base = f * max(bw / w, bh / h) / 0.7
+    base = f * max(bw / w, bh / h) / 0.6
+    view = base * np.array([w, h]) / f  # table mm seen at the base height
+    quadrants = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)], float)
     poses = []
     for k in range(n):
         tilt = 0.0 if k == 0 else rng.uniform(12.0, max_tilt_deg)
-        aim = centre + rng.uniform(-0.1, 0.1, 2) * np.array([bw, bh]) * (k > 0)
-        poses.append(Pose.overhead(aim, base * rng.uniform(0.95, 1.2), tilt_deg=tilt,
+        # move the board towards a frame corner (quadrants in turn), by about a quarter
+        # of the view, so the board's corners reach the frame's corners
+        offset = quadrants[k % 4] * rng.uniform(0.2, 0.28, 2) * view * (k > 0)
+        aim = centre - offset
+        poses.append(Pose.overhead(aim, base * rng.uniform(0.95, 1.15), tilt_deg=tilt,
                                    tilt_azimuth_deg=rng.uniform(0, 360),
                                    yaw_deg=board.rotation + rng.uniform(-25, 25) * (k > 0)))
     return poses
