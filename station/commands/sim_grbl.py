@@ -7,8 +7,6 @@ import signal
 import sys
 import threading
 
-from station.cli import UserError
-
 
 def _line_code(text: str) -> tuple[int, int]:
     line, sep, code = text.partition(":")
@@ -61,8 +59,11 @@ def run(args: argparse.Namespace) -> int:
     from simulators.grbl import Faults, GrblEmulator
     from simulators.grbl.pty import PtyBridge
 
+    # ValueError (not station.cli.UserError): also reported cleanly under `python -m station.cli`,
+    # where cli.py runs as __main__ and its UserError is another class.
+
     if not args.speed > 0:
-        raise UserError(f"--speed must be > 0, got {args.speed}")
+        raise ValueError(f"--speed must be > 0, got {args.speed}")
     faults = Faults(
         error_at=dict(args.error_at), alarm_at=dict(args.alarm_at),
         drop_byte_at=set(args.drop_byte_at), flip_byte_at=set(args.flip_byte_at),
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         emulator = GrblEmulator(speed=args.speed, faults=faults, force_origin=args.force_origin,
                                 settings=dict(args.setting))
     except ValueError as exc:
-        raise UserError(f"--setting: {exc}") from None
+        raise ValueError(f"--setting: {exc}") from None
     bridge = PtyBridge(emulator, link=args.link)
     stop = threading.Event()
 

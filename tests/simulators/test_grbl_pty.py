@@ -117,3 +117,13 @@ def test_pty_disconnect_closes_the_device_and_reopens_behind_the_link(tmp_path):
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+
+
+def test_bad_option_is_one_line_error():
+    """Bad input gets a clear, one-line error naming the fault (exit status 2)."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "station.cli", "sim-grbl", "--pty", "--setting", "999=1"],
+        cwd=REPO, capture_output=True, text=True, timeout=30,
+    )
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr == "station sim-grbl: error: --setting: $999 is not a GRBL 1.1 setting\n"
