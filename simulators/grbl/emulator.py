@@ -668,10 +668,17 @@ class GrblEmulator:
                                   float(p0[2]), float(p1[2]), b.jog, complete))
 
     def _block_power(self, b: Block) -> float:
+        """Power applied along a block; for M4 (dynamic laser power) the mean over the block,
+        since power follows the speed: "adjust laser power based on the current speed relative
+        to the programmed rate" (laser_mode.md)."""
         if self.settings[32]:  # laser mode: on only in G1/G2/G3 motion, per block
             if b.feed is None or b.spindle == "M5" or b.jog:
                 return 0.0
-            return self._clamp_speed(b.speed)
+            power = self._clamp_speed(b.speed)
+            if b.spindle == "M4" and b.elapsed > 0:
+                nominal = b.nominal(self._feed_ovr, self._rapid_ovr)
+                power *= min(1.0, (b.done / b.elapsed) / nominal)
+            return power
         return self._spindle_rpm()
 
     # ------------------------------------------------------------------ system commands
@@ -918,6 +925,7 @@ class GrblEmulator:
             v_new = min(ve, vn) if d - s < 1e-7 else v_new
         self._v = v_new
         b.done += s
+        b.elapsed += tt
         self.sim_time += tt
         if b.remaining <= 1e-7 or (finished_phase and d - s <= 1e-7):
             b.done = b.length

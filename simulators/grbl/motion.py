@@ -50,6 +50,7 @@ class Block:
     speed: float = 0.0
     line_number: int = 0
     done: float = 0.0
+    elapsed: float = 0.0  # simulated seconds spent moving along it
 
     @property
     def remaining(self) -> float:

@@ -522,6 +522,21 @@ def test_laser_mode_power_only_in_feed_motion(port):
     assert [s.rapid for s in port.emulator.trace] == [True, False, False, True, False, False]
 
 
+def test_laser_m4_power_follows_speed(port):
+    """laser_mode.md: "`M4` enables dynamic laser power mode. Dynamic laser power mode will
+    automatically adjust laser power based on the current speed relative to the programmed
+    rate." A 1 mm cut never reaches F500 (acceleration 10 mm/s^2), so its mean power is far
+    below S; a 99 mm cut loses only its two ramps."""
+    assert send(port, "$32=1") == ["ok"]
+    for line in ["G1 M4 S1000 F500 X-1", "G4 P0", "G1 X-1 Y-100", "G4 P0"]:
+        assert send(port, line) == ["ok"], line
+    short, long = port.emulator.trace
+    v_peak = np.sqrt(10.0 * 1.0)  # accelerate over half, brake over the other half
+    assert short.power == pytest.approx(1000.0 * (v_peak / 2) / (500 / 60), rel=0.02)
+    v = 500 / 60
+    assert long.power == pytest.approx(1000.0 * (99.0 / (99.0 / v + v / 10.0)) / v, rel=0.01)
+
+
 # --------------------------------------------------------------------------- fault injection
 def test_injected_error_and_alarm_at_lines():
     """Fault injection: `error_at=LINE:CODE` answers that line with the error (and does not run
