@@ -302,7 +302,7 @@ def test_g4_dwell_answers_only_after_motion(port):
     """interface.md, Synchronization: "insert a `G4 P0.01` dwell command ... This acts as a quick
     force-synchronization and ensures the planner buffer is completely empty"; an `ok` otherwise
     "Indicates the command line received was parsed and executed (or set to be executed)"."""
-    p = open_port("speed=20")
+    p = open_port("speed=5")
     try:
         read_boot(p)
         assert send(p, "G1 X-20 F500") == ["ok"]
@@ -340,7 +340,7 @@ def test_feed_hold_then_cycle_start_resumes():
     """commands.md: `!` "Places Grbl into a suspend or HOLD state. If in motion, the machine will
     decelerate to a stop and then be suspended."; `~` "Resumes a feed hold"; interface.md
     sub-states "Hold:0 Hold complete. Ready to resume." and "Hold:1 Hold in-progress."."""
-    p = open_port("speed=20")
+    p = open_port("speed=5")
     try:
         read_boot(p)
         assert send(p, "G1 X-40 F500") == ["ok"]
@@ -363,7 +363,7 @@ def test_feed_hold_then_cycle_start_resumes():
 def test_reset_during_motion_raises_alarm_3():
     """commands.md, 0x18: "If reset while in motion, Grbl will throw an alarm to indicate position
     may be lost from the motion halt."; alarm_codes_en_US.csv 3: "Reset while in motion."."""
-    p = open_port("speed=20")
+    p = open_port("speed=5")
     try:
         read_boot(p)
         assert send(p, "G1 X-40 F500") == ["ok"]
@@ -406,7 +406,7 @@ def test_jog_and_jog_cancel(port):
     """commands.md: "Jog commands are completely independent of the g-code parser state. It will
     not change any modes like G91"; 0x85: "Immediately cancels the current jog state by a feed
     hold and automatically flushing any remaining jog commands in the buffer."."""
-    p = open_port("speed=20")
+    p = open_port("speed=5")
     try:
         read_boot(p)
         assert send(p, "$J=G91 X-50 F600") == ["ok"]
