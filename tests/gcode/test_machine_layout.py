@@ -1,0 +1,90 @@
+"""Machine profiles (TOML) and LAYOUT.json reading: defaults and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import make_layout
+
+from gcode.layout import layout_from_dict, load_layout
+from gcode.machine import default_machine, load_machine
+
+
+def test_default_profile_is_the_laser_table():
+    m = default_machine()
+    assert m.tool == "laser" and m.laser_mode and m.max_s == 1000
+    assert m.work_area == (0.0, 0.0, 1600.0, 1000.0)
+    assert m.cut.feed <= m.max_feed and m.cut.power <= m.max_s
+
+
+@pytest.mark.parametrize("text,match", [
+    ("[machine]\nspeed = 3\n", "unknown key 'speed' in \\[machine\\]"),
+    ("[machine]\nmax_s = \"lots\"\n", "max_s = 'lots': expected a number"),
+    ("[machine]\nwork_area = [0, 0, 10]\n", "expected a list of 4 numbers"),
+    ("[machine]\nwork_area = [0, 0, -10, 10]\n", "x_max > x_min"),
+    ("[cut]\nfeed = 20000\n", "feed 20000 exceeds max_feed"),
+    ("[cut]\npower = 2000\n", "power 2000 exceeds max_s"),
+    ("[cut]\nnotch = \"round\"\n", "notch must be"),
+    ("[cut]\npasses = 0\n", "passes must be >= 1"),
+    ("[laser]\n", "unknown section"),
+    ("[machine\n", "not valid TOML"),
+    ("[knife]\nz_up = -5\n", "z_up must be above z_down"),
+])
+def test_bad_profiles_name_file_and_key(tmp_path, text, match):
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=match) as exc:
+        load_machine(p)
+    assert str(exc.value).startswith(str(p))
+
+
+def test_profile_file_overrides(tmp_path):
+    p = tmp_path / "m.toml"
+    p.write_text("[machine]\ntool = \"knife\"\nlaser_mode = false\nwork_area = [0, 0, 900, 600]\n"
+                 "[cut]\nkerf = 0.0\ntabs = 3\n[knife]\nz_down = -2.0\n")
+    m = load_machine(p)
+    assert m.tool == "knife" and m.work_area == (0, 0, 900, 600) and m.cut.tabs == 3
+    assert m.knife.z_down == -2.0 and m.knife.z_up == 5.0
+    with pytest.raises(FileNotFoundError, match="machine profile not found"):
+        load_machine(tmp_path / "none.toml")
+
+
+def test_layout_origin_moves_pieces_onto_the_table(tmp_path):
+    data = make_layout(origin=(100.0, 50.0))
+    p = tmp_path / "LAYOUT.json"
+    p.write_text(json.dumps(data))
+    lay = load_layout(p)
+    assert lay.origin == (100.0, 50.0) and lay.gap == 10
+    raw = np.asarray(data["pieces"][0]["outline"])
+    assert np.allclose(lay.pieces[0].outline, raw + [100, 50])
+    assert np.allclose(lay.pieces[0].marks, [[250, 150]])
+    assert np.allclose(lay.pieces[0].notches[0].at, [330, 200])
+    assert lay.pieces[2].grainline.shape == (2, 2)
+
+
+@pytest.mark.parametrize("mutate,match", [
+    (lambda d: d.update(units="in"), "units must be"),
+    (lambda d: d.pop("pieces"), "missing \"pieces\""),
+    (lambda d: d["pieces"][0].update(outline=[[0, 0], [1, 1]]), "at least 3"),
+    (lambda d: d["pieces"][0].update(outline=[[0, 0], [1, "a"], [2, 2]]), "list of"),
+    (lambda d: d["pieces"][1].update(id="disc#1"), "duplicate id"),
+    (lambda d: d["pieces"][0].update(notches=[{"dir": 1}]), "notches\\[0\\]"),
+    (lambda d: d.update(version=2), "unsupported layout version"),
+])
+def test_bad_layouts(mutate, match):
+    d = make_layout()
+    mutate(d)
+    with pytest.raises(ValueError, match=match) as exc:
+        layout_from_dict(d, "L.json")
+    assert str(exc.value).startswith("L.json")
+
+
+def test_layout_file_errors(tmp_path):
+    p = tmp_path / "L.json"
+    p.write_text("{nope")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_layout(p)
+    with pytest.raises(FileNotFoundError, match="layout not found"):
+        load_layout(tmp_path / "missing.json")
