@@ -514,7 +514,7 @@ class GrblEmulator:
                     break
             out.append(act)
         self._gc = gc
-        if params is not self.params:
+        if self._state != "Check":  # check mode never writes EEPROM (G10, G28.1, G30.1)
             self.params = params
         return out
 
