@@ -294,7 +294,7 @@ def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet |
         shade = sheet.shading(x, y)
         if not np.isscalar(shade):
             colour *= np.asarray(shade, np.float32)[..., None]
-        out += cover * (colour - out)
+        out = _blend(colour, out, cover)
     if board is not None:
         bx, by = board.table_to_board(x, y)
         bw, bh = board.extent_mm
@@ -310,8 +310,16 @@ def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet |
                          (by * ppm - 0.5).astype(np.float32), cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_CONSTANT, borderValue=1.0)
         colour = grey[..., None] * _PAPER_BGR
-        out += cover * (colour - out)
+        out = _blend(colour, out, cover)
     return out
+
+
+def _blend(top: np.ndarray, below: np.ndarray, cover) -> np.ndarray:
+    """``cover * top + (1 - cover) * below`` with a per-pixel (H, W, 1) or scalar cover."""
+    if np.isscalar(cover) or np.ndim(cover) == 0:
+        return top if float(cover) >= 1.0 else below + float(cover) * (top - below)
+    c = np.ascontiguousarray(cover[..., 0], np.float32)
+    return cv2.blendLinear(top, below, c, 1.0 - c)
 
 
 def render_rectified(sheet: Sheet | Print | None, region: tuple[float, float, float, float],
@@ -367,6 +375,19 @@ class FrameTruth:
                                    np.asarray(self.pose.tvec, float), self.camera.K,
                                    self.camera.dist)
         return img.reshape(-1, 2)
+
+    def rectify(self, frame: np.ndarray, region: tuple[float, float, float, float],
+                mm_per_px: float) -> np.ndarray:
+        """Resample ``frame`` onto the table grid of :func:`render_rectified` using the
+        true camera (through ``cv2.projectPoints``, independent of the renderer)."""
+        x0, y0, x1, y1 = (float(v) for v in region)
+        xs = x0 + np.arange(round((x1 - x0) / mm_per_px)) * mm_per_px
+        ys = y0 + np.arange(round((y1 - y0) / mm_per_px)) * mm_per_px
+        gx, gy = np.meshgrid(xs, ys)
+        img = self.table_to_image(np.column_stack([gx.ravel(), gy.ravel()]))
+        mx = img[:, 0].reshape(gx.shape).astype(np.float32)
+        my = img[:, 1].reshape(gx.shape).astype(np.float32)
+        return cv2.remap(frame, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {"frame": self.index, **self.camera.to_dict(),
@@ -529,17 +550,22 @@ class SyntheticCamera:
         nx = np.linspace(-1.0, 1.0, w, dtype=np.float32)[None, :]
         ny = np.linspace(-1.0, 1.0, h, dtype=np.float32)[:, None]
         gain = im.exposure * (1.0 + im.light_ramp[0] * nx + im.light_ramp[1] * ny)
-        gain = gain * (1.0 - im.vignetting * 0.5 * (nx * nx + ny * ny))
-        img *= gain[..., None]
+        gain = (gain * (1.0 - im.vignetting * 0.5 * (nx * nx + ny * ny))).astype(np.float32)
+        # (OpenCV's element-wise functions below are several times faster than NumPy's
+        # on 12-megapixel float images, which matters for 4000 x 3000 frames.)
+        img = cv2.multiply(img, cv2.merge([gain, gain, gain]), scale=255.0)
         if im.blur > 0:
             img = cv2.GaussianBlur(img, (0, 0), im.blur)
-        img *= 255.0
         if im.noise > 0:
             read = 0.5 * im.noise
             shot = (im.noise**2 - read**2) / 128.0
-            sd = np.sqrt(read**2 + shot * np.clip(img, 0, None))
-            img += sd * self._rng.standard_normal(img.shape, dtype=np.float32)
-        frame = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+            var = cv2.add(cv2.multiply(cv2.max(img, 0.0), shot), read**2)
+            # cv2.randn is ~5x faster than NumPy's normals; seeding OpenCV's generator
+            # from the camera's own keeps every frame repeatable.
+            cv2.setRNGSeed(int(self._rng.integers(2**31 - 1)))
+            noise = cv2.randn(np.empty_like(img), (0.0,) * 3, (1.0,) * 3)  # per channel
+            img = cv2.add(img, cv2.multiply(cv2.sqrt(var), noise))
+        frame = cv2.convertScaleAbs(cv2.max(img, 0.0))  # rounds and saturates to uint8
         if im.jpeg_quality is not None:
             ok, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, im.jpeg_quality])
             frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)

@@ -28,19 +28,6 @@ from station.cli import main as station
 SMALL = (480, 360)
 
 
-def _rectify(frame: np.ndarray, truth, region, s: float) -> np.ndarray:
-    """Resample a frame onto the table grid using only the truth and cv2.projectPoints
-    (an OpenCV path independent of the renderer's undistortPoints)."""
-    x0, y0, x1, y1 = region
-    xs = x0 + np.arange(round((x1 - x0) / s)) * s
-    ys = y0 + np.arange(round((y1 - y0) / s)) * s
-    gx, gy = np.meshgrid(xs, ys)
-    img = truth.table_to_image(np.column_stack([gx.ravel(), gy.ravel()]))
-    mx = img[:, 0].reshape(gx.shape).astype(np.float32)
-    my = img[:, 1].reshape(gx.shape).astype(np.float32)
-    return cv2.remap(frame, mx, my, cv2.INTER_LINEAR)
-
-
 def _corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.corrcoef(a.astype(float).ravel(), b.astype(float).ravel())[0, 1])
 
@@ -57,7 +44,7 @@ def test_frame_shows_the_print_where_the_truth_says(sheet):
         truth = cam.truth
     assert frame.shape == (SMALL[1], SMALL[0], 3) and frame.dtype == np.uint8
     region, s = (60.0, 30.0, 300.0, 230.0), 1.5
-    seen = _rectify(frame, truth, region, s)
+    seen = truth.rectify(frame, region, s)
     ideal = render_rectified(sheet, region, s)
     assert _corr(seen, ideal) > 0.85
     # negative control: half a repeat off, the same comparison fails
@@ -166,6 +153,12 @@ def test_light_noise_and_jpeg_are_applied_and_seeded(sheet):
     ratio = lit.astype(float) / np.maximum(ideal.astype(float), 1.0)
     assert ratio[170:190, 230:250].mean() > 0.97  # centre untouched
     assert ratio[:20, :20].mean() < 0.85  # corners dark
+    plain = Imaging(light_ramp=(0.0, 0.0), vignetting=0.0, blur=0.0, noise=3.0,
+                    jpeg_quality=None)
+    n1 = SyntheticCamera(sheet, camera=model, imaging=plain, seed=1).read().astype(float)
+    n2 = SyntheticCamera(sheet, camera=model, imaging=plain, seed=2).read().astype(float)
+    sd = (n1 - n2).std(axis=(0, 1)) / math.sqrt(2)
+    assert np.all((sd > 1.5) & (sd < 4.2))  # every channel: read + shot noise of 3 at grey
     a = SyntheticCamera(sheet, camera=model, seed=5).read()
     b = SyntheticCamera(sheet, camera=model, seed=5).read()
     c = SyntheticCamera(sheet, camera=model, seed=6).read()
