@@ -215,3 +215,20 @@ def test_seam_lines_of_pants(data_dir: Path) -> None:
     assert sum(np.sum(g.seam_line_of_edge == k) for k in range(6)) == 56
     names = [s.name for s in g.seam_lines]
     assert len(set(names)) == len(names)
+
+
+def test_fast_and_line_readers_agree(data_dir: Path, tmp_path: Path) -> None:
+    """The byte-level reader and the line reader (irregular files) give the same garment."""
+    src = (data_dir / "garments" / "berkeley" / "tshirt-coarse.obj").read_text()
+    fast = load_garment(data_dir / "garments" / "berkeley" / "tshirt-coarse.obj", units="m")
+    # CRLF line ends stay on the byte-level reader; a v line with a 4th (w) component is
+    # legal OBJ but irregular, which sends the file to the line reader
+    (tmp_path / "crlf.obj").write_text(src.replace("\n", "\r\n"))
+    lines = src.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("v "))
+    lines[k] += " 1.0"  # v x y z w: legal OBJ, not the regular layout
+    (tmp_path / "vw.obj").write_text("\n".join(lines) + "\n")
+    for name in ("crlf.obj", "vw.obj"):
+        g = load_garment(tmp_path / name, units="m")
+        assert np.array_equal(g.uv, fast.uv) and np.array_equal(g.faces, fast.faces)
+        assert np.array_equal(g.seam_edges, fast.seam_edges)
