@@ -8,10 +8,7 @@ import pkgutil
 import sys
 
 from station import commands
-
-
-class UserError(Exception):
-    """A fault in the operator's input: printed as one line, exit status 2."""
+from station.errors import UserError
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -129,3 +129,86 @@ def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str
                 cv2.LINE_AA)
     cv2.putText(image, f">= {red_mm:g} mm", (x0 + bar_w - 70, 32), cv2.FONT_HERSHEY_SIMPLEX,
                 0.45, (30, 30, 30), 1, cv2.LINE_AA)
+
+
+def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitReport | None = None,
+                photo: np.ndarray | None = None, photo_mm_per_px: float = 1.0,
+                width_px: int = 1600, red_mm: float = 20.0) -> np.ndarray:
+    """The marker: every piece where it lies on the fabric, seams coloured by mismatch.
+
+    ``layout`` is LAYOUT.json's content (fabric mm, x along the roll, y across it, drawn
+    with y down like the rectified photo). The background is the rectified photo when
+    given (pixel (c, r) at (c, r) * ``photo_mm_per_px`` mm), else the print rendered from
+    the layout's fabric, else plain cloth.
+    """
+    length = float(layout["length"]) or 1.0
+    width = float(layout["width"])
+    scale = width_px / length
+    height_px = max(1, int(np.ceil(width * scale)))
+    banner = 40
+    if photo is not None:
+        m = np.array([[scale * photo_mm_per_px, 0, 0], [0, scale * photo_mm_per_px, 0]])
+        cloth = cv2.warpAffine(photo, m, (width_px, height_px), flags=cv2.INTER_AREA)
+    elif layout.get("fabric"):
+        from solver.wallpaper import Wallpaper
+
+        colour_of = default_print_colours(Wallpaper.from_dict(layout["fabric"]), 1.0 / scale)
+        ys, xs = np.mgrid[0:height_px, 0:width_px]
+        pts = np.column_stack([(xs.ravel() + 0.5) / scale, (ys.ravel() + 0.5) / scale])
+        cloth = colour_of(pts).reshape(height_px, width_px, 3)
+    else:
+        cloth = np.full((height_px, width_px, 3), 225, np.uint8)
+    # Waste is dimmed so the pieces stand out.
+    image = np.full((height_px + banner, width_px, 3), 245, np.uint8)
+    image[banner:] = (0.45 * cloth + 0.55 * 245).astype(np.uint8)
+
+    def to_px(p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, float).reshape(-1, 2)
+        return np.round(np.column_stack([p[:, 0] * scale, p[:, 1] * scale + banner]) * 16
+                        ).astype(np.int32)
+
+    mask = np.zeros(image.shape[:2], np.uint8)
+    rings = [to_px(piece["outline"]) for piece in layout["pieces"]]
+    cv2.fillPoly(mask, rings, 255, cv2.LINE_8, shift=4)
+    full = np.full_like(image, 245)
+    full[banner:] = cloth
+    image[mask > 0] = full[mask > 0]
+    cv2.polylines(image, rings, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+    if garment is not None and report is not None:
+        _draw_marker_seams(image, layout, garment, report, to_px, red_mm)
+    for piece, ring in zip(layout["pieces"], rings):
+        centre = (ring.mean(axis=0) / 16).astype(int)
+        cv2.putText(image, piece["id"], tuple(centre - [20, 0]), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    (20, 20, 20), 1, cv2.LINE_AA)
+    density = layout.get("density")
+    text = (f"marker {length:.0f} x {width:.0f} mm, {len(layout['pieces'])} pieces"
+            + (f", density {100 * density:.1f}%" if density is not None else ""))
+    cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
+                cv2.LINE_AA)
+    if not cv2.imwrite(str(path), image):
+        raise ValueError(f"{path}: cannot write the picture")
+    return image
+
+
+def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
+    """Seam edges carried from pattern space into the fabric by each piece's transform."""
+    name_to_piece = {n: i for i, n in enumerate(garment.piece_names)}
+    palette = mismatch_colours(np.arange(32) / 31 * red_mm, red_mm)
+    edges = garment.seam_edges
+    level = np.minimum((report.distance / red_mm * 31).astype(int), 31)
+    for placed in layout["pieces"]:
+        piece = name_to_piece.get(placed["name"])
+        if piece is None:
+            continue
+        t = np.asarray(placed["transform"], float)
+        for a, b in ((0, 1), (2, 3)):
+            mine = garment.piece_of_vertex[edges[:, a]] == piece
+            if not mine.any():
+                continue
+            p0 = garment.uv[edges[mine, a]] @ t[:, :2].T + t[:, 2]
+            p1 = garment.uv[edges[mine, b]] @ t[:, :2].T + t[:, 2]
+            segments = np.stack([to_px(p0), to_px(p1)], 1)
+            for lv in np.unique(level[mine]):
+                colour = tuple(int(v) for v in palette[lv])
+                cv2.polylines(image, list(segments[level[mine] == lv]), False, colour, 3,
+                              cv2.LINE_AA, shift=4)

@@ -12,9 +12,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from station.cli import UserError
 from station.cliargs import add_config_argument, load_config_arg
 from station.control import ControlError, request
+from station.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
