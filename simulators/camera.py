@@ -15,11 +15,12 @@ camera straight above it with ``rvec = 0`` sees table x to the right and table y
 exactly what ``cv2.solvePnP`` and ``cv2.calibrateCamera`` return for a board lying at
 z = 0.
 
-The sheet: fabric coordinates are the print's own millimetres; the sheet covers
-``[0, W] x [0, H]`` of them and lies on the table turned by ``rotation`` degrees with its
-fabric origin at ``shift``. Badly spread fabric is modelled as a map table -> fabric:
-weft skew (a shear, degrees), weft bow (a parabola across the width, mm at the centre)
-and a fold (a smooth step of ``depth`` mm of hidden fabric across a line).
+The sheet: a W x H mm rectangle lying on the table turned by ``rotation`` degrees with
+its corner at ``shift`` (sheet coordinates ``[0, W] x [0, H]``). Fabric coordinates are
+the print's own millimetres; for a well spread sheet they equal the sheet coordinates.
+Badly spread fabric is modelled as a map sheet -> fabric inside the same rectangle: weft
+skew (a shear, degrees), weft bow (a parabola across the width, mm at the centre) and a
+fold (a smooth step of ``depth`` mm of hidden fabric across a line, its crease shaded).
 """
 
 from __future__ import annotations
@@ -153,12 +154,16 @@ class Sheet:
     def distorted(self) -> bool:
         return bool(self.skew or self.bow or (self.fold and self.fold[1]))
 
-    def table_to_fabric(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fabric coordinates (mm) of table points (vectorised, any shape)."""
+    def table_to_local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Sheet coordinates (mm, the rigidly placed W x H rectangle) of table points."""
         f = np.float32 if np.asarray(x).dtype == np.float32 else np.float64
         c, s = f(math.cos(math.radians(self.rotation))), f(math.sin(math.radians(self.rotation)))
         dx, dy = x - f(self.shift[0]), y - f(self.shift[1])
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def local_to_fabric(self, lx: np.ndarray, ly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fabric (print) coordinates of sheet points: the spreading faults live here."""
+        f = np.float32 if np.asarray(lx).dtype == np.float32 else np.float64
         fx, fy = lx, ly
         if self.skew:
             fy = ly - f(math.tan(math.radians(self.skew))) * lx
@@ -171,13 +176,15 @@ class Sheet:
             fx = fx + f(0.5 * depth) * (f(1.0) + step)
         return fx, fy
 
-    def shading(self, x: np.ndarray, y: np.ndarray) -> np.ndarray | float:
-        """Brightness factor of the sheet (the crease of a fold is in shadow)."""
+    def table_to_fabric(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fabric coordinates (mm) of table points (vectorised, any shape)."""
+        return self.local_to_fabric(*self.table_to_local(x, y))
+
+    def shading(self, lx: np.ndarray) -> np.ndarray | float:
+        """Brightness factor at sheet x ``lx`` (the crease of a fold is in shadow)."""
         if self.fold is None:
             return 1.0
         f = np.float32
-        c, s = f(math.cos(math.radians(self.rotation))), f(math.sin(math.radians(self.rotation)))
-        lx = c * (x - f(self.shift[0])) + s * (y - f(self.shift[1]))
         pos, depth, width = self.fold
         depth_ratio = f(0.35 * min(1.0, abs(depth) / max(width, 1e-6)))
         z = np.clip((lx - f(pos)) * f(1.0 / max(width, 1e-6)), -30.0, 30.0)
@@ -284,14 +291,15 @@ def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet |
     out[:] = _TABLE_BGR
     fp = max(footprint, 1e-6)
     if sheet is not None:
-        fx, fy = sheet.table_to_fabric(x, y)
+        lx, ly = sheet.table_to_local(x, y)
         cover = np.float32(1.0)
-        if sheet.size is not None:
+        if sheet.size is not None:  # the sheet is a rectangle; the print inside may not be
             w, h = sheet.size
-            inside = np.minimum(np.minimum(fx, w - fx), np.minimum(fy, h - fy))
+            inside = np.minimum(np.minimum(lx, w - lx), np.minimum(ly, h - ly))
             cover = np.clip(inside / fp + 0.5, 0.0, 1.0).astype(np.float32)[..., None]
+        fx, fy = sheet.local_to_fabric(lx, ly)
         colour = sheet.print.colour_at(fx, fy, fp)
-        shade = sheet.shading(x, y)
+        shade = sheet.shading(lx)
         if not np.isscalar(shade):
             colour *= np.asarray(shade, np.float32)[..., None]
         out = _blend(colour, out, cover)

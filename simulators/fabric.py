@@ -152,7 +152,7 @@ class Print:
             gain = np.exp(-2.0 * math.pi**2 * sigma**2 * np.einsum("...i,...i", nu, nu))
             spec = np.fft.fft2(base, axes=(0, 1)) * gain[..., None]
             tex = np.fft.ifft2(spec, axes=(0, 1)).real.astype(np.float32)
-            if len(self._cache) > 4:
+            if len(self._cache) >= 2:  # textures can be 50 MB: keep the last two
                 self._cache.clear()
             self._cache[key] = np.clip(tex, 0.0, 1.0)
         return self._cache[key]
