@@ -32,7 +32,10 @@ class Key:
 
 SCHEMA: dict[str, dict[str, Key]] = {
     "serial": {
-        "port": Key(str, "grblsim://?speed=50", "serial device, pty or pyserial URL"),
+        "port": Key(str, "grblsim://?name=station&speed=50&force_origin=1&settings=32:1,"
+                    "130:1600,131:1000,20:1,22:1,23:3,110:12000,111:12000,120:1500,121:1500",
+                    "serial device, pty or pyserial URL (default: the GRBL emulator set up "
+                    "as the default machine, laser mode, soft limits and homing on)"),
         "baud": Key(int, 115200, "baud rate", minimum=1200),
     },
     "camera": {
