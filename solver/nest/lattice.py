@@ -154,6 +154,11 @@ class Filler:
         img = np.zeros((size[1], size[0]), np.uint8)
         pts = ring / self.res - 0.5 - o
         cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+        # eroded by a pixel: the raster test must stay optimistic at contact (touching
+        # pieces share boundary pixels after rounding); the exact check decides there
+        core = cv2.erode(img, np.ones((3, 3), np.uint8))
+        if core.any():
+            img = core
         return _Shape(ring, lo, hi, int(o[0]), int(o[1]), img.astype(np.float32))
 
     def _spec(self, s: _Shape, fshape: tuple[int, int]) -> np.ndarray:
@@ -163,19 +168,27 @@ class Filler:
             s.spec[fshape] = np.conj(sfft.rfft2(s.mask, fshape, workers=1))
         return s.spec[fshape]
 
-    def window(self, board: Board) -> tuple[tuple[int, int], float]:
-        """FFT shape covering the placed pieces plus one piece length, and the x limit.
+    def window(self, board: Board, target: tuple | None = None,
+               ) -> tuple[int, tuple[int, int], float, float]:
+        """Columns to correlate: (first column, FFT shape, x range of left edges).
 
-        A position right of the frontier is never better than the first one there, so
-        the correlation is only needed up to the frontier plus the longest piece; the
-        column count grows in coarse steps so that mask spectra are reused.
+        Bottom-left: a position right of the frontier is never better than the first one
+        there, so left edges up to the frontier (plus a lattice step) suffice. Near a
+        target: one piece length either side of it. Column counts grow in coarse steps
+        so that mask spectra are reused.
         """
-        frontier = board.frontier()
-        xlim = frontier + self.gap + 2 * self.res + 2 * self.step
-        cols = int(math.ceil((xlim + self.longest) / self.res)) + 2 + self.wmax
+        xlim = board.frontier() + self.gap + 2 * self.res + 2 * self.step
+        xlo = -math.inf
+        c0 = 0
+        if target is not None:
+            tx = float(target[1][0])
+            xlim = max(xlim, tx + self.longest)
+            xlo = tx - 2 * self.longest
+            c0 = max(0, int(math.floor(xlo / self.res)) - 2)
+        cols = int(math.ceil((xlim + self.longest + self.gap) / self.res)) + 3 - c0 + self.wmax
         step = max(64, int(2 ** math.floor(math.log2(max(cols, 1)) - 2)))
         cols = min(int(math.ceil(cols / step) * step), self.fshape[1])
-        return (self.fshape[0], sfft.next_fast_len(cols, real=True)), xlim
+        return c0, (self.fshape[0], sfft.next_fast_len(cols, real=True)), xlo, xlim
 
     def board(self) -> Board:
         b = Board(self.width, self.length, self.gap, self.res)
@@ -183,11 +196,15 @@ class Filler:
             b.add(p)
         return b
 
-    def translations(self, item: Item, s: _Shape) -> np.ndarray:
-        """(m, 2) allowed translations keeping the shape inside the fabric minus the gap."""
+    def translations(self, item: Item, s: _Shape, xlo: float = -math.inf,
+                     xhi: float = math.inf) -> np.ndarray:
+        """(m, 2) allowed translations keeping the shape inside the fabric minus the gap.
+
+        Only those whose left edge lies in [xlo, xhi] (the search window).
+        """
         g = self.gap
-        tlo = np.array([g, g]) - s.lo
-        thi = np.array([self.length - g, self.width - g]) - s.hi
+        tlo = np.array([max(g, xlo), g]) - s.lo
+        thi = np.array([min(self.length - g - s.hi[0], xhi - s.lo[0]), self.width - g - s.hi[1]])
         if np.any(thi < tlo):
             return np.zeros((0, 2))
         if item.lattice is None:
@@ -215,26 +232,25 @@ class Filler:
         The score is bottom-left, or with ``target`` = (candidate index, translation) the
         distance to that wished-for position (used to repair a snapped layout locally).
         """
-        fshape, xlim = self.window(board)
-        if target is not None:
-            xlim = max(xlim, float(target[1][0]) + self.longest)
-        occ = (board.count[:, : fshape[1]] > 0).astype(np.float32)
+        c0, fshape, xlo, xlim = self.window(board, target)
+        occ = (board.count[:, c0:c0 + fshape[1]] > 0).astype(np.float32)
         focc = sfft.rfft2(occ, fshape, workers=1)
         options = []
         for ci, s in enumerate(self.shapes[item.key]):
-            t = self.translations(item, s)
-            t = t[t[:, 0] + s.lo[0] <= xlim]
+            t = self.translations(item, s, xlo, xlim)
             if not len(t):
                 continue
             corr = sfft.irfft2(focc * self._spec(s, fshape), fshape, workers=1)
-            col = np.clip(np.rint(s.ox + t[:, 0] / self.res).astype(int), 0, fshape[1] - 1)
+            col = np.clip(np.rint(s.ox + t[:, 0] / self.res).astype(int) - c0, 0, fshape[1] - 1)
             row = np.clip(np.rint(s.oy + t[:, 1] / self.res).astype(int), 0, fshape[0] - 1)
             free = corr[row, col] < 0.5
             t = t[free]
             if not len(t):
                 continue
             if target is not None:
-                sc = np.hypot(*(t - target[1]).T) + (0.0 if ci == target[0] else 1e6)
+                # push right rather than sideways: the sweep goes left to right
+                d = t - target[1]
+                sc = np.abs(d[:, 0]) + 2 * np.abs(d[:, 1]) + (0.0 if ci == target[0] else 1e6)
             elif self.score == "left":
                 sc = (t[:, 0] + s.lo[0]) * 1e3 + t[:, 1] + s.lo[1]
             else:
@@ -278,6 +294,9 @@ class Filler:
 
     def polygon(self, k: int, pos: tuple[int, np.ndarray]) -> shapely.Polygon:
         return shapely.Polygon(self.shapes[self.items[k].key][pos[0]].ring + pos[1])
+
+    def left(self, k: int, pos: tuple[int, np.ndarray]) -> float:
+        return float(self.shapes[self.items[k].key][pos[0]].lo[0] + pos[1][0])
 
     def right(self, k: int, pos: tuple[int, np.ndarray]) -> float:
         return float(self.shapes[self.items[k].key][pos[0]].hi[0] + pos[1][0])
@@ -374,9 +393,10 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, s
                 if sol[k] is not None:
                     index[k] = board.add(filler.polygon(k, sol[k]))
             runs += 1
-            if wish is not None and runs == 1:  # nearest to the wished positions, biggest first
-                ok = filler.fill([k for k in orderings(items, rng).__next__() if pre[k] is None],
-                                 board, sol, index, wish)
+            if wish is not None and runs == 1:  # nearest to the wished positions, left first
+                todo = [k for k in range(n) if pre[k] is None]
+                todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
+                ok = filler.fill(todo, board, sol, index, wish)
             else:
                 ok = filler.fill([k for k in order if pre[k] is None], board, sol, index)
             if not ok:
@@ -405,25 +425,41 @@ def problem_density(items: list[Item], problem: NestProblem, length: float) -> f
     return area / (problem.width * length)
 
 
+SHARES = {"resnap": 0.75, "repair": 0.75, "fill": 0.25}
+
+
 def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
-                 progress: Progress | None = None, strategies: tuple[str, ...] = ("fill", "repair"),
-                 ) -> Layout:
-    """Nest on a printed fabric: lattice-coset greedy fill and sparrow-then-repair; best wins."""
+                 progress: Progress | None = None,
+                 strategies: tuple[str, ...] = ("resnap", "fill")) -> Layout:
+    """Nest on a printed fabric; every strategy runs and the shortest marker wins.
+
+    - ``resnap``: sparrow nests freely, then every piece is swept left to right onto the
+      allowed position nearest to its free one (pushed right where it collides), then
+      compacted; keeps sparrow's structure, loses little on fine lattices.
+    - ``repair``: the same, but only the pieces in conflict after snapping move.
+    - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
+      coarse lattices relative to the pieces.
+    """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
+    from solver.nest.regions import repair_snapped
+
     items = problem.items()
     results = []
-    share = time_limit / len(strategies)
+    total = sum(SHARES.get(s, 0.0) for s in strategies) or 1.0
     for strategy in strategies:
+        share = time_limit * SHARES.get(strategy, 0.0) / total
         if strategy == "fill":
             r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
-        elif strategy == "repair":
-            from solver.nest.regions import repair_snapped
-
-            r = repair_snapped(problem, items, time_limit=share, seed=seed, progress=progress)
+        elif strategy in ("resnap", "repair"):
+            r = repair_snapped(problem, items, time_limit=share, seed=seed, progress=progress,
+                               everything=strategy == "resnap")
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:
+            if progress:
+                progress(f"{strategy}: length {r[1]:.4g}  "
+                         f"density {problem_density(items, problem, r[1]):.1%}")
             results.append(r)
     if not results:
         raise ValueError(f"the pieces do not fit on the fabric ({problem.width:g} x "

@@ -72,13 +72,17 @@ def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:
 
 def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
            time_limit: float, seed: int | None, progress: Progress | None = None,
-           ) -> tuple[list[np.ndarray], float] | None:
-    """Take out the conflicting pieces of ``moves``, re-insert them around the rest, compact."""
+           everything: bool = False) -> tuple[list[np.ndarray], float] | None:
+    """Take out the conflicting pieces of ``moves``, re-insert them around the rest, compact.
+
+    Re-inserted pieces go to the allowed position nearest to where they were, left-most
+    first. ``everything`` re-inserts all pieces that way (a global re-snap).
+    """
     from solver.nest.lattice import fill_search
 
     polys = np.array([shapely.Polygon(affine(m, it.ref)) for it, m in zip(items, moves)],
                      dtype=object)
-    bad = conflicting(problem, polys)
+    bad = np.ones(len(items), bool) if everything else conflicting(problem, polys)
     if progress:
         progress(f"repair: re-inserting {int(bad.sum())} of {len(items)} pieces")
     start = [None if b else m for m, b in zip(moves, bad)]
@@ -107,10 +111,10 @@ def snap_to_lattice(problem: NestProblem, items: list[Item], moves: list[np.ndar
 
 def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float,
                    seed: int | None, progress: Progress | None = None, extra: float = 0.0,
-                   ) -> tuple[list[np.ndarray], float] | None:
+                   everything: bool = False) -> tuple[list[np.ndarray], float] | None:
     """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted."""
-    moves, _ = plain_moves(problem, items, extra=extra, time_limit=0.6 * time_limit, seed=seed,
+    moves, _ = plain_moves(problem, items, extra=extra, time_limit=0.8 * time_limit, seed=seed,
                            progress=progress)
     snapped = snap_to_lattice(problem, items, moves)
-    return repair(problem, items, snapped, time_limit=0.4 * time_limit, seed=seed,
-                  progress=progress)
+    return repair(problem, items, snapped, time_limit=0.2 * time_limit, seed=seed,
+                  progress=progress, everything=everything)

@@ -8,12 +8,12 @@ from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress, plain_moves
 
-METHODS = ("auto", "fill", "repair", "naive")
+METHODS = ("auto", "resnap", "fill", "repair", "naive")
 
 
 def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
          progress: Progress | None = None, method: str = "auto") -> Layout:
-    """Nest ``problem``; on a print ``method`` picks the search (auto: fill and repair, best).
+    """Nest ``problem``; on a print ``method`` picks the search (auto: resnap and fill, best).
 
     Plain fabric goes to sparrow; when the operator marked keep-outs or the table is
     shorter than sparrow's marker, the offending pieces are re-inserted around the rest.
@@ -28,7 +28,7 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
         else:
             from solver.nest.lattice import nest_lattice
 
-            strategies = ("fill", "repair") if method == "auto" else (method,)
+            strategies = ("resnap", "fill") if method == "auto" else (method,)
             layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
                                   strategies=strategies)
     else:

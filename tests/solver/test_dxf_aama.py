@@ -121,6 +121,7 @@ def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
 def test_shared_industry_files_import(shared_data):
     files = sorted((shared_data / "garments" / "astm_aama_dxf").glob("*.[dD][xX][fF]"))
     assert files
+    files = [f for f in files if f.stat().st_size < 150_000]  # the small ones keep this fast
     for f in files:
         pieces = read_dxf_aama(f)
         assert pieces, f
