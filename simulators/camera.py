@@ -253,11 +253,13 @@ class Board:
         dx, dy = x - f(self.shift[0]), y - f(self.shift[1])
         return c * dx + s * dy, -s * dx + c * dy
 
-    def image(self, px_per_mm: float) -> np.ndarray:
-        """The board's squares area as a float32 grey image in [0, 1]."""
-        w, h = (int(round(e * px_per_mm)) for e in self.extent_mm)
-        img = self.cv_board().generateImage((w, h), marginSize=0, borderBits=1)
-        return img.astype(np.float32) / 255.0
+    def image(self, px_per_mm: float) -> tuple[np.ndarray, float]:
+        """The board's squares area as a float32 grey image in [0, 1], and its exact
+        pixels per mm (a whole number of pixels per square, or OpenCV's layout rounds)."""
+        sq = max(8, int(round(self.square_mm * px_per_mm)))
+        size = (self.squares[0] * sq, self.squares[1] * sq)
+        img = self.cv_board().generateImage(size, marginSize=0, borderBits=1)
+        return img.astype(np.float32) / 255.0, sq / self.square_mm
 
     def to_dict(self) -> dict[str, Any]:
         return {"squares": list(self.squares), "square_mm": self.square_mm,
@@ -284,12 +286,31 @@ class Imaging:
 
 
 # ------------------------------------------------------------------ rendering
-def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet | None,
-                  board: Board | None) -> np.ndarray:
-    """Float32 BGR colours of table points (mm), anti-aliased for ``footprint`` mm px."""
+def _sample_print(p: Print, fx: np.ndarray, fy: np.ndarray,
+                  footprint: float | np.ndarray) -> np.ndarray:
+    """Print colours filtered for each pixel's own footprint.
+
+    A tilted view sees the fabric at different scales across the frame; one filter
+    would blur the near side or alias the far side. Two band-limited textures (finest
+    and coarsest footprint) are blended per pixel by log footprint, like mip-mapping.
+    """
+    if np.ndim(footprint) == 0:
+        return p.colour_at(fx, fy, float(footprint))
+    lo, hi = float(footprint.min()), float(footprint.max())
+    if hi <= 1.2 * lo:
+        return p.colour_at(fx, fy, 0.5 * (lo + hi))
+    near, far = p.colour_at(fx, fy, lo), p.colour_at(fx, fy, hi)
+    t = np.clip(np.log(footprint / np.float32(lo)) / np.float32(math.log(hi / lo)), 0, 1)
+    return cv2.blendLinear(far, near, t.astype(np.float32), (1.0 - t).astype(np.float32))
+
+
+def _render_table(x: np.ndarray, y: np.ndarray, footprint: float | np.ndarray,
+                  sheet: Sheet | None, board: Board | None) -> np.ndarray:
+    """Float32 BGR colours of table points (mm), anti-aliased for ``footprint`` mm per
+    pixel (a number, or one per pixel)."""
     out = np.empty(x.shape + (3,), np.float32)
     out[:] = _TABLE_BGR
-    fp = max(footprint, 1e-6)
+    fp = np.maximum(footprint, 1e-6)
     if sheet is not None:
         lx, ly = sheet.table_to_local(x, y)
         cover = np.float32(1.0)
@@ -298,7 +319,7 @@ def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet |
             inside = np.minimum(np.minimum(lx, w - lx), np.minimum(ly, h - ly))
             cover = np.clip(inside / fp + 0.5, 0.0, 1.0).astype(np.float32)[..., None]
         fx, fy = sheet.local_to_fabric(lx, ly)
-        colour = sheet.print.colour_at(fx, fy, fp)
+        colour = _sample_print(sheet.print, fx, fy, fp)
         shade = sheet.shading(lx)
         if not np.isscalar(shade):
             colour *= np.asarray(shade, np.float32)[..., None]
@@ -309,9 +330,9 @@ def _render_table(x: np.ndarray, y: np.ndarray, footprint: float, sheet: Sheet |
         m = board.margin_mm
         paper = np.minimum(np.minimum(bx + m, bw + m - bx), np.minimum(by + m, bh + m - by))
         cover = np.clip(paper / fp + 0.5, 0.0, 1.0).astype(np.float32)[..., None]
-        ppm = float(np.clip(4.0 / fp, 4.0, 16.0))
-        img = board.image(ppm)
-        sigma = 0.5 * fp * ppm
+        fine = float(np.min(fp))
+        img, ppm = board.image(float(np.clip(4.0 / fine, 4.0, 16.0)))
+        sigma = 0.5 * fine * ppm
         if sigma > 0.3:
             img = cv2.GaussianBlur(img, (0, 0), sigma)
         grey = cv2.remap(img, (bx * ppm - 0.5).astype(np.float32),
@@ -518,7 +539,7 @@ class SyntheticCamera:
     # -------------------------------------------------------------- internals
     def _table_maps(self, pose: Pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Table coordinates of every pixel (float32 (H, W) each) and the footprint
-        (mm per px) of the coarse-grid nodes."""
+        (mm per px) at the coarse-grid nodes and at every pixel."""
         w, h = self.camera.resolution
         st = _COARSE_STEP
         gx = np.arange(0, w - 1 + st, st, dtype=float)
@@ -547,12 +568,13 @@ class SyntheticCamera:
         ref = np.array([tx.mean(), ty.mean()])
         fx = cv2.remap((tx - ref[0]).astype(np.float32), mx, my, cv2.INTER_LINEAR)
         fy = cv2.remap((ty - ref[1]).astype(np.float32), mx, my, cv2.INTER_LINEAR)
-        return fx + np.float32(ref[0]), fy + np.float32(ref[1]), foot
+        foot_px = cv2.remap(foot.astype(np.float32), mx, my, cv2.INTER_LINEAR)
+        return fx + np.float32(ref[0]), fy + np.float32(ref[1]), foot, foot_px
 
     def _render(self, pose: Pose) -> tuple[np.ndarray, FrameTruth]:
         w, h = self.camera.resolution
-        x, y, foot = self._table_maps(pose)
-        img = _render_table(x, y, float(np.median(foot)), self.sheet, self.board)
+        x, y, foot, foot_px = self._table_maps(pose)
+        img = _render_table(x, y, foot_px, self.sheet, self.board)
         im = self.imaging
         # light: a gain ramp across the frame and vignetting (cos^4-like fall-off)
         nx = np.linspace(-1.0, 1.0, w, dtype=np.float32)[None, :]
