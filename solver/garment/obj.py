@@ -15,6 +15,7 @@ The files are parsed with NumPy over whole blocks of lines, not line by line.
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 from dataclasses import dataclass
@@ -240,10 +241,15 @@ def _resolve(path: Path, idx: np.ndarray, count: int, what: str) -> np.ndarray:
 
 
 def declared_piece_names(comments: list[str]) -> list[str] | None:
-    """Piece names from the ``# pieces: a, b`` header that :func:`save_obj` writes."""
+    """Piece names from the ``# pieces: ["a", "b"]`` header that :func:`save_obj` writes."""
     for c in comments:
         if c.startswith("pieces:"):
-            return [p.strip() for p in c[len("pieces:") :].split(",")]
+            try:
+                names = json.loads(c[len("pieces:") :])
+            except json.JSONDecodeError:
+                return None
+            if isinstance(names, list) and all(isinstance(n, str) for n in names):
+                return names
     return None
 
 
@@ -407,7 +413,7 @@ def save_obj(g: Garment, path: str | Path) -> None:
     lines = [
         "# garment written by the cutting station (solver.garment.save_obj)",
         "# units: mm",
-        f"# pieces: {', '.join(g.piece_names)}",
+        f"# pieces: {json.dumps(g.piece_names)}",
     ]
     if g.xyz is None:
         lines.append(f"# {_TWO_D_MARK} (v are placeholders; vt is the pattern)")
