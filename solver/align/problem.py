@@ -1,0 +1,193 @@
+"""One alignment problem: garment seams, print, weights, fixed pieces and grain, ready for
+the vectorised steps; plus the batched E_fit used to compare restarts.
+
+Restarts are run side by side: every state array carries a leading batch axis ``B`` (one
+row per random start), so a sweep over the pieces costs a few NumPy calls for all starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from solver.align.frames import SeamFrames, seam_frames
+from solver.align.grain import GrainRule
+from solver.wallpaper import Wallpaper, gauss_reduce
+
+
+def rot(angles: np.ndarray) -> np.ndarray:
+    """(..., ) angles -> (..., 2, 2) rotation matrices."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+class Mismatcher:
+    """``Wallpaper.mismatch`` for the optimiser's inner loops, also returning the op.
+
+    Same query (all operations, then the closest lattice translation), written with
+    plain array arithmetic over whole batches: the alignment calls it thousands of
+    times, so its constant factor is the speed of the whole method. With a
+    Gauss-reduced basis (``|u1.u2| <= |u1|^2/2``, ``|u1| <= |u2|``) the cell spanned by
+    u1, u2 splits along its shorter diagonal into two non-obtuse Delaunay triangles,
+    so the lattice point closest to any point is a corner of the cell that holds it:
+    4 candidates instead of the 3x3 block. Tested against ``Wallpaper.mismatch``.
+    """
+
+    def __init__(self, wp: Wallpaper) -> None:
+        ops = wp.cartesian_ops()
+        self.n = len(ops)
+        self.lin = ops[:, :2, :2]
+        self.lin_t = np.concatenate(list(np.swapaxes(self.lin, 1, 2)), axis=1)  # (2, 2n)
+        self.shift = ops[:, :2, 2]
+        r1, r2, _ = gauss_reduce(wp.w1, wp.w2)
+        self.red = np.column_stack([r1, r2])
+        self.red_inv_t = np.linalg.inv(self.red).T
+        self.corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float) @ self.red.T
+
+    def __call__(self, p: np.ndarray, q: np.ndarray):
+        """p, q (..., 2) -> d (..., 2) from p to the closest equivalent of q, op (...,)."""
+        shape = p.shape[:-1]
+        p2, q2 = p.reshape(-1, 2), q.reshape(-1, 2)
+        eq = (q2 @ self.lin_t).reshape(-1, self.n, 2) + self.shift
+        diff = eq - p2[:, None, :]
+        base = diff - np.floor(diff @ self.red_inv_t) @ self.red.T
+        cand = base[:, :, None, :] - self.corners  # (N,n,4,2)
+        sq = (cand[..., 0] ** 2 + cand[..., 1] ** 2).reshape(len(p2), -1)
+        k = np.argmin(sq, axis=1)
+        best = cand.reshape(len(p2), -1, 2)[np.arange(len(p2)), k]
+        return best.reshape(*shape, 2), (k // 4).reshape(shape)
+
+
+def mismatch_with_op(wp: Wallpaper, p: np.ndarray, q: np.ndarray):
+    """``Wallpaper.mismatch`` that also returns the index of the closest operation."""
+    return Mismatcher(wp)(p, q)
+
+
+def apply_rt(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """R(angles)^T x for (...) angles and (..., 2) vectors, without building matrices."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c * x[..., 0] + s * x[..., 1], c * x[..., 1] - s * x[..., 0]], -1)
+
+
+def apply_r(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """R(angles) x."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], -1)
+
+
+def greedy_colouring(n: int, pairs: np.ndarray) -> list[np.ndarray]:
+    """Colour classes of the piece graph: pieces of one class share no seam.
+
+    Updating one class at once is then exactly the paper's sequential (Gauss-Seidel)
+    sweep over the pieces in class order. Pieces are few, so a Python loop is fine.
+    """
+    adj = [set() for _ in range(n)]
+    for a, b in pairs.tolist():
+        if a != b:
+            adj[a].add(b)
+            adj[b].add(a)
+    colour = np.full(n, -1)
+    for v in sorted(range(n), key=lambda i: -len(adj[i])):
+        used = {colour[u] for u in adj[v]}
+        colour[v] = next(c for c in range(n + 1) if c not in used)
+    return [np.flatnonzero(colour == c) for c in range(colour.max() + 1)]
+
+
+@dataclass
+class AlignProblem:
+    """Everything the steps need, precomputed once per garment and print.
+
+    ``weight`` is w_S per seam edge (garment weights, overridden by the user's file);
+    records are the directed seam-edge records of :mod:`solver.align.frames`.
+    ``fix_rot``/``fix_trans`` (P,) bool keep a piece's rotation/translation at ``init``.
+    """
+
+    wp: Wallpaper
+    frames: SeamFrames
+    weight: np.ndarray  # (E,) per seam edge
+    n_pieces: int
+    fix_rot: np.ndarray
+    fix_trans: np.ndarray
+    init_angles: np.ndarray
+    init_translations: np.ndarray
+    grain: GrainRule | None
+    reflect: bool
+    colours: list[np.ndarray]  # colour classes of the pieces
+    rosy: int  # r of the r-RoSy
+    mismatch: Mismatcher | None = None
+
+    def __post_init__(self) -> None:
+        if self.mismatch is None:
+            self.mismatch = Mismatcher(self.wp)
+
+    # -------------------------------------------------------------- construction
+    @classmethod
+    def build(cls, garment, wp: Wallpaper, *, weights=None, fix_rot=None, fix_trans=None,
+              init_angles=None, init_translations=None, grain: GrainRule | None = None,
+              reflect: bool = False, use_drape: bool = True) -> AlignProblem:
+        p = garment.n_pieces
+        w = garment.seam_weights() if weights is None else np.asarray(weights, float)
+        if w.shape != (len(garment.seam_edges),):
+            raise ValueError(f"{len(w)} seam weights for {len(garment.seam_edges)} seam edges")
+        fr = seam_frames(garment, use_drape=use_drape)
+        rec_w = np.concatenate([w, w])
+        live = (fr.piece != fr.other) & (rec_w > 0)
+        pairs = np.column_stack([fr.piece[live], fr.other[live]])
+        return cls(
+            wp=wp, frames=fr, weight=w, n_pieces=p,
+            fix_rot=np.zeros(p, bool) if fix_rot is None else np.asarray(fix_rot, bool),
+            fix_trans=np.zeros(p, bool) if fix_trans is None else np.asarray(fix_trans, bool),
+            init_angles=np.zeros(p) if init_angles is None else np.asarray(init_angles, float),
+            init_translations=(np.zeros((p, 2)) if init_translations is None
+                               else np.asarray(init_translations, float).reshape(p, 2)),
+            grain=grain, reflect=reflect, colours=greedy_colouring(p, pairs),
+            rosy=wp.info.rotation_order,
+        )
+
+    # -------------------------------------------------------------- record views
+    @property
+    def record_weight(self) -> np.ndarray:
+        """(R,) w_S l_e of every directed record."""
+        return np.concatenate([self.weight, self.weight]) * self.frames.length
+
+    def live_records(self, pieces: np.ndarray | None = None) -> np.ndarray:
+        """Indices of records that drive the updates: weight > 0, not a self-seam, and
+        (optionally) whose updated piece is in ``pieces``."""
+        fr = self.frames
+        ok = (fr.piece != fr.other) & (self.record_weight > 0)
+        if pieces is not None:
+            ok &= np.isin(fr.piece, pieces)
+        return np.flatnonzero(ok)
+
+    # -------------------------------------------------------------- random starts
+    def random_starts(self, rng: np.random.Generator, n: int):
+        """(n,P) angles and (n,P,2) translations: uniform angle, uniform offset in a cell.
+
+        Fixed pieces keep their ``init`` values.
+        """
+        ang = rng.uniform(0.0, 2 * np.pi, size=(n, self.n_pieces))
+        frac = rng.uniform(0.0, 1.0, size=(n, self.n_pieces, 2))
+        t = frac @ self.wp.basis.T + self.wp.origin
+        ang = np.where(self.fix_rot, self.init_angles, ang)
+        t = np.where(self.fix_trans[:, None], self.init_translations, t)
+        if self.grain is not None:
+            ang = self.grain.project(ang, self.rosy, self.fix_rot)
+        return ang, t
+
+    # -------------------------------------------------------------- energy
+    def wallpaper_points(self, angles: np.ndarray, trans: np.ndarray, rec: np.ndarray):
+        """Midpoints of records ``rec`` on both sides in wallpaper space: (B,n,2) twice."""
+        fr = self.frames
+        c, o = fr.piece[rec], fr.other[rec]
+        return (apply_rt(angles[:, c], fr.mid[rec] - trans[:, c]),
+                apply_rt(angles[:, o], fr.mid_other[rec] - trans[:, o]))
+
+    def energy(self, angles: np.ndarray, trans: np.ndarray,
+               weight: np.ndarray | None = None) -> np.ndarray:
+        """(B,) E_fit of Eq. (1) for a batch of placements (as solver.fit computes it)."""
+        rec = np.arange(self.frames.n_edges)  # side a: one record per twin pair
+        w = (self.weight if weight is None else weight) * self.frames.length[rec]
+        q_c, q_o = self.wallpaper_points(angles, trans, rec)
+        d, _ = self.mismatch(q_c, q_o)
+        return np.hypot(d[..., 0], d[..., 1]) @ w

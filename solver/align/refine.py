@@ -1,0 +1,109 @@
+"""Continuous refinement of E_fit itself (not the squared proxy of Eq. 9).
+
+``irls_translations``: iteratively reweighted least squares, ``w_S l_e / |d_e|`` as the
+weights of the Eq. (9) quadratic, whose fixed points are the stationary points of E_fit
+in the translations (Weiszfeld's scheme). ``lbfgs_refine``: L-BFGS-B over all movable
+angles and translations with the analytic gradient, grain limits as bounds.
+Both only ever return a placement that is at least as good as the one given.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize
+
+from solver.align.problem import AlignProblem, rot
+from solver.align.translation import polish
+
+
+def irls_translations(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
+                      iterations: int = 30) -> np.ndarray:
+    """(B,P,2) translations lowering E_fit, batched; never worse than ``t``."""
+    fr = problem.frames
+    rec = problem.live_records()
+    rec = rec[rec < fr.n_edges]
+    best_t, best_e = t.copy(), problem.energy(angles, t)
+    cur = t.copy()
+    for _ in range(iterations):
+        q_c, q_o = problem.wallpaper_points(angles, cur, rec)
+        d, _ = problem.mismatch(q_c, q_o)
+        dist = np.hypot(d[..., 0], d[..., 1])
+        floor = 1e-9 * max(float(np.abs(problem.wp.basis).max()), 1.0)
+        w = problem.record_weight[rec][None, :] / np.maximum(dist, floor)
+        cur = polish(problem, angles, cur, weight=w)
+        e = problem.energy(angles, cur)
+        better = e < best_e
+        best_t[better], best_e[better] = cur[better], e[better]
+        if not better.any():
+            break
+    return best_t
+
+
+def _energy_grad(problem: AlignProblem, angles, t, rec, w):
+    """E_fit over records ``rec`` (side a) and its gradient in angles (P,) and t (P,2)."""
+    fr = problem.frames
+    a, b = fr.piece[rec], fr.other[rec]
+    ra, rb = rot(angles[a]), rot(angles[b])
+    xa, xb = fr.mid[rec] - t[a], fr.mid_other[rec] - t[b]
+    q_c = np.einsum("nji,nj->ni", ra, xa)
+    q_o = np.einsum("nji,nj->ni", rb, xb)
+    d, op = problem.mismatch(q_c, q_o)
+    m = problem.wp.cartesian_ops()[:, :2, :2][op]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    e = float(np.sum(w * dist))
+    unit = w[:, None] * d / np.where(dist > 1e-12, dist, np.inf)[:, None]
+    # d = M q_o + c - q_c;  q = R^T x;  dR^T/dtheta x = R^T J^T x with J = [[0,-1],[1,0]]
+    perp = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    dqa_dth = np.einsum("nji,nj->ni", ra, xa @ perp.T)
+    dqb_dth = np.einsum("nji,nj->ni", rb, xb @ perp.T)
+    g_ang = np.zeros(problem.n_pieces)
+    np.add.at(g_ang, a, -np.sum(unit * dqa_dth, 1))
+    np.add.at(g_ang, b, np.sum(unit * np.einsum("nij,nj->ni", m, dqb_dth), 1))
+    g_t = np.zeros((problem.n_pieces, 2))
+    np.add.at(g_t, a, np.einsum("nij,nj->ni", ra, unit))  # d(-q_a)/dt_a = R_a^T
+    np.add.at(g_t, b, -np.einsum("nij,nj->ni", rb, np.einsum("nji,nj->ni", m, unit)))
+    return e, g_ang, g_t
+
+
+def lbfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
+                 rotations: bool = True, max_iter: int = 200):
+    """Joint local descent on E_fit of one placement; returns (angles, t, energy)."""
+    fr = problem.frames
+    rec = np.arange(fr.n_edges)
+    w = problem.weight * fr.length[rec]
+    rec, w = rec[w > 0], w[w > 0]
+    free_a = ~problem.fix_rot if rotations else np.zeros(problem.n_pieces, bool)
+    free_t = ~problem.fix_trans
+    ia, it = np.flatnonzero(free_a), np.flatnonzero(free_t)
+    e0 = float(problem.energy(angles[None], t[None])[0])
+    if len(rec) == 0 or (len(ia) == 0 and len(it) == 0):
+        return angles, t, e0
+    x0 = np.concatenate([angles[ia], t[it].ravel()])
+    bounds = [(None, None)] * len(x0)
+    if problem.grain is not None and len(ia):
+        cen = problem.grain.centres[ia]
+        k = np.argmin(np.abs((angles[ia, None] - cen + np.pi) % (2 * np.pi) - np.pi), axis=1)
+        c = cen[np.arange(len(ia)), k]
+        c = angles[ia] + ((c - angles[ia] + np.pi) % (2 * np.pi) - np.pi)
+        for j in range(len(ia)):
+            bounds[j] = (c[j] - problem.grain.tol, c[j] + problem.grain.tol)
+            x0[j] = np.clip(x0[j], *bounds[j])
+
+    def unpack(x):
+        a, tt = angles.copy(), t.copy()
+        a[ia] = x[: len(ia)]
+        tt[it] = x[len(ia):].reshape(-1, 2)
+        return a, tt
+
+    def fun(x):
+        a, tt = unpack(x)
+        e, ga, gt = _energy_grad(problem, a, tt, rec, w)
+        return e, np.concatenate([ga[ia], gt[it].ravel()])
+
+    res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": max_iter})
+    a, tt = unpack(res.x)
+    e = float(problem.energy(a[None], tt[None])[0])
+    if e < e0:
+        return a, tt, e
+    return angles, t, e0
