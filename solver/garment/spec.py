@@ -195,6 +195,8 @@ def load_spec(
                 named, k = units_from_meter_fraction(float(uim))
             except (TypeError, ValueError, ZeroDivisionError):
                 raise GarmentError(path, f"bad units_in_meter {uim!r}") from None
+            if not (np.isfinite(k) and k > 0):
+                raise GarmentError(path, f"bad units_in_meter {uim!r}: must be > 0")
             unit = named or f"1/{uim} m"
     if props.get("curvature_coords", "relative") != "relative":
         raise GarmentError(path, "only relative curvature coordinates are supported")

@@ -148,6 +148,13 @@ def test_json_nan(tmp_path: Path, spec: dict) -> None:
     expect_error(tmp_path / "nan.json", f"panel '{name}' has a non-finite vertex")
 
 
+def test_json_bad_units(tmp_path: Path, spec: dict) -> None:
+    for bad in (0, -100, "cm"):
+        spec["properties"]["units_in_meter"] = bad
+        (tmp_path / "units.json").write_text(json.dumps(spec))
+        expect_error(tmp_path / "units.json", "bad units_in_meter")
+
+
 def test_json_stitch_names_missing_panel(tmp_path: Path, spec: dict) -> None:
     spec["pattern"]["stitches"][3][1]["panel"] = "no_such_panel"
     (tmp_path / "stitch.json").write_text(json.dumps(spec))
