@@ -382,7 +382,9 @@ def load_obj_pair(pattern: Path, world: Path, *, units: str | None = None) -> Ga
     unit = units or declared_units(m.comments) or declared_units(w.comments) or "mm"
     k = mm_per_unit(unit)
     if np.abs(m.v[:, 2]).max() > 1e-9 * max(1.0, np.abs(m.v).max()):
-        warnings.warn(f"{pattern}: pattern file has non-zero z; z ignored", stacklevel=2)
+        raise GarmentError(
+            pattern, "pattern file has non-zero z: expected a flat material-space (-m) mesh"
+        )
     _, point = unique_rows(w.v)
     return build_garment(
         m.v[:, :2] * k,

@@ -87,6 +87,10 @@ def test_obj_pair_faces_differ(tmp_path: Path) -> None:
     (tmp_path / "g-w.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(GarmentError, match="different vertex counts"):
         load_garment(tmp_path / "g-m.obj")
+    # a draped mesh given as the pattern
+    (tmp_path / "drape.obj").write_text(m.replace("v 0 1 0", "v 0 1 0.5"))
+    (tmp_path / "g-w.obj").write_text(m)
+    expect_error(tmp_path / "drape.obj", "pattern file has non-zero z", world=tmp_path / "g-w.obj")
 
 
 def test_obj_edge_used_by_three_pieces(tmp_path: Path) -> None:
