@@ -29,11 +29,13 @@ def kind_of(path: str | Path) -> str:
     raise ValueError(f"{path}: not a DXF-AAMA file, a strip-packing instance or a PLACEMENT.json")
 
 
-def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0)):
+def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
+                          units: str | None = None):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
-    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``.
+    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``. ``units`` are the garment
+    file's (Berkeley OBJ files are in metres and do not say so).
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -43,24 +45,31 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0)):
     if not placement.garment:
         raise ValueError(f"{path}: the placement names no garment file")
     gpath = Path(placement.garment)
-    if not gpath.is_absolute():
-        gpath = (path.parent / gpath) if (path.parent / gpath).exists() else gpath
-    garment = load_garment(gpath)
+    if not gpath.is_absolute() and (path.parent / gpath).exists():
+        gpath = path.parent / gpath
+    garment = load_garment(gpath, units=units)
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
     names = placement.piece_names or list(garment.piece_names)
+    grains = getattr(garment, "grainlines", None) or {}
+    notch_pts = getattr(garment, "notches", None) or {}
     pieces = []
     for i in range(garment.n_pieces):
         a = placement.angles[i]
         r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
         base = np.column_stack([r.T, -r.T @ placement.translations[i]])
-        grain = None
-        if getattr(garment, "grainlines", None) is not None:
-            g = garment.grainlines[i]
-            grain = None if g is None else np.asarray(g, float).reshape(2, 2)
-        pieces.append(Piece(str(names[i]), garment.piece_outline(i), orientations=orientations,
-                            base=base, holes=list(garment.piece_holes(i)), grainline=grain))
+        outline = garment.piece_outline(i)
+        grain = grains.get(i)
+        centre = outline.mean(0)
+        notches = []
+        for at in notch_pts.get(i, []):  # the garment gives positions: point them inwards
+            at = np.asarray(at, float)
+            d = centre - at
+            notches.append((at, d / max(float(np.linalg.norm(d)), 1e-12)))
+        pieces.append(Piece(str(names[i]), outline, orientations=orientations, base=base,
+                            holes=list(garment.piece_holes(i)), notches=notches,
+                            grainline=None if grain is None else np.asarray(grain, float)))
     return pieces, placement.fabric
 
 
@@ -69,7 +78,10 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
                  sizes: list[str] | None = None, units: str | None = None,
                  quantity: int = 1, pairs: bool = False,
                  keepouts: list[np.ndarray] | None = None) -> NestProblem:
-    """Several inputs (garments, sizes) in one marker; ``fabric`` overrides any given print."""
+    """Several inputs (garments, sizes) in one marker; ``fabric`` overrides any given print.
+
+    ``units`` are those of a DXF or garment file that does not state them.
+    """
     pieces: list[Piece] = []
     found_width, found_fabric = None, None
     for path in paths:
@@ -83,7 +95,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
 
             pieces += read_dxf_aama(path, size=sizes, units=units)
         else:
-            got, wp = pieces_from_placement(path)
+            got, wp = pieces_from_placement(path, units=units)
             pieces += got
             found_fabric = found_fabric or wp
     for p in pieces:

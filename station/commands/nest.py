@@ -29,7 +29,8 @@ def register(sub) -> None:
     p.add_argument("--keepout", metavar="FLAWS.json",
                    help="keep-out polygons on the fabric: {\"keepouts\": [[[x, y], ...], ...]}")
     p.add_argument("--size", help="sizes to cut from a graded DXF, comma-separated")
-    p.add_argument("--units", help="units of a DXF that does not say (mm, cm, in)")
+    p.add_argument("--units", help="units of a DXF or garment file that does not say "
+                   "(mm, cm, m, in)")
     p.add_argument("--quantity", type=int, default=1, help="markers' worth of each piece")
     p.add_argument("--pairs", action="store_true",
                    help="cut every piece also mirrored (left and right)")

@@ -165,3 +165,38 @@ def test_mirrored_copy_on_a_print_uses_a_mirror_of_the_print():
     with pytest.raises(ValueError, match="no operation"):
         NestProblem([l_piece(mirrored_pair=True)], width=70.0,
                     fabric=Wallpaper("p1", (8.0, 0.0), (0.0, 6.0))).items()
+
+
+def test_placement_input_keeps_every_piece_on_its_print_position(data_dir, tmp_path, capsys):
+    """PLACEMENT.json (Berkeley t-shirt, p4m print): nested pieces see the same print."""
+    from solver.garment import load_garment
+    from solver.nest.sources import load_problem
+    from solver.placement import Placement
+    from station.cli import main
+
+    garment = data_dir / "garments" / "berkeley" / "tshirt-coarse.obj"
+    fabric = Wallpaper("p4m", (60.0, 0.0), (0.0, 60.0), origin=(7.0, 3.0))
+    n = load_garment(garment, units="m").n_pieces
+    rng = np.random.default_rng(0)
+    placement = Placement(np.radians(rng.choice([0.0, 90.0, 180.0], n)),
+                          rng.uniform(-100, 100, (n, 2)), fabric, garment=str(garment))
+    path = tmp_path / "PLACEMENT.json"
+    placement.save(path)
+    out = tmp_path / "LAYOUT.json"
+    rc = main(["nest", str(path), "-o", str(out), "--width", "1500", "--gap", "3",
+               "--units", "m", "--time", "2", "--json"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["pieces"] == n and summary["printed"]
+    layout = Layout.load(out)
+    problem = load_problem([path], width=1500.0, gap=3.0, units="m")
+    assert verify_layout(layout, problem) == []
+    _assert_moves_are_symmetries(layout, problem)
+    # the print seen at a point of a placed piece is the print at the same pattern point
+    names = [p.name for p in problem.pieces]
+    for placed in layout.pieces:
+        i = names.index(placed.name)
+        pattern = problem.pieces[i].outline
+        wp_pts = placement.to_wallpaper(pattern, np.full(len(pattern), i))
+        fabric_pts = affine(placed.transform, pattern)
+        assert fabric.mismatch_distance(fabric_pts, wp_pts).max() < 1e-6
