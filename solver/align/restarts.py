@@ -82,5 +82,5 @@ def align_paper(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         angles=ang[best].copy(), translations=t[best].copy(), energy=float(energies[best]),
         energies=energies, random_energies=e_random, rotation_iterations=rot_iter,
         translation_iterations=trans_iter, all_angles=ang, all_translations=t,
-        info={"best_start": best},
+        info={"best_start": best, "random_angles": ang0, "random_translations": t0},
     )
