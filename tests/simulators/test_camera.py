@@ -217,3 +217,49 @@ def test_each_pixel_is_filtered_for_its_own_footprint():
     assert np.allclose(out[:, 40:], p.colour_at(x, y, 3.0)[:, 40:], atol=1e-5)
     # the coarse filter really is coarser: less contrast left in the texture
     assert p.colour_at(x, y, 3.0).std() < 0.8 * p.colour_at(x, y, 0.4).std()
+
+
+def _sample(frame: np.ndarray, truth, table_xy: np.ndarray) -> np.ndarray:
+    """Frame colours at table points, through the true camera."""
+    px = truth.table_to_image(table_xy).astype(np.float32)
+    return cv2.remap(frame, px[:, :1], px[:, 1:], cv2.INTER_LINEAR)[:, 0].astype(float)
+
+
+def test_truth_lattice_holds_in_the_camera_frame():
+    """Every operation of the truth's group, applied in table mm, maps the photographed
+    print onto itself; an isometry outside the group does not."""
+    sheet = Sheet(random_print("p4", 40.0, seed=2), size=(520.0, 400.0), rotation=-14.0,
+                  shift=(60.0, 40.0))
+    cam = SyntheticCamera(sheet, camera=CameraModel.default((640, 480)),
+                          poses=[Pose.overhead((300, 230), 620, tilt_deg=15, yaw_deg=5)],
+                          seed=3)
+    frame = cam.read()
+    wp = cam.truth.wallpaper
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([180, 140], [420, 330], (3000, 2))
+    base = _sample(frame, cam.truth, pts)
+    for op in wp.cartesian_ops():
+        moved = pts @ op[:2, :2].T + op[:2, 2]
+        moved -= (moved - pts) - wp.lattice_residual(moved - pts)  # stay near pts
+        assert _corr(base, _sample(frame, cam.truth, moved)) > 0.9
+    mirror = Wallpaper("p4m", wp.w1, wp.w2, wp.origin).cartesian_ops()[-1]
+    moved = pts @ mirror[:2, :2].T + mirror[:2, 2]
+    moved -= (moved - pts) - wp.lattice_residual(moved - pts)
+    assert _corr(base, _sample(frame, cam.truth, moved)) < 0.6
+
+
+def test_skewed_sheet_follows_the_affine_lattice():
+    """With weft skew the print's true repeat on the table is ``lattice_affine``; the
+    rigid lattice is off by the skew over the sheet."""
+    sheet = Sheet(classic_print("gingham", 30.0), size=(700.0, 500.0), rotation=6.0,
+                  shift=(20.0, 10.0), skew=5.0)
+    cam = SyntheticCamera(sheet, camera=CameraModel.default((640, 480)), seed=1)
+    frame = cam.read()
+    aff = cam.truth.lattice_affine
+    assert cam.truth.sheet["rigid"] is False
+    pts = np.random.default_rng(1).uniform([150, 120], [450, 330], (3000, 2))
+    base = _sample(frame, cam.truth, pts)
+    step = 4 * np.asarray(aff["w1"])  # four repeats along the weft
+    assert _corr(base, _sample(frame, cam.truth, pts + step)) > 0.9
+    rigid = 4 * cam.truth.wallpaper.w1  # 10 mm off after 120 mm
+    assert _corr(base, _sample(frame, cam.truth, pts + rigid)) < 0.5
