@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 import time
 
 
@@ -61,7 +60,7 @@ def run(args) -> int:
         sizes=args.size.split(",") if args.size else None, units=args.units,
         quantity=args.quantity, pairs=args.pairs,
         keepouts=load_keepouts(args.keepout) if args.keepout else None)
-    progress = None if args.json and not sys.stderr.isatty() else stderr_progress
+    progress = stderr_progress
     t0 = time.monotonic()
     layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
                   method=args.method)
