@@ -51,6 +51,8 @@ __all__ = [
 _TABLE_BGR = np.array([0.30, 0.34, 0.27], np.float32)  # a grey-green cutting mat
 _PAPER_BGR = np.array([0.97, 0.97, 0.96], np.float32)
 _COARSE_STEP = 8  # pixels between exactly mapped grid nodes
+# undistortPoints stops after 5 iterations by default: too few near the frame corners
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)
 
 
 def _rot2(deg: float) -> np.ndarray:
@@ -546,9 +548,8 @@ class SyntheticCamera:
         gy = np.arange(0, h - 1 + st, st, dtype=float)
         px, py = np.meshgrid(gx, gy)
         pts = np.stack([px, py], -1).reshape(-1, 1, 2)
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)
         norm = cv2.undistortPoints(pts, self.camera.K, self.camera.dist, R=None, P=None,
-                                   criteria=crit).reshape(-1, 2)
+                                   criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
         r = pose.R
         rays = np.column_stack([norm, np.ones(len(norm))]) @ r  # rows: R^T d
         c = pose.centre
@@ -626,6 +627,15 @@ class SyntheticCamera:
             image = truth.table_to_image(table)
             w, h = self.camera.resolution
             seen = np.all((image >= 0) & (image <= [w - 1, h - 1]), axis=1)
+            # far outside the field of view the distortion polynomial folds back into
+            # the frame: keep only corners whose pixel undistorts to their own ray
+            cam_pts = np.column_stack([table, np.zeros(len(table))]) @ pose.R.T + np.asarray(
+                pose.tvec, float)
+            ray = cam_pts[:, :2] / cam_pts[:, 2:]
+            back = cv2.undistortPoints(image.reshape(-1, 1, 2), self.camera.K,
+                                       self.camera.dist, R=None, P=None,
+                                       criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+            seen &= (cam_pts[:, 2] > 0) & (np.hypot(*(back - ray).T) < 1e-3)
             truth.board = self.board.to_dict()
             truth.charuco_ids, truth.charuco_table = ids[seen], table[seen]
             truth.charuco_image = image[seen]
