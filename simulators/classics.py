@@ -9,12 +9,12 @@ clearly less). Facts that surprise:
 - ``houndstooth`` woven the classic way (2/2 twill, four dark and four light threads in
   warp and weft) is **p1**: the twill steps of the "claws" are offset by half a twill
   period between the two sides of a tooth, which breaks the diagonal mirror and the
-  half-turn that the colour blocks alone would have (an exhaustive search over all
-  isometries of the thread grid finds none). p4/p4g appear only as *colour-reversing*
-  groups of idealised drawings.
+  half-turn one might expect from the outline (an exhaustive search over all
+  isometries of the thread grid finds none; its only colour-swapping symmetry is the
+  translation by four threads along both axes).
 - ``herringbone`` twill (2/2 twill whose direction reverses every 6 warp threads) is
-  **pmg**: mirrors at the reversals, glides along the warp direction. (Parquet-style
-  herringbone of interlocking bricks is pgg; that is not the fabric.)
+  **pmg**: mirrors at the reversals, glides along the warp direction (found by the same
+  exhaustive search; parquet herringbone of interlocking bricks is another pattern).
 - ``tartan`` with a symmetric sett, the same in warp and weft, rendered as its printed
   look (warp and weft colours mixed) is **p4m**; ``plaid`` with different symmetric
   setts in warp and weft is **pmm**.
