@@ -47,22 +47,30 @@ def _dedupe(points: np.ndarray, eps: float = 1e-9) -> np.ndarray:
     return points[keep]
 
 
+def _candidates(first: int, n: int, most: int = 64) -> np.ndarray:
+    """End indices to try: all of them in a short window, an even subset plus the last one
+    in a long window (keeps every test O(64 x window) while the window grows)."""
+    step = max(1, -(-(n - first) // most))
+    return np.unique(np.r_[np.arange(first, n, step), n - 1])
+
+
 def _line_reach(q: np.ndarray, tol: float) -> int:
     """Largest j such that every q[k], k<=j, lies within tol of the chord q0->qj.
 
     The largest valid candidate, not the first failure: with noisy samples a short run can
     fail where a longer one fits, and every candidate is checked over all its points."""
-    chords = q[1:]  # (J,2), q[0] == 0
+    cand = _candidates(1, len(q))
+    chords = q[cand]  # (J,2), q[0] == 0
     c2 = np.einsum("ij,ij->i", chords, chords)
     t = np.clip((q @ chords.T).T / np.maximum(c2, 1e-300)[:, None], 0.0, 1.0)  # (J,K)
     dx = q[None, :, 0] - t * chords[:, None, 0]
     dy = q[None, :, 1] - t * chords[:, None, 1]
     d = np.hypot(dx, dy)
-    jj = np.arange(1, len(q))[:, None]
+    jj = cand[:, None]
     kk = np.arange(len(q))[None, :]
     d = np.where(kk <= jj, d, 0.0)
     good = np.flatnonzero(d.max(axis=1) <= tol)
-    return int(good[-1]) + 1 if len(good) else 1
+    return int(cand[good[-1]]) if len(good) else 1
 
 
 def _arc_reach(q: np.ndarray, tol: float, max_radius: float) -> tuple[int, np.ndarray, bool]:
@@ -70,7 +78,8 @@ def _arc_reach(q: np.ndarray, tol: float, max_radius: float) -> tuple[int, np.nd
     n = len(q)
     if n < 3:
         return 0, np.zeros(2), False
-    chords = q[2:]  # candidates j = 2..n-1
+    cand = _candidates(2, n)
+    chords = q[cand]  # candidate end points j
     clen = np.hypot(chords[:, 0], chords[:, 1])
     nrm = np.stack([-chords[:, 1], chords[:, 0]], axis=1) / np.maximum(clen, 1e-12)[:, None]
     mid = chords / 2.0
@@ -78,7 +87,7 @@ def _arc_reach(q: np.ndarray, tol: float, max_radius: float) -> tuple[int, np.nd
     qq = np.einsum("ij,ij->i", q, q)  # (K,)
     a = 2.0 * (q @ nrm.T).T  # (J,K)
     b = qq[None, :] - 2.0 * (q @ mid.T).T
-    jj = np.arange(2, n)[:, None]
+    jj = cand[:, None]
     kk = np.arange(n)[None, :]
     inside = (kk <= jj) & (kk >= 1)
     a = np.where(inside, a, 0.0)
@@ -111,11 +120,11 @@ def _arc_reach(q: np.ndarray, tol: float, max_radius: float) -> tuple[int, np.nd
     if not len(good):
         return 0, np.zeros(2), False
     last = int(good[-1])
-    return last + 2, centre[last], bool(sweep[last] < 0)
+    return int(cand[last]), centre[last], bool(sweep[last] < 0)
 
 
 def fit_arcs(points: np.ndarray, tol: float, *, min_arc_points: int = 4,
-             max_radius: float = 5000.0, window: int = 64, max_window: int = 1024) -> FittedPath:
+             max_radius: float = 5000.0, window: int = 64, max_window: int = 256) -> FittedPath:
     """Fit an open polyline (n,2) with lines and G2/G3 arcs, each within ``tol`` of it.
 
     For a closed contour pass the ring with its first point repeated at the end.
