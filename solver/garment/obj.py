@@ -30,6 +30,7 @@ from solver.garment.units import mm_per_unit
 _UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
 _UNITS_HINT_RE = re.compile(r"\((mm|cm|m)[,)\s]|\bin (mm|cm|m)\b")
 _TWO_D_MARK = "station: 2d-only"
+_VT_INDEXED_MARK = "station: one vt per pattern vertex"
 
 
 @dataclass
@@ -299,6 +300,7 @@ def load_obj(
     unit = units or declared_units(obj.comments) or "mm"
     k = mm_per_unit(unit)
     two_d = any(_TWO_D_MARK in c for c in obj.comments)
+    vt_indexed = any(_VT_INDEXED_MARK in c for c in obj.comments)
     if obj.f_vt is None or len(obj.vt) == 0:
         if np.abs(obj.v[:, 2]).max() > 0:
             raise GarmentError(path, "faces carry no texture coordinates: no sewing pattern")
@@ -313,7 +315,11 @@ def load_obj(
             units_in_file=unit,
         )
     # one v per 3D point: exact duplicates would hide the seams through them, so merge them
-    uniq_v, v_id = unique_rows(obj.v)
+    # (not in our own 2D-only files, whose placeholder v may coincide where pieces overlap)
+    if two_d:
+        uniq_v, v_id = obj.v, np.arange(len(obj.v))
+    else:
+        uniq_v, v_id = unique_rows(obj.v)
     v_id = v_id.ravel()
     if len(uniq_v) < len(obj.v):
         warnings.warn(
@@ -322,7 +328,10 @@ def load_obj(
         )
     corner_v = v_id[obj.f_v.ravel()]
     corner_vt = obj.f_vt.ravel()
-    key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
+    if vt_indexed:  # our own files: one vt per pattern vertex, even where values coincide
+        key = np.column_stack([corner_v, corner_vt])
+    else:
+        key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
     uniq, inv = unique_rows(key)
     inv = inv.ravel()
     per_corner = np.bincount(corner_vt, minlength=len(obj.vt)).max() <= 1
@@ -334,7 +343,7 @@ def load_obj(
                 stacklevel=2,
             )
     point = uniq[:, 0].astype(np.int64)
-    uv = uniq[:, 1:]
+    uv = obj.vt[uniq[:, 1]] if vt_indexed else uniq[:, 1:]
     faces = inv.reshape(-1, 3)
     xyz = uniq_v[point]
     scale = None if two_d else _recover_scale(uv, xyz, faces)
@@ -416,6 +425,7 @@ def save_obj(g: Garment, path: str | Path) -> None:
         "# garment written by the cutting station (solver.garment.save_obj)",
         "# units: mm",
         f"# pieces: {json.dumps(g.piece_names)}",
+        f"# {_VT_INDEXED_MARK} (weld corners by vt index, not by value)",
     ]
     if g.xyz is None:
         lines.append(f"# {_TWO_D_MARK} (v are placeholders; vt is the pattern)")
