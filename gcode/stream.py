@@ -335,6 +335,14 @@ class Streamer:
                 code = code.replace(" ", "")
             if code:
                 stream.append((i, code))
+        for i, code in stream:  # refuse up front what must never reach the controller
+            bad = sorted({ch for ch in code if ch in "?!~" or not " " <= ch <= "~"})
+            if bad:
+                raise StreamError(f"{self.prefix}line {i + 1} holds real-time or non-ASCII "
+                                  f"character(s) {bad!r}: {code!r}")
+            if len(code) > 79 or len(code) + 1 > self.budget:
+                raise StreamError(f"{self.prefix}line {i + 1} is longer than GRBL accepts "
+                                  f"({len(code)} characters): {code!r}")
         pos_of_line = {i: k for k, (i, _) in enumerate(stream)}
         pieces = [PieceState(p.number, p.id, p.name, p.sync_line) for p in program.pieces]
         sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)

@@ -305,6 +305,18 @@ def test_alarm_at_start_up_is_refused_then_unlocked(job):
     port.close()
 
 
+@pytest.mark.parametrize("line", ["G1 X10? Y10", "G1 X10 Y10 F1000!", "G1 X1" + "0" * 80])
+def test_streamer_refuses_dangerous_lines_before_sending(line):
+    port = open_emulator()
+    st = Streamer(port)
+    st.connect()
+    before = port.emulator.lines_received
+    with pytest.raises(StreamError, match="line 2"):
+        st.run(Program(["G21 G90", line], []))
+    assert port.emulator.lines_received == before
+    port.close()
+
+
 def test_no_banner_is_an_error():
     class Silent:
         timeout = 0.01
