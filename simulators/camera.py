@@ -475,18 +475,22 @@ class SyntheticCamera:
 
     Same interface as the station's real camera: :meth:`read` returns the next BGR
     uint8 frame, :meth:`close` releases it, it is a context manager, ``resolution`` is
-    (width, height). ``truth`` describes the last frame. With several ``poses`` the
+    (width, height) (give ``resolution`` for the default lens, or a full ``camera``
+    model). ``truth`` describes the last frame. With several ``poses`` the
     frames cycle through them (a calibration session); ``seed`` makes the noise, and
     so every frame, repeatable.
     """
 
     def __init__(self, sheet: Sheet | None = None, *, board: Board | None = None,
-                 camera: CameraModel | None = None, poses: Sequence[Pose] | None = None,
-                 imaging: Imaging | None = None, seed: int = 0) -> None:
+                 camera: CameraModel | None = None, resolution: tuple[int, int] | None = None,
+                 poses: Sequence[Pose] | None = None, imaging: Imaging | None = None,
+                 seed: int = 0) -> None:
         if sheet is None and board is None:
             raise ValueError("a synthetic camera needs a fabric sheet or a board to look at")
+        if camera is not None and resolution is not None:
+            raise ValueError("give either a camera model or a resolution, not both")
         self.sheet, self.board = sheet, board
-        self.camera = camera or CameraModel.default()
+        self.camera = camera or CameraModel.default(resolution or (1280, 960))
         self.imaging = imaging or Imaging()
         self.poses = list(poses) if poses else [self._default_pose()]
         self._rng = np.random.default_rng(seed)

@@ -168,7 +168,7 @@ def test_light_noise_and_jpeg_are_applied_and_seeded(sheet):
 
 
 def test_same_interface_as_the_real_camera(sheet):
-    cam = SyntheticCamera(sheet, camera=CameraModel.default((320, 240)))
+    cam = SyntheticCamera(sheet, resolution=(320, 240))
     assert cam.resolution == (320, 240) and cam.truth is None
     with cam:
         cam.read()
