@@ -124,6 +124,14 @@ class _Writer:
     def __init__(self, machine: Machine):
         self.m = machine
         self.lines: list[str] = []
+        self.pos: tuple[str, str] | None = None  # the head's X, Y as last written
+
+    def rapid_to(self, p: np.ndarray) -> None:
+        """G0 to ``p`` unless the head is already there."""
+        xy = (_num(p[0]), _num(p[1]))
+        if xy != self.pos:
+            self.emit(f"G0 X{xy[0]} Y{xy[1]}")
+            self.pos = xy
 
     def emit(self, line: str) -> int:
         if len(line) > MAX_LINE:
@@ -144,13 +152,14 @@ class _Writer:
                 self.emit(f"{g} X{_num(end[0])} Y{_num(end[1])} I{_num(ij[0])} J{_num(ij[1])}{f}")
             prev = end
             first = False
+        self.pos = (_num(prev[0]), _num(prev[1]))
 
 
 def _laser_stroke(w: _Writer, path: FittedPath, power: float, passes: int, closed: bool) -> None:
     m = w.m
     for k in range(passes):
         if k == 0 or not closed:
-            w.emit(f"G0 X{_num(path.start[0])} Y{_num(path.start[1])}")
+            w.rapid_to(path.start)
         w.emit(f"M4 S{_num(power)}")
         w.moves(path, m.cut.feed)
         if not closed or k == passes - 1:
@@ -159,7 +168,7 @@ def _laser_stroke(w: _Writer, path: FittedPath, power: float, passes: int, close
 
 def _knife_stroke(w: _Writer, path: FittedPath) -> None:
     kn = w.m.knife
-    w.emit(f"G0 X{_num(path.start[0])} Y{_num(path.start[1])}")
+    w.rapid_to(path.start)
     w.emit(f"G1 Z{_num(kn.z_down)} F{_num(kn.plunge_feed)}")
     if len(path):
         w.moves(path, w.m.cut.feed)
@@ -205,7 +214,8 @@ def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: st
     w.emit("M9")
     if not laser:
         w.emit(f"G0 Z{_num(machine.knife.z_up)}")
-    w.emit(f"G0 X{_num(machine.park[0])} Y{_num(machine.park[1])}")
+    w.pos = None  # always park explicitly
+    w.rapid_to(np.asarray(machine.park))
     w.emit("M2")
     prog = Program(w.lines, pieces, warnings=warnings)
     prog.check = validate(prog.lines, machine)
