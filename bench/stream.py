@@ -163,22 +163,24 @@ def bench_throughput() -> None:
     codes = [strip_comment(ln).replace(" ", "") for ln in prog.lines if strip_comment(ln)]
     mean_len = float(np.mean([len(c) + 1 for c in codes]))
     limit = BAUD / 10 / mean_len
-    print("\n### Streaming throughput, check mode ($C: parsed, not moved)")
+    print("\n### Streaming throughput, check mode ($C: parsed, not moved), best of 3")
     print(f"{len(codes)} lines, mean {mean_len:.1f} bytes per line with its newline; "
           f"serial line limit at {BAUD} baud = {BAUD / 10:.0f} B/s / {mean_len:.1f} = "
           f"{limit:.0f} lines/s")
     print("| wire | lines/s | of the line limit |")
     print("|---|---|---|")
     for label, wrap in (("115200-baud wire model", Wire), ("no wire delay", lambda p: p)):
-        raw = _open(1.0)
-        st = Streamer(wrap(raw))
-        st.connect()
-        t = time.perf_counter()
-        res = st.run(prog, check=True)
-        dt = time.perf_counter() - t
-        raw.close()
-        assert res.completed, res.fault
-        print(f"| {label} | {len(codes) / dt:.0f} | {len(codes) / dt / limit:.0%} |")
+        best = np.inf
+        for _ in range(3):  # best of three: the machine is shared and noisy
+            raw = _open(1.0)
+            st = Streamer(wrap(raw))
+            st.connect()
+            t = time.perf_counter()
+            res = st.run(prog, check=True)
+            best = min(best, time.perf_counter() - t)
+            raw.close()
+            assert res.completed, res.fault
+        print(f"| {label} | {len(codes) / best:.0f} | {len(codes) / best / limit:.0%} |")
 
 
 def bench_planner() -> None:

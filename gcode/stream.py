@@ -348,8 +348,9 @@ class Streamer:
         sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)
                    if p.sync_line in pos_of_line}
         piece_of = np.full(len(stream), -1)
+        line_idx = np.array([i for i, _ in stream], int)
         for n, p in enumerate(program.pieces):
-            lo = np.searchsorted([i for i, _ in stream], p.first_line)
+            lo = int(np.searchsorted(line_idx, p.first_line))
             hi = pos_of_line.get(p.sync_line, lo)
             piece_of[lo:hi + 1] = n
         weights = (np.array([program.check.seconds[i] for i, _ in stream])
