@@ -84,6 +84,28 @@ def test_whole_job_cuts_every_piece(job):
     assert not any(s.rapid and s.power > 0 for s in em.trace)
     assert em.state == "Idle" and em.parser_state.spindle == "M5"
     assert progress[-1].fraction == pytest.approx(1.0) and progress[-1].pieces_cut == 3
+    fr = [p.fraction for p in progress]
+    assert fr == sorted(fr) and len(progress) >= 2
+    assert all(p.lines_acked <= p.lines_sent <= p.lines_total for p in progress)
+    port.close()
+
+
+def test_interrupt_stops_safely(job):
+    """Ctrl-C (KeyboardInterrupt in any hook) ends in the same safe stop as a fault."""
+    port = open_emulator(speed=20)
+    faults = []
+
+    def hook(p):
+        if p.pieces_cut >= 1:
+            raise KeyboardInterrupt
+
+    st = Streamer(port, on_progress=hook, on_fault=faults.append)
+    st.connect()
+    res = st.run(job)
+    em = port.emulator
+    assert res.reason == "interrupted" and len(faults) == 1
+    assert [p.state for p in res.pieces][0] == "cut" and res.pieces_cut == 1
+    assert em.state == "Idle" and em.parser_state.spindle == "M5" and not res.alarms
     port.close()
 
 
