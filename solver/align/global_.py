@@ -12,9 +12,14 @@ restarts find the best basin only by luck once there are more than a few pieces.
    every symmetry operation of the print the offset that makes that edge match exactly,
    and (b) a regular grid over the primitive cell, scored against *all* pieces placed
    so far (so seams closing cycles count too);
-3. refine every tree placement with Eq. (9) to convergence, then minimise E_fit itself
-   (IRLS in the translations, then L-BFGS-B over angles and translations);
-4. keep the lowest E_fit of all of these and of the paper's result.
+3. refine every tree placement with Eq. (9) to convergence and IRLS on E_fit itself,
+   then run block-coordinate *exhaustive* sweeps: each piece in turn jumps to the best
+   of the same candidates scored against all its neighbours (a move the local Eq. (9)
+   can never make), each sweep followed by IRLS;
+4. with at most four movable pieces, also search the joint grid over all their
+   translations (``solver.align.brute``), which is then affordable;
+5. polish the best with BFGS over angles and translations and keep the lowest E_fit
+   of all of these and of the paper's result.
 """
 
 from __future__ import annotations
@@ -23,8 +28,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
+from solver.align.brute import brute_force
 from solver.align.problem import AlignProblem, rot
-from solver.align.refine import irls_translations, lbfgs_refine
+from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
 
@@ -70,42 +76,77 @@ def _cost(problem: AlignProblem, angles, t, c: int, cand: np.ndarray, rec: np.nd
     return np.hypot(d[..., 0], d[..., 1]) @ problem.record_weight[rec]
 
 
+def _best_offset(problem: AlignProblem, angles, t, c: int, rec: np.ndarray, cell: np.ndarray,
+                 sample: int, score_sample: int) -> tuple[np.ndarray, float]:
+    """Exhaustive search for piece c's translation against the pieces across ``rec``.
+
+    Candidates: for each of ``sample`` seam records and each symmetry operation the
+    translation that makes that edge match exactly, plus a grid over the cell, plus the
+    current translation; scored by E_fit over (up to ``score_sample``) records.
+    """
+    fr, ops = problem.frames, problem.wp.cartesian_ops()
+    if len(rec) > score_sample:
+        rec = rec[np.linspace(0, len(rec) - 1, score_sample).astype(int)]
+    src = rec[np.linspace(0, len(rec) - 1, min(sample, len(rec))).astype(int)]
+    o = fr.other[src]
+    q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[src] - t[o])
+    g_q = np.einsum("kij,nj->nki", ops[:, :2, :2], q_o) + ops[None, :, :2, 2]
+    rc = rot(angles[c])
+    zeros = fr.mid[src][:, None, :] - g_q @ rc.T  # t_c with q_c = g(q_o) exactly
+    cand = np.concatenate([zeros.reshape(-1, 2), t[c] - cell @ rc.T, t[c][None]])
+    cost = _cost(problem, angles, t, c, cand, rec)
+    k = int(np.argmin(cost))
+    return cand[k], float(cost[k])
+
+
+def _cell_grid(problem: AlignProblem, grid: int) -> np.ndarray:
+    f = (np.arange(grid) + 0.5) / grid
+    return np.stack(np.meshgrid(f, f, indexing="ij"), -1).reshape(-1, 2) @ problem.wp.basis.T
+
+
 def tree_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
                    grid: int = 6, sample: int = 24, score_sample: int = 96) -> np.ndarray:
     """Translations (P,2) placed piece by piece along the seam tree (module docstring)."""
-    fr, wp = problem.frames, problem.wp
-    w = _piece_graph(problem)
-    order, _ = _tree_order(problem, w)
+    fr = problem.frames
+    order, _ = _tree_order(problem, _piece_graph(problem))
     t = t.copy()
     placed = np.zeros(problem.n_pieces, bool)
     live = problem.live_records()
-    ops = wp.cartesian_ops()
-    f = (np.arange(grid) + 0.5) / grid
-    cell = np.stack(np.meshgrid(f, f, indexing="ij"), -1).reshape(-1, 2) @ wp.basis.T
+    cell = _cell_grid(problem, grid)
     for c in order:
         rec = live[(fr.piece[live] == c) & placed[fr.other[live]]]
-        if problem.fix_trans[c] or len(rec) == 0:
-            placed[c] = True
-            continue
-        if len(rec) > score_sample:
-            rec = rec[np.linspace(0, len(rec) - 1, score_sample).astype(int)]
-        src = rec[np.linspace(0, len(rec) - 1, min(sample, len(rec))).astype(int)]
-        o = fr.other[src]
-        q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[src] - t[o])
-        g_q = np.einsum("kij,nj->nki", ops[:, :2, :2], q_o) + ops[None, :, :2, 2]
-        rc = rot(angles[c])
-        zeros = fr.mid[src][:, None, :] - g_q @ rc.T  # t_c with q_c = g(q_o) exactly
-        grid_t = t[c] - cell @ rc.T
-        cand = np.concatenate([zeros.reshape(-1, 2), grid_t, t[c][None]])
-        cost = _cost(problem, angles, t, c, cand, rec)
-        t[c] = cand[int(np.argmin(cost))]
         placed[c] = True
+        if problem.fix_trans[c] or len(rec) == 0:
+            continue
+        t[c], _ = _best_offset(problem, angles, t, c, rec, cell, sample, score_sample)
+    return t
+
+
+def exhaustive_sweep(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
+                     grid: int = 6, sample: int = 24, score_sample: int = 96) -> np.ndarray:
+    """One pass of per-piece exhaustive moves against all neighbours (block coordinate
+    descent with a global search per block); a move is kept only if E_fit drops."""
+    fr = problem.frames
+    t = t.copy()
+    live = problem.live_records()
+    cell = _cell_grid(problem, grid)
+    for c in range(problem.n_pieces):
+        rec = live[fr.piece[live] == c]
+        if problem.fix_trans[c] or len(rec) == 0:
+            continue
+        old = t[c].copy()
+        before = float(_cost(problem, angles, t, c, old[None], rec)[0])
+        new, _ = _best_offset(problem, angles, t, c, rec, cell, sample, len(rec))
+        after = float(_cost(problem, angles, t, c, new[None], rec)[0])
+        if after < before:
+            t[c] = new
     return t
 
 
 def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
                  rotation: bool = True, translation: bool = True, candidates: int = 4,
-                 rotation_eps: float | None = None, progress=None) -> AlignResult:
+                 rotation_eps: float | None = None, sweeps: int = 2,
+                 progress=None) -> AlignResult:
     """The method of the module docstring; never worse than ``align_paper`` with the
     same ``restarts`` and ``seed``."""
     kw = {} if rotation_eps is None else {"rotation_eps": rotation_eps}
@@ -113,7 +154,7 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
                         translation=translation, progress=progress, **kw)
     best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
     if not translation:
-        a, tt, e = lbfgs_refine(problem, best_a, best_t, rotations=rotation)
+        a, tt, e = bfgs_refine(problem, best_a, best_t, rotations=rotation)
         a, tt = enforce_fixed(problem, a, tt)
         return _result(paper, a, tt, problem)
     # distinct rotation solutions, best first
@@ -130,18 +171,38 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     trees = np.stack([tree_placement(problem, ang[i], paper.all_translations[picks[i]])
                       for i in range(len(picks))])
     ts = optimise_translations(problem, ang, trees)
-    cand_t = np.concatenate([ts.t, trees, paper.all_translations[picks]])
-    cand_a = np.concatenate([ang, ang, ang])
+    cand_t = np.concatenate([ts.t, paper.all_translations[picks]])
+    cand_a = np.concatenate([ang, ang])
     cand_t = irls_translations(problem, cand_a, cand_t)
+    for _ in range(sweeps):
+        moved = np.stack([exhaustive_sweep(problem, a, tt) for a, tt in zip(cand_a, cand_t)])
+        cand_t = irls_translations(problem, cand_a, moved)
+    small = int((~problem.fix_trans).sum()) <= 4
+    if small:
+        # few movable pieces: the joint grid over all their translations is affordable
+        for i in np.argsort(problem.energy(cand_a, cand_t), kind="stable")[:2]:
+            tb, _ = brute_force(problem, cand_a[i], cand_t[i])
+            cand_a = np.concatenate([cand_a, cand_a[i][None]])
+            cand_t = np.concatenate([cand_t, tb[None]])
     e = problem.energy(cand_a, cand_t)
     top = np.argsort(e, kind="stable")[: max(2, candidates // 2)]
     for i in top:
-        a, tt, ei = lbfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation)
+        a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation)
         if ei < e[i]:
             tt = irls_translations(problem, a[None], tt[None])[0]
             cand_a[i], cand_t[i] = a, tt
             e[i] = float(problem.energy(a[None], tt[None])[0])
     i = int(np.argmin(e))
+    if small:
+        # alternate: the polished angles may open a better joint-grid basin
+        a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
+        for _ in range(2):
+            tb, eb = brute_force(problem, a_i, t_i)
+            a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation)
+            if min(eb, e2) >= e_i * (1 - 1e-9):
+                break
+            a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
+        cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i
     if e[i] < best_e:
         best_a, best_t, best_e = cand_a[i], cand_t[i], float(e[i])
     best_a, best_t = enforce_fixed(problem, best_a, best_t)

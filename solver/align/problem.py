@@ -38,7 +38,6 @@ class Mismatcher:
         ops = wp.cartesian_ops()
         self.n = len(ops)
         self.lin = ops[:, :2, :2]
-        self.lin_t = np.concatenate(list(np.swapaxes(self.lin, 1, 2)), axis=1)  # (2, 2n)
         self.shift = ops[:, :2, 2]
         r1, r2, _ = gauss_reduce(wp.w1, wp.w2)
         self.red = np.column_stack([r1, r2])
@@ -46,16 +45,29 @@ class Mismatcher:
         self.corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float) @ self.red.T
 
     def __call__(self, p: np.ndarray, q: np.ndarray):
-        """p, q (..., 2) -> d (..., 2) from p to the closest equivalent of q, op (...,)."""
+        """p, q (..., 2) -> d (..., 2) from p to the closest equivalent of q, op (...,).
+
+        Written with elementwise products (no BLAS calls on 2-wide matrices, which
+        are slow and thread-hungry on a busy machine).
+        """
         shape = p.shape[:-1]
-        p2, q2 = p.reshape(-1, 2), q.reshape(-1, 2)
-        eq = (q2 @ self.lin_t).reshape(-1, self.n, 2) + self.shift
-        diff = eq - p2[:, None, :]
-        base = diff - np.floor(diff @ self.red_inv_t) @ self.red.T
-        cand = base[:, :, None, :] - self.corners  # (N,n,4,2)
-        sq = (cand[..., 0] ** 2 + cand[..., 1] ** 2).reshape(len(p2), -1)
+        px, py = p.reshape(-1, 1, 2)[..., 0], p.reshape(-1, 1, 2)[..., 1]
+        qx, qy = q.reshape(-1, 1, 2)[..., 0], q.reshape(-1, 1, 2)[..., 1]
+        lin, sh = self.lin, self.shift
+        dx = qx * lin[:, 0, 0] + qy * lin[:, 0, 1] + sh[:, 0] - px  # (N,n)
+        dy = qx * lin[:, 1, 0] + qy * lin[:, 1, 1] + sh[:, 1] - py
+        ri, r = self.red_inv_t, self.red
+        f1 = np.floor(dx * ri[0, 0] + dy * ri[1, 0])
+        f2 = np.floor(dx * ri[0, 1] + dy * ri[1, 1])
+        bx = dx - f1 * r[0, 0] - f2 * r[0, 1]
+        by = dy - f1 * r[1, 0] - f2 * r[1, 1]
+        cx = bx[..., None] - self.corners[:, 0]  # (N,n,4)
+        cy = by[..., None] - self.corners[:, 1]
+        n = len(px)
+        sq = (cx * cx + cy * cy).reshape(n, -1)
         k = np.argmin(sq, axis=1)
-        best = cand.reshape(len(p2), -1, 2)[np.arange(len(p2)), k]
+        rows = np.arange(n)
+        best = np.stack([cx.reshape(n, -1)[rows, k], cy.reshape(n, -1)[rows, k]], -1)
         return best.reshape(*shape, 2), (k // 4).reshape(shape)
 
 

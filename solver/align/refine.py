@@ -2,8 +2,9 @@
 
 ``irls_translations``: iteratively reweighted least squares, ``w_S l_e / |d_e|`` as the
 weights of the Eq. (9) quadratic, whose fixed points are the stationary points of E_fit
-in the translations (Weiszfeld's scheme). ``lbfgs_refine``: L-BFGS-B over all movable
-angles and translations with the analytic gradient, grain limits as bounds.
+in the translations (Weiszfeld's scheme). ``bfgs_refine``: quasi-Newton (BFGS) over all
+movable angles and translations with the analytic gradient, grain limits built into
+the parametrisation.
 Both only ever return a placement that is at least as good as the one given.
 """
 
@@ -65,7 +66,7 @@ def _energy_grad(problem: AlignProblem, angles, t, rec, w):
     return e, g_ang, g_t
 
 
-def lbfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
+def bfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
                  rotations: bool = True, max_iter: int = 200):
     """Joint local descent on E_fit of one placement; returns (angles, t, energy)."""
     fr = problem.frames
@@ -78,30 +79,35 @@ def lbfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
     e0 = float(problem.energy(angles[None], t[None])[0])
     if len(rec) == 0 or (len(ia) == 0 and len(it) == 0):
         return angles, t, e0
-    x0 = np.concatenate([angles[ia], t[it].ravel()])
-    bounds = [(None, None)] * len(x0)
-    if problem.grain is not None and len(ia):
+    # grain limits: theta = c + tol sin(phi) keeps every angle inside its interval
+    centre, tol = np.zeros(len(ia)), 1.0
+    grain = problem.grain is not None and len(ia) > 0
+    if grain:
         cen = problem.grain.centres[ia]
         k = np.argmin(np.abs((angles[ia, None] - cen + np.pi) % (2 * np.pi) - np.pi), axis=1)
         c = cen[np.arange(len(ia)), k]
-        c = angles[ia] + ((c - angles[ia] + np.pi) % (2 * np.pi) - np.pi)
-        for j in range(len(ia)):
-            bounds[j] = (c[j] - problem.grain.tol, c[j] + problem.grain.tol)
-            x0[j] = np.clip(x0[j], *bounds[j])
+        centre = angles[ia] + ((c - angles[ia] + np.pi) % (2 * np.pi) - np.pi)
+        tol = max(problem.grain.tol, 1e-12)
+        phi0 = np.arcsin(np.clip((angles[ia] - centre) / tol, -1, 1))
+        x0 = np.concatenate([phi0, t[it].ravel()])
+    else:
+        x0 = np.concatenate([angles[ia], t[it].ravel()])
 
     def unpack(x):
         a, tt = angles.copy(), t.copy()
-        a[ia] = x[: len(ia)]
+        a[ia] = centre + tol * np.sin(x[: len(ia)]) if grain else x[: len(ia)]
         tt[it] = x[len(ia):].reshape(-1, 2)
         return a, tt
 
     def fun(x):
         a, tt = unpack(x)
         e, ga, gt = _energy_grad(problem, a, tt, rec, w)
+        if grain:
+            ga[ia] *= tol * np.cos(x[: len(ia)])
         return e, np.concatenate([ga[ia], gt[it].ravel()])
 
-    res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": max_iter})
+    # BFGS (NumPy only): L-BFGS-B's Fortran core stalls on BLAS threads on a busy machine
+    res = minimize(fun, x0, jac=True, method="BFGS", options={"maxiter": max_iter})
     a, tt = unpack(res.x)
     e = float(problem.energy(a[None], tt[None])[0])
     if e < e0:
