@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import shutil
+import time
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from station.config import Config
 from station.daemon import JobControl, JobInterrupted
@@ -93,8 +97,13 @@ class StationPipeline:
         report: dict[str, Any] = {}
         before = Placement.identity(garment.n_pieces, wallpaper)
         report["e_fit_identity_mm2"] = fit_report(garment, before).e_fit_mm2
-        control.progress.update(step="aligning")
-        placement = align_garment(garment, wallpaper, self.config, job.options)
+        control.progress.update(step="aligning", fraction=0.0)
+
+        def on_restart(k: int, n: int, _e_random: float, _e_aligned: float) -> None:
+            control.progress.update(step="aligning", fraction=min(1.0, k / max(n, 1)))
+            control.checkpoint()
+
+        placement = align_garment(garment, wallpaper, self.config, job.options, on_restart)
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
@@ -144,6 +153,12 @@ class StationPipeline:
         return build_program(toolpaths, self.machine, title=title)
 
     # ------------------------------------------------------------------ cut
+    @property
+    def port_name(self) -> str:
+        """The port as the log names it (the emulator's long URL shortened)."""
+        port = self.config["serial"]["port"]
+        return port.split("?", 1)[0] if "://" in port else port
+
     def open_port(self):
         import serial
 
@@ -157,43 +172,62 @@ class StationPipeline:
 
     def cut(self, job: Job, plan: dict[str, Any], store: JobStore, control: JobControl,
             resuming: bool) -> None:
-        """Stream the pieces not yet cut; each becomes cut only at its sync point."""
+        """Stream the pieces not yet cut; each becomes cut only at its sync point.
+
+        Before anything is sent the machine is asked what it did while nobody was
+        listening (see `with_markers` and `reconcile`): the piece in flight when the last
+        daemon died may have finished on the machine's buffered moves.
+        """
         from gcode.stream import Streamer, StreamError
 
-        index = {name: p["piece"] for p in store.pieces(job.id) for name in [p["name"]]}
-        todo = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
-        if not todo:
-            return
-        program = self.program_for(plan["layout"], todo)
-
-        def on_piece(piece) -> None:
-            store.set_piece_state(job.id, index[piece.id], piece.state)
-
-        def on_progress(p) -> None:
-            control.progress.update(step="cutting", fraction=p.fraction,
-                                    seconds_left=p.eta_seconds, machine=p.state,
-                                    lines_sent=p.lines_sent, lines_total=p.lines_total)
-
+        pieces = store.pieces(job.id)
+        index = {p["name"]: p["piece"] for p in pieces}
         with self.open_port() as port:
-            streamer = Streamer(port, on_piece=on_piece, on_progress=on_progress,
-                                name=self.config["serial"]["port"])
+            rest = wait_at_rest(port)
+            streamer = Streamer(port, on_piece=None, name=self.port_name)
+            alarm = rest is not None and rest.state == "Alarm"
             try:
                 streamer.connect()
             except StreamError as exc:
                 if "ALARM" not in str(exc):
                     raise
+                alarm = True
+                alarm_text = str(exc)
+            else:
+                alarm_text = ""
+            params = read_params(streamer)
+            self.reconcile(job, plan, store, rest, alarm, params)
+            if alarm:
                 # Position was lost (reset, power cut): home if the machine can, else unlock.
                 homing = streamer.read_settings().get(22, 0.0) >= 1
-                store.log(job.id, "machine", f"{exc}; {'homing' if homing else 'unlocking'}")
+                store.log(job.id, "machine", f"{alarm_text or 'controller in ALARM'}; "
+                          f"{'homing' if homing else 'unlocking'}")
                 if homing:
                     streamer.command("$H", timeout=120.0)
                 else:
                     streamer.unlock()
+            todo = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
+            if not todo:
+                return
+            program = with_markers(self.program_for(plan["layout"], todo), job.id, index)
+
+            def on_piece(piece) -> None:
+                store.set_piece_state(job.id, index[piece.id], piece.state)
+
+            def on_progress(p) -> None:
+                control.progress.update(step="cutting", fraction=p.fraction,
+                                        seconds_left=p.eta_seconds, machine=p.state,
+                                        lines_sent=p.lines_sent, lines_total=p.lines_total,
+                                        pieces_cut=len(index) - len(todo) + p.pieces_cut,
+                                        pieces_total=len(index))
+
+            streamer.on_progress = on_progress
             if self.config["machine"]["check_mode"] and not resuming:
                 checked = streamer.run(program, check=True)
                 if not checked.completed:
                     raise ValueError(f"the controller's check mode ($C) refused the program: "
                                      f"{checked.reason} {checked.errors[:1]}")
+            streamer.on_piece = on_piece
             result = self._stream(streamer, program, control)
         if control.abort.is_set():
             raise JobInterrupted("aborted", "aborted by the operator (safe stop)")
@@ -202,6 +236,43 @@ class StationPipeline:
         if not result.completed:
             raise RuntimeError(f"cut stopped: {result.reason} "
                                f"{(result.fault or {}).get('detail', '')}".strip())
+
+    def reconcile(self, job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool,
+                  params: dict[str, tuple[float, ...]]) -> None:
+        """Record the piece the machine finished after the last daemon stopped listening.
+
+        The marker (G59) names the last piece whose final move was reached: phase 2 means
+        its final move finished (GRBL writes it only after the motion before it), phase 1
+        means every move but the final one finished, and then the head at rest (no alarm:
+        the position is trusted) at the final move's end, not its start, proves the final
+        move ran too. Anything else leaves the piece pending: it is cut again in full.
+        """
+        marker = params.get(f"G{53 + MARKER_SYSTEM}")
+        if marker is None or len(marker) < 3 or round(marker[0]) != job.id:
+            return
+        piece, phase = int(round(marker[1])) - 1, int(round(marker[2]))
+        record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
+        if record is None or record["state"] == "cut" or phase not in (1, 2):
+            return
+        done = phase == 2
+        why = "its sync point executed (marker written after its final move)"
+        if phase == 1:
+            start, end = final_move(self.program_for(plan["layout"], {record["name"]}))
+            here = None
+            if rest is not None and not alarm and rest.mpos is not None:
+                g54 = params.get("G54", (0.0, 0.0, 0.0))
+                here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
+            done = (here is not None and float(np.hypot(*(start - end))) > 0.05
+                    and float(np.hypot(*(here - end))) < 0.02)
+            why = ("the head rests at the end of its final move" if done else
+                   "its final move may not have run (head elsewhere or position lost): "
+                   "cut again in full")
+        if done:
+            store.set_piece_state(job.id, piece, "cut")
+        store.log(job.id, "recovery", f"piece {piece} ({record['name']}): the machine "
+                  f"reports {'it cut' if done else 'it not cut'}: {why}")
+        log.warning("job %d piece %d: recovered from the machine: %s", job.id, piece,
+                    "cut" if done else "not cut")
 
     @staticmethod
     def _stream(streamer, program, control: JobControl):
@@ -227,9 +298,13 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
-def align_garment(garment, wallpaper, config: Config, options: dict[str, Any]):
-    """The best placement of the print on every piece (solver.align)."""
-    from solver.align.api import align
+def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
+                  progress=None):
+    """The best placement of the print on every piece (solver.align).
+
+    ``progress(k, n, e_random, e_aligned)`` is called as each random restart finishes.
+    """
+    from solver.align import align
 
     a = config["align"]
     grain = a["grain_tolerance_deg"]
@@ -237,7 +312,8 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any]):
                  method=options.get("method", a["method"]),
                  restarts=int(options.get("restarts", a["restarts"])),
                  seed=int(options.get("seed", a["seed"])),
-                 reflect=a["reflect"], grain_tolerance_deg=grain if grain >= 0 else None)
+                 reflect=a["reflect"], grain_tol_deg=grain if grain >= 0 else None,
+                 progress=progress)
 
 
 def nest_placement(placement_path: Path, config: Config):
@@ -254,3 +330,147 @@ def nest_placement(placement_path: Path, config: Config):
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")
     return layout
+
+
+# ---------------------------------------------------------------------- sync-point markers
+#: The work coordinate system (G54 + n - 1) the station writes its piece markers into:
+#: programs run in G54 and never select G59, so its offsets are free for bookkeeping.
+MARKER_SYSTEM = 6
+
+_MOTION = ("G1", "G2", "G3")
+
+
+def _code(line: str) -> str:
+    from gcode.program import strip_comment
+
+    return strip_comment(line).upper().replace(" ", "")
+
+
+def _is_motion(code: str) -> bool:
+    return code.startswith(_MOTION) and not code.startswith(("G10", "G17", "G21", "G28",
+                                                             "G30", "G38"))
+
+
+def with_markers(program, job_id: int, index: dict[str, int]):
+    """The program with a persistent record of each piece's progress in the controller.
+
+    Why: when the daemon dies the machine goes on with the moves in its buffers (up to
+    128 bytes of lines and 15 planned blocks), so the piece in flight may finish after the
+    last answer anybody read. Around each piece's final move the program writes G59
+    (``G10 L2 P6 X<job> Y<piece + 1> Z<phase>``), which GRBL keeps in EEPROM across
+    resets and power cuts and writes only after every move before it has finished
+    (FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE). The streamer sends such a line alone, once
+    every line before it is answered, and nothing after it until it is answered. So:
+
+    * phase 1, before the final move: written only once every move but the final one
+      has run; while it stands, nothing but the final move can move the head;
+    * phase 2, after the final move: written only once the final move has run, and no
+      line of the next piece is sent before it is answered.
+
+    On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
+    any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at
+    the final move's end with its position trusted (no alarm). At most this one piece can
+    be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
+    answered and stored. A piece interrupted before its final move is cut again in full
+    (its open kerf is retraced; it is separated from the cloth exactly once).
+    """
+    from gcode.program import Check, Program, parse_pieces
+
+    lines: list[str] = []
+    seconds: list[float] = []
+    old_seconds = program.check.seconds if program.check is not None else None
+    final = {}
+    for r in program.pieces:
+        moves = [k for k in range(r.first_line, r.sync_line) if _is_motion(_code(
+            program.lines[k]))]
+        if moves:
+            final[moves[-1]] = (index[r.id], r)
+    for k, line in enumerate(program.lines):
+        marked = final.get(k)
+        if marked is not None:
+            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{marked[0] + 1} Z1")
+            seconds.append(0.0)
+        lines.append(line)
+        seconds.append(0.0 if old_seconds is None else float(old_seconds[k]))
+        if marked is not None:
+            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{marked[0] + 1} Z2")
+            seconds.append(0.0)
+    check = None
+    if program.check is not None:
+        c = program.check
+        check = Check(seconds=np.asarray(seconds), cut_length_mm=c.cut_length_mm,
+                      travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path)
+    return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
+
+
+def final_move(program) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (work mm) of the last move of the program's last piece."""
+    pos = np.zeros(2)
+    start = end = pos
+    last = program.pieces[-1]
+    for k in range(last.sync_line):
+        code = _code(program.lines[k])
+        words = dict(re.findall(r"([XY])([-+]?[0-9.]+)", code))
+        if not words or code.startswith("G10") or code.startswith("G4"):
+            continue
+        target = pos.copy()
+        if "X" in words:
+            target[0] = float(words["X"])
+        if "Y" in words:
+            target[1] = float(words["Y"])
+        if _is_motion(code) and k >= last.first_line:
+            start, end = pos.copy(), target.copy()
+        pos = target
+    return start, end
+
+
+def wait_at_rest(port, timeout: float = 120.0):
+    """The controller's status once its buffered moves are over, before anyone resets it.
+
+    Only the real-time ``?`` is sent, which changes nothing; a machine still running the
+    moves a dead daemon left in its buffers is waited for. None if it does not answer.
+    """
+    from gcode.grbl import parse_response
+
+    try:
+        port.reset_input_buffer()
+    except (AttributeError, OSError):
+        pass
+    buf = b""
+    last = None
+    end = time.monotonic() + timeout
+    silent_until = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        port.write(b"?")
+        t = time.monotonic() + 0.1
+        while time.monotonic() < t:
+            buf += port.read(port.in_waiting or 1)
+            *lines, buf = buf.split(b"\n")
+            for raw in lines:
+                r = parse_response(raw.rstrip(b"\r").decode("ascii", "replace"))
+                if r.kind == "status" and r.status is not None:
+                    last = r.status
+        if last is None:
+            if time.monotonic() > silent_until:
+                return None
+            continue
+        if last.state in ("Idle", "Alarm", "Check", "Sleep") or (
+                last.state == "Hold" and last.substate == 0):
+            return last
+    return last
+
+
+def read_params(streamer) -> dict[str, tuple[float, ...]]:
+    """``$#``: the controller's stored offsets by name (G54..G59, G28, G30, G92...)."""
+    r, pushed = streamer.command("$#")
+    out: dict[str, tuple[float, ...]] = {}
+    if r.kind != "ok":
+        return out
+    for p in pushed:
+        if p.kind == "param" and p.text:
+            key, _, body = p.text.partition(":")
+            try:
+                out[key] = tuple(float(v) for v in body.split(":")[0].split(","))
+            except ValueError:
+                continue
+    return out
