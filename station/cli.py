@@ -35,6 +35,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"station {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `station ... | head` closed the pipe: not a fault
+        sys.stdout = None  # nothing more can be written; silence the flush at exit
+        return 0
 
 
 if __name__ == "__main__":

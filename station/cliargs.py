@@ -18,13 +18,34 @@ def add_garment_arguments(parser: argparse.ArgumentParser) -> None:
                         "else mm)")
 
 
-def load_garment_arg(args: argparse.Namespace):
+def load_garment_arg(args: argparse.Namespace, **options):
+    """The command's GARMENT, with repairs and a units slip told on stderr, one line each.
+
+    Repair warnings (duplicate vertices, slivers) go to stderr so ``--json`` stays clean;
+    a whole garment under a centimetre across was almost surely read in the wrong units
+    (the Berkeley files are in metres and do not say so).
+    """
+    import sys
+    import warnings
+
+    import numpy as np
+
     from solver.garment import load_garment
 
     path = Path(args.garment)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such garment file")
-    return load_garment(path, units=args.units)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        garment = load_garment(path, units=args.units, **options)
+    for w in caught:
+        print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
+    extent = float(np.ptp(garment.uv, axis=0).max()) if garment.n_vertices else 0.0
+    if args.units is None and extent < 10:
+        print(f"station {args.command}: warning: {path}: read in {garment.units_in_file}, the "
+              f"whole pattern spans only {extent:.3g} mm; if the file is in metres pass "
+              "--units m", file=sys.stderr)
+    return garment
 
 
 def load_fabric(path: str | Path) -> Wallpaper:

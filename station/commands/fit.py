@@ -31,8 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    fabric = load_fabric(args.fabric)  # the small file first: fail fast
     garment = load_garment_arg(args)
-    fabric = load_fabric(args.fabric)
     if args.placement:
         placement = Placement.load(args.placement)
         if placement.n_pieces != garment.n_pieces:

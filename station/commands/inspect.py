@@ -6,8 +6,6 @@ import argparse
 import json
 import sys
 import time
-import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -106,20 +104,10 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from solver.garment import load_garment
+    from station.cliargs import load_garment_arg
 
     start = time.perf_counter()
-    path = Path(args.garment)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        g = load_garment(path, units=args.units, resolution_mm=args.resolution_mm)
-    for w in caught:  # repairs are worth telling, but on stderr so --json stays clean
-        print(f"station inspect: warning: {w.message}", file=sys.stderr)
-    extent = float(np.ptp(g.uv, axis=0).max())
-    if args.units is None and extent < 10:  # a whole garment under 1 cm: wrong units
-        print(f"station inspect: warning: {path}: read in {g.units_in_file}, the whole "
-              f"pattern spans only {extent:.3g} mm; if the file is in metres pass --units m",
-              file=sys.stderr)
+    g = load_garment_arg(args, resolution_mm=args.resolution_mm)
     summary = garment_summary(g)
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:

@@ -78,7 +78,7 @@ def test_bad_fabric_is_one_clear_line(tmp_path, capsys, data_dir, fabric_text, m
     path = tmp_path / "fabric.json"
     path.write_text(fabric_text)
     garment = data_dir / "garments" / "berkeley" / "pants-coarse.obj"
-    assert main(["fit", str(garment), "--fabric", str(path)]) == 2
+    assert main(["fit", str(garment), "--units", "m", "--fabric", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and str(path) in err and "\n" not in err
 
@@ -88,6 +88,6 @@ def test_missing_files_and_wrong_placement(tmp_path, fabric, capsys, data_dir):
     assert main(["fit", str(tmp_path / "none.obj"), "--fabric", str(fabric)]) == 2
     assert "no such garment file" in capsys.readouterr().err
     Placement.identity(3, Wallpaper.from_dict(FABRIC)).save(tmp_path / "p.json")
-    assert main(["fit", str(garment), "--fabric", str(fabric),
+    assert main(["fit", str(garment), "--units", "m", "--fabric", str(fabric),
                  "--placement", str(tmp_path / "p.json")]) == 2
     assert "placement has 3 pieces" in capsys.readouterr().err
