@@ -1,0 +1,109 @@
+"""ChArUco calibration on simulated board views; table mapping; rectification."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from simulators.camera import (
+    Board,
+    CameraModel,
+    Pose,
+    SyntheticCamera,
+    calibration_poses,
+    render_rectified,
+)
+from vision.calibration import BoardSpec, Calibration, detect_board
+from vision.rectify import rectify, visible_region
+
+BOARD = dict(squares=(9, 6), square_mm=30.0, marker_mm=22.0)
+
+
+@pytest.fixture(scope="module")
+def session():
+    """Ten varied board views plus one of the board lying on the table (shifted, turned)."""
+    cam = CameraModel.default((960, 720))
+    board = Board(**BOARD)
+    poses = calibration_poses(board, 10, camera=cam, seed=1)
+    views = [SyntheticCamera(board=board, camera=cam, poses=[p], seed=i).read()
+             for i, p in enumerate(poses)]
+    table_board = Board(**BOARD, shift=(100.0, 50.0), rotation=3.0)
+    table = SyntheticCamera(board=table_board, camera=cam, seed=5, poses=[
+        Pose.overhead((235.0, 140.0), 500.0, tilt_deg=8.0, tilt_azimuth_deg=30.0)])
+    table_view = table.read()
+    cal = Calibration.from_views(views, table_view, BoardSpec(**BOARD),
+                                 board_origin=(100.0, 50.0), board_rotation=3.0)
+    return cam, cal, table
+
+
+def test_focal_length_within_one_percent(session):
+    cam, cal, _ = session
+    assert cal.views >= 8
+    assert cal.focal_px == pytest.approx(cam.K[0, 0], rel=0.01)
+    assert cal.camera_matrix[1, 1] == pytest.approx(cam.K[1, 1], rel=0.01)
+    assert cal.reprojection_rms_px < 0.5
+
+
+def test_table_points_within_half_a_millimetre(session):
+    _, cal, table = session
+    gx, gy = np.meshgrid(np.linspace(40, 430, 9), np.linspace(-40, 320, 7))
+    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    px = table.truth.table_to_image(grid)
+    w, h = cal.resolution
+    seen = np.all((px >= 0) & (px <= [w - 1, h - 1]), axis=1)
+    assert seen.sum() > 40
+    err = np.hypot(*(cal.image_to_table(px[seen]) - grid[seen]).T)
+    assert err.max() < 0.5
+    back = cal.table_to_image(grid[seen])
+    assert np.abs(back - px[seen]).max() < 0.3
+    assert cal.table_rms_mm < 0.2
+
+
+def test_save_and_load_round_trip(session, tmp_path):
+    _, cal, _ = session
+    path = tmp_path / "cal.json"
+    cal.save(path)
+    again = Calibration.load(path)
+    assert np.allclose(again.camera_matrix, cal.camera_matrix)
+    assert np.allclose(again.homography, cal.homography)
+    assert again.board == cal.board
+    pts = np.array([[100.0, 200.0], [500.0, 300.0]])
+    assert np.allclose(again.image_to_table(pts), cal.image_to_table(pts))
+
+
+def test_bad_calibration_files_name_the_fault(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(ValueError, match="bad.json: not valid JSON"):
+        Calibration.load(bad)
+    bad.write_text(json.dumps({"dist_coeffs": [0] * 5, "resolution": [10, 10]}))
+    with pytest.raises(ValueError, match="camera_matrix"):
+        Calibration.load(bad)
+    with pytest.raises(FileNotFoundError):
+        Calibration.load(tmp_path / "missing.json")
+
+
+def test_no_board_in_a_blank_image():
+    ids, px, mm = detect_board(np.full((200, 300, 3), 128, np.uint8), BoardSpec(**BOARD))
+    assert len(ids) == 0 and px.shape == (0, 2)
+
+
+def test_rectified_frame_matches_the_true_top_down_view(session):
+    cam, cal, table = session
+    frame = table.read()
+    region = (120.0, 60.0, 330.0, 200.0)
+    img, reg, s = rectify(frame, cal, region=region, mm_per_px=1.0)
+    ref = render_rectified(None, region, 1.0, board=table.board)
+    # Compare edges of the board picture: misregistration shows as large differences.
+    diff = np.abs(img.astype(float) - ref.astype(float)).mean()
+    assert img.shape == ref.shape and diff < 25
+    vis = visible_region(cal)
+    assert vis[0] < 120 and vis[2] > 330
+
+
+def test_rectify_refuses_a_frame_of_another_size(session):
+    _, cal, _ = session
+    with pytest.raises(ValueError, match="calibration is for"):
+        rectify(np.zeros((10, 10, 3), np.uint8), cal)

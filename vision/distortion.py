@@ -1,0 +1,131 @@
+"""How badly the fabric lies: local lattices on a coarse grid, skew and bow.
+
+Woven checks and plaids are often spread skewed (weft lines tilted against the warp)
+or bowed (weft lines sagging across the width). Cutting a matched garment from such
+cloth puts the print off the seams however well the pieces are placed, so the operator
+is warned above a tolerance. The local lattice of each tile is the global one refined
+on the tile's own autocorrelation (the same least-squares fit on many peaks as the
+global detection), so a tile needs only about three repeats across.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from vision.lattice import LatticeResult, _refine, autocorrelation, prepare_image
+
+__all__ = ["Distortion", "measure_distortion"]
+
+
+@dataclass
+class Distortion:
+    """Local lattices and the spreading faults they reveal (mm, degrees)."""
+
+    centres: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (K,2) mm
+    w1: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (K,2) local w1 mm
+    w2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    skew_deg: float = 0.0
+    bow_mm: float = 0.0
+    max_strain: float = 0.0
+    warning: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"skew_deg": round(self.skew_deg, 3), "bow_mm": round(self.bow_mm, 3),
+                "max_strain": round(self.max_strain, 5), "warning": self.warning,
+                "grid": [{"centre": c.round(3).tolist(), "w1": a.round(4).tolist(),
+                          "w2": b.round(4).tolist()}
+                         for c, a, b in zip(self.centres, self.w1, self.w2, strict=True)]}
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle between the rows of a and b, degrees."""
+    cos = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
+def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int = 3,
+                       ideal_angle: float | None = None, skew_tol_deg: float = 1.0,
+                       bow_tol_mm: float = 3.0, work_side: int = 1024) -> Distortion:
+    """Local lattice on a ``grid x grid`` array of tiles; skew, bow and a warning.
+
+    Parameters
+    ----------
+    lattice : LatticeResult
+        The global lattice of the same image.
+    ideal_angle : float, optional
+        The angle w1-w2 the print should have (90 for checks); skew is the departure
+        from it. Default: the global angle (skew then measures only its variation).
+    skew_tol_deg, bow_tol_mm : float
+        The operator's tolerances; above either, ``warning`` says what is wrong.
+    """
+    if not lattice.found:
+        return Distortion()
+    flat, scale = prepare_image(image, work_side=work_side)
+    mm = lattice.mm_per_px
+    px_mm = mm / scale
+    basis = lattice.basis / px_mm  # working (x, y) px
+    h, w = flat.shape
+    longest = float(np.linalg.norm(basis, axis=0).max())
+    g = int(max(1, min(grid, math.floor(min(h, w) / (3.0 * longest)))))
+    ys = np.linspace(0, h, g + 1).astype(int)
+    xs = np.linspace(0, w, g + 1).astype(int)
+    centres, l1, l2 = [], [], []
+    rc_basis = basis[::-1]  # (row, col) rows for the peak fit
+    for i in range(g):
+        for j in range(g):
+            tile = flat[ys[i]:ys[i + 1], xs[j]:xs[j + 1]]
+            if min(tile.shape) < 2.5 * longest:
+                continue
+            acf, wacf = autocorrelation(cv2.GaussianBlur(tile, (0, 0), 1.0))
+            b, _, used = _refine(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
+            if used < 3:
+                continue
+            loc = b[::-1] * px_mm  # back to (x, y) mm
+            centres.append([(xs[j] + xs[j + 1] - 1) / 2, (ys[i] + ys[i + 1] - 1) / 2])
+            l1.append(loc[:, 0])
+            l2.append(loc[:, 1])
+    if not centres:
+        return Distortion(warning=None)
+    c = (np.array(centres) + 0.5) / scale - 0.5
+    c *= mm
+    l1, l2 = np.array(l1), np.array(l2)
+    g1, g2 = lattice.w1, lattice.w2
+    # Fix each local vector's sign to the global one (a fit may return -w).
+    l1 *= np.sign(l1 @ g1)[:, None]
+    l2 *= np.sign(l2 @ g2)[:, None]
+    angles = _angle(l1, l2)
+    ideal = _angle(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
+    skew = float(np.median(angles) - ideal)
+    strain = max(float(np.max(np.linalg.norm(l1 - g1, axis=1) / np.linalg.norm(g1))),
+                 float(np.max(np.linalg.norm(l2 - g2, axis=1) / np.linalg.norm(g2))))
+    # Bow: lines along w_k turn as one moves along w_k (a parabola's slope changes
+    # linearly); sag at mid-width = d(slope)/ds * L^2 / 8 over the image extent L.
+    bow = 0.0
+    ext = np.array([image.shape[1], image.shape[0]], float) * mm
+    for loc, glob in ((l1, g1), (l2, g2)):
+        if len(loc) < 3:
+            break
+        u = glob / np.linalg.norm(glob)
+        nrm = np.array([-u[1], u[0]])
+        slope = (loc @ nrm) / (loc @ u)  # tan of the local turn against the global
+        s = c @ u
+        if np.ptp(s) < 1e-9:
+            continue
+        k = np.polyfit(s, slope, 1)[0]
+        length = float(abs(ext @ np.abs(u)))
+        sag = k * length**2 / 8.0
+        if abs(sag) > abs(bow):
+            bow = float(sag)
+    warning = None
+    faults = []
+    if abs(skew) > skew_tol_deg:
+        faults.append(f"skew {skew:.2f} deg exceeds {skew_tol_deg:g} deg")
+    if abs(bow) > bow_tol_mm:
+        faults.append(f"bow {bow:.1f} mm exceeds {bow_tol_mm:g} mm")
+    if faults:
+        warning = "fabric lies distorted: " + "; ".join(faults) + " (straighten the cloth)"
+    return Distortion(c, l1, l2, skew, bow, strain, warning)

@@ -1,0 +1,145 @@
+"""One call from a photo to the fabric description: lattice, group, origin, distortion.
+
+``detect_fabric`` works on an image whose pixels are square table millimetres (a
+rectified frame, or a flat scan with a known pixel size); ``offset`` is the machine
+position of pixel (0, 0)'s centre, so the answer is in machine millimetres.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from solver.wallpaper import GROUPS, Wallpaper
+from vision.classify import Classification, classify, symmetry_elements
+from vision.distortion import Distortion, measure_distortion
+from vision.lattice import LatticeResult, detect_lattice, prepare_image
+
+__all__ = ["FabricDetection", "detect_fabric", "draw_overlay"]
+
+_IDEAL_ANGLE = {"rectangular": 90.0, "square": 90.0, "hexagonal": 120.0}
+
+
+@dataclass
+class FabricDetection:
+    lattice: LatticeResult
+    classification: Classification
+    distortion: Distortion
+    offset: np.ndarray
+    mm_per_px: float
+    seconds: float
+
+    @property
+    def wallpaper(self) -> Wallpaper | None:
+        wp = self.classification.wallpaper
+        if wp is None:
+            return None
+        return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + self.offset, tol=1e-6)
+
+    def fabric_json(self) -> dict:
+        """FABRIC.json: the foundation's format plus confidence, distortion and the
+        lattice's uncertainty; a stripes/no-print answer has ``group: null``."""
+        wp = self.wallpaper
+        out: dict = {"group": None, "units": "mm"}
+        if wp is not None:
+            out.update(wp.to_dict())
+        else:
+            out["kind"] = self.lattice.kind
+            out["message"] = self.lattice.message
+            if self.lattice.kind == "stripes":
+                out["period"] = self.lattice.period
+                out["direction_deg"] = self.lattice.direction_deg
+        out["confidence"] = round(float(self.classification.confidence), 4)
+        out["distortion"] = self.distortion.to_dict()
+        if self.lattice.found:
+            out["lattice_sigma_mm"] = float(self.lattice.sigma_w1[0])
+        return out
+
+    def summary(self) -> dict:
+        """The ``--json`` line: group (null without a lattice), w1, w2, origin,
+        confidence, seconds."""
+        wp = self.wallpaper
+        return {"group": None if wp is None else wp.group,
+                "w1": None if wp is None else [round(v, 4) for v in wp.w1.tolist()],
+                "w2": None if wp is None else [round(v, 4) for v in wp.w2.tolist()],
+                "origin": None if wp is None else [round(v, 4) for v in wp.origin.tolist()],
+                "confidence": round(float(self.classification.confidence), 4),
+                "kind": self.lattice.kind,
+                "distortion_warning": self.distortion.warning,
+                "seconds": round(self.seconds, 3)}
+
+
+def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
+                  skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
+                  distortion: bool = True) -> FabricDetection:
+    """Lattice, group with origin, and distortion of the print in ``image``."""
+    t0 = time.perf_counter()
+    flat, scale = prepare_image(image)
+    lat = detect_lattice(image, mm_per_px=mm_per_px)
+    cls = classify(image, lat, flat=flat, scale=scale)
+    dist = Distortion()
+    if distortion and lat.found and cls.group is not None:
+        dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
+                                  bow_tol_mm=bow_tol_mm,
+                                  ideal_angle=_IDEAL_ANGLE.get(GROUPS[cls.group].lattice))
+    return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
+                           time.perf_counter() - t0)
+
+
+def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
+    """The image with the lattice (grey), mirror lines (blue, solid), glide lines
+    (green, dashed), rotation centres (red, with their order) and the local lattices of
+    the distortion grid (yellow arrows)."""
+    out = image.copy() if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    wp = det.classification.wallpaper  # image mm frame (without offset)
+    s = det.mm_per_px
+    h, w = out.shape[:2]
+
+    def px(p):
+        return tuple(int(round(v)) for v in (np.asarray(p) / s))
+
+    if wp is None:
+        cv2.putText(out, f"no lattice: {det.lattice.kind}", (10, 30),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)
+        return out
+    region = (0.0, 0.0, (w - 1) * s, (h - 1) * s)
+    f = wp.to_fractional(np.array([[0, 0], [region[2], 0], [0, region[3]],
+                                   [region[2], region[3]]]))
+    lo, hi = np.floor(f.min(0)).astype(int) - 1, np.ceil(f.max(0)).astype(int) + 1
+    for i in range(lo[0], hi[0] + 1):
+        cv2.line(out, px(wp.to_cartesian([[i, lo[1]]])[0]), px(wp.to_cartesian([[i, hi[1]]])[0]),
+                 (160, 160, 160), 1, cv2.LINE_AA)
+    for j in range(lo[1], hi[1] + 1):
+        cv2.line(out, px(wp.to_cartesian([[lo[0], j]])[0]), px(wp.to_cartesian([[hi[0], j]])[0]),
+                 (160, 160, 160), 1, cv2.LINE_AA)
+    # Symmetry elements near the origin's cell only (the rest repeat).
+    o = wp.origin
+    span = 1.6 * float(np.linalg.norm(wp.basis, axis=0).max())
+    centres, lines = symmetry_elements(wp, (o[0] - span, o[1] - span, o[0] + span,
+                                            o[1] + span))
+    for p, d, glide in lines:
+        a, b = p - d * span, p + d * span
+        if glide:
+            for t in np.linspace(0, 1, 17)[::2]:
+                cv2.line(out, px(a + (b - a) * t), px(a + (b - a) * min(1.0, t + 1 / 16)),
+                         (0, 200, 0), 2, cv2.LINE_AA)
+        else:
+            cv2.line(out, px(a), px(b), (255, 80, 0), 2, cv2.LINE_AA)
+    for p, order in centres:
+        cv2.circle(out, px(p), 5, (0, 0, 255), -1, cv2.LINE_AA)
+        cv2.putText(out, str(order), px(p + 0.5 * s * np.array([8, -8])),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1, cv2.LINE_AA)
+    cv2.circle(out, px(o), 8, (0, 255, 255), 2, cv2.LINE_AA)
+    d = det.distortion
+    for c, a, b in zip(d.centres, d.w1, d.w2, strict=True):
+        for v in (a, b):
+            cv2.arrowedLine(out, px(c), px(c + v), (0, 220, 255), 2, cv2.LINE_AA,
+                            tipLength=0.15)
+    label = f"{wp.group} ({det.classification.confidence:.2f})"
+    if d.warning:
+        label += " - " + d.warning
+    cv2.putText(out, label, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)
+    return out
