@@ -1,5 +1,6 @@
-"""Fixtures for the gcode tests: layouts made from shapely shapes, and an independent reader
-that turns G-code back into tool-on and tool-off paths (it shares no code with gcode/)."""
+"""Helpers for the gcode tests: layouts made from shapely shapes, and an independent reader
+that turns G-code back into tool-on and tool-off paths (it shares no code with gcode/).
+(A uniquely named module rather than a conftest: test directories have no __init__.py.)"""
 
 from __future__ import annotations
 
@@ -7,7 +8,6 @@ import math
 import re
 
 import numpy as np
-import pytest
 from shapely.geometry import Point, Polygon, box
 
 _WORD = re.compile(r"([A-Z])([-+]?[0-9.]+)")
@@ -83,11 +83,6 @@ def trace(lines: list[str], *, knife_down: float | None = None, step: float = 0.
     return out
 
 
-@pytest.fixture
-def gtrace():
-    return trace
-
-
 def ring(geom) -> list[list[float]]:
     return np.asarray(geom.exterior.coords)[:-1].tolist()
 
@@ -119,11 +114,6 @@ def make_layout(origin=(0.0, 0.0)) -> dict:
              "marks": [[800, 100], [750, 200]], "grainline": [[800, 60], [800, 290]]},
         ],
     }
-
-
-@pytest.fixture
-def layout_dict() -> dict:
-    return make_layout()
 
 
 def piece_polygons(layout: dict) -> dict[str, Polygon]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from conftest import make_layout
+from gcode_helpers import make_layout
 
 from gcode.machine import default_machine
 from gcode.program import load_program

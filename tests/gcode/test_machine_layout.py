@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import make_layout
+from gcode_helpers import make_layout
 
 from gcode.layout import layout_from_dict, load_layout
 from gcode.machine import default_machine, load_machine

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from conftest import make_layout, piece_polygons
+from gcode_helpers import make_layout, piece_polygons, trace
 from shapely.geometry import LineString, Polygon
 
 from gcode.layout import layout_from_dict
@@ -25,6 +25,9 @@ from gcode.toolpath import build_toolpaths
 KNIFE = {"machine": {"name": "knife table", "tool": "knife", "work_area": [0, 0, 1200, 800],
                      "max_feed": 6000.0, "max_s": 1000.0, "laser_mode": False},
          "cut": {"feed": 2000.0, "kerf": 0.0}, "knife": {"z_up": 3.0, "z_down": -0.5}}
+
+
+LAYOUT = make_layout()
 
 
 def _cut_faces(moves, lines_range):
@@ -68,12 +71,12 @@ def _check_program(prog, machine, layout, moves):
 
 
 @pytest.mark.parametrize("origin", [(0.0, 0.0), (300.0, 250.0)])
-def test_laser_program_parsed_back(layout_dict, gtrace, origin):
+def test_laser_program_parsed_back(origin):
     data = make_layout(origin)
     machine = default_machine()
     layout = layout_from_dict(data, "test")
     prog = build_program(build_toolpaths(layout, machine), machine)
-    moves = gtrace(prog.lines)
+    moves = trace(prog.lines)
     _check_program(prog, machine, data, moves)
     assert prog.lines[:3][-1].startswith("G21 G90")
     assert prog.lines[-4:] == ["M5", "M9", "G0 X0 Y0", "M2"]
@@ -84,12 +87,12 @@ def test_laser_program_parsed_back(layout_dict, gtrace, origin):
     assert prog.check.cut_length_mm > 0 and prog.check.estimated_seconds > 0
 
 
-def test_knife_program_parsed_back(layout_dict, gtrace):
+def test_knife_program_parsed_back():
     machine = machine_from_dict(KNIFE, "knife.toml")
-    layout = layout_from_dict(layout_dict, "test")
+    layout = layout_from_dict(LAYOUT, "test")
     prog = build_program(build_toolpaths(layout, machine), machine)
-    moves = gtrace(prog.lines, knife_down=machine.knife.z_down)
-    _check_program(prog, machine, layout_dict, moves)
+    moves = trace(prog.lines, knife_down=machine.knife.z_down)
+    _check_program(prog, machine, LAYOUT, moves)
     assert not any(ln.startswith(("M3", "M4")) for ln in prog.lines)
     # every rapid XY move happens with the knife raised
     for m in moves:
@@ -101,13 +104,13 @@ def test_knife_program_parsed_back(layout_dict, gtrace):
     assert lifts >= 4 + 2  # 4 corners + 2 marks (+ notch)
 
 
-def test_knife_tabs_leave_bridges(layout_dict, gtrace):
+def test_knife_tabs_leave_bridges():
     data = dict(KNIFE, cut={"feed": 2000.0, "kerf": 0.0, "tabs": 4, "tab_width": 5.0})
     machine = machine_from_dict(data, "knife.toml")
-    layout = layout_from_dict(layout_dict, "test")
+    layout = layout_from_dict(LAYOUT, "test")
     prog = build_program(build_toolpaths(layout, machine), machine)
-    moves = gtrace(prog.lines, knife_down=machine.knife.z_down)
-    polys = piece_polygons(layout_dict)
+    moves = trace(prog.lines, knife_down=machine.knife.z_down)
+    polys = piece_polygons(LAYOUT)
     for pr in prog.pieces:
         piece = polys[pr.id]
         cut = shapely.unary_union([LineString(m["pts"]) for m in moves if m["on"]
@@ -118,12 +121,12 @@ def test_knife_tabs_leave_bridges(layout_dict, gtrace):
         assert uncut == pytest.approx(4 * 5.0, abs=1.0), pr.id
 
 
-def test_lead_in_starts_in_the_waste(layout_dict, gtrace):
+def test_lead_in_starts_in_the_waste():
     machine = default_machine().with_cut(lead_in=2.0)
-    layout = layout_from_dict(layout_dict, "test")
+    layout = layout_from_dict(LAYOUT, "test")
     prog = build_program(build_toolpaths(layout, machine), machine)
-    moves = gtrace(prog.lines)
-    polys = piece_polygons(layout_dict)
+    moves = trace(prog.lines)
+    polys = piece_polygons(LAYOUT)
     for pr in prog.pieces:
         on = [m for m in moves if m["on"] and pr.first_line <= m["line"] <= pr.sync_line]
         first_outline = on[-1]
@@ -138,9 +141,9 @@ def test_lead_in_starts_in_the_waste(layout_dict, gtrace):
         assert first_outline["on"]
 
 
-def test_inner_contours_before_outline(layout_dict):
+def test_inner_contours_before_outline():
     machine = default_machine()
-    tps = build_toolpaths(layout_from_dict(layout_dict, "test"), machine)
+    tps = build_toolpaths(layout_from_dict(LAYOUT, "test"), machine)
     for tp in tps:
         kinds = [c.kind for c in tp.contours]
         assert kinds[-1] == "outline" and kinds.count("outline") == 1
@@ -150,9 +153,9 @@ def test_inner_contours_before_outline(layout_dict):
     assert [c.kind for c in disc.contours] == ["mark", "hole", "notch", "outline"]
 
 
-def test_comments_cannot_inject_and_pieces_survive_the_file(layout_dict, tmp_path):
+def test_comments_cannot_inject_and_pieces_survive_the_file(tmp_path):
     machine = default_machine()
-    prog = build_program(build_toolpaths(layout_from_dict(layout_dict, "t"), machine), machine)
+    prog = build_program(build_toolpaths(layout_from_dict(LAYOUT, "t"), machine), machine)
     text = prog.text()
     for bad in "$%!?~":
         assert bad not in text
@@ -168,16 +171,16 @@ def test_comments_cannot_inject_and_pieces_survive_the_file(layout_dict, tmp_pat
     assert prog.lines[front.first_line].startswith("(piece ")
 
 
-def test_only_some_pieces(layout_dict):
+def test_only_some_pieces():
     machine = default_machine()
-    layout = layout_from_dict(layout_dict, "t")
+    layout = layout_from_dict(LAYOUT, "t")
     prog = build_program(build_toolpaths(layout, machine, only={"lobes#1"}), machine)
     assert [p.id for p in prog.pieces] == ["lobes#1"]
     with pytest.raises(ValueError, match="no piece with id"):
         build_toolpaths(layout, machine, only={"nope"})
 
 
-def test_refuses_pieces_outside_the_work_area(layout_dict):
+def test_refuses_pieces_outside_the_work_area():
     data = make_layout(origin=(1500.0, 0.0))
     machine = default_machine()
     with pytest.raises(ProgramError, match="outside the work area"):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import serial
-from conftest import make_layout
+from gcode_helpers import make_layout
 
 import simulators.grbl  # noqa: F401  (registers grblsim://)
 from gcode.layout import layout_from_dict
