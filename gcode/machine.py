@@ -11,7 +11,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import tomllib
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10 (pyproject pulls in tomli there)
+    import tomli as tomllib
 
 __all__ = ["CutParams", "KnifeParams", "Machine", "default_machine", "load_machine"]
 
