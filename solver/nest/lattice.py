@@ -425,23 +425,27 @@ def problem_density(items: list[Item], problem: NestProblem, length: float) -> f
     return area / (problem.width * length)
 
 
-SHARES = {"resnap": 0.75, "repair": 0.75, "fill": 0.25}
+SHARES = {"resnap": 0.4, "resnap-margin": 0.35, "repair": 0.75, "fill": 0.25}
 
 
 def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
                  progress: Progress | None = None,
-                 strategies: tuple[str, ...] = ("resnap", "fill")) -> Layout:
+                 strategies: tuple[str, ...] = ("resnap", "resnap-margin", "fill"),
+                 ) -> Layout:
     """Nest on a printed fabric; every strategy runs and the shortest marker wins.
 
     - ``resnap``: sparrow nests freely, then every piece is swept left to right onto the
       allowed position nearest to its free one (pushed right where it collides), then
       compacted; keeps sparrow's structure, loses little on fine lattices.
+    - ``resnap-margin``: the same from a free nest with half the covering radius of
+      margin, so fewer and smaller collisions after snapping (better for few big pieces).
     - ``repair``: the same, but only the pieces in conflict after snapping move.
     - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
       coarse lattices relative to the pieces.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
+    from solver.nest.naive import covering_radius
     from solver.nest.regions import repair_snapped
 
     items = problem.items()
@@ -451,9 +455,10 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
         share = time_limit * SHARES.get(strategy, 0.0) / total
         if strategy == "fill":
             r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
-        elif strategy in ("resnap", "repair"):
+        elif strategy in ("resnap", "resnap-margin", "repair"):
+            extra = 0.5 * covering_radius(problem.lattice) if strategy == "resnap-margin" else 0.0
             r = repair_snapped(problem, items, time_limit=share, seed=seed, progress=progress,
-                               everything=strategy == "resnap")
+                               everything=strategy != "repair", extra=extra)
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:

@@ -8,12 +8,12 @@ from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress, plain_moves
 
-METHODS = ("auto", "resnap", "fill", "repair", "naive")
+METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "naive")
 
 
 def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
          progress: Progress | None = None, method: str = "auto") -> Layout:
-    """Nest ``problem``; on a print ``method`` picks the search (auto: resnap and fill, best).
+    """Nest ``problem``; on a print ``method`` picks the search (auto: best of all).
 
     Plain fabric goes to sparrow; when the operator marked keep-outs or the table is
     shorter than sparrow's marker, the offending pieces are re-inserted around the rest.
@@ -28,7 +28,8 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
         else:
             from solver.nest.lattice import nest_lattice
 
-            strategies = ("resnap", "fill") if method == "auto" else (method,)
+            strategies = (("resnap", "resnap-margin", "fill") if method == "auto"
+                          else (method,))
             layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
                                   strategies=strategies)
     else:

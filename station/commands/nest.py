@@ -34,8 +34,8 @@ def register(sub) -> None:
     p.add_argument("--pairs", action="store_true",
                    help="cut every piece also mirrored (left and right)")
     p.add_argument("--method", default="auto",
-                   choices=("auto", "resnap", "fill", "repair", "naive"),
-                   help="search on a print (default auto: best of resnap and fill)")
+                   choices=("auto", "resnap", "resnap-margin", "fill", "repair", "naive"),
+                   help="search on a print (default auto: best of resnap, resnap-margin, fill)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.add_argument("--png", metavar="OUT.png", help="draw the marker")
     p.set_defaults(func=run)
