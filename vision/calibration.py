@@ -169,7 +169,8 @@ class Calibration:
         w, h = self.resolution
         c = np.array([[w / 2, h / 2], [w / 2 + 1, h / 2], [w / 2, h / 2 + 1]])
         t = self.image_to_table(c)
-        return float(math.sqrt(abs(np.cross(t[1] - t[0], t[2] - t[0]))))
+        a, b = t[1] - t[0], t[2] - t[0]
+        return float(math.sqrt(abs(a[0] * b[1] - a[1] * b[0])))
 
     @property
     def focal_px(self) -> float:

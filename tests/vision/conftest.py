@@ -72,6 +72,17 @@ def lattice_error(found: np.ndarray, truth: np.ndarray) -> float:
     return float(np.max(np.linalg.norm(diff, axis=0) / np.linalg.norm(found, axis=0)))
 
 
+def symmetry_error(found: Wallpaper, truth: Wallpaper) -> float:
+    """How far the found group's operations (about the found origin) are from being
+    symmetries of the true print, as a fraction of the repeat (0 = exact)."""
+    p = found.origin + np.array([[0.0, 0.0], [3.0, 1.0], [-2.0, 4.0]])
+    worst = 0.0
+    for op in found.cartesian_ops():
+        q = p @ op[:2, :2].T + op[:2, 2]
+        worst = max(worst, float(np.hypot(*truth.mismatch(q, p).T).max()))
+    return worst / np.sqrt(abs(np.linalg.det(truth.basis)))
+
+
 def stripes(seed: int, *, shape=(300, 400), **faults) -> tuple[np.ndarray, float, float]:
     """1-D stripes (a frieze): (uint8 BGR image, period px, direction deg of the stripes)."""
     rng = np.random.default_rng(seed)

@@ -107,3 +107,34 @@ def test_rectify_refuses_a_frame_of_another_size(session):
     _, cal, _ = session
     with pytest.raises(ValueError, match="calibration is for"):
         rectify(np.zeros((10, 10, 3), np.uint8), cal)
+
+
+def test_cli_calibrate_simulated_and_from_a_folder(tmp_path, capsys):
+    import cv2
+
+    from station.cli import main
+
+    out = tmp_path / "cal.json"
+    rc = main(["calibrate", "--simulate", "--views", "6", "--squares", "9", "6",
+               "-o", str(out), "--json"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["views"] >= 5 and summary["reprojection_rms_px"] < 0.5
+    cal = Calibration.load(out)
+    from simulators.camera import CameraModel
+    assert cal.focal_px == pytest.approx(CameraModel.default().K[0, 0], rel=0.02)
+    # The same from a folder of saved images (last file = the table view).
+    folder = tmp_path / "views"
+    folder.mkdir()
+    board = Board(**BOARD)
+    cam = CameraModel.default((640, 480))
+    for i, pose in enumerate(calibration_poses(board, 6, camera=cam, seed=4)):
+        frame = SyntheticCamera(board=board, camera=cam, poses=[pose], seed=i).read()
+        cv2.imwrite(str(folder / f"view{i:02d}.png"), frame)
+    table = SyntheticCamera(board=board, camera=cam, seed=9).read()
+    cv2.imwrite(str(folder / "zz_table.png"), table)
+    out2 = tmp_path / "cal2.json"
+    assert main(["calibrate", "--images", str(folder), "--squares", "9", "6",
+                 "-o", str(out2)]) == 0
+    assert Calibration.load(out2).focal_px == pytest.approx(cam.K[0, 0], rel=0.02)
+    assert main(["calibrate", "--images", str(tmp_path / "nope")]) == 2

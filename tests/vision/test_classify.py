@@ -4,21 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import symmetry_error
 
-from solver.wallpaper import GROUP_NAMES, Wallpaper
+from solver.wallpaper import GROUP_NAMES
 from vision.classify import classify, holohedry
 from vision.lattice import LatticeResult, detect_lattice
-
-
-def symmetry_error(found: Wallpaper, truth: Wallpaper) -> float:
-    """How far the found group's operations (about the found origin) are from being
-    symmetries of the true print, as a fraction of the repeat (0 = exact)."""
-    p = found.origin + np.array([[0.0, 0.0], [3.0, 1.0], [-2.0, 4.0]])
-    worst = 0.0
-    for op in found.cartesian_ops():
-        q = p @ op[:2, :2].T + op[:2, 2]
-        worst = max(worst, float(np.hypot(*truth.mismatch(q, p).T).max()))
-    return worst / np.sqrt(abs(np.linalg.det(truth.basis)))
 
 
 def test_holohedry_orders_follow_the_lattice():

@@ -1,0 +1,120 @@
+"""`station calibrate`: camera intrinsics and the table plane from ChArUco board views."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import cv2
+
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "calibrate", help="calibrate the camera to the table with a ChArUco board",
+        description="Compute the camera's intrinsics and lens distortion from views of a "
+        "ChArUco board held in varied poses, and the table plane's map to machine mm from "
+        "one view of the board lying flat on the table. Views come from a folder of "
+        "images (the table view is TABLE, or the folder's last image in name order), "
+        "from the camera (--camera), or from the synthetic camera (--simulate).")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--images", metavar="DIR", help="folder of board views")
+    src.add_argument("--camera", metavar="SOURCE",
+                     help="camera: device index, video file or GStreamer pipeline")
+    src.add_argument("--simulate", action="store_true", help="use the synthetic camera")
+    p.add_argument("--table", metavar="IMAGE",
+                   help="view of the board lying on the table (with --images)")
+    p.add_argument("--views", type=int, default=12,
+                   help="views to take from the camera (default 12)")
+    p.add_argument("--squares", type=int, nargs=2, default=(7, 5), metavar=("COLS", "ROWS"))
+    p.add_argument("--square-mm", type=float, default=30.0)
+    p.add_argument("--marker-mm", type=float, default=22.0)
+    p.add_argument("--dictionary", default="DICT_5X5_100")
+    p.add_argument("--board-origin", type=float, nargs=2, default=(0.0, 0.0),
+                   metavar=("X", "Y"), help="machine mm of the board's corner (0, 0)")
+    p.add_argument("--board-rotation", type=float, default=0.0, metavar="DEG",
+                   help="turn of the board's x axis against the machine's x axis")
+    p.add_argument("-o", "--output", default="calibration.json", metavar="CAL.json")
+    p.add_argument("--json", action="store_true", help="print one JSON summary object")
+    p.set_defaults(func=run)
+
+
+def _folder_views(folder: Path, table: str | None):
+    from station.cli import UserError
+
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: folder not found")
+    files = sorted(f for f in folder.iterdir() if f.suffix.lower() in _IMAGE_SUFFIXES)
+    if table:
+        table_path = Path(table)
+        files = [f for f in files if f.resolve() != table_path.resolve()]
+    elif files:
+        table_path = files.pop()
+    else:
+        raise UserError(f"{folder}: no images")
+    views = []
+    for f in files:
+        im = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if im is None:
+            raise UserError(f"{f}: not an image OpenCV can read")
+        views.append(im)
+    tv = cv2.imread(str(table_path), cv2.IMREAD_COLOR)
+    if tv is None:
+        raise UserError(f"{table_path}: not an image OpenCV can read")
+    return views, tv
+
+
+def _simulated_views(board_spec, n: int):
+    from simulators.camera import Board, SyntheticCamera, calibration_poses
+
+    board = Board(squares=tuple(board_spec.squares), square_mm=board_spec.square_mm,
+                  marker_mm=board_spec.marker_mm, dictionary=board_spec.dictionary)
+    poses = calibration_poses(board, n, seed=1)
+    with SyntheticCamera(board=board, poses=poses, seed=2) as sim:
+        views = [sim.read() for _ in poses]
+    with SyntheticCamera(board=board, seed=3) as sim:  # flat on the table, from above
+        table = sim.read()
+    return views, table
+
+
+def run(args) -> int:
+    from station.cli import UserError
+    from vision.calibration import BoardSpec, Calibration
+
+    try:
+        spec = BoardSpec(tuple(args.squares), args.square_mm, args.marker_mm, args.dictionary)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if args.images:
+        views, table = _folder_views(Path(args.images), args.table)
+    elif args.simulate:
+        print(f"rendering {args.views} synthetic board views", file=sys.stderr)
+        views, table = _simulated_views(spec, args.views)
+    else:
+        from vision.camera import open_camera
+
+        views = []
+        with open_camera(args.camera, average=2) as cam:
+            for k in range(args.views):
+                input(f"view {k + 1}/{args.views}: hold the board in a new pose, Enter ")
+                views.append(cam.read())
+            input("lay the board flat on the table at its set position, Enter ")
+            table = cam.read()
+    print(f"calibrating from {len(views)} views", file=sys.stderr)
+    cal = Calibration.from_views(views, table, spec, board_origin=tuple(args.board_origin),
+                                 board_rotation=args.board_rotation)
+    cal.save(args.output)
+    summary = {"output": str(args.output), "views": cal.views,
+               "focal_px": round(cal.focal_px, 3),
+               "reprojection_rms_px": round(cal.reprojection_rms_px, 4),
+               "table_rms_mm": round(cal.table_rms_mm, 4),
+               "mm_per_px": round(cal.mm_per_px(), 5)}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"wrote {args.output}: {cal.views} views, reprojection RMS "
+              f"{cal.reprojection_rms_px:.3f} px, table RMS {cal.table_rms_mm:.3f} mm, "
+              f"{cal.mm_per_px():.4f} mm/px at the centre")
+    return 0
