@@ -89,7 +89,12 @@ class Piece:
     size: str | None = None
 
     def __post_init__(self) -> None:
-        self.outline = ccw_ring(self.outline)
+        try:
+            self.outline = ccw_ring(self.outline)
+        except ValueError as exc:
+            raise ValueError(f"piece {self.name!r}: {exc}") from None
+        if not shapely.Polygon(self.outline).is_valid:
+            raise ValueError(f"piece {self.name!r}: the outline crosses itself")
         if int(self.quantity) < 1:
             raise ValueError(f"piece {self.name!r}: quantity must be at least 1")
         self.quantity = int(self.quantity)
@@ -201,10 +206,15 @@ def load_esicup(path: str | Path) -> NestProblem:
     pieces = []
     for it in d["items"]:
         shape = it.get("shape", {})
+        if "data" not in shape or "id" not in it:
+            raise ValueError(f"{path}: item {it.get('id', '?')} lacks an id or shape data")
         if shape.get("type", "simple_polygon") != "simple_polygon":
             raise ValueError(f"{path}: item {it.get('id')}: only simple_polygon shapes are read")
         orient = it.get("allowed_orientations")
-        pieces.append(Piece(str(it["id"]), np.asarray(shape["data"], float),
-                            quantity=int(it.get("demand", 1)),
-                            orientations=None if orient is None else tuple(orient)))
+        try:
+            pieces.append(Piece(str(it["id"]), np.asarray(shape["data"], float),
+                                quantity=int(it.get("demand", 1)),
+                                orientations=None if orient is None else tuple(orient)))
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
     return NestProblem(pieces, float(d["strip_height"]), name=d.get("name", path.stem))

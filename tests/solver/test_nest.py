@@ -114,6 +114,17 @@ def test_keepout_and_window_are_respected():
         nest(NestProblem([l_piece(quantity=6)], width=60.0, length=40.0), time_limit=1)
 
 
+def test_bad_pieces_are_refused_with_their_name(tmp_path):
+    with pytest.raises(ValueError, match="'bow'.*crosses itself"):
+        Piece("bow", [[0, 0], [10, 10], [10, 0], [0, 10]])
+    with pytest.raises(ValueError, match="'dot'.*at least 3"):
+        Piece("dot", [[0, 0], [1, 1]])
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"strip_height": 10, "items": [{"id": 0, "shape": {}}]}))
+    with pytest.raises(ValueError, match="bad.json: item 0 lacks"):
+        load_esicup(bad)
+
+
 def test_covering_radius():
     assert covering_radius(np.eye(2) * 2) == pytest.approx(np.sqrt(2))
     hexa = np.array([[1.0, -0.5], [0.0, np.sqrt(3) / 2]])
@@ -162,6 +173,12 @@ def test_mirrored_copy_on_a_print_uses_a_mirror_of_the_print():
     assert verify_layout(layout, problem) == []
     _assert_moves_are_symmetries(layout, problem)
     assert sum(p.mirrored for p in layout.pieces) == 2
+    # a flaw and a short table on the same print: still symmetries only, clear of the flaw
+    flaw = np.array([[5, 5], [35, 5], [35, 30], [5, 30]], float)
+    problem.keepouts, problem.length = [flaw], 120.0
+    layout = nest(problem, time_limit=2, seed=0)
+    assert verify_layout(layout, problem) == []
+    _assert_moves_are_symmetries(layout, problem)
     with pytest.raises(ValueError, match="no operation"):
         NestProblem([l_piece(mirrored_pair=True)], width=70.0,
                     fabric=Wallpaper("p1", (8.0, 0.0), (0.0, 6.0))).items()
