@@ -175,9 +175,12 @@ def _knife_stroke(w: _Writer, path: FittedPath) -> None:
     w.emit(f"G0 Z{_num(kn.z_up)}")
 
 
-def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: str = "station job"
-                  ) -> Program:
-    """The G-code program for the toolpaths, validated against ``machine`` (ProgramError)."""
+def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: str = "station job",
+                  source: str = "<program>") -> Program:
+    """The G-code program for the toolpaths, validated against ``machine`` (ProgramError).
+
+    A refusal names ``source`` (the layout file), the program line and the piece it cuts.
+    """
     w = _Writer(machine)
     c = machine.cut
     laser = machine.tool == "laser"
@@ -218,7 +221,18 @@ def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: st
     w.rapid_to(np.asarray(machine.park))
     w.emit("M2")
     prog = Program(w.lines, pieces, warnings=warnings)
-    prog.check = validate(prog.lines, machine)
+    try:
+        prog.check = validate(prog.lines, machine, f"{source}: program line")
+    except ProgramError as exc:
+        msg = str(exc).replace("program line:", "program line ", 1)
+        line = int(re.match(r".*?program line (\d+):", msg).group(1)) - 1
+        piece = next((p for p in pieces if p.first_line <= line <= p.last_line), None)
+        if piece is not None:
+            msg += f" (piece {piece.id})"
+        if "outside the work area" in msg:
+            msg += "; the layout's origin places the fabric on the table, leave room for " \
+                   "the kerf and lead-ins"
+        raise ProgramError(msg) from None
     return prog
 
 

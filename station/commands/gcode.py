@@ -53,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     layout = load_layout(args.layout)
     only = {s.strip() for s in args.pieces.split(",") if s.strip()} if args.pieces else None
     toolpaths = build_toolpaths(layout, machine, only=only)
-    program = build_program(toolpaths, machine, title=f"station job {layout.source}")
+    program = build_program(toolpaths, machine, title=f"station job {layout.source}",
+                            source=str(args.layout))
     program.write(args.output)
     summary = program.summary()
     summary.update({

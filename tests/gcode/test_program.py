@@ -183,8 +183,11 @@ def test_only_some_pieces():
 def test_refuses_pieces_outside_the_work_area():
     data = make_layout(origin=(1500.0, 0.0))
     machine = default_machine()
-    with pytest.raises(ProgramError, match="outside the work area"):
-        build_program(build_toolpaths(layout_from_dict(data, "far.json"), machine), machine)
+    with pytest.raises(ProgramError, match="outside the work area") as exc:
+        build_program(build_toolpaths(layout_from_dict(data, "far.json"), machine), machine,
+                      source="far.json")
+    assert str(exc.value).startswith("far.json: program line ")
+    assert "(piece " in str(exc.value)
 
 
 HEAD = ["G21 G90 G94 G17", "M5", "G0 X10 Y10"]
