@@ -405,6 +405,7 @@ class Streamer:
                 while acked < len(stream):
                     now = time.monotonic()
                     if self._stop:
+                        self._stop = False  # consumed: the next run starts afresh
                         raise _Fault("stopped", "stopped by the operator")
                     if self._pause:
                         self._pause = False
