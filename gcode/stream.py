@@ -343,6 +343,13 @@ class Streamer:
             if len(code) > 79 or len(code) + 1 > self.budget:
                 raise StreamError(f"{self.prefix}line {i + 1} is longer than GRBL accepts "
                                   f"({len(code)} characters): {code!r}")
+        st = self.query_status(1.0)
+        if st is not None and st.state == "Alarm":
+            raise StreamError(f"{self.prefix}controller is in ALARM: home ($H) or unlock ($X) "
+                              "it first")
+        if st is not None and st.state == "Check" and not check:
+            # in check mode every line is answered ok and nothing moves: no piece would be cut
+            raise StreamError(f"{self.prefix}controller is in check mode ($C); leave it first")
         pos_of_line = {i: k for k, (i, _) in enumerate(stream)}
         pieces = [PieceState(p.number, p.id, p.name, p.sync_line) for p in program.pieces]
         sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)

@@ -339,6 +339,18 @@ def test_streamer_refuses_dangerous_lines_before_sending(line):
     port.close()
 
 
+def test_refuses_to_cut_in_check_mode(job):
+    """A controller left in $C would answer ok to everything without moving."""
+    port = open_emulator()
+    st = Streamer(port)
+    st.connect()
+    r, pushed = st.command("$C")
+    assert r.kind == "ok" and any("Enabled" in (p.text or "") for p in pushed)
+    with pytest.raises(StreamError, match="check mode"):
+        st.run(job)
+    port.close()
+
+
 def test_no_banner_is_an_error():
     class Silent:
         timeout = 0.01
