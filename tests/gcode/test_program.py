@@ -235,3 +235,33 @@ def test_parse_pieces_faults():
         parse_pieces(["(piece 1 begin a a)", "G0 X1 Y1", "(piece 1 end)"], "x.nc")
     with pytest.raises(ProgramError, match="no end marker"):
         parse_pieces(["(piece 1 begin a a)", "G4 P0.01"], "x.nc")
+
+
+@pytest.mark.parametrize("kind", ["slit", "v"])
+def test_notches_run_into_the_piece(kind):
+    """Each notch starts (or ends) on the cut line and reaches notch_depth into the piece,
+    whichever sense the layout gave its direction."""
+    machine = default_machine().with_cut(notch=kind, notch_depth=3.0, notch_width=2.0)
+    tps = build_toolpaths(layout_from_dict(LAYOUT, "t"), machine)
+    polys = piece_polygons(LAYOUT)
+    n_notches = 0
+    for tp in tps:
+        piece = polys[tp.id]
+        for c in tp.contours:
+            if c.kind != "notch":
+                continue
+            n_notches += 1
+            pts = c.points
+            assert len(pts) == (2 if kind == "slit" else 3)
+            if kind == "slit":
+                apex, mouth = (pts[0], pts[1]) if piece.contains(shapely.Point(pts[0])) \
+                    else (pts[1], pts[0])
+            else:
+                apex, mouth = pts[1], (pts[0] + pts[2]) / 2
+                assert np.hypot(*(pts[0] - pts[2])) == pytest.approx(2.0, abs=1e-6)
+            # notch_depth into the piece from the outline, opening on the kerf line outside
+            assert piece.contains(shapely.Point(apex))
+            assert not piece.contains(shapely.Point(mouth))
+            assert np.hypot(*(apex - mouth)) == pytest.approx(3.0 + machine.cut.kerf / 2)
+            assert piece.exterior.distance(shapely.Point(mouth)) <= machine.cut.kerf / 2 + 1e-9
+    assert n_notches == 4
