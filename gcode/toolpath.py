@@ -334,10 +334,12 @@ def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarra
             strokes.extend(_fit(s, machine) for s in _corner_split(run, machine.knife.corner_angle))
         tp.contours.append(Contour("outline", True, strokes, ring))
     else:
-        lead_room = gap / 2 - c.kerf if gap > 0 else c.lead_in
-        waste = None if gap <= 0 else Polygon(ring).buffer(max(lead_room, 0.0) + 1e-6).difference(
-            Polygon(ring))
-        closed = _lead_in(ring, min(c.lead_in, max(lead_room, 0.0)), waste)
+        # the lead-in stays in this piece's half of the gap, clear of the neighbour's kerf
+        lead_room = max(gap / 2 - c.kerf, 0.0)
+        if c.lead_in > 0 and lead_room <= 0:
+            tp.warnings.append(f"piece {piece.id}: no lead-in, the layout leaves no gap for it")
+        waste = Polygon(ring).buffer(lead_room + 1e-6).difference(Polygon(ring))
+        closed = _lead_in(ring, min(c.lead_in, lead_room), waste)
         tp.contours.append(_contour("outline", True, closed, machine))
     return tp
 

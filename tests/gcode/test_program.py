@@ -265,3 +265,19 @@ def test_notches_run_into_the_piece(kind):
             assert np.hypot(*(apex - mouth)) == pytest.approx(3.0 + machine.cut.kerf / 2)
             assert piece.exterior.distance(shapely.Point(mouth)) <= machine.cut.kerf / 2 + 1e-9
     assert n_notches == 4
+
+
+def test_no_lead_in_without_a_gap():
+    """With touching pieces a lead-in would cut the neighbour: none, and a warning."""
+    data = dict(make_layout(), gap=0)
+    machine = default_machine().with_cut(lead_in=2.0)
+    prog = build_program(build_toolpaths(layout_from_dict(data, "t"), machine), machine)
+    assert len(prog.warnings) == 3 and all("no lead-in" in w for w in prog.warnings)
+    polys = piece_polygons(data)
+    for pr in prog.pieces:
+        last_g0 = max(i for i in range(pr.first_line, pr.sync_line)
+                      if prog.lines[i].startswith("G0"))
+        x, y = (float(t[1:]) for t in prog.lines[last_g0].split()[1:3])
+        # the outline starts on its own cut line (kerf/2 outside), not further out
+        assert polys[pr.id].exterior.distance(shapely.Point(x, y)) == pytest.approx(
+            machine.cut.kerf / 2, abs=0.01)
