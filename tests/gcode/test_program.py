@@ -274,10 +274,11 @@ def test_no_lead_in_without_a_gap():
     prog = build_program(build_toolpaths(layout_from_dict(data, "t"), machine), machine)
     assert len(prog.warnings) == 3 and all("no lead-in" in w for w in prog.warnings)
     polys = piece_polygons(data)
+    moves = trace(prog.lines)
     for pr in prog.pieces:
-        last_g0 = max(i for i in range(pr.first_line, pr.sync_line)
-                      if prog.lines[i].startswith("G0"))
-        x, y = (float(t[1:]) for t in prog.lines[last_g0].split()[1:3])
+        last_m4 = max(i for i in range(pr.first_line, pr.sync_line)
+                      if prog.lines[i].startswith("M4"))
+        x, y = next(m for m in moves if m["line"] > last_m4)["pts"][0]
         # the outline starts on its own cut line (kerf/2 outside), not further out
         assert polys[pr.id].exterior.distance(shapely.Point(x, y)) == pytest.approx(
             machine.cut.kerf / 2, abs=0.01)
