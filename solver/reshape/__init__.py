@@ -12,11 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from solver.reshape.ideal import IdealSeams, ideal_seams
-from solver.reshape.optimise import (
-    OptimiseResult,
+from solver.reshape.optimise import (  # the driver optimise() stays in its module, so
+    OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module
     OptimiseState,
     ReshapeOptions,
-    optimise,
     optimise_step,
 )
 from solver.reshape.report import ReshapeReport, reshape_report
@@ -28,7 +27,6 @@ __all__ = [
     "ReshapeOptions",
     "ReshapeReport",
     "ideal_seams",
-    "optimise",
     "optimise_step",
     "reshape",
     "reshape_report",
@@ -41,5 +39,7 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
                          f"has {garment.n_pieces}")
+    from solver.reshape.optimise import optimise
+
     result = optimise(garment, placement, fixed=fixed, options=options)
     return garment.with_uv(result.uv), reshape_report(garment, placement, result)
