@@ -233,6 +233,11 @@ class Streamer:
             if now - start > self.banner_timeout:
                 raise StreamError(f"{self.prefix}no GRBL banner within {self.banner_timeout:g} s")
             if reset_if_silent and not reset_sent and now - start > quiet:
+                # never reset a machine in motion (ALARM:3, position lost): ask first
+                st = self.query_status(0.5)
+                if st is not None and st.state in ("Run", "Jog", "Home"):
+                    raise StreamError(f"{self.prefix}controller busy ({st.state}): another "
+                                      "sender's job is still moving the machine")
                 self._write(SOFT_RESET)
                 reset_sent = True
             for line in self._read_lines():

@@ -351,6 +351,19 @@ def test_refuses_to_cut_in_check_mode(job):
     port.close()
 
 
+def test_connect_never_resets_a_moving_machine(job):
+    port = open_emulator(speed=1)
+    st = Streamer(port)
+    st.connect()
+    port.write(b"G21G90G0X500Y500\n")  # someone else's move, about 5 s long at speed 1
+    time.sleep(0.3)
+    again = Streamer(port)
+    with pytest.raises(StreamError, match="busy"):
+        again.connect(quiet=0.1)
+    assert port.emulator.state == "Run" and not port.emulator.state.startswith("Alarm")
+    port.close()
+
+
 def test_no_banner_is_an_error():
     class Silent:
         timeout = 0.01
