@@ -58,35 +58,90 @@ class StationPipeline:
         if job.fabric is not None:
             shutil.copyfile(job.fabric, target)
             return str(target)
-        frame, mm_per_px, origin = self._photograph(workdir)
-        control.checkpoint()
-        from vision.detect import detect_fabric
-
-        result = detect_fabric(frame, mm_per_px=mm_per_px, origin=origin)
-        if result.get("group") is None:
-            raise ValueError("no periodic print found on the table: give the job a FABRIC.json")
-        target.write_text(json.dumps(result, indent=2))
-        return str(target)
-
-    def _photograph(self, workdir: Path):
         import cv2
-        from vision.camera import open_camera
 
-        with open_camera(self.config, simulate=self.simulate) as camera:
-            frame = camera.read()
-            rectified, mm_per_px, origin = camera.rectified(frame)
+        control.progress.update(step="photographing")
+        frame, rectified, mm_per_px, truth = self._photograph()
         cv2.imwrite(str(workdir / "frame.png"), frame)
         cv2.imwrite(str(workdir / "rectified.png"), rectified)
-        return rectified, mm_per_px, origin
+        camera = {"mm_per_px": mm_per_px, "frame": str(workdir / "frame.png"),
+                  "rectified": str(workdir / "rectified.png"),
+                  "truth": (truth.wallpaper.to_dict()
+                            if truth is not None and truth.wallpaper is not None else None)}
+        control.checkpoint()
+        control.progress.update(step="detecting")
+        try:
+            from vision.pipeline import detect_fabric, draw_overlay
+        except ImportError as exc:  # vision not installed: only the simulator can stand in
+            if truth is None or truth.wallpaper is None:
+                raise
+            log.error("VISION UNAVAILABLE (%s): using the simulated camera's known print", exc)
+            fabric = {**truth.wallpaper.to_dict(),
+                      "source": "simulator truth: vision unavailable"}
+        else:
+            detection = detect_fabric(rectified, mm_per_px=mm_per_px)
+            cv2.imwrite(str(workdir / "detection.png"), draw_overlay(rectified, detection))
+            fabric = {**detection.fabric_json(), "source": "detected"}
+            camera["detection"] = detection.summary()
+            if fabric["group"] is None:
+                raise ValueError("no periodic print found on the table "
+                                 f"({detection.lattice.message or detection.lattice.kind}): "
+                                 "give the job a FABRIC.json")
+        (workdir / "camera.json").write_text(json.dumps(camera, indent=2, default=float))
+        target.write_text(json.dumps(fabric, indent=2, default=float))
+        return str(target)
+
+    def _photograph(self):
+        """(frame, rectified fabric area, mm per pixel, truth or None).
+
+        The rectified image covers the usable fabric (nest length x width) from the
+        fabric's corner on the table, so its pixel (c, r) is fabric point (c, r) * mm/px:
+        what is detected there is in the fabric's own millimetres, as nesting wants.
+        """
+        from vision.camera import open_camera
+
+        c, n = self.config["camera"], self.config["nest"]
+        ox, oy = (float(v) for v in self.config["machine"]["fabric_origin"])
+        region = (ox, oy, ox + n["length_mm"], oy + n["width_mm"])
+        if self.simulate or c["source"] == "simulated":
+            camera = open_camera(simulate=True, sim_factory=lambda: simulated_camera(
+                self.config), average=c["frames"])
+        else:
+            camera = open_camera(c["source"], average=c["frames"])
+        with camera:
+            frame = camera.read()
+            truth = getattr(camera, "truth", None)
+        if c["calibration"]:
+            from vision.calibration import Calibration
+            from vision.rectify import rectify
+
+            rectified, _region, mm_per_px = rectify(
+                frame, Calibration.load(self.config.resolve(c["calibration"])), region=region)
+        elif truth is not None:
+            mm_per_px = float(truth.mm_per_px)
+            rectified = truth.rectify(frame, region, mm_per_px)
+        else:
+            raise ValueError("camera.calibration is empty: calibrate the camera "
+                             "(station calibrate) or use the simulated camera")
+        if truth is not None and (ox, oy) != (0.0, 0.0):
+            truth = None  # its print is in table mm; the station speaks fabric mm
+        return frame, rectified, mm_per_px, truth
 
     # ------------------------------------------------------------------ plan
     def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl) -> dict[str, Any]:
-        """Align, optionally reshape, nest and program; every result is a file in workdir."""
+        """Align, optionally reshape, nest and program; every result is a file in workdir.
+
+        Pictures for people go beside them: the pattern over the print before alignment,
+        aligned and reshaped (seams coloured by mismatch), the marker on the fabric photo
+        and the toolpath; report.json holds the numbers and the time of each step.
+        """
+        import cv2
+
         from solver.fit import fit_report
         from solver.garment import load_garment, save_obj
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
-        from station.render import draw_fit
+        from station.render import draw_fit, draw_marker, draw_toolpath
 
         garment = load_garment(job.garment, units=job.options.get("units"))
         wallpaper = Wallpaper.load(fabric)
@@ -94,9 +149,25 @@ class StationPipeline:
         garment_path = workdir / "garment.obj"
         save_obj(garment, garment_path)
         garment = load_garment(garment_path)
-        report: dict[str, Any] = {}
+        fabric_doc = json.loads(Path(fabric).read_text())
+        report: dict[str, Any] = {"job": job.id, "garment": job.garment,
+                                  "fabric": {k: fabric_doc.get(k) for k in (
+                                      "group", "w1", "w2", "origin", "source", "confidence")},
+                                  "seconds": {}}
+        clock = time.perf_counter()
+
+        def lap(step: str) -> None:
+            nonlocal clock
+            now = time.perf_counter()
+            report["seconds"][step] = round(now - clock, 3)
+            clock = now
+
         before = Placement.identity(garment.n_pieces, wallpaper)
-        report["e_fit_identity_mm2"] = fit_report(garment, before).e_fit_mm2
+        identity = fit_report(garment, before)
+        report["e_fit_identity_mm2"] = identity.e_fit_mm2
+        colour_of = photo_colours(workdir, wallpaper)
+        draw_fit(garment, before, identity, workdir / "fit-before.png",
+                 title=f"before alignment on {wallpaper.group}", colour_of=colour_of)
         control.progress.update(step="aligning", fraction=0.0)
 
         def on_restart(k: int, n: int, _e_random: float, _e_aligned: float) -> None:
@@ -107,11 +178,15 @@ class StationPipeline:
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
+        final_fit = aligned
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
-                 title=f"aligned on {wallpaper.group}")
+                 title=f"aligned on {wallpaper.group}", colour_of=colour_of)
+        lap("align")
+        self._write_report(workdir, report)
         control.checkpoint()
+        aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
-            control.progress.update(step="reshaping")
+            control.progress.update(step="reshaping", fraction=None)
             from solver.reshape import reshape
 
             garment, reshaped = reshape(garment, placement)
@@ -119,26 +194,65 @@ class StationPipeline:
             save_obj(garment, garment_path)
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
-            draw_fit(garment, placement, fit_report(garment, placement),
-                     workdir / "fit-reshaped.png", title=f"reshaped on {wallpaper.group}")
+            final_fit = fit_report(garment, placement)
+            draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
+                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of)
+            lap("reshape")
+            self._write_report(workdir, report)
             control.checkpoint()
         placement.save(workdir / "placement.json")
-        control.progress.update(step="nesting")
-        layout = nest_placement(workdir / "placement.json", self.config)
+        seconds = self.config["nest"]["seconds"]
+        control.progress.update(step="nesting", fraction=0.0)
+        t_nest = time.monotonic()
+
+        def on_nest(_message: str) -> None:
+            control.progress.update(step="nesting", fraction=min(
+                1.0, (time.monotonic() - t_nest) / seconds))
+
+        try:
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+        except ValueError as exc:
+            if garment is aligned_garment:
+                raise
+            # A reshaped outline the cutter cannot use (e.g. crossing itself) must not stop
+            # the job: cut the aligned pattern, and say so.
+            log.error("job %d: the reshaped pattern cannot be nested (%s); cutting the "
+                      "aligned pattern instead", job.id, exc)
+            report["reshape"]["rejected"] = f"not used for cutting: {exc}"
+            garment, garment_path, final_fit = aligned_garment, aligned_path, aligned
+            placement.garment = str(garment_path)
+            placement.save(workdir / "placement.json")
+            t_nest = time.monotonic()
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
         layout.save(workdir / "layout.json")
         report["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                           "density": layout.density, "pieces": len(layout.pieces)}
+        lap("nest")
+        self._write_report(workdir, report)
         control.checkpoint()
-        control.progress.update(step="programming")
+        control.progress.update(step="programming", fraction=None)
         program = self.program_for(workdir / "layout.json", None)
         program.write(workdir / "job.nc")
         report["program"] = program.summary()
-        (workdir / "report.json").write_text(json.dumps(report, indent=2, default=float))
+        draw_toolpath(program, self.machine, workdir / "toolpath.png")
+        photo = cv2.imread(str(workdir / "rectified.png"))
+        mm_per_px = 1.0
+        if photo is not None:
+            mm_per_px = json.loads((workdir / "camera.json").read_text())["mm_per_px"]
+        draw_marker(layout.to_dict(), workdir / "marker.png", garment=garment, report=final_fit,
+                    photo=photo, photo_mm_per_px=mm_per_px)
+        lap("program")
+        self._write_report(workdir, report)
         return {"fabric": fabric, "garment": str(garment_path),
                 "placement": str(workdir / "placement.json"),
                 "layout": str(workdir / "layout.json"), "program": str(workdir / "job.nc"),
                 "report": str(workdir / "report.json"),
                 "pieces": [p.id for p in layout.pieces]}
+
+    @staticmethod
+    def _write_report(workdir: Path, report: dict[str, Any]) -> None:
+        """report.json after every step, so a failed job still shows what it got to."""
+        (workdir / "report.json").write_text(json.dumps(report, indent=2, default=float))
 
     def program_for(self, layout_path: str | Path, only: set[str] | None):
         from gcode.layout import load_layout
@@ -209,6 +323,12 @@ class StationPipeline:
             todo = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
             if not todo:
                 return
+            # What the marker said is in the store now: clear it, so that a piece cut again
+            # cannot be judged by a marker its earlier, interrupted attempt left.
+            cleared, _ = streamer.command(f"G10 L2 P{MARKER_SYSTEM} X0 Y0 Z0")
+            if cleared.kind != "ok":
+                raise RuntimeError(f"the controller refused to clear the piece marker: "
+                                   f"{cleared.raw}")
             program = with_markers(self.program_for(plan["layout"], todo), job.id, index)
 
             def on_piece(piece) -> None:
@@ -298,6 +418,50 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
+def photo_colours(workdir: Path, wallpaper):
+    """Colours of the print as photographed (None without a photo): any fabric point is
+    moved by whole lattice vectors into the middle of the photo and sampled there, so
+    the pictures show the real cloth rather than a stand-in print."""
+    import cv2
+
+    photo = cv2.imread(str(workdir / "rectified.png"))
+    camera = workdir / "camera.json"
+    if photo is None or not camera.is_file():
+        return None
+    s = float(json.loads(camera.read_text())["mm_per_px"])
+    h, w = photo.shape[:2]
+    centre = np.array([w, h], float) * s / 2
+    base = wallpaper.to_fractional(centre[None])[0]
+
+    def colour_of(points: np.ndarray) -> np.ndarray:
+        f = wallpaper.to_fractional(np.asarray(points, float))
+        f = base - 0.5 + (f - base + 0.5) % 1.0
+        px = wallpaper.to_cartesian(f) / s
+        n, width = len(px), 4096
+        rows = -(-n // width)
+        grid = np.zeros((rows * width, 2), np.float32)
+        grid[:n] = px
+        grid = grid.reshape(rows, width, 2)
+        out = cv2.remap(photo, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REFLECT)
+        return out.reshape(-1, 3)[:n]
+
+    return colour_of
+
+
+def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float = 80.0,
+                     seed: int = 3):
+    """The dry run's camera: a plaid sheet covering the usable fabric, seen from above."""
+    from simulators.camera import Sheet, SyntheticCamera
+    from simulators.classics import classic_print
+
+    n = config["nest"]
+    ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
+    sheet = Sheet(classic_print(print_name, repeat_mm, origin=(13.0, 21.0)),
+                  size=(n["length_mm"], n["width_mm"]), shift=(ox, oy))
+    return SyntheticCamera(sheet, seed=seed)
+
+
 def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                   progress=None):
     """The best placement of the print on every piece (solver.align).
@@ -316,7 +480,7 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                  progress=progress)
 
 
-def nest_placement(placement_path: Path, config: Config):
+def nest_placement(placement_path: Path, config: Config, progress=None):
     """Nest the aligned pieces on the fabric in view, each kept on its print position."""
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
@@ -325,7 +489,7 @@ def nest_placement(placement_path: Path, config: Config):
     n = config["nest"]
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
                            gap=n["gap_mm"])
-    layout = nest(problem, time_limit=n["seconds"], seed=0)
+    layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")
@@ -365,7 +529,10 @@ def with_markers(program, job_id: int, index: dict[str, int]):
     * phase 1, before the final move: written only once every move but the final one
       has run; while it stands, nothing but the final move can move the head;
     * phase 2, after the final move: written only once the final move has run, and no
-      line of the next piece is sent before it is answered.
+      line of the next piece is sent before it is answered;
+    * cleared (zeros) before every stream, once the store holds what it said: a piece cut
+      again must not be judged by the marker of its interrupted earlier attempt (whose
+      head position at the contour's start would look like a finished final move).
 
     On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
     any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at

@@ -212,3 +212,91 @@ def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
                 colour = tuple(int(v) for v in palette[lv])
                 cv2.polylines(image, list(segments[level[mine] == lv]), False, colour, 3,
                               cv2.LINE_AA, shift=4)
+
+
+def program_paths(program) -> list[tuple[bool, int, np.ndarray]]:
+    """Every move of a G-code program as (beam/tool on, piece number or 0, (k, 2) points).
+
+    Arcs are sampled 1 mm apart; only the words the program checker accepts occur.
+    """
+    import re
+
+    from gcode.program import strip_comment
+
+    piece_at = {}
+    for r in program.pieces:
+        for k in range(r.first_line, r.last_line + 1):
+            piece_at[k] = r.number
+    pos: np.ndarray | None = None
+    on = False
+    out: list[tuple[bool, int, np.ndarray]] = []
+    for k, line in enumerate(program.lines):
+        code = strip_comment(line).upper().replace(" ", "")
+        if not code or code.startswith("G10"):
+            continue
+        w = {a: float(b) for a, b in re.findall(r"([A-Z])([-+]?[0-9.]+)", code)}
+        if code.startswith(("M3", "M4")):
+            on = w.get("S", 1.0) > 0
+        elif code.startswith("M5"):
+            on = False
+        motion = re.match(r"G0?([0-3])(?![0-9])", code)
+        if motion is None or ("X" not in w and "Y" not in w):
+            continue
+        here = pos if pos is not None else np.array([w.get("X", 0.0), w.get("Y", 0.0)])
+        target = np.array([w.get("X", here[0]), w.get("Y", here[1])])
+        g = int(motion.group(1))
+        if g in (2, 3):
+            c = here + [w.get("I", 0.0), w.get("J", 0.0)]
+            a0 = np.arctan2(*(here - c)[::-1])
+            a1 = np.arctan2(*(target - c)[::-1])
+            sweep = (a1 - a0) % (2 * np.pi) if g == 3 else -((a0 - a1) % (2 * np.pi))
+            if abs(sweep) < 1e-9:
+                sweep = 2 * np.pi if g == 3 else -2 * np.pi
+            r = float(np.hypot(*(here - c)))
+            a = a0 + sweep * np.linspace(0, 1, max(2, int(abs(sweep) * r) + 1))
+            pts = c + r * np.c_[np.cos(a), np.sin(a)]
+        else:
+            pts = np.array([here, target])
+        out.append((on and g != 0, piece_at.get(k, 0), pts))
+        pos = target
+    return out
+
+
+def draw_toolpath(program, machine, path: str | Path, *, width_px: int = 1600) -> np.ndarray:
+    """The program over the machine's work area: cuts coloured by piece (numbered in cut
+    order), rapid travel as thin grey lines, the totals in the banner."""
+    x0, y0, x1, y1 = machine.work_area
+    scale = width_px / float(x1 - x0)
+    height_px = max(1, int(np.ceil((y1 - y0) * scale)))
+    banner = 40
+    image = np.full((height_px + banner, width_px, 3), 250, np.uint8)
+    cv2.rectangle(image, (0, banner), (width_px - 1, banner + height_px - 1), (180, 180, 180), 1)
+
+    def to_px(p: np.ndarray) -> np.ndarray:
+        return np.round(np.column_stack([(p[:, 0] - x0) * scale,
+                                         (p[:, 1] - y0) * scale + banner]) * 16).astype(np.int32)
+
+    hues = np.linspace(0, 179, 13)[:-1].astype(np.uint8)
+    firsts: dict[int, np.ndarray] = {}
+    for on, piece, pts in program_paths(program):
+        if not on:
+            cv2.polylines(image, [to_px(pts)], False, (170, 170, 170), 1, cv2.LINE_AA, shift=4)
+            continue
+        hsv = np.uint8([[[hues[(piece * 5) % len(hues)], 220, 190]]])
+        colour = tuple(int(v) for v in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
+        cv2.polylines(image, [to_px(pts)], False, colour, 2, cv2.LINE_AA, shift=4)
+        firsts.setdefault(piece, pts[0])
+    for piece, p in firsts.items():
+        q = (to_px(p[None])[0] / 16).astype(int)
+        cv2.circle(image, tuple(q), 4, (0, 0, 0), -1, cv2.LINE_AA)
+        cv2.putText(image, str(piece), tuple(q + [6, -6]), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                    (0, 0, 0), 1, cv2.LINE_AA)
+    summary = program.summary()
+    text = (f"toolpath: {summary['pieces']} pieces, cut {summary['cut_length_mm'] or 0:.0f} mm, "
+            f"travel {summary['travel_length_mm'] or 0:.0f} mm, "
+            f"about {(summary['estimated_seconds'] or 0) / 60:.1f} min")
+    cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
+                cv2.LINE_AA)
+    if not cv2.imwrite(str(path), image):
+        raise ValueError(f"{path}: cannot write the picture")
+    return image

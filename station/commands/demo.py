@@ -1,0 +1,271 @@
+"""`station demo`: one whole job on the simulated station, through the real daemon.
+
+A daemon (the same `Daemon` and `StationPipeline` as `station serve --simulate`) runs in
+this process with a job store and control socket in a temporary folder; the demo submits
+the example garment over the socket like the console does, follows it with progress bars,
+and copies what the job produced into the output folder. Nothing here plans or cuts by
+itself, so the demo proves the product rather than a parallel script.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
+
+#: What the demo leaves in --out, from the job's folder (missing optional ones are named).
+FILES = {
+    "frame.png": "camera frame",
+    "rectified.png": "frame rectified onto the fabric (mm grid)",
+    "detection.png": "detection overlay: lattice and symmetry elements",
+    "fit-before.png": "pattern on the print before alignment, seams by mismatch",
+    "fit-aligned.png": "pattern aligned",
+    "fit-reshaped.png": "pattern aligned and reshaped",
+    "marker.png": "the marker on the fabric photo, seams by mismatch",
+    "toolpath.png": "the toolpath",
+    "job.nc": "the G-code",
+    "fabric.json": "the print as detected (FABRIC.json)",
+    "placement.json": "the alignment (PLACEMENT.json)",
+    "layout.json": "the marker (LAYOUT.json)",
+}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "demo", help="run one whole job on the simulated station",
+        description="Photograph a simulated plaid with the synthetic camera, detect its "
+        "print, align, reshape and nest the example t-shirt, and cut it on the GRBL "
+        "emulator, all through the station daemon; write every picture, the G-code and a "
+        "report to --out and print a summary.")
+    p.add_argument("--out", default="demo-out", metavar="DIR", help="output folder")
+    p.add_argument("--garment", default=str(EXAMPLE), help="garment (default: the example "
+                   "Berkeley t-shirt, in metres)")
+    p.add_argument("--units", default="m", choices=("m", "cm", "mm", "in"))
+    p.add_argument("--restarts", type=int, default=8, help="alignment restarts")
+    p.add_argument("--nest-seconds", type=float, default=20.0, help="time for nesting")
+    p.add_argument("--no-reshape", action="store_true", help="skip reshaping")
+    p.add_argument("--speed", type=float, default=20.0,
+                   help="emulated machine's speed-up (simulated s per wall s)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import logging
+
+    from station.config import SCHEMA, load_config
+    from station.control import request
+    from station.daemon import Daemon, setup_logging
+    from station.pipeline import StationPipeline
+
+    garment = Path(args.garment)
+    if not garment.is_file():
+        raise FileNotFoundError(f"{garment}: no such garment file")
+    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
+        raise ValueError("--restarts, --nest-seconds and --speed must be positive")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    setup_logging(logging.WARNING)
+    t0 = time.monotonic()
+    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
+    with tempfile.TemporaryDirectory(prefix="station-demo-") as tmp:
+        config = load_config(None, {
+            "serial": {"port": port.replace("name=station", f"name=demo-{id(args)}")},
+            "store": {"path": f"{tmp}/jobs.db", "work_dir": f"{tmp}/jobs"},
+            "control": {"socket": f"{tmp}/station.sock"},
+            "align": {"restarts": args.restarts},
+            "reshape": {"enabled": not args.no_reshape},
+            "nest": {"seconds": args.nest_seconds},
+        })
+        daemon = Daemon(config, StationPipeline(config, simulate=True))
+        daemon.recover()
+        daemon.control.start()
+        worker = threading.Thread(target=daemon.run_loop, name="daemon", daemon=True)
+        worker.start()
+        sock = daemon.control.path
+        try:
+            job = request(sock, "submit", garment=str(garment.resolve()), fabric=None,
+                          options={"units": args.units})["job"]["id"]
+            print(f"station demo: job {job} submitted to the simulated station "
+                  f"(store and socket in {tmp})", file=sys.stderr)
+            status = follow(sock, job)
+            events = request(sock, "log", job=job, limit=100000)["events"]
+        finally:
+            daemon.shutdown()
+            worker.join(30)
+            daemon.control.stop()
+        workdir = Path(tmp) / "jobs" / f"job-{job}"
+        copied = [name for name in FILES if (workdir / name).is_file()]
+        for name in copied:
+            shutil.copyfile(workdir / name, out / name)
+        plan_report = _read_json(workdir / "report.json")
+        camera = _read_json(workdir / "camera.json")
+        fabric = _read_json(workdir / "fabric.json")
+        daemon.store.close()
+    seconds = time.monotonic() - t0
+    summary = summarise(status, plan_report, camera, fabric, seconds)
+    missing = [name for name in FILES if name not in copied]
+    report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
+              "files": {name: FILES[name] for name in copied}, "missing": missing,
+              "events": events}
+    (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
+    print_summary(summary, out, missing)
+    return 0 if status["state"] == "done" else 1
+
+
+def follow(sock: Path, job: int) -> dict[str, Any]:
+    """Poll the daemon and draw a progress bar per step until the job ends."""
+    from station.control import request
+
+    bar = ProgressBar(sys.stderr)
+    while True:
+        status = request(sock, "status", job=job)["job"]
+        if status["state"] in ("done", "failed", "aborted", "paused"):
+            bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
+            return status
+        progress = status.get("progress") or {}
+        bar.show(progress.get("step") or status["state"], progress.get("fraction"),
+                 progress.get("seconds_left"), _pieces(status, progress))
+        time.sleep(0.2)
+
+
+def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:
+    if progress.get("step") != "cutting":
+        return ""
+    total = sum(status["pieces"].values())
+    return f"{status['pieces']['cut']}/{total} pieces"
+
+
+class ProgressBar:
+    """One line per step, redrawn in place on a terminal (a line per step otherwise)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+        self.tty = hasattr(stream, "isatty") and stream.isatty()
+        self.step: str | None = None
+        self.started = time.monotonic()
+
+    def show(self, step: str, fraction: float | None, eta: float | None, extra: str = ""
+             ) -> None:
+        now = time.monotonic()
+        if step != self.step:
+            if self.step is not None:
+                self._line(self.step, 1.0, None, f"{now - self.started:5.1f} s", final=True)
+            self.step, self.started = step, now
+            if not self.tty:
+                print(f"  {step} ...", file=self.stream, flush=True)
+        if self.tty:
+            left = f"ETA {eta:4.0f} s" if eta is not None else f"{now - self.started:5.1f} s"
+            self._line(step, fraction, left, extra)
+
+    def _line(self, step: str, fraction: float | None, left: str | None, extra: str,
+              final: bool = False) -> None:
+        if not self.tty:
+            return
+        width = 30
+        if fraction is None:  # no measure of progress: a moving block
+            k = int(time.monotonic() * 8) % width
+            bar = "." * k + "###" + "." * max(0, width - k - 3)
+            bar = bar[:width]
+            pct = "    "
+        else:
+            n = int(round(min(max(fraction, 0.0), 1.0) * width))
+            bar = "#" * n + "." * (width - n)
+            pct = f"{100 * fraction:3.0f}%"
+        text = f"\r  {step:<14} [{bar}] {pct} {left or ''} {extra}"
+        self.stream.write(text.ljust(78) + ("\n" if final else ""))
+        self.stream.flush()
+
+    def finish(self, message: str) -> None:
+        if self.step is not None:
+            self._line(self.step, 1.0, None,
+                       f"{time.monotonic() - self.started:5.1f} s", final=True)
+        print(f"  {message}", file=self.stream, flush=True)
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return {}
+
+
+def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | None:
+    """Largest distance (mm) between the detected and true lattices' reduced basis
+    vectors, matched up to order and sign (the same lattice has many bases)."""
+    import numpy as np
+
+    from solver.wallpaper import Wallpaper
+
+    try:
+        d = Wallpaper.from_dict(detected).reduced()
+        t = Wallpaper.from_dict(truth).reduced()
+    except (KeyError, TypeError, ValueError):
+        return None
+    tv = np.array([t.w1, -t.w1, t.w2, -t.w2, t.w1 + t.w2, -(t.w1 + t.w2), t.w1 - t.w2,
+                   t.w2 - t.w1])
+    return float(max(np.hypot(*(tv - v).T).min() for v in (d.w1, d.w2)))
+
+
+def summarise(status: dict[str, Any], plan: dict[str, Any], camera: dict[str, Any],
+              fabric: dict[str, Any], seconds: float) -> dict[str, Any]:
+    align = plan.get("align") or {}
+    reshape = plan.get("reshape") or {}
+    truth = camera.get("truth")
+    pieces = status.get("pieces", {})
+    return {
+        "state": status.get("state"),
+        "reason": status.get("reason"),
+        "fabric_source": fabric.get("source"),
+        "group_detected": fabric.get("group"),
+        "group_truth": truth.get("group") if truth else None,
+        "confidence": fabric.get("confidence"),
+        "lattice_error_mm": lattice_error(fabric, truth) if truth and fabric.get("group")
+        else None,
+        "e_fit_random_cm2": align.get("e_fit_random_cm2"),
+        "e_fit_aligned_cm2": align.get("e_fit_aligned_cm2"),
+        "e_fit_reshaped_cm2": (reshape["e_fit_after_mm2"] / 100.0
+                               if "e_fit_after_mm2" in reshape else None),
+        "reshape_rejected": reshape.get("rejected"),
+        "nest_density": (plan.get("nest") or {}).get("density"),
+        "pieces_cut": pieces.get("cut", 0),
+        "pieces_total": sum(pieces.values()) if pieces else 0,
+        "step_seconds": plan.get("seconds"),
+        "seconds": round(seconds, 1),
+    }
+
+
+def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
+    def num(v, fmt: str) -> str:
+        return "n/a" if v is None else format(v, fmt)
+
+    lines = [f"station demo: job {s['state']}" + (f" ({s['reason']})" if s["reason"] else "")]
+    if s["fabric_source"] != "detected":
+        lines.append("  !!! VISION UNAVAILABLE: the print below is the simulator's KNOWN TRUTH, "
+                     "not a detection !!!")
+    lines += [
+        f"  print         {s['group_detected']} detected (truth {s['group_truth']}), "
+        f"confidence {num(s['confidence'], '.2f')}, lattice error "
+        f"{num(s['lattice_error_mm'], '.2f')} mm",
+        f"  E_fit         random {num(s['e_fit_random_cm2'], '.1f')} cm^2 / aligned "
+        f"{num(s['e_fit_aligned_cm2'], '.1f')} cm^2 / reshaped "
+        f"{num(s['e_fit_reshaped_cm2'], '.2f')} cm^2",
+    ]
+    if s.get("reshape_rejected"):
+        lines.append(f"  !!! reshaped pattern {s['reshape_rejected']}; the aligned one was cut")
+    lines += [
+        f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
+        f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",
+        f"  time          {s['seconds']:.1f} s",
+        f"  files in      {out}/ (report.json has everything)",
+    ]
+    if missing:
+        lines.append(f"  not produced: {', '.join(missing)}")
+    print("\n".join(lines))
