@@ -165,7 +165,6 @@ class Streamer:
         self._pause = self._resume = self._stop = False
         self._frozen = False
         self._messages: list[str] = []
-        self._collect: list[Response] | None = None
         try:
             self.port.timeout = 0.02
         except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
