@@ -301,6 +301,13 @@ class Daemon:
         self._wake.set()
         return {"job": job.id, "message": "queued again; pieces already cut stay cut"}
 
+    def cmd_plan(self, req: dict[str, Any]) -> dict[str, Any]:
+        """The files a job's planning wrote (for `station preview`); read-only."""
+        if req.get("job") is None:
+            raise ControlError("plan needs a job number")
+        job = self.store.job(int(req["job"]))
+        return {"job": job.id, "state": job.state, "plan": job.plan}
+
     def cmd_log(self, req: dict[str, Any]) -> dict[str, Any]:
         job_id = req.get("job")
         events = self.store.events(None if job_id is None else int(job_id),

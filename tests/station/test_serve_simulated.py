@@ -1,0 +1,157 @@
+"""`station serve --simulate` as a real process, driven by the console commands.
+
+The console commands run in this process through `station.cli.main` (the same code as the
+`station` executable, without paying an interpreter start per command); the daemon is a
+subprocess with the GRBL emulator inside it, as `--simulate` configures it.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import pytest
+
+from station.cli import main
+from station.config import SCHEMA
+from station.control import ControlError, request
+from station.daemon import wait_until
+
+ROOT = Path(__file__).resolve().parents[2]
+GARMENT = ROOT / "tests" / "data" / "garments" / "berkeley" / "tshirt-coarse.obj"
+FABRIC = {"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0], "units": "mm"}
+
+
+@pytest.fixture
+def served(tmp_path):
+    port = SCHEMA["serial"]["port"].default.replace("speed=50", "speed=20")
+    config = tmp_path / "station.toml"
+    config.write_text(
+        f'[serial]\nport = "{port}"\n'
+        f'[store]\npath = "{tmp_path / "jobs.db"}"\nwork_dir = "{tmp_path / "work"}"\n'
+        f'[control]\nsocket = "{tmp_path / "station.sock"}"\n'
+        "[align]\nrestarts = 1\n[nest]\nseconds = 1.0\n")
+    log = open(tmp_path / "daemon.log", "wb")  # noqa: SIM115
+    proc = subprocess.Popen([sys.executable, "-m", "station.cli", "serve", "--simulate",
+                             "--config", str(config)], stdout=log, stderr=log, cwd=tmp_path)
+    log.close()
+    sock = tmp_path / "station.sock"
+
+    def up() -> bool:
+        try:
+            return request(sock, "ping", timeout=1.0)["pid"] == proc.pid
+        except (ControlError, OSError):
+            return False
+
+    assert wait_until(up, 60), (tmp_path / "daemon.log").read_text()
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps(FABRIC))
+    yield proc, sock, fabric, tmp_path
+    if proc.poll() is None:
+        proc.terminate()
+        proc.wait(30)
+
+
+def console(capsys, *argv: str) -> tuple[int, dict | str]:
+    """Run a console command as `station ...` would; JSON answer (or stderr on error)."""
+    capsys.readouterr()
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, (json.loads(out) if code == 0 and out.strip().startswith("{") else err)
+
+
+def test_console_drives_the_simulated_station(served, capsys):
+    proc, sock, fabric, tmp = served
+    s = ["--socket", str(sock), "--json"]
+
+    def status(job: int) -> dict:
+        code, answer = console(capsys, "status", str(job), *s)
+        assert code == 0, answer
+        return answer["job"]
+
+    # a bad job file: a clear one-line error, and nothing queued
+    bad = tmp / "broken.obj"
+    bad.write_text("v 0 0 0\nf 1 2 3\n")
+    code, err = console(capsys, "submit", str(bad), "--fabric", str(fabric), *s)
+    assert code == 2 and "station submit: error:" in err and str(bad) in err, err
+    bad_fabric = tmp / "bad.json"
+    bad_fabric.write_text("{not json")
+    code, err = console(capsys, "submit", str(GARMENT), "--fabric", str(bad_fabric), *s)
+    assert code == 2 and "bad.json" in err, err
+    assert console(capsys, "jobs", *s)[1]["jobs"] == []
+
+    code, answer = console(capsys, "submit", str(GARMENT), "--fabric", str(fabric),
+                           "--units", "m", *s)
+    assert code == 0, answer
+    job = answer["job"]["id"]
+    assert wait_until(lambda: status(job)["pieces"]["cutting"] >= 1, 120), \
+        (status(job), (tmp / "daemon.log").read_text()[-3000:])
+
+    # a second (and third...) client while cutting: every answer within a second
+    times: list[float] = []
+
+    def client() -> None:
+        t0 = time.monotonic()
+        request(sock, "status", job=job)
+        times.append(time.monotonic() - t0)
+
+    clients = [threading.Thread(target=client) for _ in range(4)]
+    for c in clients:
+        c.start()
+    for c in clients:
+        c.join()
+    assert len(times) == 4 and max(times) < 1.0, times
+    running = status(job)
+    assert running["progress"]["step"] == "cutting" and "seconds_left" in running["progress"]
+
+    # pause = feed hold in place; the machine says Hold
+    code, answer = console(capsys, "pause", str(job), *s)
+    assert code == 0 and "feed hold" in answer["message"], answer
+    assert status(job)["state"] == "paused"
+    assert wait_until(lambda: status(job)["progress"].get("machine") == "Hold", 5), status(job)
+    held = status(job)["progress"]["lines_sent"]
+    time.sleep(0.5)
+    assert status(job)["pieces"]["cut"] <= running["pieces"]["cut"] + 1
+    code, answer = console(capsys, "resume", str(job), *s)
+    assert code == 0 and status(job)["state"] == "cutting", answer
+    assert wait_until(lambda: status(job)["progress"]["lines_sent"] > held, 10)
+
+    # abort: safe stop, then retry cuts only what was not cut
+    code, answer = console(capsys, "abort", str(job), *s)
+    assert code == 0, answer
+    assert wait_until(lambda: status(job)["state"] == "aborted", 30), status(job)
+    cut_before = status(job)["pieces"]["cut"]
+    code, err = console(capsys, "retry", "999", *s)
+    assert code == 2 and "no job 999" in err
+    code, answer = console(capsys, "retry", str(job), *s)
+    assert code == 0, answer
+    assert wait_until(lambda: status(job)["state"] == "done", 120), \
+        (status(job), (tmp / "daemon.log").read_text()[-3000:])
+    final = status(job)
+    assert final["pieces"]["cut"] == sum(final["pieces"].values()) >= 4
+    code, answer = console(capsys, "log", str(job), "--limit", "1000", *s)
+    messages = [e["message"] for e in answer["events"]]
+    for n in range(sum(final["pieces"].values())):
+        assert sum(m.startswith(f"piece {n} ") and m.endswith(" cut") for m in messages) == 1
+    assert sum(m.endswith(" cut") for m in messages) == sum(final["pieces"].values())
+    assert cut_before < sum(final["pieces"].values())
+    assert "aborted -> submitted: retried by the operator" in messages
+
+    # the preview: the marker over the print of the job's FABRIC.json
+    out = tmp / "preview.png"
+    code, err = console(capsys, "preview", str(job), "-o", str(out), "--socket", str(sock))
+    assert code == 0, err
+    image = cv2.imread(str(out))
+    assert image is not None and image.shape[1] == 1600
+    code, err = console(capsys, "preview", "999", "-o", str(out), "--socket", str(sock))
+    assert code == 2 and "no job 999" in err
+
+    # SIGTERM: a clean stop with nothing running
+    proc.terminate()
+    assert proc.wait(30) == 0
+    assert "stopped" in (tmp / "daemon.log").read_text()
