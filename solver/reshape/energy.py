@@ -29,14 +29,15 @@ import scipy.sparse as sp
 
 
 def _corners(uv: np.ndarray, faces: np.ndarray):
-    return uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
+    p = uv[faces]  # one gather (F,3,2)
+    return p[:, 0], p[:, 1], p[:, 2]
 
 
 def signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) signed triangle areas (positive = counter-clockwise)."""
-    a, b, c = _corners(uv, faces)
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
-                  - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    p = uv[faces]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
 def area_gradients(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -163,14 +164,21 @@ def max_flip_free_step(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray)
     """Largest t with every face area positive on [0, t) along ``uv + t direction``.
 
     Area(t) = A + B t + C t^2 per face; the first positive root of each quadratic
-    bounds the step (vectorised, as in Smith and Schaefer 2015).
+    bounds the step (vectorised, as in Smith and Schaefer 2015). Faces whose corners do
+    not move are skipped.
     """
-    a0 = signed_areas(uv, faces)
-    c2 = signed_areas(direction, faces)
-    # B: the mixed term of the bilinear area form
-    a, b, c = _corners(uv, faces)
-    da, db, dc = _corners(direction, faces)
-    e1, e2, f1, f2 = b - a, c - a, db - da, dc - da
+    moving = np.flatnonzero(np.any(direction != 0, axis=1))
+    if moving.size == 0:
+        return np.inf
+    if moving.size < len(uv):
+        mark = np.zeros(len(uv), bool)
+        mark[moving] = True
+        faces = faces[mark[faces].any(axis=1)]
+    p, d = uv[faces], direction[faces]  # (F,3,2)
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
+    a0 = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    c2 = 0.5 * (f1[:, 0] * f2[:, 1] - f1[:, 1] * f2[:, 0])
     b1 = 0.5 * (e1[:, 0] * f2[:, 1] + f1[:, 0] * e2[:, 1]
                 - e1[:, 1] * f2[:, 0] - f1[:, 1] * e2[:, 0])
     t = np.full(len(faces), np.inf)
