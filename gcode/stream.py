@@ -146,6 +146,7 @@ class Streamer:
         self.compact = compact
         self.deviation_limit = deviation_limit
         self._wco = np.zeros(2)
+        self._wco_known = False  # MPos - WCO needs a WCO field seen since the last banner
         self._status_seq = 0
         self.on_piece = on_piece
         self.on_progress = on_progress
@@ -265,6 +266,7 @@ class Streamer:
         self._inflight.clear()
         self._inflight_bytes = 0
         self._status_pending_since = None
+        self._wco_known = False  # GRBL sends WCO in its first report after a reset
         log.info("%sbanner Grbl %s", self.prefix, r.text)
 
     def query_status(self, timeout: float = 2.0) -> Status | None:
@@ -524,6 +526,7 @@ class Streamer:
         self._status_pending_since = None
         if st.wco is not None:
             self._wco = np.asarray(st.wco[:2], float)
+            self._wco_known = True
 
     def _work_xy(self) -> np.ndarray | None:
         """The head's X, Y in work coordinates (what the program speaks)."""
@@ -532,9 +535,9 @@ class Streamer:
             return None
         if st.wpos is not None:
             return np.asarray(st.wpos[:2], float)
-        if st.mpos is not None:
+        if st.mpos is not None and self._wco_known:
             return np.asarray(st.mpos[:2], float) - self._wco
-        return None
+        return None  # work position unknown: better no path check than a false alarm
 
     def _handle_push(self, r: Response) -> None:
         if r.kind == "status" and r.status is not None:

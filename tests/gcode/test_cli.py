@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
-
-from gcode_helpers import make_layout
+import sys
+from pathlib import Path
 
 from gcode.machine import default_machine
 from gcode.program import load_program
 from station.cli import main
+
+sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
+from gcode_helpers import make_layout  # noqa: E402
 
 
 def test_gcode_command_json(tmp_path, capsys):

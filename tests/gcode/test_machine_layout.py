@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from gcode_helpers import make_layout
 
 from gcode.layout import layout_from_dict, load_layout
 from gcode.machine import default_machine, load_machine
+
+sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
+from gcode_helpers import make_layout  # noqa: E402
 
 
 def test_default_profile_is_the_laser_table():

@@ -4,10 +4,12 @@ piece within the chordal tolerance), and the checker refusing unsafe programs.""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import shapely
-from gcode_helpers import make_layout, piece_polygons, trace
 from shapely.geometry import LineString, Polygon
 
 from gcode.layout import layout_from_dict
@@ -21,6 +23,9 @@ from gcode.program import (
     validate,
 )
 from gcode.toolpath import build_toolpaths
+
+sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
+from gcode_helpers import make_layout, piece_polygons, trace  # noqa: E402
 
 KNIFE = {"machine": {"name": "knife table", "tool": "knife", "work_area": [0, 0, 1200, 800],
                      "max_feed": 6000.0, "max_s": 1000.0, "laser_mode": False},

@@ -13,13 +13,15 @@ from pathlib import Path
 
 import pytest
 import serial
-from gcode_helpers import make_layout
 
 import simulators.grbl  # noqa: F401  (registers grblsim://)
 from gcode.layout import layout_from_dict
 from gcode.machine import default_machine
 from gcode.program import Program, build_program, strip_comment
 from gcode.stream import Streamer, StreamError
+
+sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
+from gcode_helpers import make_layout  # noqa: E402
 
 SETTINGS = "settings=32:1,130:1600,131:1000,110:12000,111:12000,120:1500,121:1500"
 SPEED = 200
