@@ -1,4 +1,7 @@
-"""Length units of garment files; everything inside the station is in millimetres."""
+"""Length units of input files (garments, fabrics); everything inside is in millimetres.
+
+Kept free of heavy imports: `solver.wallpaper` (used by vision and the simulators) needs it.
+"""
 
 from __future__ import annotations
 

@@ -35,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from solver.units import mm_per_unit
+
 GROUP_NAMES: tuple[str, ...] = (
     "p1", "p2", "pm", "pg", "cm", "pmm", "pmg", "pgg", "cmm",
     "p4", "p4m", "p4g", "p3", "p3m1", "p31m", "p6", "p6m",
@@ -71,8 +73,6 @@ _ITA_TABLE: dict[str, tuple[str, str, tuple[str, ...]]] = {
 
 # Conventional (a, b) -> primitive (w1, w2) for the centred cell: [w1 w2] = [a b] P.
 _CENTRED_TO_PRIMITIVE = np.array([[0.5, -0.5], [0.5, 0.5]])
-
-MM_PER_UNIT = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
 LATTICE_RULES = {
     "oblique": "any two independent vectors",
@@ -298,10 +298,7 @@ class Wallpaper:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Wallpaper:
         """FABRIC.json content -> Wallpaper, converting ``units`` to millimetres."""
-        units = d.get("units", "mm")
-        if units not in MM_PER_UNIT:
-            raise ValueError(f"unknown units {units!r}; expected one of {', '.join(MM_PER_UNIT)}")
-        scale = MM_PER_UNIT[units]
+        scale = mm_per_unit(d.get("units", "mm"))
         missing = [k for k in ("group", "w1", "w2") if k not in d]
         if missing:
             raise ValueError(f"fabric description lacks {', '.join(missing)}")

@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from solver.units import UNIT_CHOICES
 from solver.wallpaper import Wallpaper
-
-UNIT_CHOICES = ("m", "cm", "mm", "in")
 
 
 def add_garment_arguments(parser: argparse.ArgumentParser) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, SeamLine, build_garment
 from solver.garment.obj import load_obj, pair_partner, save_obj
-from solver.garment.units import MM_PER_UNIT, UNIT_CHOICES, mm_per_unit
+from solver.units import MM_PER_UNIT, UNIT_CHOICES, mm_per_unit
 
 __all__ = [
     "Garment",

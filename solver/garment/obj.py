@@ -25,7 +25,7 @@ import numpy as np
 
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, build_garment, unique_rows
-from solver.garment.units import mm_per_unit
+from solver.units import mm_per_unit
 
 _UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
 _UNITS_HINT_RE = re.compile(r"\((mm|cm|m)[,)\s]|\bin (mm|cm|m)\b")

@@ -28,7 +28,7 @@ import triangle
 
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, _components, build_garment
-from solver.garment.units import mm_per_unit, units_from_meter_fraction
+from solver.units import mm_per_unit, units_from_meter_fraction
 
 DEFAULT_RESOLUTION_MM = 20.0
 #: gap left between panels when they are laid out side by side in the pattern plane

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_garment_obj import check_invariants
+from tests.solver.test_garment_obj import check_invariants
 
 from solver.garment import Garment, load_garment, save_obj, save_spec
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_garment_obj import check_invariants
+from tests.solver.test_garment_obj import check_invariants
 
 from solver.garment import load_garment
 
