@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.solver.test_garment_obj import check_invariants
 
 from solver.garment import Garment, load_garment, save_obj, save_spec
+from tests.solver.test_garment_obj import check_invariants
 
 GARMENTS = [
     ("berkeley/tshirt-coarse.obj", "m"),

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.solver.test_garment_obj import check_invariants
 
 from solver.garment import load_garment
+from tests.solver.test_garment_obj import check_invariants
 
 # panels and stitches from the SOURCE.md tables in shared/data/garments
 GARMENTCODE = {
