@@ -5,7 +5,8 @@ vector and by any operation of the print's group that keeps the grain (see
 :func:`solver.nest.instance.candidate_maps`); the positions of one piece therefore form
 a few *cosets* of the lattice. We search those positions directly:
 
-- pieces and fabric are rasterised; for one piece and one operation the overlap with
+- pieces and fabric are rasterised (each piece's mask eroded by a pixel, so the raster
+  test is optimistic at contact); for one piece and one operation the overlap with
   everything already placed is, for every pixel offset at once, a cross-correlation
   computed with real FFTs (the fabric's transform is shared by all candidates of a step);
 - it is read only at the piece's lattice coset, bottom-left first, and the best
@@ -13,8 +14,8 @@ a few *cosets* of the lattice. We search those positions directly:
   produces an overlap, only a missed opportunity;
 - several orderings (area, length, randomised) restart the greedy fill, and a
   compaction pass re-inserts the right-most pieces while time remains;
-- besides, a free sparrow nest is snapped to the lattice and its conflicts re-inserted
-  ("repair"); the shorter result wins.
+- besides, a free sparrow nest is snapped to the lattice and swept left to right onto the
+  nearest allowed positions ("resnap", see :func:`nest_lattice`); the shorter result wins.
 
 With ``lattice=None`` the same engine places pieces at any pixel offset (used to repair
 plain layouts around keep-out regions).
@@ -425,7 +426,7 @@ def problem_density(items: list[Item], problem: NestProblem, length: float) -> f
     return area / (problem.width * length)
 
 
-SHARES = {"resnap": 0.4, "resnap-margin": 0.35, "repair": 0.75, "fill": 0.25}
+SHARES = {"resnap": 0.35, "resnap-margin": 0.25, "repair": 0.6, "fill": 0.4}
 
 
 def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
