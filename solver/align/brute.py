@@ -27,7 +27,7 @@ def _grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
 
 
 def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
-                grid: int | None = None, top: int = 24):
+                grid: int | None = None, top: int = 8):
     """(translations (P,2), E_fit) of the best grid point after refinement."""
     fr = problem.frames
     movable = np.flatnonzero(~problem.fix_trans)
@@ -60,7 +60,7 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
             i = ia if ia is not None else ib
             ta = cands[i] if ia is not None else t_ref[pa][None]
             tb = cands[i] if ib is not None else t_ref[pb][None]
-            d, _ = problem.mismatch(q(pa, ma, ta), q(pb, mb, tb))
+            d, _ = problem.mismatch(*np.broadcast_arrays(q(pa, ma, ta), q(pb, mb, tb)))
             unary[i] += np.hypot(d[..., 0], d[..., 1]) @ ws
             continue
         qa = np.broadcast_to(q(pa, ma, cands[ia])[:, None], (kk, kk, len(ws), 2))
@@ -105,10 +105,10 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
     ang = np.repeat(angles[None], len(starts), axis=0)
     refined = irls_translations(problem, ang, starts)
     e = problem.energy(ang, refined)
-    order = np.argsort(e)[:4]
+    order = np.argsort(e)[:2]
     best_t, best_e = refined[order[0]], float(e[order[0]])
     for i in order:
-        _, tt, ei = bfgs_refine(problem, angles, refined[i], rotations=False)
+        _, tt, ei = bfgs_refine(problem, angles, refined[i], rotations=False, max_iter=60)
         if ei < best_e:
             best_t, best_e = tt, ei
     return best_t, best_e

@@ -16,9 +16,12 @@ restarts find the best basin only by luck once there are more than a few pieces.
    then run block-coordinate *exhaustive* sweeps: each piece in turn jumps to the best
    of the same candidates scored against all its neighbours (a move the local Eq. (9)
    can never make), each sweep followed by IRLS;
-4. with at most four movable pieces, also search the joint grid over all their
+4. hop between rotation basins: random turns of a few degrees per piece, each with its
+   own translational solve, keeping improvements (the r-RoSy field fixes angles, not
+   the positions that E_fit measures);
+5. with at most four movable pieces, also search the joint grid over all their
    translations (``solver.align.brute``), which is then affordable;
-5. polish the best with BFGS over angles and translations and keep the lowest E_fit
+6. polish the best with BFGS over angles and translations and keep the lowest E_fit
    of all of these and of the paper's result.
 """
 
@@ -33,6 +36,9 @@ from solver.align.problem import AlignProblem, rot
 from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
+
+#: joint-grid points per cell axis inside the global method, by number of movable pieces
+GLOBAL_GRID = {1: 24, 2: 12, 3: 8, 4: 5}
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -105,7 +111,7 @@ def _cell_grid(problem: AlignProblem, grid: int) -> np.ndarray:
 
 
 def tree_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
-                   grid: int = 6, sample: int = 24, score_sample: int = 96) -> np.ndarray:
+                   grid: int = 6, sample: int = 16, score_sample: int = 64) -> np.ndarray:
     """Translations (P,2) placed piece by piece along the seam tree (module docstring)."""
     fr = problem.frames
     order, _ = _tree_order(problem, _piece_graph(problem))
@@ -123,7 +129,7 @@ def tree_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
 
 
 def exhaustive_sweep(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
-                     grid: int = 6, sample: int = 24, score_sample: int = 96) -> np.ndarray:
+                     grid: int = 6, sample: int = 12, score_sample: int = 48) -> np.ndarray:
     """One pass of per-piece exhaustive moves against all neighbours (block coordinate
     descent with a global search per block); a move is kept only if E_fit drops."""
     fr = problem.frames
@@ -136,16 +142,43 @@ def exhaustive_sweep(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *
             continue
         old = t[c].copy()
         before = float(_cost(problem, angles, t, c, old[None], rec)[0])
-        new, _ = _best_offset(problem, angles, t, c, rec, cell, sample, len(rec))
+        new, _ = _best_offset(problem, angles, t, c, rec, cell, sample, score_sample)
         after = float(_cost(problem, angles, t, c, new[None], rec)[0])
         if after < before:
             t[c] = new
     return t
 
 
+def _hop_rotations(problem: AlignProblem, a, t, e: float, rng: np.random.Generator,
+                   hops: int, batch: int = 12):
+    """Basin hopping over the rotations: the r-RoSy field leaves each piece's angle a
+    few degrees from what suits E_fit (it measures angles, not positions), so random
+    turns of a few degrees per piece are tried, each with its own translational solve
+    (Eq. 9 + IRLS, batched), then an exhaustive sweep for the two best."""
+    free = ~problem.fix_rot
+    for k in range(hops):
+        sigma = np.radians(4.0) / 2 ** k
+        turn = rng.normal(0.0, sigma, (batch, problem.n_pieces)) * free
+        ang = a[None] + turn
+        if problem.grain is not None:
+            ang = problem.grain.project(ang, problem.rosy, problem.fix_rot)
+        tt = np.repeat(t[None], batch, axis=0)
+        tt = optimise_translations(problem, ang, tt, polish_rounds=1).t
+        tt = irls_translations(problem, ang, tt, iterations=8)
+        en = problem.energy(ang, tt)
+        for i in np.argsort(en, kind="stable")[:2]:
+            moved = exhaustive_sweep(problem, ang[i], tt[i])
+            tt[i] = irls_translations(problem, ang[i][None], moved[None])[0]
+        en = problem.energy(ang, tt)
+        i = int(np.argmin(en))
+        if en[i] < e:
+            a, t, e = ang[i], tt[i], float(en[i])
+    return a, t, e
+
+
 def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
                  rotation: bool = True, translation: bool = True, candidates: int = 4,
-                 rotation_eps: float | None = None, sweeps: int = 2,
+                 rotation_eps: float | None = None, sweeps: int = 2, hops: int = 2,
                  progress=None) -> AlignResult:
     """The method of the module docstring; never worse than ``align_paper`` with the
     same ``restarts`` and ``seed``."""
@@ -168,26 +201,57 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         if len(picks) >= candidates:
             break
     ang = paper.all_angles[picks]
-    trees = np.stack([tree_placement(problem, ang[i], paper.all_translations[picks[i]])
-                      for i in range(len(picks))])
+    t0 = paper.all_translations[picks]
+    # The rotational energy hardly sees one rotation common to all pieces, so the
+    # paper's fields come out at a random overall angle to the print; E_fit does see
+    # it. Screen a grid of common turns over one r-th of a turn (Eq. 9 + IRLS, batched)
+    # and carry the best few on.
+    if rotation and not problem.fix_rot.any():
+        steps = max(8, 24 // problem.rosy)
+        beta = 2 * np.pi * np.arange(steps) / (steps * problem.rosy)
+        free = ~problem.fix_rot
+        ang_b = (ang[:, None, :] + beta[None, :, None] * free).reshape(-1, problem.n_pieces)
+        if problem.grain is not None:
+            ang_b = problem.grain.project(ang_b, problem.rosy, problem.fix_rot)
+        t_b = np.repeat(t0, steps, axis=0)
+        t_b = optimise_translations(problem, ang_b, t_b, polish_rounds=1).t
+        t_b = irls_translations(problem, ang_b, t_b, iterations=8)
+        keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
+        ang, t0 = ang_b[keep], t_b[keep]
+    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
     ts = optimise_translations(problem, ang, trees)
-    cand_t = np.concatenate([ts.t, paper.all_translations[picks]])
+    cand_t = np.concatenate([ts.t, t0])
     cand_a = np.concatenate([ang, ang])
     cand_t = irls_translations(problem, cand_a, cand_t)
-    for _ in range(sweeps):
-        moved = np.stack([exhaustive_sweep(problem, a, tt) for a, tt in zip(cand_a, cand_t)])
+    zero = 1e-9 * float(paper.random_energies.mean())  # nothing below this matters
+    for _ in range(sweeps if problem.energy(cand_a, cand_t).min() > zero else 0):
+        e = problem.energy(cand_a, cand_t)
+        top = np.argsort(e, kind="stable")[:candidates]
+        moved = cand_t.copy()
+        moved[top] = np.stack([exhaustive_sweep(problem, cand_a[i], cand_t[i]) for i in top])
         cand_t = irls_translations(problem, cand_a, moved)
-    small = int((~problem.fix_trans).sum()) <= 4
+    e = problem.energy(cand_a, cand_t)
+    if rotation and (~problem.fix_rot).any() and e.min() > zero:
+        i = int(np.argmin(e))
+        a_h, t_h, e_h = _hop_rotations(problem, cand_a[i], cand_t[i], float(e[i]),
+                                       np.random.default_rng([seed, 1]), hops)
+        cand_a = np.concatenate([cand_a, a_h[None]])
+        cand_t = np.concatenate([cand_t, t_h[None]])
+        e = np.append(e, e_h)
+    perfect = float(e.min()) <= zero
+    small = int((~problem.fix_trans).sum()) <= 4 and not perfect
     if small:
         # few movable pieces: the joint grid over all their translations is affordable
-        for i in np.argsort(problem.energy(cand_a, cand_t), kind="stable")[:2]:
-            tb, _ = brute_force(problem, cand_a[i], cand_t[i])
-            cand_a = np.concatenate([cand_a, cand_a[i][None]])
-            cand_t = np.concatenate([cand_t, tb[None]])
-    e = problem.energy(cand_a, cand_t)
-    top = np.argsort(e, kind="stable")[: max(2, candidates // 2)]
+        i = int(np.argmin(e))
+        tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=GLOBAL_GRID[
+            int((~problem.fix_trans).sum())])
+        cand_a = np.concatenate([cand_a, cand_a[i][None]])
+        cand_t = np.concatenate([cand_t, tb[None]])
+        e = np.append(e, eb)
+    top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
     for i in top:
-        a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation)
+        a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
+                                max_iter=60)
         if ei < e[i]:
             tt = irls_translations(problem, a[None], tt[None])[0]
             cand_a[i], cand_t[i] = a, tt
@@ -196,11 +260,10 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     if small:
         # alternate: the polished angles may open a better joint-grid basin
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
-        for _ in range(2):
-            tb, eb = brute_force(problem, a_i, t_i)
-            a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation)
-            if min(eb, e2) >= e_i * (1 - 1e-9):
-                break
+        tb, eb = brute_force(problem, a_i, t_i,
+                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())])
+        if eb < e_i:
+            a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
             a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
         cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i
     if e[i] < best_e:

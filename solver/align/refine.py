@@ -18,7 +18,7 @@ from solver.align.translation import polish
 
 
 def irls_translations(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
-                      iterations: int = 30) -> np.ndarray:
+                      iterations: int = 15) -> np.ndarray:
     """(B,P,2) translations lowering E_fit, batched; never worse than ``t``."""
     fr = problem.frames
     rec = problem.live_records()
@@ -34,8 +34,9 @@ def irls_translations(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
         cur = polish(problem, angles, cur, weight=w)
         e = problem.energy(angles, cur)
         better = e < best_e
+        gain = np.max((best_e - e) / np.maximum(best_e, 1e-300))
         best_t[better], best_e[better] = cur[better], e[better]
-        if not better.any():
+        if not better.any() or gain < 1e-7:
             break
     return best_t
 
