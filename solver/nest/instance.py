@@ -145,7 +145,10 @@ class NestProblem:
         """(2, 2) reduced lattice basis (columns) of the print, or None on plain fabric."""
         if self.fabric is None:
             return None
-        return np.asarray(self.fabric.reduced().basis, float)
+        from solver.wallpaper import gauss_reduce
+
+        u1, u2, _ = gauss_reduce(self.fabric.w1, self.fabric.w2)  # same lattice, short basis
+        return np.column_stack([u1, u2])
 
     @property
     def piece_area(self) -> float:

@@ -217,3 +217,11 @@ def test_placement_input_keeps_every_piece_on_its_print_position(data_dir, tmp_p
         wp_pts = placement.to_wallpaper(pattern, np.full(len(pattern), i))
         fabric_pts = affine(placed.transform, pattern)
         assert fabric.mismatch_distance(fabric_pts, wp_pts).max() < 1e-6
+
+
+def test_lattice_basis_is_reduced_for_the_covering_radius():
+    """A skewed description of the square lattice gives the square's covering radius."""
+    skew = NestProblem([l_piece()], width=80.0,
+                       fabric=Wallpaper("p1", (10.0, 0.0), (30.0, 10.0)))
+    assert covering_radius(skew.lattice) == pytest.approx(10 / np.sqrt(2))
+    assert abs(np.linalg.det(skew.lattice)) == pytest.approx(100.0)
