@@ -225,3 +225,18 @@ def test_lattice_basis_is_reduced_for_the_covering_radius():
                        fabric=Wallpaper("p1", (10.0, 0.0), (30.0, 10.0)))
     assert covering_radius(skew.lattice) == pytest.approx(10 / np.sqrt(2))
     assert abs(np.linalg.det(skew.lattice)) == pytest.approx(100.0)
+
+
+def test_quarter_turns_on_a_p4_print(data_dir):
+    """jakobs1 allows 0/90/180/270: on a p4 print all four are print symmetries."""
+    problem = load_esicup(data_dir / "nesting" / "jakobs1.json")
+    problem.fabric = Wallpaper("p4", (2.0, 0.0), (0.0, 2.0), origin=(0.5, 0.25))
+    items = problem.items()
+    assert all(len(it.candidates) == 4 for it in items)
+    layout = nest(problem, time_limit=2, seed=0, method="fill")
+    assert verify_layout(layout, problem) == []
+    _assert_moves_are_symmetries(layout, problem)
+    assert {round(p.angle_deg) % 360 for p in layout.pieces} <= {0, 90, 180, 270}
+    # on p1 the same pieces may not turn at all
+    problem.fabric = Wallpaper("p1", (2.0, 0.0), (0.0, 2.0))
+    assert all(len(it.candidates) == 1 for it in problem.items())
