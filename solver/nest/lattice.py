@@ -450,6 +450,9 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     from solver.nest.regions import repair_snapped
 
     items = problem.items()
+    if time_limit < 4.0 and len(strategies) > 2:
+        # sparrow needs whole seconds: under 4 s there is no time for two free nests
+        strategies = tuple(s for s in strategies if s != "resnap-margin")
     results = []
     total = sum(SHARES.get(s, 0.0) for s in strategies) or 1.0
     for strategy in strategies:

@@ -240,3 +240,25 @@ def test_quarter_turns_on_a_p4_print(data_dir):
     # on p1 the same pieces may not turn at all
     problem.fabric = Wallpaper("p1", (2.0, 0.0), (0.0, 2.0))
     assert all(len(it.candidates) == 1 for it in problem.items())
+
+
+def test_console_on_an_instance_under_a_print_draws_the_print(data_dir, tmp_path, capsys):
+    from station.cli import main
+
+    fabric = tmp_path / "FABRIC.json"
+    fabric.write_text(json.dumps({"group": "p4m", "w1": [2, 0], "w2": [0, 2], "units": "mm"}))
+    out, png = tmp_path / "LAYOUT.json", tmp_path / "marker.png"
+    rc = main(["nest", str(data_dir / "nesting" / "jakobs1.json"), "-o", str(out), "--fabric",
+               str(fabric), "--time", "1", "--json", "--png", str(png)])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["printed"] and summary["pieces"] == 25
+    layout = Layout.load(out)
+    assert layout.fabric["group"] == "p4m"
+    import cv2
+
+    img = cv2.imread(str(png))
+    assert img is not None and img.std() > 10  # a print, not a blank sheet
+    assert main(["nest", str(data_dir / "nesting" / "jakobs1.json"), "-o", str(out),
+                 "--length", "5", "--time", "1"]) == 2
+    assert "do not fit" in capsys.readouterr().err
