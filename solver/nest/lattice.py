@@ -36,6 +36,9 @@ from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress
 
+# weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
+# single value wins everywhere (1 suits many small pieces, 0 a few large ones)
+LEANS = (1.0, 0.1, 0.0, 0.5)
 AREA_TOL = 1e-7  # overlap accepted by the exact check, fraction of area (verify allows 1e-6)
 
 
@@ -131,6 +134,7 @@ class Filler:
         self.items, self.width, self.length, self.gap, self.res = items, width, length, gap, res
         self.fixed = fixed
         self.score = score
+        self.lean = LEANS[0]
         self.shapes: dict[tuple, list[_Shape]] = {}
         for it in items:
             if it.key not in self.shapes:
@@ -255,7 +259,7 @@ class Filler:
             elif self.score == "left":
                 sc = (t[:, 0] + s.lo[0]) * 1e3 + t[:, 1] + s.lo[1]
             else:
-                lean = 0.1 * (s.hi[0] - s.lo[0]) / self.width  # slight preference for low y
+                lean = self.lean * (s.hi[0] - s.lo[0]) / self.width
                 sc = (t[:, 0] + s.hi[0]) + lean * (t[:, 1] + s.hi[1])
             options.append((sc, np.full(len(t), ci), t))
         if not options:
@@ -394,6 +398,7 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, s
                 if sol[k] is not None:
                     index[k] = board.add(filler.polygon(k, sol[k]))
             runs += 1
+            filler.lean = LEANS[(runs - 1) % len(LEANS)]
             if wish is not None and runs == 1:  # nearest to the wished positions, left first
                 todo = [k for k in range(n) if pre[k] is None]
                 todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
