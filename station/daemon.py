@@ -7,6 +7,20 @@ so a daemon killed at any moment restarts knowing where each job was: a job foun
 active state is marked paused ("interrupted"), its piece in progress goes back to
 pending, and the operator's `resume` re-homes or unlocks the machine and cuts only the
 pieces not yet cut.
+
+The piece in flight. A controller outlives its daemon: after a SIGKILL it runs the moves
+already in its buffers, so the piece being cut may be finished with nobody listening
+for its sync point. The store alone cannot know that; the machine can. The program
+therefore writes a marker into the controller's EEPROM (G59 offsets) just before and
+just after each piece's final move, and GRBL writes it only once every move before it
+has run. At most one piece can be finished but unrecorded (the next piece's lines go out
+only after this one's markers and sync line were answered and stored). Before anything
+else on resume, `StationPipeline.cut` waits for the machine to come to rest (sending
+only the real-time ``?``), reads the marker and the head's position, and records that
+piece cut exactly when the machine proves it (see `station.pipeline.with_markers` and
+`StationPipeline.reconcile`); then it clears the marker, homes if the position was
+lost, and streams the rest. A piece the machine cannot prove finished is cut again in
+full. tests/station/test_crash.py checks all of it against the emulator's motion trace.
 """
 
 from __future__ import annotations

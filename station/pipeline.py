@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import re
 import shutil
 import time
 from pathlib import Path
@@ -330,6 +329,11 @@ class StationPipeline:
                 raise RuntimeError(f"the controller refused to clear the piece marker: "
                                    f"{cleared.raw}")
             program = with_markers(self.program_for(plan["layout"], todo), job.id, index)
+            # The geometry a marker refers to, saved before a line goes out: the toolpath
+            # order (and so where each contour starts and ends) depends on which pieces
+            # are left, so the next start must judge by this program, not a fresh one.
+            save_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id,
+                             final_moves(program, index))
 
             def on_piece(piece) -> None:
                 store.set_piece_state(job.id, index[piece.id], piece.state)
@@ -366,6 +370,8 @@ class StationPipeline:
         means every move but the final one finished, and then the head at rest (no alarm:
         the position is trusted) at the final move's end, not its start, proves the final
         move ran too. Anything else leaves the piece pending: it is cut again in full.
+        ``rest`` is the status read before anything reset the controller, ``alarm`` says
+        whether its position can be trusted, ``params`` is ``$#``.
         """
         marker = params.get(f"G{53 + MARKER_SYSTEM}")
         if marker is None or len(marker) < 3 or round(marker[0]) != job.id:
@@ -374,16 +380,28 @@ class StationPipeline:
         record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
         if record is None or record["state"] == "cut" or phase not in (1, 2):
             return
-        done = phase == 2
-        why = "its sync point executed (marker written after its final move)"
-        if phase == 1:
-            start, end = final_move(self.program_for(plan["layout"], {record["name"]}))
-            here = None
-            if rest is not None and not alarm and rest.mpos is not None:
-                g54 = params.get("G54", (0.0, 0.0, 0.0))
-                here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
-            done = (here is not None and float(np.hypot(*(start - end))) > 0.05
-                    and float(np.hypot(*(here - end))) < 0.02)
+        path = load_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id).get(piece)
+        if path is None or len(path) < 2:
+            path = np.zeros((0, 2))
+            start = end = np.full(2, np.inf)  # unknown geometry: nothing is proven by it
+        else:
+            start, end = path[0], path[-1]
+        here = None
+        if rest is not None and not alarm and rest.mpos is not None:
+            g54 = params.get("G54", (0.0, 0.0, 0.0))
+            here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
+        at_end = here is not None and float(np.hypot(*(here - end))) < 0.02
+        on_move = here is not None and _distance_to_path(here, path) < 0.05
+        if phase == 2:
+            # Written only after the final move (GRBL syncs before an EEPROM write). The
+            # one contradiction a trusted position can show is a head stopped on the final
+            # move short of its end: then believe the head (an emulator that stores the
+            # offset when it parses the line, not when it runs it, gets this right too).
+            done = not (on_move and not at_end)
+            why = ("its sync point executed (marker written after its final move)" if done
+                   else "the marker says finished but the head stopped on its final move")
+        else:
+            done = at_end and float(np.hypot(*(start - end))) > 0.05
             why = ("the head rests at the end of its final move" if done else
                    "its final move may not have run (head elsewhere or position lost): "
                    "cut again in full")
@@ -570,32 +588,66 @@ def with_markers(program, job_id: int, index: dict[str, int]):
     return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
 
 
-def final_move(program) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (work mm) of the last move of the program's last piece."""
-    pos = np.zeros(2)
-    start = end = pos
-    last = program.pieces[-1]
-    for k in range(last.sync_line):
-        code = _code(program.lines[k])
-        words = dict(re.findall(r"([XY])([-+]?[0-9.]+)", code))
-        if not words or code.startswith("G10") or code.startswith("G4"):
-            continue
-        target = pos.copy()
-        if "X" in words:
-            target[0] = float(words["X"])
-        if "Y" in words:
-            target[1] = float(words["Y"])
-        if _is_motion(code) and k >= last.first_line:
-            start, end = pos.copy(), target.copy()
-        pos = target
-    return start, end
+FINAL_MOVES = "final-moves.json"
+
+
+def final_moves(program, index: dict[str, int]) -> dict[int, np.ndarray]:
+    """Store piece index -> (k, 2) points of that piece's final move in ``program``."""
+    from station.render import program_paths
+
+    number_to_piece = {r.number: index[r.id] for r in program.pieces}
+    out: dict[int, np.ndarray] = {}
+    for on, number, pts in program_paths(program):
+        if on and number in number_to_piece:
+            out[number_to_piece[number]] = pts  # the last beam-on move of the piece wins
+    return out
+
+
+def save_final_moves(path: Path, job_id: int, moves: dict[int, np.ndarray]) -> None:
+    """Write the final moves durably (temporary file, fsync, rename) before streaming."""
+    import os
+
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w") as f:
+        json.dump({"job": job_id, "moves": {str(k): np.round(v, 4).tolist()
+                                            for k, v in moves.items()}}, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_final_moves(path: Path, job_id: int) -> dict[int, np.ndarray]:
+    """What `save_final_moves` wrote for this job ({} if nothing)."""
+    try:
+        doc = json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return {}
+    if doc.get("job") != job_id:
+        return {}
+    return {int(k): np.asarray(v, float) for k, v in doc.get("moves", {}).items()}
+
+
+def _distance_to_path(p: np.ndarray, path: np.ndarray) -> float:
+    """Distance from point ``p`` to the polyline ``path``."""
+    if len(path) == 0:
+        return float("inf")
+    if len(path) == 1:
+        return float(np.hypot(*(p - path[0])))
+    a, b = path[:-1], path[1:]
+    d = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, d) / np.maximum(np.einsum("ij,ij->i", d, d),
+                                                             1e-12), 0.0, 1.0)
+    return float(np.hypot(*(a + t[:, None] * d - p).T).min())
 
 
 def wait_at_rest(port, timeout: float = 120.0):
     """The controller's status once its buffered moves are over, before anyone resets it.
 
     Only the real-time ``?`` is sent, which changes nothing; a machine still running the
-    moves a dead daemon left in its buffers is waited for. None if it does not answer.
+    moves a dead daemon left in its buffers is waited for. What the line still holds from
+    before (answers and reports nobody read, e.g. a report of the head resting between
+    two moves) is drained first, and the rest is believed only when two fresh reports
+    agree. None if the controller does not answer.
     """
     from gcode.grbl import parse_response
 
@@ -603,13 +655,20 @@ def wait_at_rest(port, timeout: float = 120.0):
         port.reset_input_buffer()
     except (AttributeError, OSError):
         pass
+    quiet_until = time.monotonic() + 0.3
+    drain_end = time.monotonic() + 5.0
+    while time.monotonic() < min(quiet_until, drain_end):
+        if port.read(port.in_waiting or 1):
+            quiet_until = time.monotonic() + 0.3
     buf = b""
-    last = None
+    seen = None
+    previous = None
     end = time.monotonic() + timeout
     silent_until = time.monotonic() + 1.5
     while time.monotonic() < end:
         port.write(b"?")
-        t = time.monotonic() + 0.1
+        last = None
+        t = time.monotonic() + 0.15
         while time.monotonic() < t:
             buf += port.read(port.in_waiting or 1)
             *lines, buf = buf.split(b"\n")
@@ -618,13 +677,17 @@ def wait_at_rest(port, timeout: float = 120.0):
                 if r.kind == "status" and r.status is not None:
                     last = r.status
         if last is None:
-            if time.monotonic() > silent_until:
+            if seen is None and time.monotonic() > silent_until:
                 return None
             continue
-        if last.state in ("Idle", "Alarm", "Check", "Sleep") or (
-                last.state == "Hold" and last.substate == 0):
+        seen = last
+        resting = last.state in ("Idle", "Alarm", "Check", "Sleep") or (
+            last.state == "Hold" and last.substate == 0)
+        key = (last.state, last.position())
+        if resting and previous == key:
             return last
-    return last
+        previous = key if resting else None
+    return seen
 
 
 def read_params(streamer) -> dict[str, tuple[float, ...]]:
