@@ -7,11 +7,6 @@ import json
 import sys
 import time
 
-from gcode.layout import load_layout
-from gcode.machine import default_machine, load_machine
-from gcode.program import build_program
-from gcode.toolpath import build_toolpaths
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -37,6 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here so that `station --help` and the other commands start fast.
+    from gcode.layout import load_layout
+    from gcode.machine import default_machine, load_machine
+    from gcode.program import build_program
+    from gcode.toolpath import build_toolpaths
+
     start = time.perf_counter()
     machine = load_machine(args.machine) if args.machine else default_machine()
     changes = {}

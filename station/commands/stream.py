@@ -7,13 +7,7 @@ import importlib
 import json
 import sys
 
-import serial
-
-from gcode.grbl import check_settings
-from gcode.machine import default_machine, load_machine
-from gcode.program import load_program
-from gcode.stream import Progress, Streamer, StreamError
-from station.cli import UserError
+from station.errors import UserError
 
 # Where pyserial finds the GRBL emulator's URL scheme, if the simulators are installed.
 _URL_HANDLERS = ("simulators.grbl",)
@@ -45,6 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def open_port(url: str, baud: int):
+    import serial
+
     """Open a device path or pyserial URL (emulator handlers registered when available)."""
     for pkg in _URL_HANDLERS:
         try:
@@ -65,7 +61,7 @@ class _Bar:
     def __init__(self) -> None:
         self.tty = sys.stderr.isatty()
 
-    def __call__(self, p: Progress) -> None:
+    def __call__(self, p) -> None:
         if not self.tty:
             return
         width = 30
@@ -83,6 +79,12 @@ class _Bar:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here so that `station --help` and the other commands start fast.
+    from gcode.grbl import check_settings
+    from gcode.machine import default_machine, load_machine
+    from gcode.program import load_program
+    from gcode.stream import Streamer, StreamError
+
     machine = load_machine(args.machine) if args.machine else default_machine()
     program = load_program(args.program, machine)
     port = open_port(args.port, args.baud)
