@@ -68,46 +68,69 @@ def _align(g, wp, restarts=15):
 
 
 def main() -> None:
+    """Both tables; RESHAPE_BENCH=scaling or =garments runs one of them;
+    RESHAPE_BENCH_LEVELS=3 stops the scaling run at ~48k faces."""
+    which = os.environ.get("RESHAPE_BENCH", "all")
+    if which in ("all", "garments"):
+        garments_table()
+    if which in ("all", "scaling"):
+        scaling_table()
+
+
+def garments_table() -> None:
     from solver.garment import load_garment
     from solver.reshape import reshape
     from solver.wallpaper import Wallpaper
 
     print(f"# bench/reshape.py  {time.strftime('%Y-%m-%d %H:%M')}  "
-          f"{platform.processor() or platform.machine()}  {os.cpu_count()} cores")
+          f"{platform.processor() or platform.machine()}  {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.1f} (wall time inflates with load; CPU time "
+          "is the process's own)")
     cases = [GARMENTS / c for c in CASES] if GARMENTS.is_dir() else [BUNDLED / "shorts-iso.obj"]
     print("| garment | faces | group | E_fit random cm² | aligned cm² | reshaped cm² | "
           "reshaped/random | L init cm | L final cm | eps cm | γ rounds | iterations | "
-          "max move mm | flips | reshape s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "max move mm | flips | reshape wall s | reshape CPU s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for path in cases:
         g = load_garment(path, units="m")
         for group, (w1, w2) in GROUPS.items():
             wp = Wallpaper(group, w1, w2)
             placement, e_random = _align(g, wp)
+            cpu = time.process_time()
             _, r = reshape(g, placement)
+            cpu = time.process_time() - cpu
             print(f"| {path.stem} | {len(g.faces)} | {group} | {e_random / 100:.1f} | "
                   f"{r.e_fit_before_mm2 / 100:.1f} | {r.e_fit_after_mm2 / 100:.1f} | "
                   f"{r.e_fit_after_mm2 / e_random:.3f} | "
                   f"{r.length_mismatch_initial_mm / 10:.2f} | "
                   f"{r.length_mismatch_final_mm / 10:.2f} | {r.epsilon_mm / 10:.2f} | "
                   f"{r.gamma_rounds} | {r.iterations} | {r.max_displacement_mm:.1f} | "
-                  f"{r.flipped_triangles} | {r.seconds:.2f} |", flush=True)
-    # scaling: one garment, p4m, refined by subdivision
+                  f"{r.flipped_triangles} | {r.seconds:.2f} | {cpu:.2f} |", flush=True)
+
+
+def scaling_table() -> None:
+    """One garment, p4m, refined by midpoint subdivision from ~3k to ~200k faces."""
+    from solver.garment import load_garment
+    from solver.reshape import reshape
+    from solver.wallpaper import Wallpaper
+
     print("\n| faces | vertices | E_fit aligned cm² | reshaped cm² | γ rounds | iterations | "
-          "factorisations | flips | reshape s | s per 1k faces |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    base = cases[0]
+          "factorisations | flips | reshape wall s | reshape CPU s | CPU s per 1k faces |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    base = GARMENTS / CASES[0] if GARMENTS.is_dir() else BUNDLED / "shorts-iso.obj"
     g = load_garment(base, units="m")
     wp = Wallpaper("p4m", *GROUPS["p4m"])
     placement, _ = _align(g, wp, restarts=5)
-    for level in range(4):
+    for level in range(int(os.environ.get("RESHAPE_BENCH_LEVELS", "4"))):
         if level:
             g = subdivide(g)
+        cpu = time.process_time()
         _, r = reshape(g, placement)
+        cpu = time.process_time() - cpu
         print(f"| {len(g.faces)} | {g.n_vertices} | {r.e_fit_before_mm2 / 100:.1f} | "
               f"{r.e_fit_after_mm2 / 100:.1f} | {r.gamma_rounds} | {r.iterations} | "
-              f"{r.factorisations} | {r.flipped_triangles} | {r.seconds:.2f} | "
-              f"{1000 * r.seconds / len(g.faces):.3f} |", flush=True)
+              f"{r.factorisations} | {r.flipped_triangles} | {r.seconds:.2f} | {cpu:.2f} | "
+              f"{1000 * cpu / len(g.faces):.3f} |", flush=True)
 
 
 if __name__ == "__main__":
