@@ -58,8 +58,8 @@ def shirts(t: float, seed: int) -> None:
     from solver.wallpaper import Wallpaper
 
     print(f"\n### shirts (width 40) under a square p1 print (translations only), {t:g} s\n")
-    print("| repeat | naive (free + covering radius, snap) | lattice-aware (auto: best of "
-          "resnap, resnap-margin, fill; verified) | issue's naive |")
+    print("| repeat | naive (free + covering radius, snap) | lattice-aware (auto; "
+          "verified) | issue's naive |")
     print("|---|---|---|---|")
     for a, quoted in ((0.25, "72%"), (0.5, "61%"), (1.0, "44%")):
         problem = load_esicup(SHARED / "nesting" / "shirts.json")

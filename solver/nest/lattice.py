@@ -38,7 +38,7 @@ from solver.nest.plain import Progress
 
 # weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
 # single value wins everywhere (1 suits many small pieces, 0 a few large ones)
-LEANS = (1.0, 0.1, 0.0, 0.5)
+LEANS = (0.1, 1.0, 0.0, 0.5)
 AREA_TOL = 1e-7  # overlap accepted by the exact check, fraction of area (verify allows 1e-6)
 
 
@@ -431,13 +431,13 @@ def problem_density(items: list[Item], problem: NestProblem, length: float) -> f
     return area / (problem.width * length)
 
 
-SHARES = {"resnap": 0.35, "resnap-margin": 0.25, "repair": 0.6, "fill": 0.4}
+SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4}
+MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
 def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
                  progress: Progress | None = None,
-                 strategies: tuple[str, ...] = ("resnap", "resnap-margin", "fill"),
-                 ) -> Layout:
+                 strategies: tuple[str, ...] | None = None) -> Layout:
     """Nest on a printed fabric; every strategy runs and the shortest marker wins.
 
     - ``resnap``: sparrow nests freely, then every piece is swept left to right onto the
@@ -448,6 +448,10 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     - ``repair``: the same, but only the pieces in conflict after snapping move.
     - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
       coarse lattices relative to the pieces.
+
+    By default: fill, and resnap for many pieces (from ``MANY``) or resnap-margin for few
+    (a collision after snapping costs a whole large piece's move; many small pieces lose
+    more to the margin than to collisions).
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
@@ -455,9 +459,8 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     from solver.nest.regions import repair_snapped
 
     items = problem.items()
-    if time_limit < 4.0 and len(strategies) > 2:
-        # sparrow needs whole seconds: under 4 s there is no time for two free nests
-        strategies = tuple(s for s in strategies if s != "resnap-margin")
+    if strategies is None:
+        strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "fill")
     results = []
     total = sum(SHARES.get(s, 0.0) for s in strategies) or 1.0
     for strategy in strategies:

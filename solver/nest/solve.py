@@ -28,8 +28,7 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
         else:
             from solver.nest.lattice import nest_lattice
 
-            strategies = (("resnap", "resnap-margin", "fill") if method == "auto"
-                          else (method,))
+            strategies = None if method == "auto" else (method,)
             layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
                                   strategies=strategies)
     else:

@@ -35,7 +35,8 @@ def register(sub) -> None:
                    help="cut every piece also mirrored (left and right)")
     p.add_argument("--method", default="auto",
                    choices=("auto", "resnap", "resnap-margin", "fill", "repair", "naive"),
-                   help="search on a print (default auto: best of resnap, resnap-margin, fill)")
+                   help="search on a print (default auto: fill, and resnap (many pieces) or "
+                   "resnap-margin (few); the best wins)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.add_argument("--png", metavar="OUT.png", help="draw the marker")
     p.set_defaults(func=run)
