@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -300,3 +301,88 @@ def test_sigterm_then_sigkill_at_twenty_random_moments_cuts_every_piece_once(sta
     # event ids are strictly increasing, none lost between the kills
     ids = [e["id"] for e in events]
     assert ids == sorted(ids) and len(set(ids)) == len(ids)
+
+
+@pytest.fixture
+def recovery(tmp_path):
+    """A store with one planned job of three pieces and the final moves of its stream."""
+    from station.pipeline import FINAL_MOVES, save_final_moves
+
+    store = JobStore(tmp_path / "jobs.db")
+    job = store.submit("shirt.obj", "fabric.json", {})
+    store.set_pieces(job.id, ["a", "b", "c"])
+    (tmp_path / "layout.json").write_text("{}")
+    # piece 1's final move in the program last streamed: a straight line (10,0) -> (10,40)
+    save_final_moves(tmp_path / FINAL_MOVES, job.id,
+                     {1: np.array([[10.0, 0.0], [10.0, 40.0]])})
+    pipeline = StationPipeline.__new__(StationPipeline)
+    plan = {"layout": str(tmp_path / "layout.json")}
+    yield store, job, pipeline, plan
+    store.close()
+
+
+def _rest(state: str, x: float, y: float):
+    from gcode.grbl import Status
+
+    return Status(state=state, mpos=(x, y, 0.0))
+
+
+@pytest.mark.parametrize("phase,rest,alarm,cut", [
+    (2, ("Idle", 300.0, 300.0), False, True),   # marker after the final move: finished
+    (2, ("Idle", 10.0, 40.0), True, True),      # ... whatever the position
+    (2, ("Idle", 10.0, 20.0), False, False),    # ... unless the head stopped on that move
+    (1, ("Idle", 10.0, 40.0), False, True),     # before the final move, head at its end
+    (1, ("Idle", 10.0, 0.0), False, False),     # ... head at its start: not run
+    (1, ("Idle", 10.0, 25.0), False, False),    # ... stopped half way (held and reset)
+    (1, ("Alarm", 10.0, 40.0), True, False),    # ... position lost: cannot prove it
+])
+def test_recovery_believes_the_machine_only_when_it_proves_the_cut(recovery, phase, rest,
+                                                                   alarm, cut):
+    store, job, pipeline, plan = recovery
+    params = {"G54": (0.0, 0.0, 0.0), "G59": (float(job.id), 2.0, float(phase))}
+    pipeline.reconcile(job, plan, store, _rest(*rest), alarm, params)
+    states = [p["state"] for p in store.pieces(job.id)]
+    assert states == ["pending", "cut" if cut else "pending", "pending"]
+    recovery_events = [e for e in store.events(job.id) if e["kind"] == "recovery"]
+    assert len(recovery_events) == 1 and "piece 1 (b)" in recovery_events[0]["message"]
+
+
+def test_recovery_ignores_markers_of_other_jobs_cleared_markers_and_cut_pieces(recovery):
+    store, job, pipeline, plan = recovery
+    at_end = _rest("Idle", 10.0, 40.0)
+    for marker in ((job.id + 1.0, 2.0, 2.0), (0.0, 0.0, 0.0)):
+        pipeline.reconcile(job, plan, store, at_end, False, {"G59": marker})
+    assert [p["state"] for p in store.pieces(job.id)] == ["pending"] * 3
+    store.set_piece_state(job.id, 1, "cut")
+    pipeline.reconcile(job, plan, store, at_end, False, {"G59": (float(job.id), 2.0, 2.0)})
+    assert sum(e["message"].endswith(" cut") for e in store.events(job.id)) == 1
+    assert not [e for e in store.events(job.id) if e["kind"] == "recovery"]
+
+
+def test_markers_bracket_each_pieces_final_move(tmp_path):
+    """Every piece: G59 phase 1 just before its last beam-on move and phase 2 just after,
+    both lines the streamer sends alone; nothing else in the program changes."""
+    from gcode.stream import is_sync_command
+    from station.pipeline import final_moves, with_markers
+
+    sys.path.insert(0, str(ROOT / "tests" / "gcode"))  # gcode_helpers (importlib mode)
+    from gcode_helpers import make_layout  # a disc with a hole, notch and mark, ...
+
+    (tmp_path / "layout.json").write_text(json.dumps(make_layout()))
+    pipeline = StationPipeline(load_config(None))
+    program = pipeline.program_for(tmp_path / "layout.json", None)
+    index = {r.id: i for i, r in enumerate(program.pieces)}
+    marked = with_markers(program, 7, index)
+    assert [ln for ln in marked.lines if not ln.startswith("G10")] == program.lines
+    assert len(marked.check.seconds) == len(marked.lines)
+    assert [r.id for r in marked.pieces] == [r.id for r in program.pieces]
+    finals = final_moves(marked, index)
+    for r in marked.pieces:
+        body = marked.lines[r.first_line:r.sync_line]
+        one = body.index(f"G10 L2 P6 X7 Y{index[r.id] + 1} Z1")
+        assert body[one + 2] == f"G10 L2 P6 X7 Y{index[r.id] + 1} Z2"
+        motion = re.compile(r"^G[123] ")
+        assert motion.match(body[one + 1])
+        assert not any(motion.match(ln) for ln in body[one + 2:])
+        assert is_sync_command(body[one].replace(" ", ""))
+        assert len(finals[index[r.id]]) >= 2
