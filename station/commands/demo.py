@@ -64,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from station.control import request
     from station.daemon import Daemon, setup_logging
     from station.pipeline import StationPipeline
+    from station.progress import follow
 
     garment = Path(args.garment)
     if not garment.is_file():
@@ -118,76 +119,6 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
-
-
-def follow(sock: Path, job: int) -> dict[str, Any]:
-    """Poll the daemon and draw a progress bar per step until the job ends."""
-    from station.control import request
-
-    bar = ProgressBar(sys.stderr)
-    while True:
-        status = request(sock, "status", job=job)["job"]
-        if status["state"] in ("done", "failed", "aborted", "paused"):
-            bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
-            return status
-        progress = status.get("progress") or {}
-        bar.show(progress.get("step") or status["state"], progress.get("fraction"),
-                 progress.get("seconds_left"), _pieces(status, progress))
-        time.sleep(0.2)
-
-
-def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:
-    if progress.get("step") != "cutting":
-        return ""
-    total = sum(status["pieces"].values())
-    return f"{status['pieces']['cut']}/{total} pieces"
-
-
-class ProgressBar:
-    """One line per step, redrawn in place on a terminal (a line per step otherwise)."""
-
-    def __init__(self, stream) -> None:
-        self.stream = stream
-        self.tty = hasattr(stream, "isatty") and stream.isatty()
-        self.step: str | None = None
-        self.started = time.monotonic()
-
-    def show(self, step: str, fraction: float | None, eta: float | None, extra: str = ""
-             ) -> None:
-        now = time.monotonic()
-        if step != self.step:
-            if self.step is not None:
-                self._line(self.step, 1.0, None, f"{now - self.started:5.1f} s", final=True)
-            self.step, self.started = step, now
-            if not self.tty:
-                print(f"  {step} ...", file=self.stream, flush=True)
-        if self.tty:
-            left = f"ETA {eta:4.0f} s" if eta is not None else f"{now - self.started:5.1f} s"
-            self._line(step, fraction, left, extra)
-
-    def _line(self, step: str, fraction: float | None, left: str | None, extra: str,
-              final: bool = False) -> None:
-        if not self.tty:
-            return
-        width = 30
-        if fraction is None:  # no measure of progress: a moving block
-            k = int(time.monotonic() * 8) % width
-            bar = "." * k + "###" + "." * max(0, width - k - 3)
-            bar = bar[:width]
-            pct = "    "
-        else:
-            n = int(round(min(max(fraction, 0.0), 1.0) * width))
-            bar = "#" * n + "." * (width - n)
-            pct = f"{100 * fraction:3.0f}%"
-        text = f"\r  {step:<14} [{bar}] {pct} {left or ''} {extra}"
-        self.stream.write(text.ljust(78) + ("\n" if final else ""))
-        self.stream.flush()
-
-    def finish(self, message: str) -> None:
-        if self.step is not None:
-            self._line(self.step, 1.0, None,
-                       f"{time.monotonic() - self.started:5.1f} s", final=True)
-        print(f"  {message}", file=self.stream, flush=True)
 
 
 def _read_json(path: Path) -> dict[str, Any]:

@@ -130,8 +130,12 @@ def test_console_drives_the_simulated_station(served, capsys):
     assert code == 2 and "no job 999" in err
     code, answer = console(capsys, "retry", str(job), *s)
     assert code == 0, answer
-    assert wait_until(lambda: status(job)["state"] == "done", 120), \
-        (status(job), (tmp / "daemon.log").read_text()[-3000:])
+    # station watch: a bar per step until the job ends (one line per step off a terminal)
+    capsys.readouterr()
+    assert main(["watch", str(job), "--socket", str(sock)]) == 0
+    watched = capsys.readouterr().err
+    assert "cutting ..." in watched and watched.rstrip().endswith("done"), watched
+    assert status(job)["state"] == "done"
     final = status(job)
     assert final["pieces"]["cut"] == sum(final["pieces"].values()) >= 4
     code, answer = console(capsys, "log", str(job), "--limit", "1000", *s)
@@ -155,3 +159,23 @@ def test_console_drives_the_simulated_station(served, capsys):
     proc.terminate()
     assert proc.wait(30) == 0
     assert "stopped" in (tmp / "daemon.log").read_text()
+
+
+def test_progress_bar_redraws_in_place_with_the_time_left():
+    import io
+
+    from station.progress import ProgressBar
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    out = Terminal()
+    bar = ProgressBar(out)
+    bar.show("nesting", 0.25, None)
+    bar.show("cutting", 0.5, 42.0, "3/6 pieces")
+    bar.finish("done")
+    text = out.getvalue()
+    assert "\r  nesting        [#######" in text and " 25%" in text
+    assert "[###############...............]  50% ETA   42 s 3/6 pieces" in text
+    assert text.rstrip().endswith("done")

@@ -1,0 +1,85 @@
+"""Progress bars on the console for a job the daemon is running.
+
+The daemon publishes each running job's step and progress in its status answer (the
+fraction done, and while cutting the seconds left); these helpers poll it and draw one
+bar per step on stderr, redrawn in place on a terminal and one line per step otherwise.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+FINAL_STATES = ("done", "failed", "aborted", "paused")
+
+
+def follow(sock: Path, job: int, stream=None, interval: float = 0.2) -> dict[str, Any]:
+    """Poll the daemon and draw a progress bar per step until the job stops; its status."""
+    from station.control import request
+
+    bar = ProgressBar(stream or sys.stderr)
+    while True:
+        status = request(sock, "status", job=job)["job"]
+        if status["state"] in FINAL_STATES:
+            bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
+            return status
+        progress = status.get("progress") or {}
+        bar.show(progress.get("step") or status["state"], progress.get("fraction"),
+                 progress.get("seconds_left"), _pieces(status, progress))
+        time.sleep(interval)
+
+
+def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:
+    if progress.get("step") != "cutting":
+        return ""
+    total = sum(status["pieces"].values())
+    return f"{status['pieces']['cut']}/{total} pieces"
+
+
+class ProgressBar:
+    """One line per step, redrawn in place on a terminal (a line per step otherwise)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+        self.tty = hasattr(stream, "isatty") and stream.isatty()
+        self.step: str | None = None
+        self.started = time.monotonic()
+
+    def show(self, step: str, fraction: float | None, eta: float | None, extra: str = ""
+             ) -> None:
+        now = time.monotonic()
+        if step != self.step:
+            if self.step is not None:
+                self._line(self.step, 1.0, None, f"{now - self.started:5.1f} s", final=True)
+            self.step, self.started = step, now
+            if not self.tty:
+                print(f"  {step} ...", file=self.stream, flush=True)
+        if self.tty:
+            left = f"ETA {eta:4.0f} s" if eta is not None else f"{now - self.started:5.1f} s"
+            self._line(step, fraction, left, extra)
+
+    def _line(self, step: str, fraction: float | None, left: str | None, extra: str,
+              final: bool = False) -> None:
+        if not self.tty:
+            return
+        width = 30
+        if fraction is None:  # no measure of progress: a moving block
+            k = int(time.monotonic() * 8) % width
+            bar = "." * k + "###" + "." * max(0, width - k - 3)
+            bar = bar[:width]
+            pct = "    "
+        else:
+            n = int(round(min(max(fraction, 0.0), 1.0) * width))
+            bar = "#" * n + "." * (width - n)
+            pct = f"{100 * fraction:3.0f}%"
+        text = f"\r  {step:<14} [{bar}] {pct} {left or ''} {extra}"
+        self.stream.write(text.ljust(78) + ("\n" if final else ""))
+        self.stream.flush()
+
+    def finish(self, message: str) -> None:
+        if self.step is not None:
+            self._line(self.step, 1.0, None,
+                       f"{time.monotonic() - self.started:5.1f} s", final=True)
+        print(f"  {message}", file=self.stream, flush=True)
