@@ -18,29 +18,26 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "garments"
 P4M = Wallpaper("p4m", (50.0, 0.0), (0.0, 50.0))
 
 
-def aligned(garment, wp=P4M, restarts=3):
-    """The team's global alignment (solver.align, paper Sec. 4) of ``garment``."""
-    from solver.align.problem import AlignProblem
-    from solver.align.restarts import align_paper
-
-    res = align_paper(AlignProblem.build(garment, wp), restarts=restarts, seed=0)
-    return Placement(res.angles, res.translations, wp)
-
-
 @pytest.fixture(scope="module")
 def shorts():
     return load_garment(DATA / "berkeley" / "shorts-iso.obj", units="m")
 
 
 @pytest.fixture(scope="module")
-def shorts_run(shorts):
-    placement = aligned(shorts)
+def placement(shorts):
+    """The team's global alignment (solver.align, paper Sec. 4 and beyond) of the shorts."""
+    from solver.align.driver import align
+
+    return align(shorts, P4M, method="global", restarts=3, seed=0)
+
+
+@pytest.fixture(scope="module")
+def shorts_run(shorts, placement):
     new, report = reshape(shorts, placement)
     return placement, new, report
 
 
-def test_ideal_lines_fit_perfectly_and_keep_twin_lengths(shorts):
-    placement = aligned(shorts)
+def test_ideal_lines_fit_perfectly_and_keep_twin_lengths(shorts, placement):
     ideal = ideal_seams(shorts, placement)
     k = len(ideal.vertex) // 2
     v1, v2 = ideal.vertex[:k], ideal.vertex[k:]
@@ -76,8 +73,7 @@ def test_reshape_halves_e_fit_without_flips_and_meets_length_target(shorts, shor
     assert report.max_displacement_mm == pytest.approx(np.hypot(*(new.uv - shorts.uv).T).max())
 
 
-def test_fixed_piece_does_not_move_and_zero_weight_seams_are_ignored(shorts):
-    placement = aligned(shorts)
+def test_fixed_piece_does_not_move_and_zero_weight_seams_are_ignored(shorts, placement):
     fixed = np.zeros(shorts.n_pieces, bool)
     fixed[0] = True
     opts = ReshapeOptions(max_rounds=2)
