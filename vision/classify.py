@@ -304,7 +304,8 @@ def _log_sig(x: np.ndarray | float) -> np.ndarray:
 def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              max_repeats: int = 400, tau: float = TAU, kappa: float = KAPPA,
              work_side: int = 1024, flat: np.ndarray | None = None,
-             scale: float | None = None, whiten: float = WHITEN) -> Classification:
+             scale: float | None = None, whiten: float = WHITEN,
+             prefilter: float = 1.0) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -336,6 +337,12 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     basis = lattice.basis / mm * scale  # working (x, y) px
     h, w = flat.shape
     anchor = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    # Band-limit the image to the cell grid: sampling a sharp print more coarsely than
+    # its pixels by interpolation leaves errors that differ between a point and its
+    # symmetric partner, and the whitening below would amplify them.
+    spacing = float(np.linalg.norm(basis, axis=0).max()) / cell_n
+    if spacing > 1.0:
+        flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
     motif, halves, nrep, _, _ = mean_cell(flat, basis, anchor, n=cell_n,
                                           max_repeats=max_repeats)
     motif = motif - motif.mean()

@@ -49,7 +49,8 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int = 3,
                        ideal_angle: float | None = None, skew_tol_deg: float = 1.0,
-                       bow_tol_mm: float = 3.0, work_side: int = 1024) -> Distortion:
+                       bow_tol_mm: float = 3.0, work_side: int = 1024,
+                       prepared: tuple[np.ndarray, float] | None = None) -> Distortion:
     """Local lattice on a ``grid x grid`` array of tiles; skew, bow and a warning.
 
     Parameters
@@ -64,7 +65,7 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
     """
     if not lattice.found:
         return Distortion()
-    flat, scale = prepare_image(image, work_side=work_side)
+    flat, scale = prepared or prepare_image(image, work_side=work_side)
     mm = lattice.mm_per_px
     px_mm = mm / scale
     basis = lattice.basis / px_mm  # working (x, y) px

@@ -27,9 +27,11 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np
+from scipy import fft as sfft
 from scipy import ndimage
 from skimage.feature import peak_local_max
 
@@ -110,8 +112,7 @@ def gauss_reduce(b1: np.ndarray, b2: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return u, v
 
 
-def to_gray_float(image: np.ndarray) -> np.ndarray:
-    """BGR/gray uint8/float image -> float32 gray in [0, 1]-ish."""
+def _gray(image: np.ndarray) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim == 3:
         if img.shape[2] == 4:
@@ -119,6 +120,12 @@ def to_gray_float(image: np.ndarray) -> np.ndarray:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.shape[2] == 3 else img[:, :, 0]
     if img.ndim != 2:
         raise ValueError(f"image must be 2-D gray or HxWx3 BGR, got shape {np.shape(image)}")
+    return img
+
+
+def to_gray_float(image: np.ndarray) -> np.ndarray:
+    """BGR/gray uint8/float image -> float32 gray in [0, 1]-ish."""
+    img = _gray(image)
     if img.dtype == np.uint8:
         return img.astype(np.float32) / 255.0
     if img.dtype == np.uint16:
@@ -133,16 +140,20 @@ def prepare_image(image: np.ndarray, *, work_side: int = WORK_SIDE) -> tuple[np.
     light is modelled as a low-order polynomial surface, fitted on block means, because
     a polynomial cannot follow the print itself whatever its period.
     """
-    gray = to_gray_float(image)
+    gray = _gray(image)
     if gray.shape[0] < 16 or gray.shape[1] < 16:
         raise ValueError(f"image is too small for lattice detection: {gray.shape}")
-    if not np.isfinite(gray).all():
+    if gray.dtype.kind == "f" and not np.isfinite(gray).all():
         raise ValueError("image contains NaN or infinite values; fill or crop them first")
     scale = min(1.0, work_side / max(gray.shape))
     if scale < 1.0:
+        # Shrink first (uint8 is fastest), convert after: a 12 MP frame costs ~20 ms.
         size = (max(16, round(gray.shape[1] * scale)), max(16, round(gray.shape[0] * scale)))
-        gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
+        src = gray if gray.dtype in (np.uint8, np.uint16, np.float32) \
+            else gray.astype(np.float32)
+        gray = cv2.resize(src, size, interpolation=cv2.INTER_AREA)
         scale = gray.shape[1] / to_gray_shape(image)[1]
+    gray = to_gray_float(gray)
     light = _light_surface(gray)
     flat = gray / np.maximum(light, 1e-3) - 1.0
     flat -= float(flat.mean())
@@ -166,10 +177,13 @@ def _light_surface(gray: np.ndarray, degree: int = 3) -> np.ndarray:
     coef, *_ = np.linalg.lstsq(a, blocks.ravel(), rcond=None)
     yf = (np.arange(h) + 0.5) / h * 2 - 1
     xf = (np.arange(w) + 0.5) / w * 2 - 1
-    surf = np.zeros((h, w), np.float64)
+    cm = np.zeros((degree + 1, degree + 1))
     for c, (i, j) in zip(coef, terms, strict=True):
-        surf += c * np.outer(yf**j, xf**i)
-    return np.maximum(surf, 0.05 * max(float(blocks.mean()), 1e-3)).astype(np.float32)
+        cm[j, i] = c
+    # sum_ij c_ij y^j x^i as one product of Vandermonde matrices.
+    surf = (np.vander(yf, degree + 1, increasing=True) @ cm
+            @ np.vander(xf, degree + 1, increasing=True).T).astype(np.float32)
+    return np.maximum(surf, np.float32(0.05 * max(float(blocks.mean()), 1e-3)))
 
 
 def _tukey(n: int, alpha: float = 0.3) -> np.ndarray:
@@ -183,6 +197,24 @@ def _tukey(n: int, alpha: float = 0.3) -> np.ndarray:
     return w
 
 
+@lru_cache(maxsize=8)
+def _window(h: int, w: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Tukey window, its own autocorrelation (cropped, max 1) and the FFT size."""
+    win = np.outer(_tukey(h), _tukey(w)).astype(np.float32)
+    shape = (sfft.next_fast_len(2 * h, real=True), sfft.next_fast_len(2 * w, real=True))
+    fw = sfft.rfft2(win, s=shape, workers=-1)
+    wacf = _crop(sfft.irfft2(fw * np.conj(fw), s=shape, workers=-1), h, w)
+    return win, (wacf / wacf.max()).astype(np.float32), shape
+
+
+def _crop(full: np.ndarray, h: int, w: int) -> np.ndarray:
+    """Lags within (-h/2, h/2) x (-w/2, w/2) of a circular correlation, zero lag at the
+    centre index (h//2, w//2): longer lags overlap too little to matter."""
+    rows = np.r_[-(h // 2):h // 2 + 1] % full.shape[0]
+    cols = np.r_[-(w // 2):w // 2 + 1] % full.shape[1]
+    return full[np.ix_(rows, cols)]
+
+
 def autocorrelation(flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalised autocorrelation (centred, value 1 at lag 0) and the overlap weight.
 
@@ -190,18 +222,12 @@ def autocorrelation(flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     so a peak at a long lag is as tall as the pattern's true correlation there.
     """
     h, w = flat.shape
-    win = np.outer(_tukey(h), _tukey(w)).astype(np.float32)
-    shape = (2 * h, 2 * w)
-    fx = np.fft.rfft2(flat * win, s=shape)
-    fw = np.fft.rfft2(win, s=shape)
-    acf = np.fft.irfft2(fx * np.conj(fx), s=shape)
-    wacf = np.fft.irfft2(fw * np.conj(fw), s=shape)
-    acf = np.fft.fftshift(acf)
-    wacf = np.fft.fftshift(wacf)
-    wacf /= wacf.max()
+    win, wacf, shape = _window(h, w)
+    fx = sfft.rfft2(flat * win, s=shape, workers=-1)
+    acf = _crop(sfft.irfft2((fx * np.conj(fx)), s=shape, workers=-1), h, w)
     norm = acf / np.maximum(wacf, 0.05)
-    norm /= max(float(norm[h, w]), 1e-12)
-    return norm.astype(np.float32), wacf.astype(np.float32)
+    norm /= max(float(norm[h // 2, w // 2]), 1e-12)
+    return norm.astype(np.float32), wacf
 
 
 def _subpixel(img: np.ndarray, rc: np.ndarray) -> np.ndarray:
@@ -256,7 +282,7 @@ def _ridge_test(acf: np.ndarray, r_min: float) -> tuple[float, float, float]:
     """
     h2, w2 = acf.shape
     cy, cx = h2 // 2, w2 // 2
-    rmax = 0.2 * min(h2, w2) / 2
+    rmax = 0.2 * min(h2, w2)
     t = np.linspace(max(r_min, 3.0), rmax, 64)
     ang = np.deg2rad(np.arange(0, 180, 0.5))
     xs = cx + np.cos(ang)[:, None] * t[None, :]
@@ -282,6 +308,7 @@ def detect_lattice(
     stripe_threshold: float = 0.45,
     max_ripple: float = 0.04,
     work_side: int = WORK_SIDE,
+    prepared: tuple[np.ndarray, float] | None = None,
 ) -> LatticeResult:
     """Two shortest translation vectors of the print in ``image`` (a rectified photo).
 
@@ -298,6 +325,8 @@ def detect_lattice(
     stripe_threshold : float
         Autocorrelation kept along one direction at all lags above which the print is
         1-D stripes, provided it does not dip periodically by more than ``max_ripple``.
+    prepared : (flat, scale), optional
+        :func:`prepare_image`'s answer for this image, to share it between steps.
 
     Returns
     -------
@@ -307,7 +336,7 @@ def detect_lattice(
     """
     if mm_per_px <= 0 or not np.isfinite(mm_per_px):
         raise ValueError(f"mm_per_px must be a positive number, got {mm_per_px}")
-    flat, scale = prepare_image(image, work_side=work_side)
+    flat, scale = prepared or prepare_image(image, work_side=work_side)
     flat = cv2.GaussianBlur(flat, (0, 0), 1.0)
     acf, wacf = autocorrelation(flat)
     h2, w2 = acf.shape
@@ -332,7 +361,14 @@ def detect_lattice(
                              strength=float(vals.max()) if len(vals) else 0.0,
                              message="no periodic print: no repeat in the autocorrelation")
 
-    basis, support = _choose_basis(acf, valid, d, vals, min_strength)
+    # Choose among peaks with a well-overlapped lag only: near the edge of the valid
+    # region the normalised autocorrelation rests on few pixels and runs high.
+    core = wacf > 0.5
+    rc = np.round(d + center).astype(int)
+    inner = core[rc[:, 0], rc[:, 1]]
+    if inner.sum() < 2:
+        inner = np.ones(len(d), bool)
+    basis, support = _choose_basis(acf, core, d[inner], vals[inner], min_strength)
     if basis is None:
         return LatticeResult("none", mm_per_px=mm_per_px, strength=float(vals.max()),
                              message="no 2-D lattice explains the autocorrelation peaks")
@@ -360,19 +396,24 @@ def _support(smooth, center, basis, radius):
     return float(np.mean(np.sort(samp)[: max(2, len(samp) // 2)]))
 
 
-def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.97):
+def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.93):
     """Densest lattice whose points all carry strong autocorrelation.
 
     The autocorrelation at a pseudo-repeat (a shift under which the print only nearly
     matches itself) is the true repeat's value times the print's self-similarity under
-    that shift, whatever the noise; so a denser lattice is taken only when its support
-    stays within ``accept`` of the best lattice's, compared over the same lags.
+    that shift, whatever the noise; so a refinement of the best-supported lattice is
+    taken only when the lags it adds carry at least ``accept`` of the best lattice's
+    mean autocorrelation.
     """
     vmax = float(vals.max())
-    strong = vals >= 0.45 * vmax
-    cand = d[strong]
-    order = np.argsort(np.hypot(cand[:, 0], cand[:, 1]))[:14]
-    cand = cand[order]
+    strong = np.flatnonzero(vals >= 0.45 * vmax)
+    # Candidates: the shortest strong peaks (a fine print) and the tallest ones (the
+    # true repeats when side lobes of the motif crowd the short lags).
+    length = np.hypot(d[:, 0], d[:, 1])
+    short = strong[np.argsort(length[strong])[:12]]
+    top = np.flatnonzero(vals >= 0.85 * vmax)
+    short_top = top[np.argsort(length[top])[:12]]
+    cand = d[np.unique(np.concatenate([short, short_top]))]
     smooth = ndimage.maximum_filter(acf, size=3)
     smooth = np.where(valid, smooth, np.nan)
     center = np.array([acf.shape[0] // 2, acf.shape[1] // 2], float)
@@ -402,16 +443,32 @@ def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.97):
     area0, best, basis0 = max(scored, key=lambda r: r[1])
     if best < min_strength:
         return None, best
-    radius = 2.6 * np.linalg.norm(basis0, axis=0).max()
-    chosen = (area0, best, basis0)
+    shared = _values(smooth, center, basis0, 2.6 * np.linalg.norm(basis0, axis=0).max())
+    ref = float(np.mean(shared)) if len(shared) else best
     for area, _, basis in sorted(scored, key=lambda r: r[0]):
-        if area >= chosen[0] - 0.5:
+        if area >= area0 - 0.5:
             break
-        s = _support(smooth, center, basis, radius)
-        if s >= accept * best:
-            chosen = (area, s, basis)
-            break
-    return chosen[2], chosen[1]
+        m = np.linalg.solve(basis, basis0)
+        if np.abs(m - np.round(m)).max() > 0.1:
+            continue  # not a refinement of the best lattice
+        # Values at the denser lattice's points that the best lattice lacks.
+        n, pts = _lattice_points(basis, 2.6 * np.linalg.norm(basis, axis=0).max())
+        frac = np.abs(pts @ np.linalg.inv(basis0).T - np.round(pts @ np.linalg.inv(basis0).T))
+        extra = pts[frac.max(axis=1) > 0.1]
+        vals_e = ndimage.map_coordinates(smooth, [extra[:, 0] + center[0],
+                                                  extra[:, 1] + center[1]], order=1,
+                                         cval=np.nan)
+        vals_e = vals_e[np.isfinite(vals_e)]
+        if len(vals_e) and float(np.mean(vals_e)) >= accept * ref:
+            return basis, float(np.mean(vals_e))
+    return basis0, best
+
+
+def _values(smooth, center, basis, radius):
+    _, pts = _lattice_points(basis, radius)
+    v = ndimage.map_coordinates(smooth, [pts[:, 0] + center[0], pts[:, 1] + center[1]],
+                                order=1, cval=np.nan)
+    return v[np.isfinite(v)]
 
 
 def _refine(acf, valid, basis, rounds: int = 3):
@@ -420,7 +477,7 @@ def _refine(acf, valid, basis, rounds: int = 3):
     center = np.array([h2 // 2, w2 // 2], float)
     sig = np.full(2, np.nan)
     n_used = 0
-    radius_full = 0.45 * min(h2, w2) / 2 * 2
+    radius_full = 0.75 * min(h2, w2)
     for it in range(rounds):
         radius = radius_full if it else min(radius_full, 4.5 * np.abs(basis).sum(0).max())
         n, pts = _lattice_points(basis, radius)
@@ -481,7 +538,7 @@ def _stripes(acf, center, ridge_dir, px_mm, score, min_period_px, mm_per_px) -> 
     """Period along the stripes' normal from the autocorrelation profile."""
     ang = np.deg2rad(ridge_dir + 90.0)
     h2, w2 = acf.shape
-    rmax = 0.4 * min(h2, w2) / 2
+    rmax = 0.4 * min(h2, w2)
     t = np.arange(0, rmax, 0.25)
     ys = center[0] + np.sin(ang) * t
     xs = center[1] + np.cos(ang) * t

@@ -78,13 +78,14 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     """Lattice, group with origin, and distortion of the print in ``image``."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
-    lat = detect_lattice(image, mm_per_px=mm_per_px)
+    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale))
     cls = classify(image, lat, flat=flat, scale=scale)
     dist = Distortion()
     if distortion and lat.found and cls.group is not None:
         dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
                                   bow_tol_mm=bow_tol_mm,
-                                  ideal_angle=_IDEAL_ANGLE.get(GROUPS[cls.group].lattice))
+                                  ideal_angle=_IDEAL_ANGLE.get(GROUPS[cls.group].lattice),
+                                  prepared=(flat, scale))
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0)
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import symmetry_error
 
 from solver.wallpaper import GROUP_NAMES
 from vision.classify import classify, holohedry
@@ -20,21 +19,21 @@ def test_holohedry_orders_follow_the_lattice():
 
 
 @pytest.mark.parametrize("group", GROUP_NAMES)
-def test_clean_print_group_and_origin(make_print, group):
+def test_clean_print_group_and_origin(make_print, group, vt):
     img, truth = make_print(group, seed=11, period=32.0, shape=(200, 260))
     res = classify(img, detect_lattice(img))
     assert res.group == group, sorted(res.scores.items(), key=lambda kv: -kv[1])[:3]
     assert res.confidence > 0.9
-    assert symmetry_error(res.wallpaper, truth) < 0.01
+    assert vt.symmetry_error(res.wallpaper, truth) < 0.01
 
 
-def test_origin_within_one_percent_under_photometric_faults(make_print):
+def test_origin_within_one_percent_under_photometric_faults(make_print, vt):
     for i, group in enumerate(("p2", "pgg", "cmm", "p4g", "p31m", "p6")):
         img, truth = make_print(group, seed=70 + i, period=34.0, shape=(220, 280),
                                 blur=2.0, noise=0.03, jpeg=70, ramp=0.3)
         res = classify(img, detect_lattice(img))
         assert res.group == group
-        assert symmetry_error(res.wallpaper, truth) < 0.01, group
+        assert vt.symmetry_error(res.wallpaper, truth) < 0.01, group
 
 
 def test_group_accuracy_on_170_mixed_images(make_print):

@@ -7,7 +7,6 @@ import json
 import cv2
 import numpy as np
 import pytest
-from conftest import lattice_error, symmetry_error
 
 from simulators.camera import CameraModel, Sheet, SyntheticCamera
 from simulators.fabric import random_print
@@ -28,7 +27,7 @@ def _true_calibration(sim: SyntheticCamera) -> Calibration:
 @pytest.mark.parametrize(("group", "seed", "rotation"),
                          [("p4g", 3, 20.0), ("pmg", 4, 57.0), ("p31m", 5, 8.0),
                           ("cm", 6, 71.0)])
-def test_photographed_print_lattice_and_origin_in_mm(group, seed, rotation):
+def test_photographed_print_lattice_and_origin_in_mm(group, seed, rotation, vt):
     p = random_print(group, 40.0, rotation=rotation, seed=seed)
     sim = SyntheticCamera(Sheet(p, size=(700, 500)), camera=CameraModel.default((960, 720)),
                           seed=seed)
@@ -38,8 +37,8 @@ def test_photographed_print_lattice_and_origin_in_mm(group, seed, rotation):
     truth = sim.truth.wallpaper
     wp = det.wallpaper
     assert wp is not None and wp.group == group
-    assert lattice_error(wp.basis, truth.basis) < 0.005
-    assert symmetry_error(wp, truth) < 0.01
+    assert vt.lattice_error(wp.basis, truth.basis) < 0.005
+    assert vt.symmetry_error(wp, truth) < 0.01
     assert det.distortion.warning is None
 
 
@@ -52,7 +51,7 @@ def print_png(tmp_path_factory):
     return path, p.wallpaper
 
 
-def test_cli_json_fabric_file_and_picture(print_png, tmp_path, capsys):
+def test_cli_json_fabric_file_and_picture(print_png, tmp_path, capsys, vt):
     path, truth = print_png
     out, png = tmp_path / "fabric.json", tmp_path / "overlay.png"
     rc = main(["detect", str(path), "--mm-per-px", "0.5", "-o", str(out), "--png", str(png),
@@ -64,8 +63,8 @@ def test_cli_json_fabric_file_and_picture(print_png, tmp_path, capsys):
     assert fabric["units"] == "mm" and "distortion" in fabric and "confidence" in fabric
     from solver.wallpaper import Wallpaper
     wp = Wallpaper.from_dict(fabric)
-    assert lattice_error(wp.basis, truth.basis) < 0.005
-    assert symmetry_error(wp, truth) < 0.01
+    assert vt.lattice_error(wp.basis, truth.basis) < 0.005
+    assert vt.symmetry_error(wp, truth) < 0.01
     pic = cv2.imread(str(png))
     assert pic is not None and pic.shape[:2] == (480, 600)
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import lattice_error, perturb
 
 from solver.wallpaper import GROUP_NAMES
 from vision.lattice import detect_lattice, gauss_reduce
@@ -21,16 +20,16 @@ def test_gauss_reduce_gives_shortest_basis_of_same_lattice():
 
 
 @pytest.mark.parametrize("group", GROUP_NAMES)
-def test_clean_print_lattice_subpixel(make_print, group):
+def test_clean_print_lattice_subpixel(make_print, group, vt):
     img, truth = make_print(group, seed=7, period=38.0, shape=(240, 320))
     res = detect_lattice(img, mm_per_px=0.5)
     assert res.kind == "lattice", res.message
-    assert lattice_error(res.basis_px, truth.basis) < 1e-3
+    assert vt.lattice_error(res.basis_px, truth.basis) < 1e-3
     assert np.hypot(*res.w1) <= np.hypot(*res.w2) + 1e-9
     assert 0 < res.sigma_w1[0] < 0.01 * np.hypot(*res.w1)
 
 
-def test_perturbed_prints_lattice_within_half_percent(make_print):
+def test_perturbed_prints_lattice_within_half_percent(make_print, vt):
     errs = []
     for i, group in enumerate(GROUP_NAMES):
         rng = np.random.default_rng(100 + i)
@@ -39,17 +38,17 @@ def test_perturbed_prints_lattice_within_half_percent(make_print):
                                 noise=rng.uniform(0, 0.04), jpeg=int(rng.uniform(60, 95)),
                                 ramp=rng.uniform(0, 0.4))
         res = detect_lattice(img)
-        errs.append(lattice_error(res.basis_px, truth.basis) if res.found else np.inf)
+        errs.append(vt.lattice_error(res.basis_px, truth.basis) if res.found else np.inf)
     assert max(errs) < 5e-3, errs
 
 
-def test_mild_perspective_and_fold_keep_the_lattice(make_print):
+def test_mild_perspective_and_fold_keep_the_lattice(make_print, vt):
     for i, group in enumerate(("p1", "pmg", "p4g", "p31m")):
         img, truth = make_print(group, seed=40 + i, period=30.0, shape=(300, 400),
                                 persp=0.005, fold=1.0, noise=0.02, blur=1.0)
         res = detect_lattice(img)
         assert res.found, (group, res.message)
-        assert lattice_error(res.basis_px, truth.basis) < 0.02
+        assert vt.lattice_error(res.basis_px, truth.basis) < 0.02
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -66,9 +65,9 @@ def test_stripes_are_a_frieze_not_a_lattice(make_stripes, seed):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_noise_and_plain_cloth_have_no_lattice(seed):
+def test_noise_and_plain_cloth_have_no_lattice(seed, vt):
     rng = np.random.default_rng(seed)
-    img = perturb(np.full((240, 320), 0.5), rng, blur=0.7 * seed, noise=0.04,
+    img = vt.perturb(np.full((240, 320), 0.5), rng, blur=0.7 * seed, noise=0.04,
                   jpeg=60 if seed % 2 else None, ramp=0.4)
     res = detect_lattice(img)
     assert res.kind == "none"
