@@ -179,3 +179,29 @@ def test_progress_bar_redraws_in_place_with_the_time_left():
     assert "\r  nesting        [#######" in text and " 25%" in text
     assert "[###############...............]  50% ETA   42 s 3/6 pieces" in text
     assert text.rstrip().endswith("done")
+
+
+@pytest.mark.slow
+def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, capsys):
+    """`station demo` with small settings: the print is detected (not the truth), every
+    file the README lists is written, and the summary agrees with the report."""
+    from station.commands.demo import FILES
+
+    out = tmp_path / "demo-out"
+    code = main(["demo", "--out", str(out), "--restarts", "1", "--nest-seconds", "1",
+                 "--speed", "400"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    report = json.loads((out / "report.json").read_text())
+    summary = report["summary"]
+    assert report["missing"] == [] and all((out / name).is_file() for name in FILES)
+    assert summary["fabric_source"] == "detected"
+    assert summary["group_detected"] == summary["group_truth"] == "pmm"
+    assert summary["lattice_error_mm"] < 1.0
+    assert summary["pieces_cut"] == summary["pieces_total"] == 6
+    assert summary["e_fit_aligned_cm2"] < summary["e_fit_random_cm2"]
+    assert "pieces cut    6/6" in printed and "VISION UNAVAILABLE" not in printed
+    frame = cv2.imread(str(out / "frame.png"))
+    assert frame is not None and frame.shape[:2] == (960, 1280)
+    nc = (out / "job.nc").read_text()
+    assert nc.count("G4 P0.01") == 6
