@@ -147,9 +147,12 @@ def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int
     r = len(ij)
     if r == 0:
         raise ValueError("no whole repeat of the print lies inside the image")
-    xs = x.reshape(r * n, n)
-    ys = y.reshape(r * n, n)
-    cells = cv2.remap(flat, xs, ys, cv2.INTER_LINEAR).reshape(r, n, n).astype(np.float64)
+    # cv2.remap takes maps of fewer than 32767 rows: sample in batches of repeats.
+    per = max(1, 32000 // n)
+    cells = np.concatenate([
+        cv2.remap(flat, x[k:k + per].reshape(-1, n), y[k:k + per].reshape(-1, n),
+                  cv2.INTER_LINEAR).reshape(-1, n, n)
+        for k in range(0, r, per)]).astype(np.float64)
     cells -= cells.mean(axis=(1, 2), keepdims=True)
     shifts = np.zeros((r, 2))
     spec = sfft.fft2(cells.astype(np.complex64), workers=-1)
