@@ -9,6 +9,7 @@ brute-force optimum (joint grid over all translations, rotations of the global r
 
     python -m bench align            # full table (about 10-20 minutes on 2 cores)
     BENCH_ALIGN_QUICK=1 python -m bench align   # two garments, for a smoke run
+    BENCH_ALIGN_ONLY=vest,pants python -m bench align   # only garments whose path matches
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ GARMENTCODE = ["tshirt", "pants"]
 # group -> repeat in mm (30 to 100 mm across the groups)
 PRINTS = {"p1": 30.0, "pmm": 45.0, "pgg": 60.0, "cmm": 75.0, "p4m": 90.0, "p6m": 100.0}
 RESTARTS = 15
+#: brute-force reference: grid points per cell axis by number of moving pieces (denser
+#: than the global method's own joint grid, solver.align.global_.GLOBAL_GRID)
+BRUTE_GRID = {1: 64, 2: 28, 3: 16, 4: 10}
 
 
 def fabric(group: str, a: float):
@@ -52,12 +56,15 @@ def garments():
     from solver.garment import load_garment
 
     quick = bool(os.environ.get("BENCH_ALIGN_QUICK"))
+    only = [w for w in os.environ.get("BENCH_ALIGN_ONLY", "").split(",") if w]
     items = BERKELEY[4:6] if quick else BERKELEY
+    if only:
+        items = [rel for rel in items if any(w in rel for w in only)]
     for rel in items:
         path = SHARED / "berkeley_garment_library" / "Garments" / rel
         if path.is_file():
             yield Path(rel).stem, load_garment(path, units="m")
-    for name in GARMENTCODE[: 1 if quick else 2]:
+    for name in GARMENTCODE[: 0 if only else 1 if quick else 2]:
         path = SHARED / "garmentcode" / "generated" / name / f"{name}_specification.json"
         if path.is_file():
             yield f"gc-{name} (2D)", load_garment(path)
@@ -92,7 +99,8 @@ def main() -> None:
             e_rand = float(paper.random_energies.mean())
             gap = "-"
             if g.n_pieces <= 4:
-                _, ref = brute_force(problem, glob.angles, glob.translations)
+                _, ref = brute_force(problem, glob.angles, glob.translations,
+                                     grid=BRUTE_GRID[g.n_pieces])
                 gaps.append(glob.energy / ref - 1.0)
                 gap = f"{100 * (glob.energy / ref - 1.0):+.2f} %"
             ratios_p.append(paper.energy / e_rand)

@@ -63,11 +63,16 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
             d, _ = problem.mismatch(*np.broadcast_arrays(q(pa, ma, ta), q(pb, mb, tb)))
             unary[i] += np.hypot(d[..., 0], d[..., 1]) @ ws
             continue
-        qa = np.broadcast_to(q(pa, ma, cands[ia])[:, None], (kk, kk, len(ws), 2))
-        qb = np.broadcast_to(q(pb, mb, cands[ib])[None, :], (kk, kk, len(ws), 2))
-        d, _ = problem.mismatch(qa, qb)
+        qa_all, qb_all = q(pa, ma, cands[ia]), q(pb, mb, cands[ib])
+        table = np.empty((kk, kk))
+        rows = max(1, 200_000 // (kk * len(ws)))  # bound the memory of one chunk
+        for r0 in range(0, kk, rows):
+            qa = np.broadcast_to(qa_all[r0:r0 + rows, None], (len(qa_all[r0:r0 + rows]), kk,
+                                                               len(ws), 2))
+            qb = np.broadcast_to(qb_all[None, :], qa.shape)
+            d, _ = problem.mismatch(qa, qb)
+            table[r0:r0 + rows] = np.hypot(d[..., 0], d[..., 1]) @ ws
         key = (min(ia, ib), max(ia, ib))
-        table = np.hypot(d[..., 0], d[..., 1]) @ ws
         table = table if ia < ib else table.T
         pair[key] = pair.get(key, 0.0) + table
     # sum over all combinations, chunked over the first movable piece
