@@ -72,6 +72,18 @@ class FabricDetection:
                 "seconds": round(self.seconds, 3)}
 
 
+def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
+    """The w1-w2 angle the print should have. A check spread skewed by a few degrees
+    loses its mirrors and reads as an oblique print (p1, p2); its skew is still
+    measured against the right angle it is close to."""
+    ideal = _IDEAL_ANGLE.get(GROUPS[group].lattice)
+    if ideal is None and GROUPS[group].lattice == "oblique":
+        cos = float(lat.w1 @ lat.w2) / (np.linalg.norm(lat.w1) * np.linalg.norm(lat.w2))
+        if abs(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) - 90.0) < 5.0:
+            ideal = 90.0
+    return ideal
+
+
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
                   distortion: bool = True) -> FabricDetection:
@@ -84,7 +96,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     if distortion and lat.found and cls.group is not None:
         dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
                                   bow_tol_mm=bow_tol_mm,
-                                  ideal_angle=_IDEAL_ANGLE.get(GROUPS[cls.group].lattice),
+                                  ideal_angle=_ideal_angle(cls.group, lat),
                                   prepared=(flat, scale))
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0)
