@@ -190,5 +190,20 @@ def _report(rows: list[dict], per_group: int, size: tuple[int, int]) -> dict:
             "seconds_median": float(np.median(secs)), "markdown": text}
 
 
+def report_from_log(path: str, per_group: int, size: tuple[int, int]) -> dict:
+    """The report from the per-image lines a (possibly interrupted) run printed."""
+    rows = []
+    with open(path) as fh:
+        for line in fh:
+            parts = line.split()
+            if len(parts) != 12 or parts[2] != "repeats" or parts[4] != "->":
+                continue
+            rows.append(dict(group=parts[0], family=parts[1],
+                             found=None if parts[5] == "None" else parts[5],
+                             ok=parts[7] == "ok", err=float(parts[9]), sec=float(parts[10]),
+                             repeats=float(parts[3])))
+    return _report(rows, per_group, size)
+
+
 def main(per_group: int = 20, size: tuple[int, int] = (4000, 3000)) -> None:
     run(per_group=per_group, size=size)
