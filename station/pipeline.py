@@ -296,11 +296,15 @@ class StationPipeline:
         pieces = store.pieces(job.id)
         index = {p["name"]: p["piece"] for p in pieces}
         with self.open_port() as port:
-            rest = wait_at_rest(port)
+            control.progress.update(step="connecting", fraction=None)
+            rest = wait_at_rest(port, stop=lambda: control.stop.is_set()
+                                or control.abort.is_set())
+            control.checkpoint(hold_in_place=True)  # stopped or aborted while waiting
             streamer = Streamer(port, on_piece=None, name=self.port_name)
             alarm = rest is not None and rest.state == "Alarm"
             try:
-                streamer.connect()
+                # at rest and silent already (or not answering): no need to wait long
+                streamer.connect(quiet=0.2)
             except StreamError as exc:
                 if "ALARM" not in str(exc):
                     raise
@@ -315,6 +319,7 @@ class StationPipeline:
                 homing = streamer.read_settings().get(22, 0.0) >= 1
                 store.log(job.id, "machine", f"{alarm_text or 'controller in ALARM'}; "
                           f"{'homing' if homing else 'unlocking'}")
+                control.progress.update(step="homing" if homing else "unlocking")
                 if homing:
                     streamer.command("$H", timeout=120.0)
                 else:
@@ -640,14 +645,14 @@ def _distance_to_path(p: np.ndarray, path: np.ndarray) -> float:
     return float(np.hypot(*(a + t[:, None] * d - p).T).min())
 
 
-def wait_at_rest(port, timeout: float = 120.0):
+def wait_at_rest(port, timeout: float = 120.0, stop=None):
     """The controller's status once its buffered moves are over, before anyone resets it.
 
     Only the real-time ``?`` is sent, which changes nothing; a machine still running the
     moves a dead daemon left in its buffers is waited for. What the line still holds from
     before (answers and reports nobody read, e.g. a report of the head resting between
     two moves) is drained first, and the rest is believed only when two fresh reports
-    agree. None if the controller does not answer.
+    agree. None if the controller does not answer (or ``stop()`` turns true).
     """
     from gcode.grbl import parse_response
 
@@ -666,6 +671,8 @@ def wait_at_rest(port, timeout: float = 120.0):
     end = time.monotonic() + timeout
     silent_until = time.monotonic() + 1.5
     while time.monotonic() < end:
+        if stop is not None and stop():
+            return None
         port.write(b"?")
         last = None
         t = time.monotonic() + 0.15

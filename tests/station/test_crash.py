@@ -106,7 +106,7 @@ class Station:
 
 @pytest.fixture
 def station(tmp_path):
-    s = Station(tmp_path, speed=30.0)
+    s = Station(tmp_path, speed=60.0)
     yield s
     s.close()
 
