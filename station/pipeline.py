@@ -59,7 +59,7 @@ class StationPipeline:
             return str(target)
         import cv2
 
-        control.progress.update(step="photographing")
+        start_step(control, "photographing")
         frame, rectified, mm_per_px, truth = self._photograph()
         cv2.imwrite(str(workdir / "frame.png"), frame)
         cv2.imwrite(str(workdir / "rectified.png"), rectified)
@@ -68,7 +68,7 @@ class StationPipeline:
                   "truth": (truth.wallpaper.to_dict()
                             if truth is not None and truth.wallpaper is not None else None)}
         control.checkpoint()
-        control.progress.update(step="detecting")
+        start_step(control, "detecting")
         try:
             from vision.pipeline import detect_fabric, draw_overlay
         except ImportError as exc:  # vision not installed: only the simulator can stand in
@@ -167,7 +167,7 @@ class StationPipeline:
         colour_of = photo_colours(workdir, wallpaper)
         draw_fit(garment, before, identity, workdir / "fit-before.png",
                  title=f"before alignment on {wallpaper.group}", colour_of=colour_of)
-        control.progress.update(step="aligning", fraction=0.0)
+        start_step(control, "aligning", 0.0)
 
         def on_restart(k: int, n: int, _e_random: float, _e_aligned: float) -> None:
             control.progress.update(step="aligning", fraction=min(1.0, k / max(n, 1)))
@@ -185,7 +185,7 @@ class StationPipeline:
         control.checkpoint()
         aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
-            control.progress.update(step="reshaping", fraction=None)
+            start_step(control, "reshaping")
             from solver.reshape import reshape
 
             garment, reshaped = reshape(garment, placement)
@@ -201,7 +201,7 @@ class StationPipeline:
             control.checkpoint()
         placement.save(workdir / "placement.json")
         seconds = self.config["nest"]["seconds"]
-        control.progress.update(step="nesting", fraction=0.0)
+        start_step(control, "nesting", 0.0)
         t_nest = time.monotonic()
 
         def on_nest(_message: str) -> None:
@@ -229,7 +229,7 @@ class StationPipeline:
         lap("nest")
         self._write_report(workdir, report)
         control.checkpoint()
-        control.progress.update(step="programming", fraction=None)
+        start_step(control, "programming")
         program = self.program_for(workdir / "layout.json", None)
         program.write(workdir / "job.nc")
         report["program"] = program.summary()
@@ -296,7 +296,7 @@ class StationPipeline:
         pieces = store.pieces(job.id)
         index = {p["name"]: p["piece"] for p in pieces}
         with self.open_port() as port:
-            control.progress.update(step="connecting", fraction=None)
+            start_step(control, "connecting")
             rest = wait_at_rest(port, stop=lambda: control.stop.is_set()
                                 or control.abort.is_set())
             control.checkpoint(hold_in_place=True)  # stopped or aborted while waiting
@@ -319,7 +319,7 @@ class StationPipeline:
                 homing = streamer.read_settings().get(22, 0.0) >= 1
                 store.log(job.id, "machine", f"{alarm_text or 'controller in ALARM'}; "
                           f"{'homing' if homing else 'unlocking'}")
-                control.progress.update(step="homing" if homing else "unlocking")
+                start_step(control, "homing" if homing else "unlocking")
                 if homing:
                     streamer.command("$H", timeout=120.0)
                 else:
@@ -344,19 +344,23 @@ class StationPipeline:
                 store.set_piece_state(job.id, index[piece.id], piece.state)
 
             def on_progress(p) -> None:
-                control.progress.update(step="cutting", fraction=p.fraction,
+                control.progress.update(step=stage[0], fraction=p.fraction,
                                         seconds_left=p.eta_seconds, machine=p.state,
                                         lines_sent=p.lines_sent, lines_total=p.lines_total,
                                         pieces_cut=len(index) - len(todo) + p.pieces_cut,
                                         pieces_total=len(index))
 
             streamer.on_progress = on_progress
+            stage = ["checking ($C)"]
             if self.config["machine"]["check_mode"] and not resuming:
+                start_step(control, stage[0], 0.0)
                 checked = streamer.run(program, check=True)
                 if not checked.completed:
                     raise ValueError(f"the controller's check mode ($C) refused the program: "
                                      f"{checked.reason} {checked.errors[:1]}")
             streamer.on_piece = on_piece
+            stage[0] = "cutting"
+            start_step(control, "cutting", 0.0)
             result = self._stream(streamer, program, control)
         if control.abort.is_set():
             raise JobInterrupted("aborted", "aborted by the operator (safe stop)")
@@ -441,6 +445,13 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
+def start_step(control: JobControl, step: str, fraction: float | None = None) -> None:
+    """Announce a step in the job's progress (what `station status` and `watch` show);
+    ``fraction`` only where the step can measure how far it is."""
+    control.progress.clear()
+    control.progress.update(step=step, **({} if fraction is None else {"fraction": fraction}))
+
+
 def photo_colours(workdir: Path, wallpaper):
     """Colours of the print as photographed (None without a photo): any fabric point is
     moved by whole lattice vectors into the middle of the photo and sampled there, so
