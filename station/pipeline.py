@@ -5,6 +5,13 @@ layout, G-code, pictures) and returns their paths, which the daemon stores as th
 plan: a job interrupted after planning resumes from the files, not by recomputing.
 Pieces are known to the job store by their layout id, so a resumed job rebuilds its
 program for the pieces not yet cut and can never cut one twice.
+
+The cut step also settles the one piece the store cannot know about: the one the
+machine may have finished on its buffered moves after the daemon died. The program
+carries markers the controller stores in EEPROM around each piece's final move
+(`with_markers`), the geometry those markers refer to is saved before streaming
+(`save_final_moves`), and on the next start the machine is asked (`wait_at_rest`,
+`read_params`, `StationPipeline.reconcile`) before anything moves or resets it.
 """
 
 from __future__ import annotations
@@ -570,7 +577,13 @@ def with_markers(program, job_id: int, index: dict[str, int]):
 
     On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
     any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at
-    the final move's end with its position trusted (no alarm). At most this one piece can
+    the final move's end with its position trusted (no alarm). The final move is taken
+    from the program that was streamed (saved by `save_final_moves` before streaming),
+    since where a contour starts and ends depends on which pieces were left to cut.
+    Only the 1-2 ms between the final move's answer and the phase-2 line going out, then
+    followed by a loss of position before the restart (power cut, or a board reset by
+    opening its port), leaves a finished piece unproven: it is cut again, and the
+    operator is told in the log. At most this one piece can
     be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
     answered and stored. A piece interrupted before its final move is cut again in full
     (its open kerf is retraced; it is separated from the cloth exactly once).
