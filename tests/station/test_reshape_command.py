@@ -38,10 +38,15 @@ def run_json(capsys, *argv) -> dict:
 def test_reshape_obj_then_fit_reports_the_same_e_fit(tmp_path, inputs, capsys):
     garment, fabric, placement = inputs
     out = tmp_path / "reshaped.obj"
+    png = tmp_path / "reshaped.png"
     rep = run_json(capsys, "reshape", str(garment), "--units", "m", "--fabric", str(fabric),
-                   "--placement", str(placement), "-o", str(out), "--json")
+                   "--placement", str(placement), "-o", str(out), "--json", "--png", str(png))
     for key in KEYS:
         assert key in rep
+    import cv2
+
+    picture = cv2.imread(str(png))
+    assert picture is not None and picture.shape[0] > 100 and picture.std() > 1
     assert rep["flipped_triangles"] == 0
     assert rep["e_fit_after_mm2"] < rep["e_fit_before_mm2"]
     fit = run_json(capsys, "fit", str(out), "--fabric", str(fabric), "--placement",
