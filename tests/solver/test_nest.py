@@ -146,7 +146,7 @@ def _assert_moves_are_symmetries(layout, problem):
 def test_printed_shirts_lattice_search_beats_the_naive_baseline(shirts):
     problem = load_esicup(shirts)
     problem.fabric = Wallpaper("p1", (1.0, 0.0), (0.0, 1.0))
-    layout = nest_lattice(problem, time_limit=4, seed=0, strategies=("fill",))
+    layout = nest_lattice(problem, time_limit=2.5, seed=0, strategies=("fill",))
     assert verify_layout(layout, problem) == []
     _assert_moves_are_symmetries(layout, problem)
     assert all(p.angle_deg == pytest.approx(0.0) for p in layout.pieces)  # p1: no turns
