@@ -475,6 +475,8 @@ def symmetry_elements(wp: Wallpaper, region: tuple[float, float, float, float]
     corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]])
     f = wp.to_fractional(corners)
     lo, hi = np.floor(f.min(0)).astype(int) - 1, np.ceil(f.max(0)).astype(int) + 1
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    reach = 0.5 * math.hypot(x1 - x0, y1 - y0)
     centres, lines = [], []
     for op in wp.cartesian_ops()[1:]:
         lin, t = op[:2, :2], op[:2, 2]
@@ -495,6 +497,9 @@ def symmetry_elements(wp: Wallpaper, region: tuple[float, float, float, float]
                     tt = t + wp.basis @ (i, j)
                     glide = (tt @ d) * d
                     p = (tt - glide) / 2
+                    p = p + ((centre - p) @ d) * d  # the axis point nearest the region
+                    if np.hypot(*(p - centre)) > reach:
+                        continue
                     gl = wp.lattice_residual(glide[None])[0]
                     lines.append((p, d, bool(np.hypot(*gl) > 1e-6 * np.hypot(*wp.w1))))
     return centres, lines
