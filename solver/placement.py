@@ -35,6 +35,7 @@ class Placement:
     fabric: Wallpaper
     garment: str | None = None
     piece_names: list[str] | None = None
+    garment_units: str | None = None  # units the garment file was read in (it may not say)
     report: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -70,6 +71,7 @@ class Placement:
         return {
             "version": 1,
             "garment": self.garment,
+            "garment_units": self.garment_units,
             "fabric": self.fabric.to_dict(),
             "convention": "p2D = R(angle_deg) p_wp + translation_mm",
             "pieces": [
@@ -89,6 +91,7 @@ class Placement:
                 translations=[p["translation_mm"] for p in pieces],
                 fabric=Wallpaper.from_dict(d["fabric"]),
                 garment=d.get("garment"),
+                garment_units=d.get("garment_units"),
                 piece_names=[p.get("name", f"piece{p['index']}") for p in pieces],
                 report=d.get("report", {}),
             )

@@ -47,7 +47,7 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     gpath = Path(placement.garment)
     if not gpath.is_absolute() and (path.parent / gpath).exists():
         gpath = path.parent / gpath
-    garment = load_garment(gpath, units=units)
+    garment = load_garment(gpath, units=units or placement.garment_units)
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")

@@ -80,13 +80,15 @@ def test_moving_pattern_and_print_together_changes_nothing():
 def test_placement_json_round_trip(tmp_path):
     fabric = Wallpaper("p6m", (30, 0), (-15, 15 * math.sqrt(3)))
     placement = Placement([0.1, -2.0], [[1, 2], [3, 4]], fabric, piece_names=["a", "b"],
-                          report={"e_fit_aligned_mm2": 1.5})
+                          report={"e_fit_aligned_mm2": 1.5}, garment="shirt.obj",
+                          garment_units="m")
     path = tmp_path / "placement.json"
     placement.save(path)
     again = Placement.load(path)
     np.testing.assert_allclose(again.angles, placement.angles)
     np.testing.assert_allclose(again.translations, placement.translations)
     assert again.piece_names == ["a", "b"]
+    assert (again.garment, again.garment_units) == ("shirt.obj", "m")
     assert again.fabric.group == "p6m"
     path.write_text('{"pieces": [{"index": 0}]}')
     with pytest.raises(ValueError, match="placement.json"):
