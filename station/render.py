@@ -174,6 +174,7 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
     full[banner:] = cloth
     image[mask > 0] = full[mask > 0]
     cv2.polylines(image, rings, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+    _draw_marker_details(image, layout, to_px, scale)
     if garment is not None and report is not None:
         _draw_marker_seams(image, layout, garment, report, to_px, red_mm)
     for piece, ring in zip(layout["pieces"], rings):
@@ -188,6 +189,26 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
     if not cv2.imwrite(str(path), image):
         raise ValueError(f"{path}: cannot write the picture")
     return image
+
+
+def _draw_marker_details(image, layout, to_px, scale: float) -> None:
+    """Keep-outs (red), holes, notches (red ticks) and grain lines (green arrows)."""
+    keepouts = [to_px(k) for k in layout.get("keepouts", [])]
+    if keepouts:
+        shade = image.copy()
+        cv2.fillPoly(shade, keepouts, (60, 60, 200), cv2.LINE_AA, shift=4)
+        cv2.addWeighted(shade, 0.5, image, 0.5, 0, dst=image)
+    holes = [to_px(h) for piece in layout["pieces"] for h in piece.get("holes", [])]
+    cv2.polylines(image, holes, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+    tick = max(4.0 / scale, 0.01 * float(layout["width"]))  # at least 4 px long
+    for piece in layout["pieces"]:
+        for notch in piece.get("notches", []):
+            at, d = np.asarray(notch["at"], float), np.asarray(notch["direction"], float)
+            a, b = to_px(np.stack([at, at + tick * d]))
+            cv2.line(image, tuple(a), tuple(b), (0, 0, 200), 2, cv2.LINE_AA, shift=4)
+        if piece.get("grainline") is not None:
+            a, b = to_px(piece["grainline"])
+            cv2.arrowedLine(image, tuple(a), tuple(b), (0, 130, 0), 1, cv2.LINE_AA, shift=4)
 
 
 def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:

@@ -72,9 +72,9 @@ def run(args) -> int:
                         f"({len(faults)} faults); nothing written")
     layout.save(args.output)
     if args.png:
-        from solver.nest.render import render_layout
+        from station.render import draw_marker
 
-        render_layout(layout, args.png)
+        draw_marker(layout.to_dict(), args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),
                "seconds": round(seconds, 3), "printed": problem.fabric is not None,
