@@ -107,7 +107,7 @@ def conformal_energy(uv: np.ndarray, q: sp.csr_matrix) -> tuple[float, np.ndarra
     """E_conf = 1/2 u^T Q u and its (V,2) gradient."""
     u = uv.ravel()
     g = q @ u
-    return 0.5 * float(u @ g), g.reshape(-1, 2)
+    return 0.5 * float(np.einsum("i,i->", u, g)), g.reshape(-1, 2)
 
 
 # ---------------------------------------------------------------------- barrier
@@ -167,13 +167,11 @@ def max_flip_free_step(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray)
     bounds the step (vectorised, as in Smith and Schaefer 2015). Faces whose corners do
     not move are skipped.
     """
-    moving = np.flatnonzero(np.any(direction != 0, axis=1))
-    if moving.size == 0:
+    moving = np.any(direction != 0, axis=1)
+    if not moving.any():
         return np.inf
-    if moving.size < len(uv):
-        mark = np.zeros(len(uv), bool)
-        mark[moving] = True
-        faces = faces[mark[faces].any(axis=1)]
+    if not moving.all():
+        faces = faces[moving[faces].any(axis=1)]
     p, d = uv[faces], direction[faces]  # (F,3,2)
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
@@ -181,22 +179,15 @@ def max_flip_free_step(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray)
     c2 = 0.5 * (f1[:, 0] * f2[:, 1] - f1[:, 1] * f2[:, 0])
     b1 = 0.5 * (e1[:, 0] * f2[:, 1] + f1[:, 0] * e2[:, 1]
                 - e1[:, 1] * f2[:, 0] - f1[:, 1] * e2[:, 0])
-    t = np.full(len(faces), np.inf)
-    lin = np.abs(c2) <= 1e-14 * (np.abs(b1) + np.abs(a0) + 1e-300)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tl = -a0 / b1
-        t[lin] = np.where(tl[lin] > 0, tl[lin], np.inf)
-        q = ~lin
-        disc = b1[q] ** 2 - 4.0 * c2[q] * a0[q]
-        ok = disc >= 0
-        sq = np.sqrt(np.where(ok, disc, 0.0))
-        # numerically stable roots
-        den = -0.5 * (b1[q] + np.copysign(sq, b1[q]))
-        r1 = np.where(den != 0, den / c2[q], np.inf)
-        r2 = np.where(den != 0, a0[q] / den, np.inf)
-        r1 = np.where(ok & (r1 > 0), r1, np.inf)
-        r2 = np.where(ok & (r2 > 0), r2, np.inf)
-        t[q] = np.minimum(r1, r2)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # numerically stable roots; with C = 0 the second one is the linear root -A/B
+        disc = b1 * b1 - 4.0 * c2 * a0
+        real = disc >= 0
+        den = -0.5 * (b1 + np.copysign(np.sqrt(np.maximum(disc, 0.0)), b1))
+        r1 = den / c2
+        r2 = a0 / den
+        t = np.minimum(np.where(real & (r1 > 0), r1, np.inf),
+                       np.where(real & (r2 > 0), r2, np.inf))
     return float(t.min()) if len(t) else np.inf
 
 
