@@ -186,10 +186,8 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     paper = align_paper(problem, restarts=restarts, seed=seed, rotation=rotation,
                         translation=translation, progress=progress, **kw)
     best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
-    if not translation:
-        a, tt, e = bfgs_refine(problem, best_a, best_t, rotations=rotation)
-        a, tt = enforce_fixed(problem, a, tt)
-        return _result(paper, a, tt, problem)
+    if not translation:  # rotations alone: E_fit needs positions, nothing more to search
+        return _result(paper, best_a, best_t, problem)
     # distinct rotation solutions, best first
     order = np.argsort(paper.energies, kind="stable")
     picks = []
