@@ -164,6 +164,15 @@ def test_translation_only_keeps_rotations(pants):
 
 
 @pytest.mark.parametrize("method", ["paper", "global"])
+def test_rotation_only_keeps_translations(pants, method):
+    wp = print_for("p4")
+    init = Placement(np.zeros(4), [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0], [7.0, 8.0]], wp)
+    out = align(pants, wp, method=method, restarts=2, translation=False, init=init)
+    assert np.array_equal(out.translations, init.translations)
+    assert np.any(out.angles != 0.0)
+
+
+@pytest.mark.parametrize("method", ["paper", "global"])
 def test_a_seam_of_weight_zero_has_no_influence(pants, method):
     wp = print_for("p4m", 35.0)
     line = 1
