@@ -350,9 +350,16 @@ class StationPipeline:
             def on_piece(piece) -> None:
                 store.set_piece_state(job.id, index[piece.id], piece.state)
 
+            planned = program.check.estimated_seconds if program.check is not None else None
+
             def on_progress(p) -> None:
+                # The streamer's ETA extrapolates the time taken so far; before there is
+                # enough of it, the program's own time estimate stands in.
+                eta = p.eta_seconds
+                if eta is None and planned is not None and stage[0] == "cutting":
+                    eta = planned * (1.0 - p.fraction)
                 control.progress.update(step=stage[0], fraction=p.fraction,
-                                        seconds_left=p.eta_seconds, machine=p.state,
+                                        seconds_left=eta, machine=p.state,
                                         lines_sent=p.lines_sent, lines_total=p.lines_total,
                                         pieces_cut=len(index) - len(todo) + p.pieces_cut,
                                         pieces_total=len(index))
