@@ -147,13 +147,14 @@ class StationPipeline:
         from solver.garment import load_garment, save_obj
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
-        from station.render import draw_fit, draw_marker, draw_toolpath
+        from station.render import draw_fit, draw_marker, draw_toolpath, garment_credit
 
         garment = load_garment(job.garment, units=job.options.get("units"))
         wallpaper = Wallpaper.load(fabric)
         # The job's own copy of the pattern, in mm: later steps need no units.
         garment_path = workdir / "garment.obj"
         save_obj(garment, garment_path)
+        keep_licence_note(Path(job.garment), workdir)
         garment = load_garment(garment_path)
         fabric_doc = json.loads(Path(fabric).read_text())
         report: dict[str, Any] = {"job": job.id, "garment": job.garment,
@@ -240,13 +241,14 @@ class StationPipeline:
         program = self.program_for(workdir / "layout.json", None)
         program.write(workdir / "job.nc")
         report["program"] = program.summary()
-        draw_toolpath(program, self.machine, workdir / "toolpath.png")
+        credit = garment_credit(garment_path)
+        draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
         photo = cv2.imread(str(workdir / "rectified.png"))
         mm_per_px = 1.0
         if photo is not None:
             mm_per_px = json.loads((workdir / "camera.json").read_text())["mm_per_px"]
         draw_marker(layout.to_dict(), workdir / "marker.png", garment=garment, report=final_fit,
-                    photo=photo, photo_mm_per_px=mm_per_px)
+                    photo=photo, photo_mm_per_px=mm_per_px, credit=credit)
         lap("program")
         self._write_report(workdir, report)
         return {"fabric": fabric, "garment": str(garment_path),
@@ -459,6 +461,20 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
+def keep_licence_note(garment: Path, workdir: Path) -> None:
+    """Copy the garment library's README beside the job's copy of the pattern, so every
+    picture drawn from the copy still carries the acknowledgement its licence asks for."""
+    from station.render import garment_credit
+
+    if garment_credit(garment) is None:
+        return
+    for name in ("README.txt", "BERKELEY-README.txt"):
+        note = garment.resolve().parent / name
+        if note.is_file():
+            shutil.copyfile(note, workdir / "BERKELEY-README.txt")
+            return
+
+
 def start_step(control: JobControl, step: str, fraction: float | None = None) -> None:
     """Announce a step in the job's progress (what `station status` and `watch` show);
     ``fraction`` only where the step can measure how far it is."""

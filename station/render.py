@@ -133,7 +133,8 @@ def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str
 
 def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitReport | None = None,
                 photo: np.ndarray | None = None, photo_mm_per_px: float = 1.0,
-                width_px: int = 1600, red_mm: float = 20.0) -> np.ndarray:
+                width_px: int = 1600, red_mm: float = 20.0,
+                credit: str | None = None) -> np.ndarray:
     """The marker: every piece where it lies on the fabric, seams coloured by mismatch.
 
     ``layout`` is LAYOUT.json's content (fabric mm, x along the roll, y across it, drawn
@@ -181,6 +182,8 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
         centre = (ring.mean(axis=0) / 16).astype(int)
         cv2.putText(image, piece["id"], tuple(centre - [20, 0]), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
                     (20, 20, 20), 1, cv2.LINE_AA)
+    if credit:  # the garment's licence may ask for it on every image (garment_credit)
+        _draw_credit(image, credit)
     density = layout.get("density")
     text = (f"marker {length:.0f} x {width:.0f} mm, {len(layout['pieces'])} pieces"
             + (f", density {100 * density:.1f}%" if density is not None else ""))
@@ -283,7 +286,8 @@ def program_paths(program) -> list[tuple[bool, int, np.ndarray]]:
     return out
 
 
-def draw_toolpath(program, machine, path: str | Path, *, width_px: int = 1600) -> np.ndarray:
+def draw_toolpath(program, machine, path: str | Path, *, width_px: int = 1600,
+                  credit: str | None = None) -> np.ndarray:
     """The program over the machine's work area: cuts coloured by piece (numbered in cut
     order), rapid travel as thin grey lines, the totals in the banner."""
     x0, y0, x1, y1 = machine.work_area
@@ -318,6 +322,16 @@ def draw_toolpath(program, machine, path: str | Path, *, width_px: int = 1600) -
             f"about {(summary['estimated_seconds'] or 0) / 60:.1f} min")
     cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
                 cv2.LINE_AA)
+    if credit:
+        _draw_credit(image, credit)
     if not cv2.imwrite(str(path), image):
         raise ValueError(f"{path}: cannot write the picture")
     return image
+
+
+def _draw_credit(image: np.ndarray, credit: str) -> None:
+    """The acknowledgement line at the bottom left, on a light band so it stays legible."""
+    h = image.shape[0]
+    image[h - 24:h] = (0.3 * image[h - 24:h] + 0.7 * 245).astype(np.uint8)
+    cv2.putText(image, credit, (12, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (60, 60, 60), 1,
+                cv2.LINE_AA)

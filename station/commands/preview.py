@@ -58,7 +58,7 @@ def preview(plan: dict, output: str | Path, *, width_px: int = 1600) -> None:
     from solver.fit import fit_report
     from solver.garment import load_garment
     from solver.placement import Placement
-    from station.render import draw_marker
+    from station.render import draw_marker, garment_credit
 
     try:
         layout = json.loads(Path(plan["layout"]).read_text())
@@ -75,4 +75,5 @@ def preview(plan: dict, output: str | Path, *, width_px: int = 1600) -> None:
     else:
         photo = None  # the job was given a FABRIC.json: draw the print from it
     draw_marker(layout, output, garment=garment, report=fit_report(garment, placement),
-                photo=photo, photo_mm_per_px=mm_per_px, width_px=width_px)
+                photo=photo, photo_mm_per_px=mm_per_px, width_px=width_px,
+                credit=garment_credit(plan["garment"]))
