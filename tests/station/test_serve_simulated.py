@@ -205,3 +205,24 @@ def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, cap
     assert frame is not None and frame.shape[:2] == (960, 1280)
     nc = (out / "job.nc").read_text()
     assert nc.count("G4 P0.01") == 6
+
+
+def test_capture_uses_the_simulators_truth_only_when_vision_is_missing(tmp_path, monkeypatch):
+    """Without `vision` the dry run still runs, on the known print, and says so."""
+    from station.config import load_config
+    from station.daemon import JobControl
+    from station.jobstore import JobStore
+    from station.pipeline import StationPipeline
+
+    monkeypatch.setitem(sys.modules, "vision.pipeline", None)  # import fails
+    store = JobStore(tmp_path / "jobs.db")
+    job = store.submit(str(GARMENT), None, {"units": "m"})
+    pipeline = StationPipeline(load_config(None), simulate=True)
+    fabric = json.loads(Path(pipeline.capture(job, tmp_path, JobControl(job.id))).read_text())
+    store.close()
+    assert fabric["source"] == "simulator truth: vision unavailable"
+    camera = json.loads((tmp_path / "camera.json").read_text())
+    assert fabric["group"] == camera["truth"]["group"] == "pmm"
+    assert fabric["w1"] == camera["truth"]["w1"]
+    assert cv2.imread(str(tmp_path / "frame.png")) is not None
+    assert not (tmp_path / "detection.png").exists()
