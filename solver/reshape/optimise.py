@@ -56,7 +56,7 @@ class ReshapeOptions:
     max_iterations_per_round: int = 200
     ftol: float = 1e-9  # relative energy decrease that ends a round
     xtol_mm: float = 1e-7  # largest vertex step (mm) that ends a round
-    refresh_every: int = 15  # fewest iterations between two factorisations in a round
+    refresh_every: int = 40  # fewest iterations between two factorisations in a round
 
 
 class _Preconditioner:
