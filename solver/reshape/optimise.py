@@ -5,17 +5,19 @@ Driver ``optimise`` + explicit ``OptimiseState`` + one L-BFGS iteration ``optimi
 
 Why our own L-BFGS rather than ``scipy.optimize.minimize(method="L-BFGS-B")``:
 
-- the line search must never step into a flip. SciPy's Moré-Thuente search treats the
-  +inf returned for a flipped triangle as an abnormal termination and stops early; here
-  every step is capped at 90 % of the first flip along the direction (per-face quadratic
-  of the signed area, vectorised) and then backtracked (Armijo), so every iterate is
-  flip-free by construction;
-- the two-loop recursion starts from a fixed sparse preconditioner, the Hessian of the
-  quadratic part (cotangent Laplacian + proximity + a rank-one surrogate of the length
-  penalty per twin pair), factorised once per gamma round. Plain L-BFGS needs more
-  iterations the finer the mesh (the Laplacian's condition number grows as h^-2); with
-  the preconditioner the iteration count stays nearly flat, so time grows about
-  linearly with the face count. SciPy's L-BFGS-B takes no preconditioner.
+- the line search must never step into a flip, and SciPy's does not cope with a barrier
+  that returns +inf (or 1e300): on f(x) = (x-3)^2 - log(2-x), +inf for x >= 2, started at
+  -50, SciPy 1.17's L-BFGS-B reports "CONVERGENCE" at x = -29 after two iterations (the
+  minimum is at 1.63): once a trial step lands beyond the barrier it stops. Here every
+  step is capped at 90 % of the first flip along the direction (per-face quadratic of the
+  signed area, vectorised) and then backtracked (Armijo), so every iterate is flip-free
+  by construction;
+- the two-loop recursion starts from a sparse convex model of Eq. (10) (conformal matrix
+  + proximity + Gauss-Newton parts of the length penalty and of the active barrier
+  terms), factorised with CHOLMOD at the start of each gamma round and again when the
+  barrier starts to bind (steps cut below half, at most every ``refresh_every``
+  iterations). SciPy's L-BFGS-B takes no such start matrix; without it the iteration
+  count grows with the Laplacian's condition number (h^-2).
 
 The gamma loop: gamma starts at ``gamma0`` and is halved each round until the twin
 length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value,
