@@ -134,3 +134,16 @@ def test_obj_export_reimports_to_the_same_outlines(tmp_path, shorts_run):
         assert np.abs(np.sort(a, axis=0) - np.sort(b, axis=0)).max() < 1e-6
     np.testing.assert_allclose(back.xyz[:, :], back.xyz)  # 3D present
     assert back.xyz is not None
+
+
+def test_a_heavier_seam_fits_better(shorts, placement, shorts_run):
+    _, plain, _ = shorts_run
+    line = int(np.argmax(np.bincount(shorts.seam_line_of_edge)))  # the longest seam line
+    heavy_g = shorts.with_seam_weights({line: 10.0})
+    heavy, _ = reshape(heavy_g, placement)
+    on = shorts.seam_line_of_edge == line
+
+    def mismatch(g):
+        return fit_report(g, placement, weights=np.ones(len(g.seam_edges))).distance[on].sum()
+
+    assert mismatch(heavy) < mismatch(plain)
