@@ -208,7 +208,7 @@ def split_half_reliability(a: np.ndarray, b: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------- the lattice's isometries
-def holohedry(basis: np.ndarray, tol: float = 0.1) -> list[np.ndarray]:
+def holohedry(basis: np.ndarray, tol: float = 0.2) -> list[np.ndarray]:
     """Integer matrices A (in the basis' fractional coordinates), A != I, that are
     isometries of the lattice up to ``tol`` (relative), i.e. A^T G A = G."""
     g = basis.T @ basis
