@@ -363,7 +363,7 @@ def detect_lattice(
 
     # Choose among peaks with a well-overlapped lag only: near the edge of the valid
     # region the normalised autocorrelation rests on few pixels and runs high.
-    core = wacf > 0.5
+    core = wacf > 0.3
     rc = np.round(d + center).astype(int)
     inner = core[rc[:, 0], rc[:, 1]]
     if inner.sum() < 2:
@@ -396,7 +396,7 @@ def _support(smooth, center, basis, radius):
     return float(np.mean(np.sort(samp)[: max(2, len(samp) // 2)]))
 
 
-def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.93):
+def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.95):
     """Densest lattice whose points all carry strong autocorrelation.
 
     The autocorrelation at a pseudo-repeat (a shift under which the print only nearly
@@ -443,16 +443,20 @@ def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.93):
     area0, best, basis0 = max(scored, key=lambda r: r[1])
     if best < min_strength:
         return None, best
-    shared = _values(smooth, center, basis0, 2.6 * np.linalg.norm(basis0, axis=0).max())
-    ref = float(np.mean(shared)) if len(shared) else best
+    long0 = float(np.linalg.norm(basis0, axis=0).max())
     for area, _, basis in sorted(scored, key=lambda r: r[0]):
         if area >= area0 - 0.5:
             break
         m = np.linalg.solve(basis, basis0)
         if np.abs(m - np.round(m)).max() > 0.1:
             continue  # not a refinement of the best lattice
-        # Values at the denser lattice's points that the best lattice lacks.
-        n, pts = _lattice_points(basis, 2.6 * np.linalg.norm(basis, axis=0).max())
+        # Values at the denser lattice's points that the best lattice lacks, against the
+        # best lattice's own values over the same range of lags (the autocorrelation
+        # falls with lag under perspective and folds).
+        radius = 2.6 * np.linalg.norm(basis, axis=0).max()
+        shared = _values(smooth, center, basis0, max(radius, 1.05 * long0))
+        ref = float(np.mean(shared)) if len(shared) else best
+        n, pts = _lattice_points(basis, radius)
         frac = np.abs(pts @ np.linalg.inv(basis0).T - np.round(pts @ np.linalg.inv(basis0).T))
         extra = pts[frac.max(axis=1) > 0.1]
         vals_e = ndimage.map_coordinates(smooth, [extra[:, 0] + center[0],
