@@ -37,7 +37,7 @@ PRINTS = {"p1": 30.0, "pmm": 45.0, "pgg": 60.0, "cmm": 75.0, "p4m": 90.0, "p6m":
 RESTARTS = 15
 #: brute-force reference: grid points per cell axis by number of moving pieces (denser
 #: than the global method's own joint grid, solver.align.global_.GLOBAL_GRID)
-BRUTE_GRID = {1: 64, 2: 28, 3: 16, 4: 10}
+BRUTE_GRID = {1: 64, 2: 20, 3: 16, 4: 10}
 
 
 def fabric(group: str, a: float):
@@ -64,7 +64,9 @@ def garments():
         path = SHARED / "berkeley_garment_library" / "Garments" / rel
         if path.is_file():
             yield Path(rel).stem, load_garment(path, units="m")
-    for name in GARMENTCODE[: 0 if only else 1 if quick else 2]:
+    for name in GARMENTCODE[: 1 if quick else 2]:
+        if only and not any(w in f"gc-{name}" for w in only):
+            continue
         path = SHARED / "garmentcode" / "generated" / name / f"{name}_specification.json"
         if path.is_file():
             yield f"gc-{name} (2D)", load_garment(path)
