@@ -42,4 +42,29 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     from solver.reshape.optimise import optimise
 
     result = optimise(garment, placement, fixed=fixed, options=options)
-    return garment.with_uv(result.uv), reshape_report(garment, placement, result)
+    new = garment.with_uv(result.uv)
+    new.grainlines, new.notches = _carry_marks(garment, result.uv)
+    return new, reshape_report(garment, placement, result)
+
+
+def _carry_marks(garment, uv: np.ndarray):
+    """Grain lines and notches moved with the displacement of their nearest pattern vertex,
+    so that notches stay on the reshaped outline and grain lines on their piece."""
+    from scipy.spatial import cKDTree
+
+    disp = uv - garment.uv
+    grains, notches = {}, {}
+    for i in set(garment.grainlines) | set(garment.notches):
+        verts = np.flatnonzero(garment.piece_of_vertex == i)
+        tree = cKDTree(garment.uv[verts])
+
+        def move(points, verts=verts, tree=tree):
+            p = np.asarray(points, float).reshape(-1, 2)
+            return p + disp[verts[tree.query(p)[1]]]
+
+        if i in garment.grainlines:
+            a, b = move(garment.grainlines[i])
+            grains[i] = (tuple(map(float, a)), tuple(map(float, b)))
+        if garment.notches.get(i):
+            notches[i] = [tuple(map(float, q)) for q in move(garment.notches[i])]
+    return grains, notches

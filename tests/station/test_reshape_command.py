@@ -108,3 +108,25 @@ def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
         assert len(p.outline) == len(ours)
         d = np.linalg.norm(ours[:, None] - p.outline[None], axis=-1).min(axis=1)
         assert d.max() < 1e-6
+
+
+def test_dxf_carries_grain_lines_and_notches_with_the_reshaped_outline(tmp_path, inputs):
+    from solver.dxf_aama import read_dxf_aama
+    from solver.reshape import reshape
+    from station.commands.reshape import write_garment
+
+    garment, _, placement = inputs
+    g = load_garment(garment, units="m")
+    corner = g.piece_outline(0)[3]
+    g.grainlines = {0: (tuple(corner), tuple(corner + [0.0, 100.0]))}
+    g.notches = {0: [tuple(corner)]}
+    new, report = reshape(g, Placement.load(placement))
+    moved = new.uv[np.flatnonzero((g.uv == corner).all(axis=1))[0]]
+    assert new.notches[0][0] == pytest.approx(tuple(moved), abs=1e-9)  # stays on the outline
+    out = tmp_path / "marks.dxf"
+    write_garment(new, out)
+    piece = read_dxf_aama(out)[0]
+    assert piece.grainline is not None
+    np.testing.assert_allclose(piece.grainline, np.asarray(new.grainlines[0]), atol=1e-6)
+    assert len(piece.notches) == 1
+    np.testing.assert_allclose(piece.notches[0][0], moved, atol=1e-6)
