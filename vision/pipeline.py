@@ -37,7 +37,8 @@ class FabricDetection:
         wp = self.classification.wallpaper
         if wp is None:
             return None
-        return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + self.offset, tol=1e-6)
+        return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + self.offset, tol=1e-6,
+                         motif=wp.motif)
 
     def fabric_json(self) -> dict:
         """FABRIC.json: the foundation's format plus confidence, distortion and the
