@@ -107,13 +107,15 @@ def _lattice_ok(found: np.ndarray, truth: np.ndarray) -> tuple[bool, float]:
 
 
 def run(per_group: int = 20, size: tuple[int, int] = (4000, 3000), seed: int = 0,
-        verbose: bool = True) -> dict:
+        verbose: bool = True, groups: tuple[str, ...] = GROUP_NAMES) -> dict:
     cam = CameraModel.default(size)
     height = 1000.0
     mm_px = height / cam.K[0, 0]
     field_mm = size[0] * mm_px
     rows = []
     for gi, group in enumerate(GROUP_NAMES):
+        if group not in groups:
+            continue
         for k in range(per_group):
             rng = np.random.default_rng(seed + 1000 * gi + k)
             family = FAMILIES[k % len(FAMILIES)]

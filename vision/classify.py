@@ -339,15 +339,20 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     mm = lattice.mm_per_px
     basis = lattice.basis / mm * scale  # working (x, y) px
     h, w = flat.shape
-    anchor = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    # The central repeat's cell is centred on the image, so that at least one whole
+    # repeat is sampled even when only about three fit across.
+    anchor = np.array([(w - 1) / 2.0, (h - 1) / 2.0]) - basis @ np.array([0.5, 0.5])
     # Band-limit the image to the cell grid: sampling a sharp print more coarsely than
     # its pixels by interpolation leaves errors that differ between a point and its
     # symmetric partner, and the whitening below would amplify them.
     spacing = float(np.linalg.norm(basis, axis=0).max()) / cell_n
     if spacing > 1.0:
         flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
-    motif, halves, nrep, _, _ = mean_cell(flat, basis, anchor, n=cell_n,
-                                          max_repeats=max_repeats)
+    try:
+        motif, halves, nrep, _, _ = mean_cell(flat, basis, anchor, n=cell_n,
+                                              max_repeats=max_repeats)
+    except ValueError as exc:
+        return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
     if whiten:
         motif = _whiten(motif, basis, whiten)
