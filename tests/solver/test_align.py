@@ -135,7 +135,7 @@ def test_moving_the_whole_pattern_keeps_the_optimum(sheet2, pants, method):
         assert out.report["e_fit_aligned_mm2"] < 1e-6 * out.report["e_fit_random_mm2"]
     # and on a real garment the optimum found, carried along with the pattern, keeps
     # exactly its E_fit (so the optimal value cannot depend on where the pattern lies)
-    base = align(pants, wp, method=method, restarts=5, seed=1)
+    base = align(pants, wp, method=method, restarts=5, seed=1, fix=["0"])
     moved = pants.with_uv(pants.uv @ turn.T + [1234.5, -321.0])
     carried = Placement(base.angles + 0.7, base.translations @ turn.T + [1234.5, -321.0], wp)
     assert fit_report(moved, carried).e_fit_mm2 == pytest.approx(
@@ -176,7 +176,8 @@ def test_rotation_only_keeps_translations(pants, method):
 def test_a_seam_of_weight_zero_has_no_influence(pants, method):
     wp = print_for("p4m", 35.0)
     line = 1
-    zero = align(pants, wp, method=method, restarts=3, seed=4, weights={line: 0.0})
+    # (piece 0 held still: three moving pieces keep the global method's joint grid small)
+    zero = align(pants, wp, method=method, restarts=3, seed=4, weights={line: 0.0}, fix=["0"])
     # the same garment without that seam line at all
     keep = pants.seam_line_of_edge != line
     cut = pants.copy()
@@ -184,7 +185,7 @@ def test_a_seam_of_weight_zero_has_no_influence(pants, method):
     remap = np.cumsum(np.arange(len(pants.seam_lines)) != line) - 1
     cut.seam_line_of_edge = remap[pants.seam_line_of_edge[keep]]
     cut.seam_lines = [s for i, s in enumerate(pants.seam_lines) if i != line]
-    without = align(cut, wp, method=method, restarts=3, seed=4)
+    without = align(cut, wp, method=method, restarts=3, seed=4, fix=["0"])
     np.testing.assert_allclose(zero.angles, without.angles, atol=1e-7)
     np.testing.assert_allclose(zero.translations, without.translations, atol=1e-6)
 
@@ -192,8 +193,8 @@ def test_a_seam_of_weight_zero_has_no_influence(pants, method):
 @pytest.mark.parametrize("method", ["paper", "global"])
 def test_grain_keeps_every_piece_within_tolerance_of_the_print(pants, method):
     wp = print_for("p4m")
-    free = align(pants, wp, method=method, restarts=3, seed=0)
-    out = align(pants, wp, method=method, restarts=3, seed=0, grain_tol_deg=2.0)
+    free = align(pants, wp, method=method, restarts=3, seed=0, fix=["0"])
+    out = align(pants, wp, method=method, restarts=3, seed=0, grain_tol_deg=2.0, fix=["0"])
     rel = np.degrees(out.angles) % 180.0  # no grain lines in the file: vertical axis
     assert np.all(np.minimum(rel, 180.0 - rel) <= 2.0 + 1e-9)
     assert out.report["e_fit_aligned_mm2"] >= 0.5 * free.report["e_fit_aligned_mm2"]
