@@ -77,6 +77,7 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
               translation=translation, progress=progress)
     placement = Placement(res.angles, res.translations, fabric,
                           garment=getattr(garment, "source", None) or None,
+                          garment_units=_named_units(garment),
                           piece_names=list(garment.piece_names))
     fit = fit_report(garment, placement)
     own_w = garment.seam_weights()
@@ -115,3 +116,11 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
     report["seconds"] = time.perf_counter() - start
     placement.report = report
     return placement
+
+
+def _named_units(garment) -> str | None:
+    """The garment file's units when they have a name (they go into PLACEMENT.json)."""
+    from solver.units import MM_PER_UNIT
+
+    units = getattr(garment, "units_in_file", None)
+    return units if units in MM_PER_UNIT else None

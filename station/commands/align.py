@@ -7,8 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-from solver.align import METHODS, align
-from solver.placement import Placement
 from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
 
 
@@ -24,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_garment_arguments(p)
     p.add_argument("--fabric", required=True, metavar="FABRIC.json",
                    help='print: {"group", "w1", "w2", "origin", "units"}')
-    p.add_argument("--method", choices=METHODS, default="paper",
+    p.add_argument("--method", choices=("paper", "global"), default="paper",
                    help="paper: Sec. 4 with restarts; global: closer to the global optimum")
     p.add_argument("--restarts", type=int, default=15, metavar="N",
                    help="random starts (default 15, as in the paper)")
@@ -74,6 +72,10 @@ def _load_weights(path: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here: solver.align pulls in SciPy, which every other command can skip.
+    from solver.align import align
+    from solver.placement import Placement
+
     if args.restarts < 1:
         raise ValueError(f"--restarts must be at least 1, got {args.restarts}")
     if args.grain is not None and not args.grain >= 0:
@@ -93,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         rotation=not args.no_rotation, translation=not args.no_translation, init=init,
         use_drape=not args.pattern_frames, progress=progress)
     placement.garment = str(args.garment)
+    placement.garment_units = args.units or placement.garment_units
     placement.save(args.output)
     rep = dict(placement.report)
     rep["output"] = str(args.output)
