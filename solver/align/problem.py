@@ -158,6 +158,29 @@ class AlignProblem:
         )
 
     # -------------------------------------------------------------- record views
+    def sweep_plan(self, fixed: np.ndarray, normalise: bool = False) -> list:
+        """Per colour class: its movable pieces, their live records and the scatter matrix.
+
+        Pieces of one colour share no seam, so a class is updated at once, which equals
+        the paper's piece-by-piece sweep. ``scatter[k, j]`` is w_S l_e of record j if it
+        belongs to piece k (divided by the piece's total weight w_c when ``normalise``, as
+        Eq. 9 needs).
+        """
+        fr, w = self.frames, self.record_weight
+        movable = np.flatnonzero(~np.asarray(fixed, bool))
+        plan = []
+        for cls in self.colours:
+            pieces = np.intersect1d(cls, movable)
+            rec = self.live_records(pieces)
+            if len(pieces) == 0 or len(rec) == 0:
+                continue
+            scatter = (fr.piece[rec][None, :] == pieces[:, None]) * w[rec][None, :]
+            if normalise:
+                total = scatter.sum(axis=1, keepdims=True)
+                scatter = scatter / np.where(total > 0, total, 1.0)
+            plan.append((pieces, rec, scatter))
+        return plan
+
     @property
     def record_weight(self) -> np.ndarray:
         """(R,) w_S l_e of every directed record."""

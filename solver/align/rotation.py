@@ -54,27 +54,12 @@ class RotationState:
         return np.arctan2(self.r[..., 1], self.r[..., 0])
 
 
-def _plan(problem: AlignProblem) -> list:
-    """Per colour class: its movable pieces, their live records and the scatter matrix."""
-    fr, w = problem.frames, problem.record_weight
-    movable = np.flatnonzero(~problem.fix_rot)
-    plan = []
-    for cls in problem.colours:
-        pieces = np.intersect1d(cls, movable)
-        rec = problem.live_records(pieces)
-        if len(pieces) == 0 or len(rec) == 0:
-            continue
-        scatter = (fr.piece[rec][None, :] == pieces[:, None]).astype(float)  # (k, n)
-        plan.append((pieces, rec, scatter * w[rec][None, :]))
-    return plan
-
-
 def init_rotations(problem: AlignProblem, angles: np.ndarray) -> RotationState:
     angles = np.atleast_2d(np.asarray(angles, float))
     r = np.stack([np.cos(angles), np.sin(angles)], -1)
     b = len(angles)
     return RotationState(r=r, iterations=np.zeros(b, int), converged=np.zeros(b, bool),
-                         plan=_plan(problem))
+                         plan=problem.sweep_plan(problem.fix_rot))
 
 
 def rotation_step(problem: AlignProblem, state: RotationState, eps: float = EPS_ROT) -> bool:

@@ -41,27 +41,13 @@ class TranslationState:
     plan: list = field(default_factory=list, repr=False)
 
 
-def _plan(problem: AlignProblem) -> list:
-    fr, w = problem.frames, problem.record_weight
-    movable = np.flatnonzero(~problem.fix_trans)
-    plan = []
-    for cls in problem.colours:
-        pieces = np.intersect1d(cls, movable)
-        rec = problem.live_records(pieces)
-        if len(pieces) == 0 or len(rec) == 0:
-            continue
-        scatter = (fr.piece[rec][None, :] == pieces[:, None]) * w[rec][None, :]
-        total = scatter.sum(axis=1, keepdims=True)
-        plan.append((pieces, rec, scatter / np.where(total > 0, total, 1.0)))
-    return plan
-
-
 def init_translations(problem: AlignProblem, angles, t) -> TranslationState:
     angles = np.atleast_2d(np.asarray(angles, float))
     t = np.asarray(t, float).reshape(len(angles), problem.n_pieces, 2).copy()
     b = len(angles)
+    plan = problem.sweep_plan(problem.fix_trans, normalise=True)
     return TranslationState(angles=angles, t=t, iterations=np.zeros(b, int),
-                            converged=np.zeros(b, bool), plan=_plan(problem))
+                            converged=np.zeros(b, bool), plan=plan)
 
 
 def translation_step(problem: AlignProblem, state: TranslationState,
