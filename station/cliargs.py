@@ -17,6 +17,11 @@ def add_garment_arguments(parser: argparse.ArgumentParser) -> None:
                         "else mm)")
 
 
+def add_fabric_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--fabric", required=True, metavar="FABRIC.json",
+                        help='the print: {"group", "w1", "w2", "origin", "units"}')
+
+
 def load_garment_arg(args: argparse.Namespace, **options):
     """The command's GARMENT, with repairs and a units slip told on stderr, one line each.
 

@@ -7,7 +7,12 @@ import json
 import sys
 from pathlib import Path
 
-from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
+from station.cliargs import (
+    add_fabric_argument,
+    add_garment_arguments,
+    load_fabric,
+    load_garment_arg,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,8 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "with E_fit refinement that is never worse than the paper's result.",
     )
     add_garment_arguments(p)
-    p.add_argument("--fabric", required=True, metavar="FABRIC.json",
-                   help='print: {"group", "w1", "w2", "origin", "units"}')
+    add_fabric_argument(p)
     p.add_argument("--method", choices=("paper", "global"), default="paper",
                    help="paper: Sec. 4 with restarts; global: closer to the global optimum")
     p.add_argument("--restarts", type=int, default=15, metavar="N",

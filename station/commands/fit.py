@@ -8,7 +8,12 @@ import time
 
 from solver.fit import fit_report
 from solver.placement import Placement
-from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
+from station.cliargs import (
+    add_fabric_argument,
+    add_garment_arguments,
+    load_fabric,
+    load_garment_arg,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,8 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "for the print FABRIC placed on each piece as PLACEMENT says (identity if omitted).",
     )
     add_garment_arguments(p)
-    p.add_argument("--fabric", required=True, metavar="FABRIC.json",
-                   help='print: {"group", "w1", "w2", "origin", "units"}')
+    add_fabric_argument(p)
     p.add_argument("--placement", metavar="PLACEMENT.json",
                    help="per-piece rotation and translation of the print (default: identity)")
     p.add_argument("--json", action="store_true", help="print one JSON object")

@@ -9,7 +9,12 @@ from pathlib import Path
 
 from solver.placement import Placement
 from station.cli import UserError
-from station.cliargs import add_garment_arguments, load_fabric, load_garment_arg
+from station.cliargs import (
+    add_fabric_argument,
+    add_garment_arguments,
+    load_fabric,
+    load_garment_arg,
+)
 
 FORMATS = (".obj", ".json", ".dxf")
 
@@ -24,8 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "DXF-AAMA.",
     )
     add_garment_arguments(p)
-    p.add_argument("--fabric", required=True, metavar="FABRIC.json",
-                   help='print: {"group", "w1", "w2", "origin", "units"}')
+    add_fabric_argument(p)
     p.add_argument("--placement", required=True, metavar="PLACEMENT.json",
                    help="per-piece rotation and translation of the print (from `station align`)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.(obj|json|dxf)",
