@@ -518,7 +518,8 @@ class SyntheticCamera:
     def _default_pose(self) -> Pose:
         """Straight down on the sheet (or board), everything in view with a margin."""
         if self.sheet is not None:
-            w, h = self.sheet.size
+            # An endless sheet (size None) is framed like a default-sized one.
+            w, h = self.sheet.size or Sheet.__dataclass_fields__["size"].default
             corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], float)
             table = corners @ self.sheet.fabric_to_table_affine()[:2, :2].T + self.sheet.shift
         else:
@@ -622,7 +623,8 @@ class SyntheticCamera:
             truth.lattice_affine = {"w1": (aff[:2, :2] @ pt.w1).tolist(),
                                     "w2": (aff[:2, :2] @ w2).tolist(),
                                     "origin": (aff[:2, :2] @ pt.origin + aff[:2, 2]).tolist()}
-            truth.sheet = {"size": list(sh.size), "rotation": sh.rotation,
+            truth.sheet = {"size": None if sh.size is None else list(sh.size),
+                           "rotation": sh.rotation,
                            "shift": list(sh.shift), "skew": sh.skew, "bow": sh.bow,
                            "fold": list(sh.fold) if sh.fold else None,
                            "rigid": not sh.distorted}

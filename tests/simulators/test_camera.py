@@ -263,3 +263,17 @@ def test_skewed_sheet_follows_the_affine_lattice():
     assert _corr(base, _sample(frame, cam.truth, pts + step)) > 0.9
     rigid = 4 * cam.truth.wallpaper.w1  # 10 mm off after 120 mm
     assert _corr(base, _sample(frame, cam.truth, pts + rigid)) < 0.5
+
+
+def test_endless_sheet_fills_the_view_and_reports_no_size():
+    """The module documents size=None as a sheet with no edge; its truth must say so."""
+    endless = Sheet(random_print("p4", 30.0, seed=5), size=None)
+    with SyntheticCamera(endless, camera=CameraModel.default(SMALL), seed=4) as cam:
+        frame = cam.read()
+        truth = cam.truth
+    assert truth.sheet["size"] is None
+    # No table shows: every part of the frame carries the print's contrast.
+    grey = frame.mean(axis=2)
+    h, w = grey.shape
+    tiles = grey[: h // 4 * 4, : w // 4 * 4].reshape(4, h // 4, 4, w // 4).std(axis=(1, 3))
+    assert tiles.min() > 5.0
