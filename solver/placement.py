@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from solver.jsonfile import read_json
 from solver.wallpaper import Wallpaper
 
 
@@ -103,10 +104,8 @@ class Placement:
 
     @classmethod
     def load(cls, path: str | Path) -> Placement:
-        path = Path(path)
+        data = read_json(path)
         try:
-            return cls.from_dict(json.loads(path.read_text()))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+            return cls.from_dict(data)
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None

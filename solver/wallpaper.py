@@ -27,7 +27,6 @@ Conventions (millimetres throughout):
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from solver.jsonfile import read_json
 from solver.units import mm_per_unit
 
 GROUP_NAMES: tuple[str, ...] = (
@@ -309,10 +309,7 @@ class Wallpaper:
     @classmethod
     def load(cls, path: str | Path) -> Wallpaper:
         path = Path(path)
-        try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        d = read_json(path)
         try:
             return cls.from_dict(d)
         except (ValueError, TypeError) as exc:

@@ -13,13 +13,14 @@ vectors when a print is present.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import shapely
+
+from solver.jsonfile import read_json
 
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 MIRROR_X = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # reflection about the grain (x) axis
@@ -200,10 +201,7 @@ def candidate_maps(piece: Piece, mirrored: bool, fabric) -> list[np.ndarray]:
 def load_esicup(path: str | Path) -> NestProblem:
     """An ESICUP/jagua-rs strip-packing instance (``strip_height`` is the fabric width)."""
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    d = read_json(path)
     if "strip_height" not in d or "items" not in d:
         raise ValueError(f"{path}: not a strip-packing instance (needs strip_height and items)")
     pieces = []

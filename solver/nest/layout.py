@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from solver.jsonfile import read_json
 from solver.nest.instance import (
     Item,
     NestProblem,
@@ -104,11 +105,9 @@ class Layout:
 
     @classmethod
     def load(cls, path: str | Path) -> Layout:
-        path = Path(path)
+        data = read_json(path)
         try:
-            return cls.from_dict(json.loads(path.read_text()))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+            return cls.from_dict(data)
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{path}: bad LAYOUT ({exc})") from None
 

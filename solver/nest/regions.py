@@ -9,13 +9,13 @@ greedy vertex cover allows, and re-insert them with the bottom-left filler of
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import shapely
 
+from solver.jsonfile import read_json
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
 from solver.nest.plain import Progress, plain_moves
 
@@ -23,10 +23,7 @@ from solver.nest.plain import Progress, plain_moves
 def load_keepouts(path: str | Path) -> list[np.ndarray]:
     """Keep-out polygons (fabric mm) from JSON: ``{"keepouts": [[[x, y], ...], ...]}`` or a list."""
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    d = read_json(path)
     rings = d.get("keepouts") if isinstance(d, dict) else d
     if not isinstance(rings, list):
         raise ValueError(f"{path}: expected a list of keep-out polygons under 'keepouts'")

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, load_esicup
 
 
@@ -18,10 +18,7 @@ def kind_of(path: str | Path) -> str:
     if path.suffix.lower() == ".dxf":
         return "dxf"
     if path.suffix.lower() == ".json":
-        try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        d = read_json(path)
         if isinstance(d, dict) and "strip_height" in d:
             return "instance"
         if isinstance(d, dict) and "pieces" in d and "fabric" in d:

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from solver.jsonfile import read_json
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
@@ -61,10 +62,7 @@ def _load_weights(path: str) -> dict:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such weights file")
-    try:
-        data = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{p}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    data = read_json(p)
     if not isinstance(data, dict):
         raise ValueError(f'{p}: expected an object {{"seam line": weight}}')
     out = {}
