@@ -133,26 +133,6 @@ def test_bad_requests_get_clear_errors_and_change_nothing(station):
     assert len(request(sock, "jobs")["jobs"]) == 1
 
 
-def test_second_client_answers_within_a_second_while_cutting(station):
-    daemon, sock, garment, fabric = station
-    daemon.pipeline.tick = 0.5
-    job = request(sock, "submit", garment=str(garment), fabric=str(fabric))["job"]["id"]
-    assert wait_until(lambda: state(sock, job)["state"] == "cutting", 5)
-    results = []
-
-    def client():
-        t0 = time.monotonic()
-        request(sock, "status", job=job)
-        results.append(time.monotonic() - t0)
-
-    clients = [threading.Thread(target=client) for _ in range(4)]
-    for c in clients:
-        c.start()
-    for c in clients:
-        c.join()
-    assert len(results) == 4 and max(results) < 1.0
-
-
 @pytest.mark.skipif(os.getuid() != 0, reason="needs root to act as another user")
 def test_socket_refuses_a_user_who_is_not_allowed(station):
     daemon, sock, garment, fabric = station
