@@ -13,6 +13,13 @@ Edge geometry (pygarment conventions): Bezier control points are relative to the
 circle params ``[radius, large_arc, right]`` describe an SVG arc whose sweep flag is
 ``right``. Stitch orientation: by default edge 1's end meets edge 2's start (right side to
 right side); ``"right_wrong"`` sews them in the same direction.
+
+Panels written by :func:`save_spec` also carry their triangle mesh (``"mesh"``: interior
+points and triangles over the panel's vertices). Such a panel is read as written, one
+boundary segment per straight edge, instead of being re-sampled and re-triangulated: a
+reshaped pattern's outline is a polyline whose segments need not fit the sampling
+resolution, and it may even cross itself, which no triangulation of the outline can
+reproduce; the mesh makes the JSON round trip exact, like the OBJ one.
 """
 
 from __future__ import annotations
@@ -24,10 +31,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 import triangle
 
 from solver.garment.errors import GarmentError
-from solver.garment.model import Garment, _components, build_garment
+from solver.garment.model import Garment, _boundary_half_edges, _components, build_garment
 from solver.units import mm_per_unit, units_from_meter_fraction
 
 DEFAULT_RESOLUTION_MM = 20.0
@@ -173,6 +181,56 @@ def _panel_geometry(path: Path, name: str, panel: Any) -> tuple[np.ndarray, list
     return verts, edges
 
 
+def _panel_mesh(
+    path: Path, name: str, panel: dict, verts: np.ndarray, edges: list[dict]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The panel's optional ``mesh`` {interior (m,2), triangles (t,3)}, validated.
+
+    Triangle corners index the panel's vertices (0..n-1), then the interior points
+    (n..n+m-1). The edges must be the straight loop 0->1->...->0 and every one of them a
+    boundary edge of the mesh, so the outline read back is the one written.
+    """
+    raw = panel.get("mesh")
+    if raw is None:
+        return None
+    n = len(verts)
+    try:
+        interior = np.asarray(raw["interior"], dtype=float).reshape(-1, 2)
+        tri = np.asarray(raw["triangles"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GarmentError(
+            path, f"panel {name!r} mesh needs 'interior' 2D points and 'triangles' ({exc})"
+        ) from None
+    if not np.isfinite(interior).all():
+        raise GarmentError(path, f"panel {name!r} mesh has a non-finite interior point")
+    if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0 or tri.dtype.kind not in "iu":
+        raise GarmentError(path, f"panel {name!r} mesh triangles are not rows of 3 integers")
+    bad = tri[(tri < 0) | (tri >= n + len(interior))]
+    if bad.size:
+        raise GarmentError(
+            path, f"panel {name!r} mesh triangle corner {int(bad[0])} is not a vertex "
+            f"(it has {n} outline and {len(interior)} interior points)"
+        )
+    for k, e in enumerate(edges):
+        if [int(x) for x in e["endpoints"]] != [k, (k + 1) % n] or e.get("curvature"):
+            raise GarmentError(
+                path, f"panel {name!r} has a mesh, so edge {k} must be the straight edge "
+                f"[{k}, {(k + 1) % n}]"
+            )
+    tri = tri.astype(np.int64)
+    total = n + len(interior)
+    bhe = _boundary_half_edges(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), total)
+    on_boundary = np.minimum(bhe[:, 0], bhe[:, 1]) * total + np.maximum(bhe[:, 0], bhe[:, 1])
+    k = np.arange(n)
+    loop_keys = np.minimum(k, (k + 1) % n) * total + np.maximum(k, (k + 1) % n)
+    missing = np.flatnonzero(~np.isin(loop_keys, on_boundary))
+    if missing.size:
+        raise GarmentError(
+            path, f"panel {name!r} edge {int(missing[0])} is not on the boundary of its mesh"
+        )
+    return interior, tri
+
+
 def load_spec(
     path: str | Path, *, units: str | None = None, resolution_mm: float | None = None
 ) -> Garment:
@@ -211,8 +269,10 @@ def load_spec(
     # dense geometry of every edge, in mm
     geom: list[tuple[np.ndarray, list[dict]]] = []
     dense: list[list[np.ndarray]] = []
+    meshes: list[tuple[np.ndarray, np.ndarray] | None] = []
     for name in order:
         verts, edges = _panel_geometry(path, name, panels[name])
+        meshes.append(_panel_mesh(path, name, panels[name], verts, edges))
         verts = verts * k
         polys = []
         for ei, e in enumerate(edges):
@@ -226,8 +286,12 @@ def load_spec(
         geom.append((verts, edges))
         dense.append(polys)
 
-    # stitches: validate and give both edges the same sample count
-    counts = [[max(1, math.ceil(_length(p) / res)) for p in polys] for polys in dense]
+    # stitches: validate and give both edges the same sample count; a meshed panel's
+    # edges are one segment each, and so are the edges sewn to them
+    counts = [
+        [1 if meshes[i] is not None else max(1, math.ceil(_length(p) / res)) for p in polys]
+        for i, polys in enumerate(dense)
+    ]
     stitches = _read_stitches(path, pattern.get("stitches", []), index, dense)
     used: dict[tuple[int, int], int] = {}
     for s, (pa, ea, pb, eb, _) in enumerate(stitches):
@@ -239,7 +303,8 @@ def load_spec(
                     f"and {s}: an edge can be sewn only once",
                 )
             used[key] = s
-        n = max(counts[pa][ea], counts[pb][eb])
+        fixed = meshes[pa] is not None or meshes[pb] is not None
+        n = 1 if fixed else max(counts[pa][ea], counts[pb][eb])
         counts[pa][ea] = counts[pb][eb] = n
 
     # sample each panel loop, triangulate, lay panels out side by side
@@ -260,9 +325,13 @@ def load_spec(
             if _length(poly) == 0:
                 zero_edges += 1
         loop = np.array(pts)
-        loop, keep_map = _drop_duplicates(loop)
-        starts = [int(keep_map[s]) for s in starts]
-        tri = _triangulate(path, order[p], loop, res)
+        if meshes[p] is None:
+            loop, keep_map = _drop_duplicates(loop)
+            starts = [int(keep_map[s]) for s in starts]
+            tri = _triangulate(path, order[p], loop, res)
+        else:  # the panel's own mesh: its vertices are the loop, then the interior points
+            interior, triangles = meshes[p]
+            tri = {"vertices": np.concatenate([loop, interior * k]), "triangles": triangles}
         verts = tri["vertices"]
         box = np.concatenate([verts.min(axis=0), verts.max(axis=0)])
         shift = 0.0
@@ -428,22 +497,38 @@ def save_spec(g: Garment, path: str | Path) -> None:
     Panel vertices are the piece outlines (in cm, ``units_in_meter`` 100, as GarmentCode
     writes); each seam twin pair becomes one stitch, with ``right_wrong`` where the two
     edges run the same way round their panels. Grain lines and notches are kept as panel
-    entries ``grainline`` and ``notches``. Seams on holes cannot be expressed and are
-    dropped with a warning.
+    entries ``grainline`` and ``notches``, the triangle mesh as ``mesh`` so that
+    :func:`load_spec` reads back exactly this pattern (any outline, any segment lengths).
+    Seams on holes cannot be expressed and are dropped with a warning. An outline that
+    crosses itself (a reshaping artefact CAD cannot cut) is written as it is, with a warning.
     """
     path = Path(path)
     panels: dict[str, dict] = {}
     edge_of: dict[tuple[int, int], tuple[str, int, int]] = {}
     names = _unique_names(g.piece_names)
+    face_piece = g.piece_of_face()
+    local = np.full(g.n_vertices, -1, dtype=np.int64)
+    crossed = []
     for i in range(g.n_pieces):
         loop = g.piece_loops(i)[0]
         n = len(loop)
+        # panel-local numbering: outline first (the panel vertices), then the interior
+        mine = np.flatnonzero(g.piece_of_vertex == i)
+        interior = mine[~np.isin(mine, loop)]
+        local[loop] = np.arange(n)
+        local[interior] = n + np.arange(len(interior))
         panels[names[i]] = {
             "translation": [0.0, 0.0, 0.0],
             "rotation": [0.0, 0.0, 0.0],
             "vertices": (g.uv[loop] / 10.0).tolist(),
             "edges": [{"endpoints": [k, (k + 1) % n]} for k in range(n)],
+            "mesh": {
+                "interior": (g.uv[interior] / 10.0).tolist(),
+                "triangles": local[g.faces[face_piece == i]].tolist(),
+            },
         }
+        if n >= 3 and not shapely.LinearRing(g.uv[loop]).is_simple:
+            crossed.append(names[i])
         if i in g.grainlines:
             panels[names[i]]["grainline"] = (np.asarray(g.grainlines[i]) / 10.0).tolist()
         if g.notches.get(i):
@@ -465,6 +550,12 @@ def save_spec(g: Garment, path: str | Path) -> None:
         stitches.append(st)
     if lost:
         warnings.warn(f"{path}: dropped {lost} seam edges that lie on holes", stacklevel=2)
+    if crossed:
+        warnings.warn(
+            f"{path}: the outline of {', '.join(crossed)} crosses itself; "
+            "a CAD program may not cut it as meant",
+            stacklevel=2,
+        )
     spec = {
         "pattern": {"panels": panels, "stitches": stitches, "panel_order": names},
         "properties": {

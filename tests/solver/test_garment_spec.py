@@ -207,3 +207,123 @@ def test_self_stitch_and_uneven_lengths(tmp_path: Path) -> None:
     k = [i for i, s in enumerate(g.seam_lines) if (s.piece_a, s.piece_b) == (0, 1)][0]
     assert counts[k] == 20
     check_invariants(g)
+
+
+def outline_gap_pair(outline: np.ndarray) -> tuple[int, int]:
+    """The two outline vertices two steps apart that are closest (the legs of a dart)."""
+    d = np.linalg.norm(outline - np.roll(outline, -2, axis=0), axis=1)
+    i = int(np.argmin(d))
+    return i, (i + 2) % len(outline)
+
+
+def reshaped_like(g, cross: bool):
+    """A non-rigid deformation of real data, as reshaping makes: twin seam segments of
+    unequal length, segments longer than the sampling resolution, optionally a dart whose
+    legs cross (the outline crosses itself)."""
+    uv = g.uv + 4.0 * np.sin(g.uv[:, ::-1] / 23.0)
+    if cross:
+        loop = g.piece_loops(0)[0]
+        i, j = outline_gap_pair(uv[loop])
+        uv[loop[i]] += 2.0 * (uv[loop[j]] - uv[loop[i]])  # one leg past the other
+    return g.with_uv(uv)
+
+
+@pytest.mark.parametrize(("name", "cross"), [
+    ("garmentcode/pants_specification.json", True),
+    ("garment_pattern_generator/tee.json", False),
+])
+def test_save_spec_reads_back_the_pattern_it_wrote(
+    data_dir: Path, tmp_path: Path, name: str, cross: bool
+) -> None:
+    """Issue 4: the JSON re-imports to the same outlines within 1e-6 mm, same seams."""
+    from shapely import LinearRing
+
+    from solver.garment import save_spec
+    from solver.garment.spec import DEFAULT_RESOLUTION_MM
+
+    g = load_garment(data_dir / "garments" / name)
+    new = reshaped_like(g, cross)
+    s = new.seam_edges
+    l1 = np.linalg.norm(new.uv[s[:, 1]] - new.uv[s[:, 0]], axis=1)
+    l2 = np.linalg.norm(new.uv[s[:, 3]] - new.uv[s[:, 2]], axis=1)
+    assert np.abs(l1 - l2).max() > 0.5 and max(l1.max(), l2.max()) > DEFAULT_RESOLUTION_MM
+    assert LinearRing(new.piece_outline(0)).is_simple != cross
+    out = tmp_path / "reshaped.json"
+    if cross:
+        with pytest.warns(UserWarning, match=f"outline of {g.piece_names[0]} crosses itself"):
+            save_spec(new, out)
+    else:
+        save_spec(new, out)
+    back = load_garment(out)  # default resolution: the written mesh is used as it is
+    assert back.piece_names == new.piece_names
+    for i in range(new.n_pieces):
+        a, b = new.piece_outline(i), back.piece_outline(i)
+        start = int(np.argmin(np.linalg.norm(b - a[0], axis=1)))
+        assert a.shape == b.shape and np.abs(np.roll(b, -start, axis=0) - a).max() < 1e-6
+    # the very mesh comes back (numbering included), so measures on it agree exactly
+    assert np.abs(back.uv - new.uv).max() < 1e-6 and np.array_equal(back.faces, new.faces)
+    assert np.array_equal(back.seam_edges, new.seam_edges)
+    assert [(x.piece_a, x.piece_b) for x in back.seam_lines] == [
+        (x.piece_a, x.piece_b) for x in g.seam_lines]
+    check_invariants(back)
+
+
+def test_spec_without_mesh_still_samples_and_triangulates(data_dir: Path, tmp_path: Path) -> None:
+    """A specification without meshes (older save_spec files, hand edits) is sampled as
+    before: unequal twins share the longer one's count, outlines kept vertex for vertex
+    when the resolution is coarser than every segment."""
+    from solver.garment import save_spec
+
+    g = load_garment(data_dir / "garments" / "garment_pattern_generator" / "tee.json")
+    new = reshaped_like(g, cross=False)
+    save_spec(new, tmp_path / "with.json")
+    spec = json.loads((tmp_path / "with.json").read_text())
+    for panel in spec["pattern"]["panels"].values():
+        del panel["mesh"]
+    (tmp_path / "without.json").write_text(json.dumps(spec))
+    fine = load_garment(tmp_path / "without.json")  # 20 mm: long segments are split
+    assert len(fine.seam_edges) > len(new.seam_edges)
+    assert sorted((x.piece_a, x.piece_b) for x in fine.seam_lines) == sorted(
+        (x.piece_a, x.piece_b) for x in g.seam_lines)
+    coarse = load_garment(tmp_path / "without.json", resolution_mm=1e6)
+    assert len(coarse.seam_edges) == len(new.seam_edges)
+    for i in range(new.n_pieces):
+        assert len(coarse.piece_outline(i)) == len(new.piece_outline(i))
+    check_invariants(fine)
+
+
+@pytest.mark.parametrize(("breakage", "message"), [
+    ("corner", "mesh triangle corner .* is not a vertex"),
+    ("curve", "has a mesh, so edge 0 must be the straight edge"),
+    ("hole", "edge .* is not on the boundary of its mesh"),
+    ("keys", "mesh needs 'interior' 2D points and 'triangles'"),
+    ("shape", "mesh triangles are not rows of 3 integers"),
+])
+def test_bad_panel_mesh_is_one_clear_error(
+    data_dir: Path, tmp_path: Path, breakage: str, message: str
+) -> None:
+    from solver.garment import save_spec
+    from solver.garment.errors import GarmentError
+
+    g = load_garment(data_dir / "garments" / "garment_pattern_generator"
+                     / "pants_straight_sides.json")
+    save_spec(g, tmp_path / "ok.json")
+    spec = json.loads((tmp_path / "ok.json").read_text())
+    panel = spec["pattern"]["panels"][g.piece_names[0]]
+    n = len(panel["vertices"])
+    tri = np.asarray(panel["mesh"]["triangles"])
+    if breakage == "corner":
+        panel["mesh"]["triangles"][0][0] = n + len(panel["mesh"]["interior"])
+    elif breakage == "curve":
+        panel["edges"][0]["curvature"] = [0.5, 0.2]
+    elif breakage == "hole":  # drop a triangle on the outline: its edge leaves the boundary
+        on_edge = ((tri < n).sum(axis=1) >= 2).argmax()
+        del panel["mesh"]["triangles"][int(on_edge)]
+    elif breakage == "keys":
+        del panel["mesh"]["interior"]
+    else:
+        panel["mesh"]["triangles"] = [[0, 1]]
+    (tmp_path / "bad.json").write_text(json.dumps(spec))
+    with pytest.raises(GarmentError, match=message) as err:
+        load_garment(tmp_path / "bad.json")
+    assert str(tmp_path / "bad.json") in str(err.value) and g.piece_names[0] in str(err.value)
