@@ -381,16 +381,41 @@ class Wallpaper:
         best = np.argmin(np.einsum("...ki,...ki->...k", cand, cand), axis=-1)
         return np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
 
+    @property
+    def covering_radius(self) -> float:
+        """Largest distance from any point to its nearest lattice point (mm), hence a
+        bound on every `mismatch`: the circumradius of the acute triangle of a reduced
+        basis (half the diagonal of a square cell, a/sqrt(3) for a hexagonal one)."""
+        r1, r2 = self._reduced[:, 0], self._reduced[:, 1]
+        if r1 @ r2 < 0:
+            r2 = -r2
+        area2 = abs(r1[0] * r2[1] - r1[1] * r2[0])
+        return float(np.linalg.norm(r1) * np.linalg.norm(r2) * np.linalg.norm(r1 - r2)
+                     / (2.0 * area2))
+
+    def _closest(self, p, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per pair: offsets (N, n, 2) to every operation's closest lattice image of q,
+        their lattice reductions (N, n, 2) and the best operation (N,)."""
+        p = np.asarray(p, float).reshape(-1, 2)
+        offset = self.equivalent_points(q) - p[:, None, :]  # (N, n, 2)
+        d = self.lattice_residual(offset)
+        return offset, d, np.argmin(np.einsum("pni,pni->pn", d, d), axis=1)
+
     def mismatch(self, p, q) -> np.ndarray:
         """(N, 2) vector from each ``p`` to the closest point equivalent to ``q``.
 
         Equivalent = the image of q under any operation and any lattice translation.
         """
-        p = np.asarray(p, float).reshape(-1, 2)
-        eq = self.equivalent_points(q)  # (N, n, 2)
-        d = self.lattice_residual(eq - p[:, None, :])
-        best = np.argmin(np.einsum("pni,pni->pn", d, d), axis=1)
-        return d[np.arange(len(p)), best]
+        _, d, best = self._closest(p, q)
+        return d[np.arange(len(best)), best]
+
+    def closest_symmetry(self, p, q) -> tuple[np.ndarray, np.ndarray]:
+        """The symmetry taking each ``q`` closest to its ``p``: operation index (N,)
+        into `cartesian_ops` and whole lattice vector (N, 2) added after it, so that
+        ``ops[k] q + lattice - p == mismatch(p, q)``."""
+        offset, d, best = self._closest(p, q)
+        rows = np.arange(len(best))
+        return best, d[rows, best] - offset[rows, best]
 
     def mismatch_distance(self, p, q) -> np.ndarray:
         return np.hypot(*self.mismatch(p, q).T)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.reshape.ideal import IdealSeams, ideal_seams
+from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams
 from solver.reshape.optimise import (  # the driver optimise() stays in its module, so
     OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module
     OptimiseState,
@@ -26,7 +26,9 @@ __all__ = [
     "OptimiseState",
     "ReshapeOptions",
     "ReshapeReport",
+    "SeamTargets",
     "ideal_seams",
+    "matched_seams",
     "optimise_step",
     "reshape",
     "reshape_report",

@@ -23,9 +23,13 @@ the same shape.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
+
+if TYPE_CHECKING:
+    from solver.reshape.outline import OutlineGuard
 
 
 def _corners(uv: np.ndarray, faces: np.ndarray):
@@ -211,6 +215,7 @@ class PatternEnergy:
     ref_length: np.ndarray
     alpha: float = 1.0
     beta: float = 1.0
+    outline: OutlineGuard | None = None  # rejects crossing outlines
 
     def terms(self, uv: np.ndarray, gamma: float) -> dict[str, tuple[float, np.ndarray]]:
         """Each term's value and gradient (for reports and gradient checks)."""
@@ -223,9 +228,10 @@ class PatternEnergy:
         }
 
     def __call__(self, uv: np.ndarray, gamma: float) -> tuple[float, np.ndarray]:
-        """Total energy and (V,2) gradient; +inf (zero gradient) for any flip."""
+        """Total energy and (V,2) gradient; +inf (zero gradient) for any flip or crossing
+        outline, so that no line search can step into a pattern that cannot be cut."""
         eb, gb = barrier_energy(uv, self.faces, self.threshold)
-        if not np.isfinite(eb):
+        if not np.isfinite(eb) or (self.outline is not None and not self.outline(uv)):
             return np.inf, gb
         ep, gp = prox_energy(uv, self.vertex, self.target, self.weight)
         ec, gc = conformal_energy(uv, self.q)

@@ -11,11 +11,14 @@ replacement S1* that fits S2 perfectly and has S2's edge lengths:
 
 The displacement is then split in half so both sides move equally: a rigid Procrustes
 fit (rotation only, no reflection, no scale) of S1 onto S1* gives the angle theta and
-centroids c1, c*; S1_ideal is S1* turned back by theta/2 about its centroid and moved to
-(c1 + c*)/2, and S2_ideal is the image of S1_ideal under the inverse of the symmetry
-map that took S2 to S1*. Both ideal lines are rigid images of S1* and S2, so they still
-fit perfectly and keep equal twin lengths (the paper's principles 1 and 2). Where one
-piece is fixed, the other side takes the whole displacement.
+centroids c1, c*; S1 turned by theta/2 and S1* turned back by theta/2, both about
+(c1 + c*)/2, meet in the middle pose, and S1_ideal is the mean of the two there.
+S2_ideal is the image of S1_ideal under the inverse of the symmetry map that took S2 to
+S1*, so the two ideal lines fit perfectly and are congruent (the paper's principles 1
+and 2). Departure: the paper moves both lines by half the rigid motion; when the twins
+differ in shape that leaves one side to take the whole shape difference (or the lines do
+not fit), so the shapes are averaged too and each side moves half of everything. Where
+one piece is fixed, the other side takes the whole displacement.
 """
 
 from __future__ import annotations
@@ -28,19 +31,27 @@ from solver.placement import Placement, rotation_matrices
 
 
 @dataclass(frozen=True)
-class IdealSeams:
+class SeamTargets:
     """Proximity targets for E_prox: one row per (seam line, seam vertex).
 
     ``vertex`` (K,) pattern vertex, ``target`` (K,2) its ideal position in mm,
-    ``weight`` (K,) the seam line's weight, ``line`` (K,) its seam line.
-    Per seam line: ``op`` (S,) the chosen symmetry, ``theta`` (S,) the Procrustes angle
-    of S1 onto S1* (radians), ``shift`` (S,) distance between the centroids of S1 and S1*.
+    ``weight`` (K,) w_S times the vertex's share of seam length over ``unit_mm`` (so
+    E_prox integrates along the seam and keeps its balance with the conformal term when
+    the mesh is refined), ``line`` (K,) its seam line.
     """
 
     vertex: np.ndarray
     target: np.ndarray
     weight: np.ndarray
     line: np.ndarray
+
+
+@dataclass(frozen=True)
+class IdealSeams(SeamTargets):
+    """The paper's ideal seam lines, with per seam line (S,): ``op`` the chosen symmetry,
+    ``theta`` the Procrustes angle of S1 onto S1* (radians) and ``shift`` the distance
+    between the centroids of S1 and S1*."""
+
     op: np.ndarray
     theta: np.ndarray
     shift: np.ndarray
@@ -58,33 +69,100 @@ def _apply(h: np.ndarray, p: np.ndarray) -> np.ndarray:
     return np.einsum("nij,nj->ni", h[:, :2, :2], p) + h[:, :2, 2]
 
 
-def seam_vertex_pairs(garment) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unique twin vertex pairs (v1 on the first twin's piece, v2, seam line) of all seams."""
+def seam_vertex_pairs(garment) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Unique twin vertex pairs (v1 on the first twin's piece, v2, seam line) of all seams
+    and each pair's share of seam length (half of every seam edge it ends, in mm)."""
     e = garment.seam_edges
     line = np.asarray(garment.seam_line_of_edge, dtype=np.int64)
+    uv = garment.uv
+    half = 0.25 * (np.linalg.norm(uv[e[:, 1]] - uv[e[:, 0]], axis=1)
+                   + np.linalg.norm(uv[e[:, 3]] - uv[e[:, 2]], axis=1))
     pairs = np.concatenate([
         np.column_stack([e[:, 0], e[:, 2], line]),
         np.column_stack([e[:, 1], e[:, 3], line]),
     ])
-    pairs = np.unique(pairs, axis=0)
-    return pairs[:, 0], pairs[:, 1], pairs[:, 2]
+    pairs, inverse = np.unique(pairs, axis=0, return_inverse=True)
+    length = np.bincount(inverse.ravel(), weights=np.concatenate([half, half]),
+                         minlength=len(pairs))
+    return pairs[:, 0], pairs[:, 1], pairs[:, 2], length
 
 
-def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
-                fixed: np.ndarray | None = None) -> IdealSeams:
-    """Ideal seam lines of every weighted seam line of ``garment`` under ``placement``.
-
-    ``uv`` (V,2) overrides the garment's pattern; ``fixed`` (n_pieces,) bool marks pieces
-    that must not move (their twins take the whole displacement).
-    """
-    uv = garment.uv if uv is None else np.asarray(uv, float)
-    fixed = (np.zeros(garment.n_pieces, bool) if fixed is None
-             else np.asarray(fixed, bool).reshape(garment.n_pieces))
-    v1, v2, line = seam_vertex_pairs(garment)
+def _weighted_pairs(garment, unit_mm: float):
+    """Seam vertex pairs of the weighted seam lines with their E_prox weights."""
+    v1, v2, line, length = seam_vertex_pairs(garment)
     n_lines = len(garment.seam_lines)
     line_w = np.array([s.weight for s in garment.seam_lines], float).reshape(n_lines)
     keep = line_w[line] > 0
-    v1, v2, line = v1[keep], v2[keep], line[keep]
+    return v1[keep], v2[keep], line[keep], (line_w[line] * length / unit_mm)[keep]
+
+
+def _shares(garment, fixed, pi, pj) -> tuple[np.ndarray, np.ndarray]:
+    """Fraction of a pair's displacement each side takes: half each, all of it for the
+    side whose twin is on a fixed piece, none on a fixed piece."""
+    fixed = (np.zeros(garment.n_pieces, bool) if fixed is None
+             else np.asarray(fixed, bool).reshape(garment.n_pieces))
+    fi, fj = fixed[pi], fixed[pj]
+    si = np.where(fi, 0.0, np.where(fj, 1.0, 0.5))
+    sj = np.where(fj, 0.0, np.where(fi, 1.0, 0.5))
+    return si, sj
+
+
+def matched_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
+                  fixed: np.ndarray | None = None, unit_mm: float = 10.0) -> SeamTargets:
+    """Targets from each twin edge pair's own closest symmetry (what E_fit measures),
+    split between the two sides like the ideal lines.
+
+    The paper's ideal lines choose one symmetry per whole seam line; where twin lines
+    differ in shape that can ask for moves of many lattice cells, and a pattern that only
+    gets part of the way can fit worse than before. Here every seam edge takes the
+    symmetry that maps its twin's midpoint closest to its own (E_fit's measure) and both
+    its ends are pulled halfway onto the twin's image under it, so no vertex moves by more
+    than about half the print's covering radius, and alternating these targets with the
+    solve (as in ICP) keeps lowering E_fit. A vertex between two edges that chose
+    different symmetries gets both targets (their mean), which keeps the fit at the
+    midpoints rather than at isolated vertices.
+    """
+    uv = garment.uv if uv is None else np.asarray(uv, float)
+    e = garment.seam_edges
+    line = np.asarray(garment.seam_line_of_edge, dtype=np.int64)
+    line_w = np.array([s.weight for s in garment.seam_lines], float).reshape(-1)
+    keep = line_w[line] > 0 if len(e) else np.zeros(0, bool)
+    e, line = e[keep], line[keep]
+    piece = garment.piece_of_vertex
+    pi, pj = piece[e[:, 0]], piece[e[:, 2]]
+    mid_p = placement.to_wallpaper(0.5 * (uv[e[:, 0]] + uv[e[:, 1]]), pi)
+    mid_q = placement.to_wallpaper(0.5 * (uv[e[:, 2]] + uv[e[:, 3]]), pj)
+    op, lattice = placement.fabric.closest_symmetry(mid_p, mid_q)
+    g = placement.fabric.cartesian_ops()[op]
+    g[:, :2, 2] += lattice
+    a_i = _homogeneous(rotation_matrices(placement.angles[pi]), placement.translations[pi])
+    a_j = _homogeneous(rotation_matrices(placement.angles[pj]), placement.translations[pj])
+    m = a_i @ g @ np.linalg.inv(a_j)  # per edge: pattern of piece j -> pattern of piece i
+    m_inv = np.linalg.inv(m)
+    si, sj = _shares(garment, fixed, pi, pj)
+    length = 0.5 * (np.linalg.norm(uv[e[:, 1]] - uv[e[:, 0]], axis=1)
+                    + np.linalg.norm(uv[e[:, 3]] - uv[e[:, 2]], axis=1))
+    targets, vertices = [], []
+    for a, b in ((0, 2), (1, 3)):  # the two ends of the edge and their twins
+        p, q = uv[e[:, a]], uv[e[:, b]]
+        targets += [p + si[:, None] * (_apply(m, q) - p), q + sj[:, None] * (_apply(m_inv, p) - q)]
+        vertices += [e[:, a], e[:, b]]
+    weight = np.tile(line_w[line] * 0.5 * length / unit_mm, 4)
+    return SeamTargets(vertex=np.concatenate(vertices), target=np.concatenate(targets),
+                       weight=weight, line=np.tile(line, 4))
+
+
+def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
+                fixed: np.ndarray | None = None, unit_mm: float = 10.0) -> IdealSeams:
+    """Ideal seam lines of every weighted seam line of ``garment`` under ``placement``.
+
+    ``uv`` (V,2) overrides the garment's pattern; ``fixed`` (n_pieces,) bool marks pieces
+    that must not move (their twins take the whole displacement); ``unit_mm`` the seam
+    length that carries one unit of proximity weight.
+    """
+    uv = garment.uv if uv is None else np.asarray(uv, float)
+    v1, v2, line, weight = _weighted_pairs(garment, unit_mm)
+    n_lines = len(garment.seam_lines)
     if len(v1) == 0:
         empty = np.zeros(0, np.int64)
         return IdealSeams(empty, np.zeros((0, 2)), np.zeros(0), empty,
@@ -136,31 +214,53 @@ def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
     crs = np.bincount(line, weights=x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0], minlength=n_lines)
     theta = np.arctan2(crs, dot)  # S1 rotated by theta best matches S1*
 
-    # how much of the displacement S1 takes: half, all (twin fixed) or none (own piece fixed)
-    line_pi = np.zeros(n_lines, np.int64)
-    line_pj = np.zeros(n_lines, np.int64)
-    line_pi[line], line_pj[line] = pi, pj
-    fi, fj = fixed[line_pi], fixed[line_pj]
-    share = np.where(fi, 0.0, np.where(fj, 1.0, 0.5))  # fraction of the way from S1 to S1*
-    back = (1.0 - share)  # S1_ideal = S1* turned back by back*theta, centroid interpolated
-    rot_back = rotation_matrices(-back * theta)
-    centre = c1 + share[:, None] * (cs - c1)
-    s1_ideal = np.einsum("pij,pj->pi", rot_back[line], y) + centre[line]
+    # S1's share of the displacement: half, all (twin fixed) or none (own piece fixed).
+    # Both lines meet in the middle pose: S1 turned forward by share*theta, S1* turned
+    # back by the rest, both about the interpolated centroid; the ideal line blends their
+    # shapes in the same proportion, so each side also takes its share of the shape
+    # difference (S1 no longer has to take S2's whole shape, e.g. a straight edge sewn
+    # to a curved one)
+    share, share_j = _shares(garment, fixed, pi, pj)
+    centre = c1[line] + share[:, None] * (cs - c1)[line]
+    fwd = np.einsum("pij,pj->pi", rotation_matrices(share * theta[line]), x)
+    bwd = np.einsum("pij,pj->pi", rotation_matrices((share - 1.0) * theta[line]), y)
+    s1_ideal = (1.0 - share)[:, None] * fwd + share[:, None] * bwd + centre
     s2_ideal = _apply(np.linalg.inv(m), s1_ideal)
-
-    # own piece fixed: S1 stays, S2 takes the whole way (S2* built from S1, roles swapped)
-    own = (fi & ~fj)[line]
-    s1_ideal[own] = s1[own]
-    s2_ideal[own] = _apply(np.linalg.inv(m[own]), s1[own])
-    both = (fi & fj)[line]  # nothing can move: keep current positions as targets
-    s1_ideal[both] = s1[both]
-    s2_ideal[both] = uv[v2][both]
+    stuck = (share == 0) & (share_j == 0)  # both pieces fixed: targets where they are
+    s1_ideal[stuck] = s1[stuck]
+    s2_ideal[stuck] = uv[v2][stuck]
     return IdealSeams(
         vertex=np.concatenate([v1, v2]),
         target=np.concatenate([s1_ideal, s2_ideal]),
-        weight=np.concatenate([line_w[line], line_w[line]]),
+        weight=np.concatenate([weight, weight]),
         line=np.concatenate([line, line]),
         op=best,
         theta=theta,
         shift=np.hypot(*(cs - c1).T),
     )
+
+
+def initial_targets(garment, placement: Placement, ideal: IdealSeams, *,
+                    fixed: np.ndarray | None = None, unit_mm: float = 10.0) -> SeamTargets:
+    """The ideal lines where they are within reach, matched targets elsewhere.
+
+    One symmetry for a whole seam line gives a perfect fit where the twin lines have
+    nearly the same shape. Where the ideal line lies farther from the current line than
+    the print's covering radius (RMS over its vertices), which no mismatch can exceed,
+    the twins differ in shape beyond what one symmetry can absorb (the paper's Fig. 15):
+    pulling them there would distort the piece and, short of arriving, fit worse than
+    before. Those lines start from their per-edge matched targets instead.
+    """
+    n_lines = len(garment.seam_lines)
+    d2 = np.sum((ideal.target - garment.uv[ideal.vertex]) ** 2, axis=1)
+    count = np.maximum(np.bincount(ideal.line, minlength=n_lines), 1)
+    rms = np.sqrt(np.bincount(ideal.line, weights=d2, minlength=n_lines) / count)
+    far = rms > placement.fabric.covering_radius
+    if not far.any():
+        return ideal
+    matched = matched_seams(garment, placement, fixed=fixed, unit_mm=unit_mm)
+    a, b = ~far[ideal.line], far[matched.line]
+    return SeamTargets(vertex=np.concatenate([ideal.vertex[a], matched.vertex[b]]),
+                       target=np.concatenate([ideal.target[a], matched.target[b]]),
+                       weight=np.concatenate([ideal.weight[a], matched.weight[b]]),
+                       line=np.concatenate([ideal.line[a], matched.line[b]]))

@@ -28,11 +28,12 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 
+from solver.fit import fit_report
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -42,7 +43,14 @@ from solver.reshape.energy import (
     signed_areas,
     twin_length_mismatch,
 )
-from solver.reshape.ideal import IdealSeams, ideal_seams
+from solver.reshape.ideal import (
+    IdealSeams,
+    SeamTargets,
+    ideal_seams,
+    initial_targets,
+    matched_seams,
+)
+from solver.reshape.outline import OutlineGuard
 
 
 @dataclass(frozen=True)
@@ -59,38 +67,34 @@ class ReshapeOptions:
     ftol: float = 1e-9  # relative energy decrease that ends a round
     xtol_mm: float = 1e-7  # largest vertex step (mm) that ends a round
     refresh_every: int = 40  # fewest iterations between two factorisations in a round
+    unit_mm: float = 10.0  # seam length carrying one unit of proximity / penalty weight
+    refinements: int = 4  # rounds of matched (closest equivalent point) targets
+    refine_gain: float = 0.02  # relative E_fit gain below which refinement stops
+    # eps never below this fraction of the seam length (0.1 mm per metre): twins sampled
+    # to equal lengths would otherwise ask for L < 1e-12 mm and run all 20 rounds
+    eps_floor: float = 1e-4
 
 
 class _Preconditioner:
-    """Sparse Cholesky factor of the convex model restricted to the free coordinates."""
+    """Sparse Cholesky factor (CHOLMOD through cholespy) of the convex model restricted
+    to the free coordinates. (An isotropic V x V model, one factor for x and y, is
+    several times cheaper to factorise but misses the conformal energy's freedom to turn
+    and scale pieces: five times the iterations on the Berkeley shorts.)"""
 
     def __init__(self, matrix: sp.spmatrix) -> None:
-        m = sp.csr_matrix(matrix)
-        self.n = m.shape[0]
-        try:
-            from cholespy import CholeskySolverD, MatrixType
+        from cholespy import CholeskySolverD, MatrixType
 
-            c = m.tocoo()
-            self._chol = CholeskySolverD(self.n, c.row.astype(np.int32), c.col.astype(np.int32),
-                                         c.data.astype(np.float64), MatrixType.COO)
-            self._lu = None
-        except ImportError:  # pragma: no cover - cholespy is a declared dependency
-            from scipy.sparse.linalg import splu
-
-            self._chol = None
-            # symmetric mode without pivoting: the matrix is SPD, and partial pivoting
-            # makes SuperLU tens of times slower on it
-            self._lu = splu(m.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                            options={"SymmetricMode": True})
+        c = sp.coo_matrix(matrix)
+        self.n = c.shape[0]
+        self._chol = CholeskySolverD(self.n, c.row.astype(np.int32), c.col.astype(np.int32),
+                                     c.data.astype(np.float64), MatrixType.COO)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """(n,) right-hand side -> (n,) solution."""
-        if self._chol is not None:
-            b = np.ascontiguousarray(rhs, dtype=np.float64).reshape(-1, 1)
-            out = np.zeros_like(b)
-            self._chol.solve(b, out)
-            return out.ravel()
-        return self._lu.solve(rhs)
+        b = np.ascontiguousarray(rhs, dtype=np.float64).reshape(-1, 1)
+        out = np.zeros_like(b)
+        self._chol.solve(b, out)
+        return out.ravel()
 
 
 @dataclass
@@ -211,8 +215,22 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
         e1, g1 = energy(trial, state.gamma)
         if np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope:
             break
+        if not np.isfinite(e1) and energy.outline is not None:
+            # a piece whose outline would cross sits this step out, so that one dart
+            # pressed shut does not stop every other piece from moving
+            stuck = energy.outline.crossing_vertices(trial) & state.free
+            if np.any(direction[stuck]):
+                direction[stuck] = 0.0
+                d = direction[free].ravel()
+                slope = _dot(gf, d)
+                if not slope < 0:
+                    break
+                continue
         t *= 0.5
     else:
+        state.round_done = True
+        return True
+    if not (np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope):
         state.round_done = True
         return True
     g1[~free] = 0.0
@@ -253,8 +271,13 @@ class OptimiseResult:
     flipped_triangles: int
 
 
-def build_energy(garment, ideal: IdealSeams, options: ReshapeOptions) -> PatternEnergy:
-    """Eq. (10) for ``garment`` with the input pattern as reference shape."""
+def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> PatternEnergy:
+    """Eq. (10) for ``garment`` with the input pattern as reference shape.
+
+    The twin-length penalty weighs each pair by ``unit_mm / l0``: ``(c_e / l0)^2`` is
+    about ``4 (l_e - l_e')^2``, so the weight turns the sum into an integral of squared
+    strain along the seam, which does not weaken when the mesh is refined.
+    """
     uv0 = garment.uv
     faces = garment.faces
     e = garment.seam_edges
@@ -263,26 +286,59 @@ def build_energy(garment, ideal: IdealSeams, options: ReshapeOptions) -> Pattern
     ref = np.maximum(0.5 * (l1 + l2), 1e-9)
     # sewability does not depend on visibility: a seam weighted 0 for the fit still has
     # to keep equal twin lengths, so the penalty weight is max(w_S, 1)
-    w_edge = np.maximum(garment.seam_weights(), 1.0) if len(e) else np.zeros(0)
+    w_edge = (np.maximum(garment.seam_weights(), 1.0) * options.unit_mm / ref
+              if len(e) else np.zeros(0))
     return PatternEnergy(
         faces=faces,
         q=conformal_matrix(uv0, faces),
         threshold=options.barrier_fraction * signed_areas(uv0, faces),
-        vertex=ideal.vertex,
-        target=ideal.target,
-        weight=ideal.weight,
+        vertex=targets.vertex,
+        target=targets.target,
+        weight=targets.weight,
         seam_edges=e,
         edge_weight=w_edge,
         ref_length=ref,
         alpha=options.alpha,
         beta=options.beta,
+        outline=OutlineGuard(garment),
     )
+
+
+def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
+                  seam_edges: np.ndarray, eps: float) -> None:
+    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps."""
+    while True:
+        state.round_iterations, state.round_done = 0, False
+        state.s_hist.clear()
+        state.y_hist.clear()
+        state.precond = None
+        state.energy, state.grad = energy(state.uv, state.gamma)
+        state.grad[~state.free] = 0.0
+        if state.dofs.size:
+            while not optimise_step(state, energy, options):
+                pass
+        state.round += 1
+        length = twin_length_mismatch(state.uv, seam_edges)
+        state.history.append({"round": state.round, "gamma": state.gamma, "L_mm": length,
+                              "energy": state.energy, "iterations": state.round_iterations})
+        if length <= eps or state.round >= options.max_rounds:
+            return
+        state.gamma *= 0.5
+
+
+def _seam_length(garment) -> float:
+    """Total length of the seams' first twins, mm."""
+    e = garment.seam_edges
+    return float(np.linalg.norm(garment.uv[e[:, 1]] - garment.uv[e[:, 0]], axis=1).sum())
 
 
 def optimise(garment, placement, *, fixed: np.ndarray | None = None,
              options: ReshapeOptions | None = None) -> OptimiseResult:
     """Reshape ``garment``'s pattern towards its ideal seam lines (paper Sec. 5).
 
+    First towards the paper's ideal seam lines, then (``options.refinements`` times at
+    most) towards the matched targets of the pattern reached so far, keeping the pattern
+    with the lowest E_fit among those whose twin length mismatch L is within eps.
     ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position.
     """
     options = options or ReshapeOptions()
@@ -292,37 +348,42 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     if np.any(signed_areas(garment.uv, garment.faces) <= 0):
         raise ValueError("the input pattern has flipped or degenerate triangles; "
                          "reshaping needs a valid pattern to start from")
-    ideal = ideal_seams(garment, placement, fixed=fixed)
-    energy = build_energy(garment, ideal, options)
+    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=options.unit_mm)
+    energy = build_energy(garment, initial_targets(garment, placement, ideal, fixed=fixed,
+                                                   unit_mm=options.unit_mm), options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
                           dofs=(2 * idx[:, None] + np.array([0, 1])).ravel())
-    l_init = twin_length_mismatch(garment.uv, garment.seam_edges)
-    eps = 0.5 * l_init
-    for rnd in range(options.max_rounds):
-        state.round, state.round_iterations, state.round_done = rnd, 0, False
-        state.s_hist.clear()
-        state.y_hist.clear()
-        state.precond = None
-        state.energy, state.grad = energy(state.uv, state.gamma)
-        state.grad[~free] = 0.0
-        if idx.size:
-            while not optimise_step(state, energy, options):
-                pass
-        length = twin_length_mismatch(state.uv, garment.seam_edges)
-        state.history.append({"round": rnd + 1, "gamma": state.gamma, "L_mm": length,
-                              "energy": state.energy, "iterations": state.round_iterations})
-        if length <= eps:
+    seams = garment.seam_edges
+    l_init = twin_length_mismatch(garment.uv, seams)
+    eps = max(0.5 * l_init, options.eps_floor * _seam_length(garment))
+
+    def e_fit(uv: np.ndarray) -> float:
+        return fit_report(garment, placement, uv=uv).e_fit_mm2
+
+    _gamma_rounds(state, energy, options, seams, eps)
+    best_uv, best_fit = state.uv, e_fit(state.uv)
+    for _ in range(options.refinements):
+        targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed,
+                                unit_mm=options.unit_mm)
+        energy = replace(energy, vertex=targets.vertex, target=targets.target,
+                         weight=targets.weight)
+        _gamma_rounds(state, energy, options, seams, eps)
+        fit = e_fit(state.uv)
+        gain = (best_fit - fit) / max(best_fit, 1e-12)
+        if fit < best_fit and twin_length_mismatch(state.uv, seams) <= max(
+                eps, twin_length_mismatch(best_uv, seams)):
+            best_uv, best_fit = state.uv, fit
+        if gain < options.refine_gain:
             break
-        state.gamma *= 0.5
-    flipped = int(np.sum(signed_areas(state.uv, garment.faces) <= 0))
+    flipped = int(np.sum(signed_areas(best_uv, garment.faces) <= 0))
     return OptimiseResult(
-        uv=state.uv,
+        uv=best_uv,
         ideal=ideal,
         state=state,
         length_mismatch_initial_mm=l_init,
-        length_mismatch_final_mm=twin_length_mismatch(state.uv, garment.seam_edges),
+        length_mismatch_final_mm=twin_length_mismatch(best_uv, seams),
         eps_mm=eps,
         seconds=time.perf_counter() - start,
         flipped_triangles=flipped,
