@@ -37,16 +37,26 @@ __all__ = [
 
 def reshape(garment, placement, *, fixed: np.ndarray | None = None,
             options: ReshapeOptions | None = None):
-    """Reshaped copy of ``garment`` (3D kept, pattern replaced) and its `ReshapeReport`."""
+    """Reshaped copy of ``garment`` (3D kept, pattern replaced) and its `ReshapeReport`.
+
+    A mesh whose seam edges are on average longer than the print's covering radius is
+    first subdivided (`solver.garment.refine`; ``options.refine``), so the copy then has
+    more vertices: a seam cannot follow a print that repeats within one of its edges.
+    """
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
                          f"has {garment.n_pieces}")
+    from solver.garment.refine import refined
     from solver.reshape.optimise import optimise
 
+    options = options or ReshapeOptions()
+    levels = 0
+    if options.refine:
+        garment, levels = refined(garment, placement.fabric.covering_radius)
     result = optimise(garment, placement, fixed=fixed, options=options)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
-    return new, reshape_report(garment, placement, result)
+    return new, reshape_report(garment, placement, result, subdivisions=levels)
 
 
 def _carry_marks(garment, uv: np.ndarray):

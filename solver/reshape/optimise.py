@@ -73,6 +73,7 @@ class ReshapeOptions:
     # eps never below this fraction of the seam length (0.1 mm per metre): twins sampled
     # to equal lengths would otherwise ask for L < 1e-12 mm and run all 20 rounds
     eps_floor: float = 1e-4
+    refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
 
 
 class _Preconditioner:

@@ -28,6 +28,7 @@ class ReshapeReport:
     flipped_triangles: int
     faces: int
     vertices: int
+    subdivisions: int = 0  # times the input mesh was subdivided first (faces x 4 each)
 
     @property
     def e_fit_ratio(self) -> float:
@@ -42,8 +43,8 @@ class ReshapeReport:
         return d
 
 
-def reshape_report(garment, placement, result) -> ReshapeReport:
-    """Measure ``result`` (an ``OptimiseResult``) against the input ``garment``."""
+def reshape_report(garment, placement, result, *, subdivisions: int = 0) -> ReshapeReport:
+    """Measure ``result`` (an ``OptimiseResult``) against the ``garment`` it reshaped."""
     disp = np.hypot(*(result.uv - garment.uv).T)
     ideal = result.ideal
     ideal_disp = (np.hypot(*(ideal.target - garment.uv[ideal.vertex]).T)
@@ -65,4 +66,5 @@ def reshape_report(garment, placement, result) -> ReshapeReport:
         flipped_triangles=int(result.flipped_triangles),
         faces=int(len(garment.faces)),
         vertices=int(garment.n_vertices),
+        subdivisions=subdivisions,
     )
