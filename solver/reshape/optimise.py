@@ -115,6 +115,8 @@ class OptimiseState:
     y_hist: deque = field(default_factory=deque)
     last_step_mm: float = np.inf
     precond: _Preconditioner | None = None
+    precond_gamma: float = np.nan  # gamma the factor was built with
+    history_gamma: float = np.nan  # gamma the L-BFGS pairs were collected with
     dofs: np.ndarray | None = None  # free coordinates, interleaved x/y
     refreshes: int = 0
     since_refresh: int = 0
@@ -174,6 +176,7 @@ def refresh_preconditioner(state: OptimiseState, energy: PatternEnergy) -> None:
     """Factorise the convex model of Eq. (10) at the current pattern."""
     m = _gauss_newton_matrix(energy, state.uv, state.gamma)
     state.precond = _Preconditioner(m[state.dofs][:, state.dofs])
+    state.precond_gamma = state.gamma
     state.refreshes += 1
     state.since_refresh = 0
 
@@ -306,13 +309,19 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
-                  seam_edges: np.ndarray, eps: float) -> None:
+                  seam_edges: np.ndarray, eps: float, targets: str) -> None:
     """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps."""
     while True:
         state.round_iterations, state.round_done = 0, False
-        state.s_hist.clear()
-        state.y_hist.clear()
-        state.precond = None
+        # new targets leave the Hessian as it was (the proximity term's is constant), so
+        # the L-BFGS pairs and the factor carry over; a smaller gamma stiffens the length
+        # penalty: new pairs at once, a new factor once it is 4x stiffer than modelled
+        if state.gamma != state.history_gamma:
+            state.s_hist.clear()
+            state.y_hist.clear()
+            state.history_gamma = state.gamma
+        if not state.gamma > 0.25 * state.precond_gamma:
+            state.precond = None
         state.energy, state.grad = energy(state.uv, state.gamma)
         state.grad[~state.free] = 0.0
         if state.dofs.size:
@@ -320,8 +329,9 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
                 pass
         state.round += 1
         length = twin_length_mismatch(state.uv, seam_edges)
-        state.history.append({"round": state.round, "gamma": state.gamma, "L_mm": length,
-                              "energy": state.energy, "iterations": state.round_iterations})
+        state.history.append({"round": state.round, "targets": targets, "gamma": state.gamma,
+                              "L_mm": length, "energy": state.energy,
+                              "iterations": state.round_iterations})
         if length <= eps or state.round >= options.max_rounds:
             return
         state.gamma *= 0.5
@@ -363,15 +373,16 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2
 
-    _gamma_rounds(state, energy, options, seams, eps)
+    _gamma_rounds(state, energy, options, seams, eps, "ideal")
     best_uv, best_fit = state.uv, e_fit(state.uv)
+    state.history[-1]["e_fit_mm2"] = best_fit
     for _ in range(options.refinements):
         targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed,
                                 unit_mm=options.unit_mm)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
-        _gamma_rounds(state, energy, options, seams, eps)
-        fit = e_fit(state.uv)
+        _gamma_rounds(state, energy, options, seams, eps, "matched")
+        fit = state.history[-1]["e_fit_mm2"] = e_fit(state.uv)
         gain = (best_fit - fit) / max(best_fit, 1e-12)
         if fit < best_fit and twin_length_mismatch(state.uv, seams) <= max(
                 eps, twin_length_mismatch(best_uv, seams)):

@@ -34,9 +34,27 @@ class OutlineGuard:
         return shapely.is_valid(np.array(polys, dtype=object))
 
     def crossing_vertices(self, uv: np.ndarray) -> np.ndarray:
-        """(V,) bool: the vertices of every piece whose outline crosses in ``uv``."""
-        bad = self._checked[~self._valid(uv)]
-        return np.isin(self._piece_of_vertex, bad)
+        """(V,) bool: the outline vertices near where an outline crosses in ``uv`` (within
+        four of its longest boundary edges of a crossing point), so that only they sit
+        the step out; every vertex of the piece where no crossing point can be named."""
+        out = np.zeros(len(uv), bool)
+        for i in self._checked[~self._valid(uv)]:
+            ring_ids = np.concatenate(self._loops[i])
+            rings = [uv[lp] for lp in self._loops[i] if len(lp) >= 3]
+            noded = shapely.node(shapely.MultiLineString([np.vstack([r, r[:1]]) for r in rings]))
+            parts = shapely.get_parts(noded)
+            ends = np.concatenate([shapely.get_coordinates(shapely.get_point(parts, k))
+                                   for k in (0, -1)])
+            pts = uv[ring_ids]
+            dist = np.linalg.norm(ends[:, None] - pts[None], axis=-1)
+            crossings = ends[dist.min(axis=1) > 1e-9]
+            if not len(crossings):
+                out[self._piece_of_vertex == i] = True
+                continue
+            reach = 4.0 * max(np.linalg.norm(np.diff(r, axis=0), axis=1).max() for r in rings)
+            near = np.linalg.norm(pts[:, None] - crossings[None], axis=-1).min(axis=1) < reach
+            out[ring_ids[near]] = True
+        return out
 
     def __call__(self, uv: np.ndarray) -> bool:
         """True when no checked piece's outline crosses itself or its holes."""
