@@ -117,10 +117,10 @@ def matched_seams(garment, placement: Placement, *, uv: np.ndarray | None = None
     gets part of the way can fit worse than before. Here every seam edge takes the
     symmetry that maps its twin's midpoint closest to its own (E_fit's measure) and both
     its ends are pulled halfway onto the twin's image under it, so no vertex moves by more
-    than about half the print's covering radius, and alternating these targets with the
-    solve (as in ICP) keeps lowering E_fit. A vertex between two edges that chose
-    different symmetries gets both targets (their mean), which keeps the fit at the
-    midpoints rather than at isolated vertices.
+    than half of the print's covering radius plus about one seam edge, and alternating
+    these targets with the solve (as in ICP) keeps lowering E_fit. A vertex between two
+    edges that chose different symmetries gets both targets (their mean), which keeps the
+    fit at the midpoints rather than at isolated vertices.
     """
     uv = garment.uv if uv is None else np.asarray(uv, float)
     e = garment.seam_edges

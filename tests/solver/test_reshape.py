@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 
 from solver.fit import fit_report
 from solver.garment import build_garment, load_garment, save_obj
@@ -71,6 +72,9 @@ def test_reshape_halves_e_fit_without_flips_and_meets_length_target(shorts, shor
         twin_length_mismatch(new.uv, new.seam_edges))
     np.testing.assert_array_equal(new.xyz, shorts.xyz)  # the drape is kept
     assert report.max_displacement_mm == pytest.approx(np.hypot(*(new.uv - shorts.uv).T).max())
+    assert report.subdivisions == 0  # 20 mm seam edges are fine enough for a 50 mm repeat
+    assert all(shapely.LinearRing(new.piece_outline(i)).is_simple  # still cuttable
+               for i in range(new.n_pieces))
 
 
 def test_fixed_piece_does_not_move_and_zero_weight_seams_are_ignored(shorts, placement):

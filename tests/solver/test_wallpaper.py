@@ -238,3 +238,30 @@ def test_moved_print_keeps_mismatch_of_moved_points():
     d0 = wp.mismatch_distance(p, q)
     d1 = moved.mismatch_distance(p @ r.T + (12, -3), q @ r.T + (12, -3))
     np.testing.assert_allclose(d0, d1, atol=1e-9)
+
+
+@pytest.mark.parametrize("group", GROUP_NAMES)
+def test_closest_symmetry_rebuilds_the_mismatch_and_covering_radius_bounds_it(group):
+    wp = make(group, 6, non_reduced=GROUPS[group].lattice in ("oblique", "square"))
+    rng = np.random.default_rng(7)
+    p = rng.uniform(-150, 150, (2000, 2))
+    q = rng.uniform(-150, 150, (2000, 2))
+    op, lattice = wp.closest_symmetry(p, q)
+    h = wp.cartesian_ops()[op]
+    image = np.einsum("nij,nj->ni", h[:, :2, :2], q) + h[:, :2, 2] + lattice
+    np.testing.assert_allclose(image - p, wp.mismatch(p, q), atol=1e-9)
+    # the lattice vector is whole: integer coordinates in the given basis
+    frac = lattice @ np.linalg.inv(wp.basis).T
+    np.testing.assert_allclose(frac, np.round(frac), atol=1e-9)
+    # no mismatch exceeds the covering radius; with p1 (one point per cell) the worst
+    # random pair comes close to it
+    dist = np.hypot(*wp.mismatch(p, q).T)
+    assert dist.max() <= wp.covering_radius + 1e-9
+    if group == "p1":
+        assert dist.max() > 0.9 * wp.covering_radius
+
+
+def test_covering_radius_of_square_and_hexagonal_lattices():
+    assert Wallpaper("p4", (50, 0), (0, 50)).covering_radius == pytest.approx(25 * math.sqrt(2))
+    hexagonal = Wallpaper("p6", (50, 0), (-25, 25 * math.sqrt(3)))
+    assert hexagonal.covering_radius == pytest.approx(50 / math.sqrt(3))
