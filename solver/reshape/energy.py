@@ -6,18 +6,24 @@ Every term is vectorised over seam vertices, faces or seam edges (sparse matrice
 ``np.bincount``); ``uv`` is always the (V,2) pattern in millimetres and every gradient has
 the same shape.
 
-- E_prox (Eq. 11): squared distance of seam vertices to their ideal positions.
+- E_prox (Eq. 11): squared distance of seam vertices to their ideal positions, each
+  weighted by its share of seam length (`solver.reshape.ideal`), so the sum approximates
+  an integral along the seams and keeps its balance with E_conf under mesh refinement.
 - E_conf: the LSCM / conformal energy E_D - A of Mullen et al. (2008), "Spectral
   Conformal Parameterization", with the input pattern as the reference shape. Per face
   it is ``A0/2 ((a-d)^2 + (b+c)^2)`` with Jacobian ``[[a, b], [c, d]]``: zero for every
   similarity, so the input pattern is its minimum. It is quadratic: ``1/2 u^T Q u``.
+  Departure: a little Dirichlet energy of the displacement is added (5 % by default,
+  `stiffened_conformal_matrix`), which keeps free boundaries from wiggling on fine
+  meshes and pieces from growing or shrinking.
 - phi_f: the barrier of Schüller, Kavan, Panozzo and Sorkine-Hornung (2013), "Locally
   Injective Mappings": ``1/g(A/s) - 1`` with ``g(x) = x^3 - 3x^2 + 3x`` below the
   threshold area ``s`` (a fraction of the input area), 0 above it and +inf at or below
   zero area, so no flipped or degenerate triangle has finite energy.
 - The twin-length penalty uses ``c_e = |e|^2 - |e'|^2`` as in the paper, divided by the
   input length ``l0_e`` of the pair so that gamma is dimensionless and means the same in
-  mm or inches and at any mesh resolution (the constraint c_e = 0 is unchanged).
+  mm or inches (the constraint c_e = 0 is unchanged); its weight ``w_e`` includes
+  ``unit / l0_e`` so that it, too, integrates along the seam.
 """
 
 from __future__ import annotations
@@ -107,11 +113,37 @@ def dirichlet_laplacian(uv_ref: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((k.ravel(), (rows, cols)), shape=(n, n))
 
 
-def conformal_energy(uv: np.ndarray, q: sp.csr_matrix) -> tuple[float, np.ndarray]:
-    """E_conf = 1/2 u^T Q u and its (V,2) gradient."""
-    u = uv.ravel()
-    g = q @ u
-    return 0.5 * float(np.einsum("i,i->", u, g)), g.reshape(-1, 2)
+def conformal_energy(uv: np.ndarray, q: sp.csr_matrix,
+                     rest: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """1/2 d^T Q d with d = uv - rest (uv itself without ``rest``), and its (V,2) gradient.
+
+    For the conformal matrix Q rest = 0 (the rest shape is conformal to itself), so the
+    displacement form equals 1/2 u^T Q u; it matters once Q carries a stiffness that
+    does not vanish on the rest shape (`stiffened_conformal_matrix`).
+    """
+    d = uv.ravel() if rest is None else (uv - rest).ravel()
+    g = q @ d
+    return 0.5 * float(np.einsum("i,i->", d, g)), g.reshape(-1, 2)
+
+
+def stiffened_conformal_matrix(uv_ref: np.ndarray, faces: np.ndarray,
+                               dirichlet: float) -> sp.csr_matrix:
+    """Q + ``dirichlet`` (L (x) I2): the conformal matrix plus a little Dirichlet energy of
+    the displacement.
+
+    LSCM leaves a free boundary (hems, necklines) almost unconstrained: on a fine mesh its
+    softest modes are sawtooth wiggles of the boundary, so every Newton-like step along
+    them is huge and stops at the first flip; the solver then crawls (600 iterations at
+    192k faces). A Dirichlet term of a few percent stiffens exactly those modes, and also
+    resists what conformal maps allow but a garment should not get: pieces growing or
+    shrinking as a whole. (It also charges a little for turning a piece, which the
+    alignment has already chosen.)
+    """
+    q = conformal_matrix(uv_ref, faces)
+    if dirichlet <= 0:
+        return q
+    lap = dirichlet_laplacian(uv_ref, faces)
+    return (q + dirichlet * sp.kron(lap, sp.eye(2), format="csr")).tocsr()
 
 
 # ---------------------------------------------------------------------- barrier
@@ -201,11 +233,13 @@ class PatternEnergy:
     """Eq. (10) for one garment and one set of ideal seams, with the constants it needs.
 
     ``vertex, target, weight``: the E_prox rows; ``seam_edges, edge_weight, ref_length``:
-    the penalty; ``threshold`` (F,): barrier areas; ``q``: the conformal matrix.
+    the penalty; ``threshold`` (F,): barrier areas; ``q``: the (stiffened) conformal
+    matrix and ``rest`` the input pattern it measures displacements from.
     """
 
     faces: np.ndarray
     q: sp.csr_matrix
+    rest: np.ndarray
     threshold: np.ndarray
     vertex: np.ndarray
     target: np.ndarray
@@ -221,7 +255,7 @@ class PatternEnergy:
         """Each term's value and gradient (for reports and gradient checks)."""
         return {
             "prox": prox_energy(uv, self.vertex, self.target, self.weight),
-            "conf": conformal_energy(uv, self.q),
+            "conf": conformal_energy(uv, self.q, self.rest),
             "barrier": barrier_energy(uv, self.faces, self.threshold),
             "length": length_penalty(uv, self.seam_edges, self.edge_weight,
                                      self.ref_length, gamma),
@@ -234,7 +268,7 @@ class PatternEnergy:
         if not np.isfinite(eb) or (self.outline is not None and not self.outline(uv)):
             return np.inf, gb
         ep, gp = prox_energy(uv, self.vertex, self.target, self.weight)
-        ec, gc = conformal_energy(uv, self.q)
+        ec, gc = conformal_energy(uv, self.q, self.rest)
         el, gl = length_penalty(uv, self.seam_edges, self.edge_weight, self.ref_length, gamma)
         e = ep + self.alpha * ec + self.beta * eb + el
         return e, gp + self.alpha * gc + self.beta * gb + gl

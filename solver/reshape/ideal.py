@@ -147,9 +147,9 @@ def matched_seams(garment, placement: Placement, *, uv: np.ndarray | None = None
         p, q = uv[e[:, a]], uv[e[:, b]]
         targets += [p + si[:, None] * (_apply(m, q) - p), q + sj[:, None] * (_apply(m_inv, p) - q)]
         vertices += [e[:, a], e[:, b]]
-    weight = np.tile(line_w[line] * 0.5 * length / unit_mm, 4)
     return SeamTargets(vertex=np.concatenate(vertices), target=np.concatenate(targets),
-                       weight=weight, line=np.tile(line, 4))
+                       weight=np.tile(line_w[line] * 0.5 * length / unit_mm, 4),
+                       line=np.tile(line, 4))
 
 
 def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,

@@ -14,14 +14,19 @@ Why our own L-BFGS rather than ``scipy.optimize.minimize(method="L-BFGS-B")``:
   by construction;
 - the two-loop recursion starts from a sparse convex model of Eq. (10) (conformal matrix
   + proximity + Gauss-Newton parts of the length penalty and of the active barrier
-  terms), factorised with CHOLMOD at the start of each gamma round and again when the
-  barrier starts to bind (steps cut below half, at most every ``refresh_every``
+  terms), factorised with CHOLMOD, again once gamma is 4x smaller than modelled or when
+  the barrier starts to bind (steps cut below half, at most every ``refresh_every``
   iterations). SciPy's L-BFGS-B takes no such start matrix; without it the iteration
   count grows with the Laplacian's condition number (h^-2).
 
 The gamma loop: gamma starts at ``gamma0`` and is halved each round until the twin
-length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value,
-for at most 20 rounds, each round warm-started from the last.
+length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value
+(never below 0.1 mm per metre of seam), for at most 20 rounds, each warm-started.
+
+The targets: first the paper's ideal seam lines (the matched targets on lines beyond
+reach, `solver.reshape.ideal.initial_targets`), then up to ``refinements`` rounds of
+matched targets from the pattern reached so far, as long as each lowers E_fit by at
+least ``refine_gain``; the pattern with the lowest E_fit and L within eps is returned.
 """
 
 from __future__ import annotations
@@ -37,10 +42,10 @@ from solver.fit import fit_report
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
-    conformal_matrix,
     length_constraints,
     max_flip_free_step,
     signed_areas,
+    stiffened_conformal_matrix,
     twin_length_mismatch,
 )
 from solver.reshape.ideal import (
@@ -74,6 +79,7 @@ class ReshapeOptions:
     # to equal lengths would otherwise ask for L < 1e-12 mm and run all 20 rounds
     eps_floor: float = 1e-4
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
+    dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
 
 
 class _Preconditioner:
@@ -181,6 +187,26 @@ def refresh_preconditioner(state: OptimiseState, energy: PatternEnergy) -> None:
     state.since_refresh = 0
 
 
+def _descent_without(state: OptimiseState, direction: np.ndarray,
+                     stuck: np.ndarray) -> tuple[np.ndarray, float]:
+    """A descent direction over the free coordinates that leaves ``stuck`` vertices where
+    they are: ``direction`` with them zeroed if that still descends, else the model's
+    Newton step on the other vertices, else the plain negative gradient there."""
+    free = state.free
+    keep = ~stuck[free]
+    gf = state.grad[free]
+    masked = np.where(keep[:, None], direction[free], 0.0).ravel()
+    g_kept = np.where(keep[:, None], gf, 0.0).ravel()
+    candidates = (masked, lambda: -state.precond.solve(g_kept) * np.repeat(keep, 2),
+                  lambda: -g_kept)
+    for cand in candidates:
+        d = cand() if callable(cand) else cand
+        slope = _dot(gf.ravel(), d)
+        if slope < 0:
+            return d, slope
+    return d, slope
+
+
 def optimise_step(state: OptimiseState, energy: PatternEnergy,
                   options: ReshapeOptions) -> bool:
     """One L-BFGS iteration with a flip-capped Armijo line search; True when the round ends."""
@@ -220,15 +246,14 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
         if np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope:
             break
         if not np.isfinite(e1) and energy.outline is not None:
-            # a piece whose outline would cross sits this step out, so that one dart
-            # pressed shut does not stop every other piece from moving
+            # the outline vertices near a crossing sit this step out, so that one dart
+            # pressed shut does not stop everything else from moving
             stuck = energy.outline.crossing_vertices(trial) & state.free
             if np.any(direction[stuck]):
-                direction[stuck] = 0.0
-                d = direction[free].ravel()
-                slope = _dot(gf, d)
+                d, slope = _descent_without(state, direction, stuck)
                 if not slope < 0:
                     break
+                direction[free] = d.reshape(-1, 2)
                 continue
         t *= 0.5
     else:
@@ -294,7 +319,8 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
               if len(e) else np.zeros(0))
     return PatternEnergy(
         faces=faces,
-        q=conformal_matrix(uv0, faces),
+        q=stiffened_conformal_matrix(uv0, faces, options.dirichlet),
+        rest=uv0,
         threshold=options.barrier_fraction * signed_areas(uv0, faces),
         vertex=targets.vertex,
         target=targets.target,
@@ -359,9 +385,10 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     if np.any(signed_areas(garment.uv, garment.faces) <= 0):
         raise ValueError("the input pattern has flipped or degenerate triangles; "
                          "reshaping needs a valid pattern to start from")
-    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=options.unit_mm)
+    unit = options.unit_mm
+    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit)
     energy = build_energy(garment, initial_targets(garment, placement, ideal, fixed=fixed,
-                                                   unit_mm=options.unit_mm), options)
+                                                   unit_mm=unit), options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
@@ -377,8 +404,7 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     best_uv, best_fit = state.uv, e_fit(state.uv)
     state.history[-1]["e_fit_mm2"] = best_fit
     for _ in range(options.refinements):
-        targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed,
-                                unit_mm=options.unit_mm)
+        targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed, unit_mm=unit)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
         _gamma_rounds(state, energy, options, seams, eps, "matched")

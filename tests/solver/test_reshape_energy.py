@@ -15,6 +15,7 @@ from solver.reshape.energy import (
     max_flip_free_step,
     prox_energy,
     signed_areas,
+    stiffened_conformal_matrix,
 )
 
 
@@ -51,6 +52,25 @@ def test_prox_gradient(pants):
     target = pants.uv[v] + rng.normal(size=(len(v), 2))
     w = rng.uniform(0.5, 2, len(v))
     _fd_check(lambda u: prox_energy(u, v, target, w), _perturbed(pants, rng), rng)
+
+
+def test_stiffened_conformal_energy_resists_scaling_but_not_rigid_motion(pants):
+    rng = np.random.default_rng(9)
+    k = stiffened_conformal_matrix(pants.uv, pants.faces, 0.05)
+    _fd_check(lambda u: conformal_energy(u, k, pants.uv), _perturbed(pants, rng), rng)
+    c, s = np.cos(0.4), np.sin(0.4)
+    turned = pants.uv @ np.array([[c, -s], [s, c]]).T + [5.0, -3.0]
+    grown = 1.1 * pants.uv
+    q = conformal_matrix(pants.uv, pants.faces)
+    assert conformal_energy(pants.uv, k, pants.uv)[0] == 0.0
+    assert conformal_energy(grown, q)[0] == pytest.approx(0, abs=1e-6)  # LSCM lets it grow
+    # the Dirichlet part is 0.05 x 1/2 sum A |grad d|^2 = 0.05 x 0.1^2 x total area
+    area = signed_areas(pants.uv, pants.faces).sum()
+    assert conformal_energy(grown, k, pants.uv)[0] == pytest.approx(0.05 * 0.01 * area,
+                                                                    rel=1e-9)
+    # a rigid turn costs the Dirichlet part 0.05 x |R - I|^2 / 2 x area, nothing more
+    rigid = 0.05 * 0.5 * 2 * ((c - 1) ** 2 + s**2) * area
+    assert conformal_energy(turned, k, pants.uv)[0] == pytest.approx(rigid, rel=1e-9)
 
 
 def test_conformal_gradient_and_similarity_invariance(pants):
