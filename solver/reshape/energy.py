@@ -146,6 +146,37 @@ def stiffened_conformal_matrix(uv_ref: np.ndarray, faces: np.ndarray,
     return (q + dirichlet * sp.kron(lap, sp.eye(2), format="csr")).tocsr()
 
 
+def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
+                           smooth_mm: float, unit_mm: float) -> sp.csr_matrix:
+    """(2V,2V) matrix K with 1/2 d^T K d ~ kappa/2 * integral |d''|^2 ds along every
+    outline and hole, d the displacement from ``uv_ref``.
+
+    The fit only asks seams to move, and conformal and Dirichlet energies are happy to let
+    a seam take a notch or a wiggle a few millimetres long where two seam lines' targets
+    meet at a corner or where neighbouring edges matched different symmetries. A tailor
+    sees those at once. Bending the outline's displacement costs ``kappa / l^3`` per
+    feature of length l while the proximity term pays ``l / unit`` for ignoring it, so
+    with ``kappa = smooth_mm^4 / unit`` features shorter than ``smooth_mm`` are smoothed
+    away and longer moves are left to the fit. The outline's own corners are kept: only
+    the displacement is smoothed.
+    """
+    n = len(uv_ref)
+    if smooth_mm <= 0 or not loops:
+        return sp.csr_matrix((2 * n, 2 * n))
+    loops = [lp for lp in loops if len(lp) >= 3]
+    here = np.concatenate(loops)
+    prev = np.concatenate([np.roll(lp, 1) for lp in loops])
+    nxt = np.concatenate([np.roll(lp, -1) for lp in loops])
+    h = 0.5 * (np.linalg.norm(uv_ref[here] - uv_ref[prev], axis=1)
+               + np.linalg.norm(uv_ref[nxt] - uv_ref[here], axis=1))
+    w = (smooth_mm**4 / unit_mm) / np.maximum(h, 1e-9) ** 3
+    rows = np.repeat(np.arange(len(here)), 3)
+    cols = np.column_stack([prev, here, nxt]).ravel()
+    vals = np.tile([1.0, -2.0, 1.0], len(here)) * np.repeat(np.sqrt(w), 3)
+    d2 = sp.csr_matrix((vals, (rows, cols)), shape=(len(here), n))
+    return sp.kron((d2.T @ d2).tocsr(), sp.eye(2), format="csr")
+
+
 # ---------------------------------------------------------------------- barrier
 def barrier_energy(uv: np.ndarray, faces: np.ndarray,
                    threshold: np.ndarray) -> tuple[float, np.ndarray]:

@@ -44,6 +44,7 @@ from solver.reshape.energy import (
     area_gradients,
     length_constraints,
     max_flip_free_step,
+    outline_bending_matrix,
     signed_areas,
     stiffened_conformal_matrix,
     twin_length_mismatch,
@@ -80,6 +81,7 @@ class ReshapeOptions:
     eps_floor: float = 1e-4
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
+    smooth_mm: float = 8.0  # outline notches shorter than this are smoothed away
 
 
 class _Preconditioner:
@@ -319,7 +321,10 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
               if len(e) else np.zeros(0))
     return PatternEnergy(
         faces=faces,
-        q=stiffened_conformal_matrix(uv0, faces, options.dirichlet),
+        q=(stiffened_conformal_matrix(uv0, faces, options.dirichlet)
+           + outline_bending_matrix(uv0, [lp for i in range(garment.n_pieces)
+                                          for lp in garment.piece_loops(i)],
+                                    options.smooth_mm, options.unit_mm)).tocsr(),
         rest=uv0,
         threshold=options.barrier_fraction * signed_areas(uv0, faces),
         vertex=targets.vertex,

@@ -122,3 +122,25 @@ def test_max_flip_free_step_is_first_zero_area(pants):
     assert 0 < t < np.inf
     assert signed_areas(pants.uv + 0.999 * t * d, pants.faces).min() > 0
     assert signed_areas(pants.uv + 1.001 * t * d, pants.faces).min() < 0
+
+
+def test_outline_bending_charges_notches_not_smooth_moves(pants):
+    from solver.reshape.energy import outline_bending_matrix
+
+    loops = [lp for i in range(pants.n_pieces) for lp in pants.piece_loops(i)]
+    k = outline_bending_matrix(pants.uv, loops, smooth_mm=8.0, unit_mm=10.0)
+    rng = np.random.default_rng(4)
+    _fd_check(lambda u: conformal_energy(u, k, pants.uv), _perturbed(pants, rng), rng)
+    # moving a piece bends nothing (turning it costs a little at its corners, where the
+    # outline's own second difference is not zero)
+    assert conformal_energy(pants.uv + [4.0, 1.0], k, pants.uv)[0] == pytest.approx(0, abs=1e-9)
+    # one outline vertex pushed out 2 mm (a notch) costs far more than the same 2 mm
+    # spread smoothly along the loop
+    loop = loops[0]
+    notch = pants.uv.copy()
+    notch[loop[5]] += [2.0, 0.0]
+    smooth = pants.uv.copy()
+    steps = np.abs(np.arange(len(loop)) - 5)
+    steps = np.minimum(steps, len(loop) - steps)  # around the closed loop
+    smooth[loop] += 2.0 * np.exp(-0.5 * (steps / 6.0) ** 2)[:, None] * [1.0, 0.0]
+    assert conformal_energy(notch, k, pants.uv)[0] > 10 * conformal_energy(smooth, k, pants.uv)[0]
