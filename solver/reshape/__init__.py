@@ -9,6 +9,8 @@ ACM Trans. Graph. 38(4), 2019, Sec. 5.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams
@@ -36,12 +38,14 @@ __all__ = [
 
 
 def reshape(garment, placement, *, fixed: np.ndarray | None = None,
-            options: ReshapeOptions | None = None):
+            options: ReshapeOptions | None = None,
+            progress: Callable[[dict], None] | None = None):
     """Reshaped copy of ``garment`` (3D kept, pattern replaced) and its `ReshapeReport`.
 
     A mesh whose seam edges are on average longer than the print's covering radius is
     first subdivided (`solver.garment.refine`; ``options.refine``), so the copy then has
     more vertices: a seam cannot follow a print that repeats within one of its edges.
+    ``progress`` gets each finished round's record (targets, gamma, L, E_fit, iterations).
     """
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
@@ -53,7 +57,7 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     levels = 0
     if options.refine:
         garment, levels = refined(garment, placement.fabric.covering_radius)
-    result = optimise(garment, placement, fixed=fixed, options=options)
+    result = optimise(garment, placement, fixed=fixed, options=options, progress=progress)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
     return new, reshape_report(garment, placement, result, subdivisions=levels)

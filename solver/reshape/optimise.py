@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -340,8 +341,11 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
-                  seam_edges: np.ndarray, eps: float, targets: str) -> None:
-    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps."""
+                  seam_edges: np.ndarray, eps: float, targets: str,
+                  e_fit: Callable[[np.ndarray], float],
+                  progress: Callable[[dict], None] | None) -> None:
+    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps;
+    every round's record (with its E_fit) goes to ``state.history`` and ``progress``."""
     while True:
         state.round_iterations, state.round_done = 0, False
         # new targets leave the Hessian as it was (the proximity term's is constant), so
@@ -361,8 +365,10 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
         state.round += 1
         length = twin_length_mismatch(state.uv, seam_edges)
         state.history.append({"round": state.round, "targets": targets, "gamma": state.gamma,
-                              "L_mm": length, "energy": state.energy,
-                              "iterations": state.round_iterations})
+                              "L_mm": length, "e_fit_mm2": e_fit(state.uv),
+                              "energy": state.energy, "iterations": state.round_iterations})
+        if progress is not None:
+            progress(state.history[-1])
         if length <= eps or state.round >= options.max_rounds:
             return
         state.gamma *= 0.5
@@ -375,13 +381,15 @@ def _seam_length(garment) -> float:
 
 
 def optimise(garment, placement, *, fixed: np.ndarray | None = None,
-             options: ReshapeOptions | None = None) -> OptimiseResult:
+             options: ReshapeOptions | None = None,
+             progress: Callable[[dict], None] | None = None) -> OptimiseResult:
     """Reshape ``garment``'s pattern towards its ideal seam lines (paper Sec. 5).
 
     First towards the paper's ideal seam lines, then (``options.refinements`` times at
     most) towards the matched targets of the pattern reached so far, keeping the pattern
     with the lowest E_fit among those whose twin length mismatch L is within eps.
-    ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position.
+    ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position;
+    ``progress`` is called with each finished round's history entry.
     """
     options = options or ReshapeOptions()
     start = time.perf_counter()
@@ -405,15 +413,14 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2
 
-    _gamma_rounds(state, energy, options, seams, eps, "ideal")
-    best_uv, best_fit = state.uv, e_fit(state.uv)
-    state.history[-1]["e_fit_mm2"] = best_fit
+    _gamma_rounds(state, energy, options, seams, eps, "ideal", e_fit, progress)
+    best_uv, best_fit = state.uv, state.history[-1]["e_fit_mm2"]
     for _ in range(options.refinements):
         targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed, unit_mm=unit)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
-        _gamma_rounds(state, energy, options, seams, eps, "matched")
-        fit = state.history[-1]["e_fit_mm2"] = e_fit(state.uv)
+        _gamma_rounds(state, energy, options, seams, eps, "matched", e_fit, progress)
+        fit = state.history[-1]["e_fit_mm2"]
         gain = (best_fit - fit) / max(best_fit, 1e-12)
         if fit < best_fit and twin_length_mismatch(state.uv, seams) <= max(
                 eps, twin_length_mismatch(best_uv, seams)):

@@ -97,6 +97,13 @@ def write_garment(garment, path: Path) -> None:
                         f"(expected one of {', '.join(FORMATS)})")
 
 
+def _print_round(record: dict) -> None:
+    """One stderr line per gamma round, so a long reshape shows it is getting on."""
+    print(f"  round {record['round']} ({record['targets']} targets): "
+          f"L {record['L_mm']:.2f} mm, E_fit {record['e_fit_mm2'] / 100:.1f} cm², "
+          f"{record['iterations']} iterations", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     from solver.reshape import reshape
 
@@ -114,7 +121,11 @@ def run(args: argparse.Namespace) -> int:
     fixed = _fixed_mask(garment, args.fix)
     print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
           f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
-    new, report = reshape(garment, placement, fixed=fixed)
+    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round)
+    if report.subdivisions:
+        print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "
+              f"covering radius: the mesh was subdivided {report.subdivisions}x "
+              f"({report.faces} faces), and {out} has the finer mesh", file=sys.stderr)
     write_garment(new, out)
     result = {"garment": str(args.garment), "output": str(out), "group": fabric.group,
               **report.to_dict()}

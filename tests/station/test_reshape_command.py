@@ -155,3 +155,26 @@ def test_dxf_carries_grain_lines_and_notches_with_the_reshaped_outline(tmp_path,
     np.testing.assert_allclose(piece.grainline, np.asarray(new.grainlines[0]), atol=1e-6)
     assert len(piece.notches) == 1
     np.testing.assert_allclose(piece.notches[0][0], moved, atol=1e-6)
+
+
+def test_a_coarse_garment_is_subdivided_and_says_so(tmp_path, data_dir, capsys):
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps(FABRIC))
+    garment = data_dir / "garments" / "berkeley" / "skirt-coarse.obj"
+    g = load_garment(garment, units="m")
+    placement = tmp_path / "placement.json"
+    Placement.identity(g.n_pieces, Wallpaper.from_dict(FABRIC)).save(placement)
+    out = tmp_path / "skirt.obj"
+    assert main(["reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(placement), "-o", str(out), "--json"]) == 0
+    captured = capsys.readouterr()
+    rep = json.loads(captured.out)
+    assert rep["subdivisions"] == 1 and rep["faces"] == 4 * len(g.faces)
+    assert "subdivided 1x" in captured.err
+    assert "round 1 (ideal targets)" in captured.err  # progress, one line per round
+    written = load_garment(out, units="mm")
+    assert len(written.faces) == 4 * len(g.faces)
+    fit = run_json(capsys, "fit", str(out), "--units", "mm", "--fabric", str(fabric),
+                   "--placement", str(placement), "--json")
+    assert fit["e_fit_mm2"] == pytest.approx(rep["e_fit_after_mm2"], rel=1e-9)
+    assert rep["e_fit_after_mm2"] < 0.5 * rep["e_fit_before_mm2"]
