@@ -71,8 +71,8 @@ class ReshapeOptions:
     barrier_fraction: float = 0.25  # phi_f is active below this fraction of the input area
     memory: int = 8
     max_iterations_per_round: int = 200
-    ftol: float = 1e-9  # relative energy decrease that ends a round
-    xtol_mm: float = 1e-7  # largest vertex step (mm) that ends a round
+    ftol: float = 1e-7  # relative energy decrease that ends a round
+    xtol_mm: float = 1e-3  # largest vertex step (mm) that ends a round (cutters: 0.1 mm)
     refresh_every: int = 40  # fewest iterations between two factorisations in a round
     unit_mm: float = 10.0  # seam length carrying one unit of proximity / penalty weight
     refinements: int = 4  # rounds of matched (closest equivalent point) targets
@@ -82,7 +82,7 @@ class ReshapeOptions:
     eps_floor: float = 1e-4
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
-    smooth_mm: float = 8.0  # outline notches shorter than this are smoothed away
+    smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
 
 
 class _Preconditioner:

@@ -29,10 +29,11 @@ def skirt():
 
 @pytest.fixture(scope="module")
 def shorts_aligned():
+    """The shorts under the paper's alignment (quick; test_reshape.py uses the global one)."""
     from solver.align.driver import align
 
     g = load_garment(BERKELEY / "shorts-iso.obj", units="m")
-    return g, align(g, P4M, method="global", restarts=3, seed=0)
+    return g, align(g, P4M, method="paper", restarts=3, seed=0)
 
 
 def test_matched_targets_fit_each_edge_under_its_own_symmetry(shorts_aligned):
@@ -60,9 +61,18 @@ def test_matched_targets_fit_each_edge_under_its_own_symmetry(shorts_aligned):
 def test_ideal_lines_beyond_the_covering_radius_start_from_matched_targets(shorts_aligned):
     g, placement = shorts_aligned
     ideal = ideal_seams(g, placement)
-    near = initial_targets(g, placement, ideal)
-    assert near is ideal  # the shorts' ideal lines are all within reach
-    # a print with a 5 mm repeat: every ideal line is many covering radii away
+    start = initial_targets(g, placement, ideal)
+    n = len(g.seam_lines)
+    d2 = np.sum((ideal.target - g.uv[ideal.vertex]) ** 2, axis=1)
+    rms = np.sqrt(np.bincount(ideal.line, d2, n) / np.maximum(np.bincount(ideal.line, None, n), 1))
+    near = np.flatnonzero(rms <= P4M.covering_radius)
+    assert len(near) >= 3
+    for line in near:  # lines within reach keep their ideal targets exactly
+        a, b = ideal.line == line, start.line == line
+        np.testing.assert_array_equal(start.vertex[b], ideal.vertex[a])
+        np.testing.assert_array_equal(start.target[b], ideal.target[a])
+    # a print with a 5 mm repeat: every ideal line is many covering radii away, and the
+    # matched targets that replace them ask for far smaller moves
     tiny = Placement(placement.angles, placement.translations,
                      Wallpaper("p4m", (5.0, 0.0), (0.0, 5.0)))
     far_ideal = ideal_seams(g, tiny)
@@ -70,7 +80,8 @@ def test_ideal_lines_beyond_the_covering_radius_start_from_matched_targets(short
     move = np.hypot(*(far.target - g.uv[far.vertex]).T)
     ideal_move = np.hypot(*(far_ideal.target - g.uv[far_ideal.vertex]).T)
     longest = fit_report(g, tiny).length.max()
-    assert move.max() <= 0.5 * (tiny.fabric.covering_radius + 2 * longest) < ideal_move.max()
+    assert move.max() <= 0.5 * (tiny.fabric.covering_radius + 2 * longest)
+    assert move.max() < ideal_move.max()
 
 
 def test_outline_guard_names_the_vertices_near_a_crossing(skirt):
