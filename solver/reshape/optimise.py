@@ -83,6 +83,7 @@ class ReshapeOptions:
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
     smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
+    piecewise_model: bool = True  # preconditioner without the coupling across pieces
 
 
 class _Preconditioner:
@@ -150,9 +151,17 @@ def _gauss_newton_matrix(energy: PatternEnergy, uv: np.ndarray, gamma: float) ->
     jac = np.concatenate([-e1, e1, e2, -e2], axis=1) * (2.0 / energy.ref_length)[:, None]
     dofs = np.repeat(2 * energy.seam_edges, 2, axis=1) + np.tile([0, 1], 4)  # (E,8)
     k = energy.edge_weight / gamma
+    block = k[:, None, None] * jac[:, :, None] * jac[:, None, :]
+    if energy.seam_across is not None:
+        # leave out the coupling between twins on different pieces: the model then falls
+        # apart into one block per piece, which CHOLMOD factorises with far less fill
+        # (192k faces: 4.9 s instead of 7.7 s); L-BFGS makes up for what is left out
+        side = np.repeat([0, 1], 4)
+        across = energy.seam_across[:, None, None] & (side[:, None] != side[None, :])
+        block = np.where(across, 0.0, block)
     rows.append(np.repeat(dofs, 8, axis=1).ravel())
     cols.append(np.tile(dofs, (1, 8)).ravel())
-    vals.append((k[:, None, None] * jac[:, :, None] * jac[:, None, :]).ravel())
+    vals.append(block.ravel())
     # barrier: phi''(A) grad A grad A^T on active faces
     area = signed_areas(uv, energy.faces)
     act = np.flatnonzero((area > 0) & (area < energy.threshold))
@@ -337,6 +346,8 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         alpha=options.alpha,
         beta=options.beta,
         outline=OutlineGuard(garment),
+        seam_across=(garment.piece_of_vertex[e[:, 0]] != garment.piece_of_vertex[e[:, 2]]
+                     if options.piecewise_model else None),
     )
 
 
