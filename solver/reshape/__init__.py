@@ -44,18 +44,20 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
 
     A mesh whose seam edges are on average longer than the print's covering radius is
     first subdivided (`solver.garment.refine`; ``options.refine``), so the copy then has
-    more vertices: a seam cannot follow a print that repeats within one of its edges.
+    more vertices: a seam cannot follow a print that repeats within one of its edges. A
+    pattern that already fits perfectly is left as it is, mesh included.
     ``progress`` gets each finished round's record (targets, gamma, L, E_fit, iterations).
     """
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
                          f"has {garment.n_pieces}")
+    from solver.fit import fit_report
     from solver.garment.refine import refined
     from solver.reshape.optimise import optimise
 
     options = options or ReshapeOptions()
     levels = 0
-    if options.refine:
+    if options.refine and fit_report(garment, placement).e_fit_mm2 > 0:
         garment, levels = refined(garment, placement.fabric.covering_radius)
     result = optimise(garment, placement, fixed=fixed, options=options, progress=progress)
     new = garment.with_uv(result.uv)

@@ -140,8 +140,9 @@ def matched_seams(garment, placement: Placement, *, uv: np.ndarray | None = None
     m = a_i @ g @ np.linalg.inv(a_j)  # per edge: pattern of piece j -> pattern of piece i
     m_inv = np.linalg.inv(m)
     si, sj = _shares(garment, fixed, pi, pj)
-    length = 0.5 * (np.linalg.norm(uv[e[:, 1]] - uv[e[:, 0]], axis=1)
-                    + np.linalg.norm(uv[e[:, 3]] - uv[e[:, 2]], axis=1))
+    uv0 = garment.uv  # weights from the input pattern, as the ideal lines': E_prox's
+    length = 0.5 * (np.linalg.norm(uv0[e[:, 1]] - uv0[e[:, 0]], axis=1)  # Hessian stays put
+                    + np.linalg.norm(uv0[e[:, 3]] - uv0[e[:, 2]], axis=1))
     targets, vertices = [], []
     for a, b in ((0, 2), (1, 3)):  # the two ends of the edge and their twins
         p, q = uv[e[:, a]], uv[e[:, b]]

@@ -91,9 +91,10 @@ def test_fixed_piece_does_not_move_and_zero_weight_seams_are_ignored(shorts, pla
     assert len(ideal_seams(zero, placement).vertex) == 0
 
 
-def _two_squares(shift: float) -> object:
-    """Two 100 mm squares, the right side of the first sewn to the left side of the second."""
-    n = 6
+def _two_squares(shift: float, cells: int = 5) -> object:
+    """Two 100 mm squares, the right side of the first sewn to the left side of the second,
+    each cut into ``cells`` x ``cells`` squares of two triangles."""
+    n = cells + 1
     xs = np.linspace(0.0, 100.0, n)
     gx, gy = np.meshgrid(xs, xs, indexing="ij")
     grid = np.column_stack([gx.ravel(), gy.ravel()])
@@ -108,12 +109,14 @@ def _two_squares(shift: float) -> object:
     return build_garment(uv, faces, point, xyz=None, source="two-squares", kind="test")
 
 
-def test_a_perfect_fit_is_returned_unchanged():
-    g = _two_squares(200.0)  # 200 mm = 4 repeats: the print runs on across the seam
+@pytest.mark.parametrize("cells", [5, 1])  # 20 mm seam edges, and 100 mm ones
+def test_a_perfect_fit_is_returned_unchanged(cells):
+    g = _two_squares(200.0, cells)  # 200 mm = 4 repeats: the print runs on across the seam
     placement = Placement.identity(g.n_pieces, P4M)
     assert fit_report(g, placement).e_fit_mm2 == pytest.approx(0.0, abs=1e-9)
     new, report = reshape(g, placement)
     assert report.max_displacement_mm < 1e-6
+    assert report.subdivisions == 0  # even the coarse one keeps its mesh
     assert np.abs(new.uv - g.uv).max() < 1e-6
 
 
