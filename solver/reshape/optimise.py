@@ -21,7 +21,7 @@ Why our own L-BFGS rather than ``scipy.optimize.minimize(method="L-BFGS-B")``:
 
 The gamma loop: gamma starts at ``gamma0`` and is halved each round until the twin
 length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value
-(never below 0.1 mm per metre of seam), for at most 20 rounds, each warm-started.
+(never below 1 mm per metre of seam), for at most 20 rounds, each warm-started.
 
 The targets: first the paper's ideal seam lines (the matched targets on lines beyond
 reach, `solver.reshape.ideal.initial_targets`), then up to ``refinements`` rounds of
@@ -51,6 +51,7 @@ from solver.reshape.energy import (
     twin_length_mismatch,
 )
 from solver.reshape.ideal import (
+    UNIT_MM,
     IdealSeams,
     SeamTargets,
     ideal_seams,
@@ -74,12 +75,14 @@ class ReshapeOptions:
     ftol: float = 1e-7  # relative energy decrease that ends a round
     xtol_mm: float = 1e-3  # largest vertex step (mm) that ends a round (cutters: 0.1 mm)
     refresh_every: int = 40  # fewest iterations between two factorisations in a round
-    unit_mm: float = 10.0  # seam length carrying one unit of proximity / penalty weight
+    unit_mm: float = UNIT_MM  # seam length carrying one unit of proximity / penalty weight
+    reach: float = 1.0  # ideal lines farther than this x covering radius start matched
     refinements: int = 4  # rounds of matched (closest equivalent point) targets
     refine_gain: float = 0.02  # relative E_fit gain below which refinement stops
-    # eps never below this fraction of the seam length (0.1 mm per metre): twins sampled
-    # to equal lengths would otherwise ask for L < 1e-12 mm and run all 20 rounds
-    eps_floor: float = 1e-4
+    # eps never below this fraction of the seam length (1 mm per metre, 0.1 % strain, which
+    # fabric stretch absorbs): twins sampled to equal lengths would otherwise ask for
+    # L < 1e-12 mm and run all 20 rounds
+    eps_floor: float = 1e-3
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
     smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
@@ -410,7 +413,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     unit = options.unit_mm
     ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit)
     energy = build_energy(garment, initial_targets(garment, placement, ideal, fixed=fixed,
-                                                   unit_mm=unit), options)
+                                                   unit_mm=unit, reach=options.reach),
+                          options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,

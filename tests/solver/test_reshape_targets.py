@@ -14,7 +14,7 @@ from solver.garment import load_garment
 from solver.garment.refine import refined, subdivided
 from solver.placement import Placement
 from solver.reshape import ideal_seams, matched_seams, reshape
-from solver.reshape.ideal import initial_targets
+from solver.reshape.ideal import UNIT_MM, initial_targets
 from solver.reshape.outline import OutlineGuard
 from solver.wallpaper import Wallpaper
 
@@ -53,9 +53,9 @@ def test_matched_targets_fit_each_edge_under_its_own_symmetry(shorts_aligned):
     move = np.hypot(*(t.target - g.uv[t.vertex]).T)
     longest = fit_report(g, placement).length.max()
     assert move.max() <= 0.5 * (P4M.covering_radius + 2 * longest)
-    # weights integrate along the seam: half an edge's length per end, per 10 mm
+    # weights integrate along the seam: half an edge's length per end, per UNIT_MM
     lengths = fit_report(g, placement).length
-    assert t.weight.sum() == pytest.approx(4 * 0.5 * lengths.sum() / 10.0)
+    assert t.weight.sum() == pytest.approx(4 * 0.5 * lengths.sum() / UNIT_MM)
 
 
 def test_ideal_lines_beyond_the_covering_radius_start_from_matched_targets(shorts_aligned):
