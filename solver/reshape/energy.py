@@ -155,7 +155,7 @@ def stiffened_conformal_matrix(uv_ref: np.ndarray, faces: np.ndarray,
 
 
 def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
-                           smooth_mm: float, unit_mm: float) -> sp.csr_matrix:
+                           smooth_mm: float | np.ndarray, unit_mm: float) -> sp.csr_matrix:
     """(2V,2V) matrix K with 1/2 d^T K d ~ kappa/2 * integral |d''|^2 ds along every
     outline and hole, d the displacement from ``uv_ref``.
 
@@ -166,10 +166,10 @@ def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
     feature of length l while the proximity term pays ``l / unit`` for ignoring it, so
     with ``kappa = smooth_mm^4 / unit`` features shorter than ``smooth_mm`` are smoothed
     away and longer moves are left to the fit. The outline's own corners are kept: only
-    the displacement is smoothed.
+    the displacement is smoothed. ``smooth_mm`` may be given per vertex (V,).
     """
     n = len(uv_ref)
-    if smooth_mm <= 0 or not loops:
+    if np.all(np.asarray(smooth_mm) <= 0) or not loops:
         return sp.csr_matrix((2 * n, 2 * n))
     loops = [lp for lp in loops if len(lp) >= 3]
     here = np.concatenate(loops)
@@ -177,7 +177,8 @@ def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
     nxt = np.concatenate([np.roll(lp, -1) for lp in loops])
     h = 0.5 * (np.linalg.norm(uv_ref[here] - uv_ref[prev], axis=1)
                + np.linalg.norm(uv_ref[nxt] - uv_ref[here], axis=1))
-    w = (smooth_mm**4 / unit_mm) / np.maximum(h, 1e-9) ** 3
+    smooth = np.broadcast_to(np.asarray(smooth_mm, float), (n,))[here]
+    w = (smooth**4 / unit_mm) / np.maximum(h, 1e-9) ** 3
     rows = np.repeat(np.arange(len(here)), 3)
     cols = np.column_stack([prev, here, nxt]).ravel()
     vals = np.tile([1.0, -2.0, 1.0], len(here)) * np.repeat(np.sqrt(w), 3)

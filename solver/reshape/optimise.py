@@ -86,6 +86,7 @@ class ReshapeOptions:
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
     smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
+    corner_smooth_mm: float = 12.0  # ... and shorter than this near seam-line ends
 
 
 class _Preconditioner:
@@ -336,7 +337,7 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         q=(stiffened_conformal_matrix(uv0, faces, options.dirichlet)
            + outline_bending_matrix(uv0, [lp for i in range(garment.n_pieces)
                                           for lp in garment.piece_loops(i)],
-                                    options.smooth_mm, options.unit_mm)).tocsr(),
+                                    _smoothing(garment, options), options.unit_mm)).tocsr(),
         rest=uv0,
         threshold=options.barrier_fraction * signed_areas(uv0, faces),
         vertex=targets.vertex,
@@ -350,6 +351,28 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         outline=OutlineGuard(garment),
         seam_across=garment.piece_of_vertex[e[:, 0]] != garment.piece_of_vertex[e[:, 2]],
     )
+
+
+def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
+    """(V,) bending scale: ``corner_smooth_mm`` within that distance of a vertex where a
+    seam line ends (where two lines' targets disagree and leave a step), else
+    ``smooth_mm``."""
+    smooth = np.full(garment.n_vertices, options.smooth_mm)
+    if options.corner_smooth_mm <= options.smooth_mm or not len(garment.seam_edges):
+        return smooth
+    e, line = garment.seam_edges, np.asarray(garment.seam_line_of_edge, np.int64)
+    n_lines = len(garment.seam_lines)
+    keys, counts = np.unique(np.concatenate([e[:, :2], e[:, 2:]]).ravel() * n_lines
+                             + np.tile(np.repeat(line, 2), 2), return_counts=True)
+    ends = np.unique(keys[counts == 1] // n_lines)
+    if not len(ends):
+        return smooth
+    from scipy.spatial import cKDTree
+
+    boundary = np.unique(garment.boundary_half_edges())
+    d, _ = cKDTree(garment.uv[ends]).query(garment.uv[boundary])
+    smooth[boundary[d < options.corner_smooth_mm]] = options.corner_smooth_mm
+    return smooth
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,

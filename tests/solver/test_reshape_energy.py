@@ -144,3 +144,11 @@ def test_outline_bending_charges_notches_not_smooth_moves(pants):
     steps = np.minimum(steps, len(loop) - steps)  # around the closed loop
     smooth[loop] += 2.0 * np.exp(-0.5 * (steps / 6.0) ** 2)[:, None] * [1.0, 0.0]
     assert conformal_energy(notch, k, pants.uv)[0] > 10 * conformal_energy(smooth, k, pants.uv)[0]
+    # the scale may differ per vertex: a longer one there makes the same notch dearer
+    scale = np.full(pants.n_vertices, 6.0)
+    same = outline_bending_matrix(pants.uv, loops, smooth_mm=scale, unit_mm=10.0)
+    assert abs(same - k).max() == 0
+    scale[loop[4:7]] = 12.0
+    corner = outline_bending_matrix(pants.uv, loops, smooth_mm=scale, unit_mm=10.0)
+    dear = conformal_energy(notch, corner, pants.uv)[0]
+    assert dear > 4 * conformal_energy(notch, k, pants.uv)[0]
