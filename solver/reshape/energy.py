@@ -13,9 +13,11 @@ the same shape.
   Conformal Parameterization", with the input pattern as the reference shape. Per face
   it is ``A0/2 ((a-d)^2 + (b+c)^2)`` with Jacobian ``[[a, b], [c, d]]``: zero for every
   similarity, so the input pattern is its minimum. It is quadratic: ``1/2 u^T Q u``.
-  Departure: a little Dirichlet energy of the displacement is added (5 % by default,
+  Departures: a little Dirichlet energy of the displacement is added (5 % by default,
   `stiffened_conformal_matrix`), which keeps free boundaries from wiggling on fine
-  meshes and pieces from growing or shrinking.
+  meshes and pieces from growing or shrinking; and a bending energy of the outline's
+  displacement (`outline_bending_matrix`) smooths away short notches. Both are constant
+  quadratics and live in the same matrix ``q`` as E_conf.
 - phi_f: the barrier of Schüller, Kavan, Panozzo and Sorkine-Hornung (2013), "Locally
   Injective Mappings": ``1/g(A/s) - 1`` with ``g(x) = x^3 - 3x^2 + 3x`` below the
   threshold area ``s`` (a fraction of the input area), 0 above it and +inf at or below
