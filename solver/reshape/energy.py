@@ -132,11 +132,11 @@ def stiffened_conformal_matrix(uv_ref: np.ndarray, faces: np.ndarray,
 
     LSCM leaves a free boundary (hems, necklines) almost unconstrained: on a fine mesh its
     softest modes are sawtooth wiggles of the boundary, so every Newton-like step along
-    them is huge and stops at the first flip; the solver then crawls (600 iterations at
-    192k faces). A Dirichlet term of a few percent stiffens exactly those modes, and also
-    resists what conformal maps allow but a garment should not get: pieces growing or
-    shrinking as a whole. (It also charges a little for turning a piece, which the
-    alignment has already chosen.)
+    them is huge and stops at the first flip; the solver then crawls (hundreds of
+    iterations on a fine mesh). A Dirichlet term of a few percent stiffens exactly those
+    modes, and also resists what conformal maps allow but a garment should not get: pieces
+    growing or shrinking as a whole. (It also charges a little for turning a piece, which
+    the alignment has already chosen.)
     """
     n = len(uv_ref)
     d, area = gradient_operators(uv_ref, faces)
@@ -287,10 +287,10 @@ class PatternEnergy:
     seam_edges: np.ndarray
     edge_weight: np.ndarray
     ref_length: np.ndarray
+    seam_across: np.ndarray  # (E,) twins on different pieces (for the solver's model)
     alpha: float = 1.0
     beta: float = 1.0
     outline: OutlineGuard | None = None  # rejects crossing outlines
-    seam_across: np.ndarray | None = None  # (E,) twins on different pieces (solver model)
 
     def terms(self, uv: np.ndarray, gamma: float) -> dict[str, tuple[float, np.ndarray]]:
         """Each term's value and gradient (for reports and gradient checks)."""
