@@ -37,6 +37,7 @@ from typing import Any, Protocol
 
 from station.config import Config
 from station.control import ControlError, ControlServer
+from station.fleet import Fleet, FleetMember, open_store, station_info
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
 
 log = logging.getLogger("station.daemon")
@@ -102,7 +103,14 @@ class Daemon:
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
-        self.store = JobStore(config.resolve(config["store"]["path"]))
+        self.store = open_store(config)
+        self.fleet: FleetMember | None = None
+        if config["station"]["name"]:
+            self.fleet = FleetMember(
+                Fleet(self.store, config["station"]["lost_after_s"]),
+                station_info(config, getattr(pipeline, "machine", None)),
+                self._doing, self.handle, config["station"]["heartbeat_s"])
+            self.store.engine.on_outage = self._on_outage
         self.work_dir = config.resolve(config["store"]["work_dir"])
         self.control = ControlServer(config.resolve(config["control"]["socket"]),
                                      self.handle, config["control"]["group"])
@@ -118,25 +126,35 @@ class Daemon:
             signal.signal(sig, self._on_signal)
         self.recover()
         self.control.start()
-        log.info("serving on %s, job store %s", self.control.path, self.store.path)
+        log.info("serving on %s, job store %s%s", self.control.path, self.store.location,
+                 f", station {self.fleet.info.name}" if self.fleet else "")
         try:
             self.run_loop(once)
         finally:
             self.control.stop()
+            if self.fleet is not None:
+                self.fleet.stop()
             log.info("stopped")
         return 0
 
     def run_loop(self, once: bool = False) -> None:
-        """Take jobs in order until stopped (or, with ``once``, until the queue is empty)."""
-        while not self._stop.is_set():
-            job = self.store.next_job()
-            if job is None:
-                if once:
-                    return
-                self._wake.wait(0.5)
-                self._wake.clear()
-                continue
-            self.run_job(job)
+        """Take jobs in order until stopped (or, with ``once``, until the queue is empty).
+
+        A lone station takes the store's next job; a fleet station claims one it may run.
+        """
+        try:
+            while not self._stop.is_set():
+                job = self.fleet.claim() if self.fleet else self.store.next_job()
+                if job is None:
+                    if once:
+                        return
+                    self._wake.wait(0.5)
+                    self._wake.clear()
+                    continue
+                self.run_job(job)
+        finally:
+            if self.fleet is not None:
+                self.fleet.stop()
 
     def shutdown(self) -> None:
         """Ask the loop to stop safely, as SIGTERM does."""
@@ -151,7 +169,18 @@ class Daemon:
         self.shutdown()
 
     def recover(self) -> None:
-        """After a crash, a job found active was interrupted: pause it, say so."""
+        """After a crash, a job found active was interrupted: pause it, say so.
+
+        In a fleet only this station's own jobs are touched: they become "interrupted"
+        and this station resumes them itself (the claim takes them first).
+        """
+        if self.fleet is not None:
+            self.fleet.join()
+            for job in self.fleet.interrupt_own():
+                log.warning("job %d was interrupted; station %s resumes it", job.id,
+                            self.fleet.info.name)
+            self.fleet.start()
+            return
         for job in self.store.jobs(ACTIVE):
             reset = self.store.reset_unfinished_pieces(job.id)
             self.store.transition(job.id, "paused", "interrupted: the daemon was not running"
@@ -200,11 +229,37 @@ class Daemon:
                 self.running = None
 
     def _interrupt(self, job_id: int, state: str, reason: str) -> None:
+        if self.fleet is not None and state == "paused" and self._stop.is_set():
+            state = "interrupted"  # the station stopped: it takes its job up again itself
         self.store.reset_unfinished_pieces(job_id)
         current = self.store.job(job_id).state
         if current != state and state in TRANSITIONS[current]:
             self.store.transition(job_id, state, reason)
         log.info("job %d %s: %s", job_id, state, reason)
+
+    # ------------------------------------------------------------------ fleet
+    def _doing(self) -> tuple[int | None, dict[str, Any]]:
+        """The running job and its progress, for the fleet's heartbeat."""
+        running = self.running
+        return (None, {}) if running is None else (running.job_id, dict(running.progress))
+
+    def _on_outage(self, down: bool) -> None:
+        """The shared store went away (or came back): hold the cut in place meanwhile.
+
+        Nothing can be recorded while the server is down, so the machine must not run
+        ahead of the store: a feed hold now, released when the store answers again. (A
+        piece's sync point cannot pass either: recording it waits for the store.)
+        """
+        running = self.running
+        if running is None or running.progress.get("step") != "cutting":
+            return
+        if down and not running.pause.is_set():
+            log.warning("job store unreachable: feed hold until it is back")
+            running.progress["held_for_store"] = True
+            running.pause.set()
+        elif not down and running.progress.pop("held_for_store", False):
+            log.warning("job store back: resuming the cut")
+            running.pause.clear()
 
     # ------------------------------------------------------------------ control
     def handle(self, request: dict[str, Any]) -> dict[str, Any]:
