@@ -10,6 +10,7 @@ version-1 DDL is safe to re-run on it.
 
 from __future__ import annotations
 
+import sqlite3
 import time
 
 from station.storeengine import DIALECTS, Engine, Tx
@@ -87,6 +88,19 @@ class SchemaTooNew(RuntimeError):
 def migrate(engine: Engine) -> int:
     """Bring the store up to `SCHEMA_VERSION`; the version it is at afterwards."""
 
+    def version(tx: Tx) -> int | None:
+        names = {"sqlite": "select name from sqlite_master where name = 'schema_version'",
+                 "postgresql": "select to_regclass('schema_version') as name"}
+        found = tx.one(names[tx.dialect])
+        if not found or found["name"] is None:
+            return None
+        row = tx.one("select max(version) as v from schema_version")
+        return int(row["v"]) if row and row["v"] is not None else 0
+
+    current = engine.read(version)  # no write lock when there is nothing to do
+    if current == SCHEMA_VERSION:
+        return current
+
     def work(tx: Tx) -> int:
         if tx.dialect == "postgresql":
             tx.run("select pg_advisory_xact_lock(19190019)")
@@ -109,4 +123,10 @@ def migrate(engine: Engine) -> int:
                    "values (?, ?, ?)", version, description, time.time())
         return max(current, SCHEMA_VERSION)
 
-    return engine.write(work)
+    try:
+        return engine.write(work)
+    except sqlite3.OperationalError:
+        # Busy: another station process holds the file; if it migrated meanwhile, fine.
+        if engine.read(version) == SCHEMA_VERSION:
+            return SCHEMA_VERSION
+        raise
