@@ -2,7 +2,7 @@
 
 Claiming. A station takes work in one short transaction: first a job it owns that is
 waiting for it (interrupted when it stopped, or resumed by the operator), else the oldest
-submitted job whose requirements it meets (tool, minimum table, station name). The row
+unowned submitted job whose requirements it meets (tool, minimum table, station name). The row
 is locked with ``FOR UPDATE SKIP LOCKED`` on PostgreSQL, so concurrent claimers never
 take the same job and never wait on one another; SQLite serialises writers, which gives
 the same guarantee to the one table it serves.
@@ -121,6 +121,8 @@ class Fleet:
                     tx.run("update pieces set state = 'pending' where job_id = ? "
                            "and state = 'cutting'", j["id"])
                     reaped.append(j["id"])
+                tx.run("update jobs set owner = null where owner = ? and state = 'submitted'",
+                       st["name"])  # claimed but not begun: free for anyone again
                 tx.run("update stations set state = 'lost' where name = ? and state in "
                        "('idle', 'busy')", st["name"])
             return reaped
@@ -151,7 +153,7 @@ class Fleet:
         def work(tx: Tx) -> int | None:
             marks = ",".join("?" * len(ACTIVE))
             row = tx.one(f"select id, state, resume_state from jobs where owner = ? and "
-                         f"state in ('interrupted', {marks}) order by id limit 1 "
+                         f"state in ('interrupted', 'submitted', {marks}) order by id limit 1 "
                          "{skip_locked}", info.name, *ACTIVE)
             if row is not None:
                 if row["state"] == "interrupted":
@@ -159,7 +161,7 @@ class Fleet:
                                              f"resumed by station {info.name}")
             else:
                 row = tx.one(
-                    "select id from jobs where state = 'submitted' "
+                    "select id from jobs where state = 'submitted' and owner is null "
                     "and (req_tool is null or req_tool = ?) "
                     "and (req_x_mm is null or req_x_mm <= ?) "
                     "and (req_y_mm is null or req_y_mm <= ?) "

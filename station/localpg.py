@@ -123,9 +123,9 @@ class LocalPostgres:
         return self.url_for(name)
 
     def close(self) -> None:
-        """Stop the server and delete its folder."""
+        """Stop the server (no final checkpoint: it is thrown away) and delete its folder."""
         try:
-            self.stop()
+            self.stop("immediate")
         finally:
             shutil.rmtree(self.folder, ignore_errors=True)
 
