@@ -1,0 +1,196 @@
+"""A room of stations on one real PostgreSQL server, checked against their machines.
+
+Every station here is a real `Daemon` claiming from the shared store and cutting with
+the real streamer on its own GRBL emulator; only capture and planning are replaced by
+tiny layouts (`fleet_helpers.TinyJobs`: the full alignment and nesting of fifty garments
+would take many minutes). The motion traces are the witness of what was cut.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from simulators.grbl import GrblEmulator
+from simulators.grbl.pty import PtyBridge
+from station.daemon import wait_until
+from station.fleet import Fleet
+from station.jobstore import JobStore
+
+from .fleet_helpers import (
+    RunningStation,
+    beam_segments,
+    complete_runs,
+    piece_contour,
+    station_config,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+KERF = 0.2  # the built-in machine's
+
+
+def check_each_piece_cut_once(store: JobStore, machines: dict[str, object]) -> int:
+    """Every piece recorded cut once, cut once by its owner's machine and by no other."""
+    n = 0
+    for job in store.jobs():
+        pieces = store.pieces(job.id)
+        assert pieces and all(p["state"] == "cut" for p in pieces), (job, pieces)
+        events = [e["message"] for e in store.events(job.id)]
+        for p in pieces:
+            assert events.count(f"piece {p['piece']} ({p['name']}) cut") == 1
+            contour = piece_contour(job.id, p["piece"], len(pieces), KERF,
+                                    job.options.get("size", 12.0))
+            runs = {name: complete_runs(m.trace, contour) for name, m in machines.items()}
+            assert runs == {name: int(name == job.owner) for name in machines}, (job.id, runs)
+            n += 1
+    return n
+
+
+@pytest.mark.slow
+def test_fifty_jobs_on_three_stations_each_done_once_each_piece_cut_once(pg_url, tmp_path):
+    store = JobStore(pg_url)
+    jobs = [store.submit("g.obj", None, {"pieces": 3}).id for _ in range(50)]
+    stations = [RunningStation(station_config(tmp_path, f"table-{i}", pg_url))
+                for i in range(3)]
+    try:
+        assert wait_until(lambda: all(j.state == "done" for j in store.jobs()), 120, 0.2), \
+            [(j.id, j.state, j.owner, j.reason) for j in store.jobs() if j.state != "done"]
+    finally:
+        for s in stations:
+            s.stop()
+    done = store.jobs()
+    assert [j.id for j in done] == jobs
+    owners = {s.config["station"]["name"]: sum(j.owner == s.config["station"]["name"]
+                                               for j in done) for s in stations}
+    assert sum(owners.values()) == 50 and min(owners.values()) >= 5, owners
+    for job in done:  # claimed once, done once
+        events = [e for e in store.events(job.id)]
+        assert sum(e["kind"] == "claim" for e in events) == 1
+        assert sum(e["message"] == "cutting -> done" for e in events) == 1
+    machines = {s.config["station"]["name"]: s.emulator for s in stations}
+    assert check_each_piece_cut_once(store, machines) == 150
+    # nothing else was cut: each machine's beam-on moves all belong to its own pieces
+    for name, m in machines.items():
+        assert len(beam_segments(m.trace)) == 4 * 3 * owners[name]
+    fleet = Fleet(store)
+    assert {s["name"]: s["state"] for s in fleet.stations()} == {n: "stopped" for n in owners}
+
+
+class KillableStation:
+    """A `station serve`-like process for one fleet station; its machine (a pty emulator)
+    lives in this process and outlives it, as a real controller does."""
+
+    def __init__(self, tmp: Path, url: str, name: str, speed: float) -> None:
+        self.tmp = tmp
+        self.name = name
+        tmp.mkdir(parents=True, exist_ok=True)
+        self.emulator = GrblEmulator(speed=speed, force_origin=True, name=f"kill-{id(tmp)}",
+                                     settings={32: 1, 130: 1600, 131: 1000, 20: 1, 22: 1,
+                                               23: 3, 110: 12000, 111: 12000, 120: 1500,
+                                               121: 1500})
+        self.bridge = PtyBridge(self.emulator, link=str(tmp / "ttyGRBL"))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self.bridge.serve, args=(self._stop,),
+                                        daemon=True)
+        self._thread.start()
+        self.config = tmp / "station.toml"
+        self.config.write_text(
+            f'[serial]\nport = "{tmp / "ttyGRBL"}"\n'
+            f'[store]\nurl = "{url}"\nwork_dir = "{tmp / "work"}"\n'
+            f'[control]\nsocket = "{tmp / "station.sock"}"\n'
+            "[machine]\ncheck_mode = false\n"
+            f'[station]\nname = "{name}"\nheartbeat_s = 0.2\nlost_after_s = 1.0\n')
+        self.proc: subprocess.Popen | None = None
+        self.starts = 0
+
+    def start(self) -> None:
+        self.starts += 1
+        log = open(self.tmp / f"station-{self.starts}.log", "wb")  # noqa: SIM115
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "tests.station.fleet_helpers", str(self.config)],
+            stdout=log, stderr=log, cwd=ROOT,
+            env={**os.environ, "PYTHONPATH": os.pathsep.join(
+                [str(ROOT), os.environ.get("PYTHONPATH", "")])})
+        log.close()
+
+    def log(self) -> str:
+        return (self.tmp / f"station-{self.starts}.log").read_text(errors="replace")[-3000:]
+
+    def close(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self._stop.set()
+        self._thread.join(5)
+        self.bridge.close()
+        self.emulator.close()
+
+
+def test_a_station_killed_mid_cut_keeps_its_job_and_resumes_it_after_restart(pg_url,
+                                                                             tmp_path):
+    store = JobStore(pg_url)
+    killed = KillableStation(tmp_path / "k", pg_url, "table-k", speed=8.0)
+    other = None
+    try:
+        killed.start()
+        job = store.submit("g.obj", None, {"pieces": 5, "size": 30.0}).id
+        assert wait_until(lambda: store.job(job).owner == "table-k", 30), killed.log()
+        assert wait_until(lambda: sum(p["state"] == "cut" for p in store.pieces(job)) >= 1
+                          and any(p["state"] == "cutting" for p in store.pieces(job)),
+                          60, 0.01), killed.log()
+        killed.proc.send_signal(signal.SIGKILL)
+        killed.proc.wait()
+        # a second station in the room: it sees the first one lost, and must not take its job
+        other = RunningStation(station_config(tmp_path, "table-o", pg_url))
+        assert wait_until(lambda: store.job(job).state == "interrupted", 15), store.job(job)
+        lost = store.job(job)
+        assert lost.owner == "table-k" and lost.resume_state == "cutting"
+        assert "station table-k lost" in lost.reason
+        time.sleep(1.0)  # the other station keeps claiming: the job is not for it
+        assert store.job(job).state == "interrupted" and store.job(job).owner == "table-k"
+        assert {s["name"]: s["state"] for s in Fleet(store).stations()} == \
+            {"table-k": "lost", "table-o": "idle"}
+        killed.start()
+        assert wait_until(lambda: store.job(job).state == "done", 90), \
+            (store.job(job), killed.log())
+        killed.proc.send_signal(signal.SIGTERM)
+        assert killed.proc.wait(30) == 0, killed.log()
+        messages = [e["message"] for e in store.events(job)]
+        assert "interrupted -> cutting: resumed by station table-k" in messages
+        assert other.emulator is None  # its machine was never even opened
+        assert check_each_piece_cut_once(store, {"table-k": killed.emulator}) == 5
+    finally:
+        if other is not None:
+            other.stop()
+        killed.close()
+
+
+def test_the_database_restarted_mid_cut_holds_the_machine_then_goes_on(postgres, pg_url,
+                                                                       tmp_path):
+    store = JobStore(pg_url)
+    station = RunningStation(station_config(tmp_path, "table-db", pg_url, speed=6.0))
+    try:
+        job = store.submit("g.obj", None, {"pieces": 4, "size": 40.0}).id
+        assert wait_until(lambda: sum(p["state"] == "cut" for p in store.pieces(job)) >= 1,
+                          60, 0.01)
+        machine = station.emulator
+        store.close()
+        postgres.stop("immediate")  # as a crash would; the station's link breaks
+        time.sleep(1.0)  # the heartbeat (0.2 s) finds it down and holds the machine
+        before = len(beam_segments(machine.trace))
+        time.sleep(1.5)
+        assert len(beam_segments(machine.trace)) == before  # nothing cut meanwhile
+        assert machine.state.startswith(("Hold", "Idle"))
+        postgres.start()
+        store = JobStore(pg_url)
+        assert wait_until(lambda: store.job(job).state == "done", 60), store.job(job)
+    finally:
+        station.stop()
+    assert check_each_piece_cut_once(store, {"table-db": machine}) == 4
