@@ -392,11 +392,7 @@ class Daemon:
         return running
 
     def _summary(self, job: Job) -> dict[str, Any]:
-        pieces = self.store.pieces(job.id)
-        counts = {s: sum(p["state"] == s for p in pieces) for s in ("pending", "cutting", "cut")}
-        out = {"id": job.id, "state": job.state, "reason": job.reason,
-               "garment": job.garment, "fabric": job.fabric, "pieces": counts,
-               "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+        out = self.store.summary(job)
         running = self.running
         if running is not None and running.job_id == job.id:
             out["progress"] = dict(running.progress)

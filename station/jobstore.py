@@ -195,6 +195,15 @@ class JobStore:
             "update jobs set plan = ?, updated_at = ? where id = ?",
             json.dumps(plan), time.time(), job_id))
 
+    def summary(self, job: Job) -> dict[str, Any]:
+        """What the console shows of a job: state, owner, piece counts, times."""
+        pieces = self.pieces(job.id)
+        counts = {s: sum(p["state"] == s for p in pieces) for s in PIECE_STATES}
+        return {"id": job.id, "state": job.state, "reason": job.reason,
+                "garment": job.garment, "fabric": job.fabric, "pieces": counts,
+                "owner": job.owner, "requirements": job.requirements.to_dict(),
+                "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+
     # ------------------------------------------------------------------ pieces
     def set_pieces(self, job_id: int, names: list[str]) -> None:
         """Declare the job's pieces once planning knows them; cut states are kept."""
