@@ -8,6 +8,7 @@ would take many minutes). The motion traces are the witness of what was cut.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -194,3 +195,52 @@ def test_the_database_restarted_mid_cut_holds_the_machine_then_goes_on(postgres,
     finally:
         station.stop()
     assert check_each_piece_cut_once(store, {"table-db": machine}) == 4
+
+
+def test_console_commands_reach_the_owning_station_through_the_store(pg_url, tmp_path,
+                                                                     capsys):
+    from station.cli import main
+
+    garment = ROOT / "tests" / "data" / "garments" / "berkeley" / "tshirt-coarse.obj"
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text('{"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0]}')
+    store = JobStore(pg_url)
+    station = RunningStation(station_config(tmp_path, "table-c", pg_url, speed=6.0))
+
+    def cli(*argv: str) -> dict:
+        capsys.readouterr()
+        assert main([*argv, "--store", pg_url, "--json"]) == 0
+        return json.loads(capsys.readouterr().out)
+
+    try:
+        assert main(["submit", str(garment), "--fabric", str(fabric), "--units", "m",
+                     "--fleet", "--store", pg_url, "--tool", "knife"]) == 0
+        assert main(["submit", str(garment), "--fabric", str(fabric), "--units", "m",
+                     "--station", "table-c", "--store", pg_url]) == 0
+        knife, job = (j.id for j in store.jobs())
+        assert store.job(job).requirements.station == "table-c"
+        store.engine.write(lambda tx: tx.run(  # TinyJobs: six squares, long enough to pause
+            "update jobs set options = ? where id = ?", '{"pieces": 6, "size": 40.0}', job))
+        assert wait_until(lambda: store.job(job).state == "cutting", 30)
+        paused = cli("pause", str(job), "--fleet")
+        assert paused["station"] == "table-c" and "feed hold" in paused["message"]
+        assert store.job(job).state == "paused"
+        assert wait_until(lambda: station.emulator.state.startswith("Hold:0"), 10)
+        cut = sum(p["state"] == "cut" for p in store.pieces(job))
+        time.sleep(1.0)
+        assert sum(p["state"] == "cut" for p in store.pieces(job)) == cut  # held in place
+        status = cli("status", str(job), "--fleet")["job"]
+        assert status["owner"] == "table-c" and status["station_state"] == "busy"
+        rows = cli("fleet")["stations"]
+        assert [(r["name"], r["state"], r["job_id"]) for r in rows] == [("table-c", "busy",
+                                                                         job)]
+        assert cli("resume", "--station", "table-c")["message"] == "resumed"
+        assert wait_until(lambda: store.job(job).state == "done", 60), store.job(job)
+        assert store.job(knife).state == "submitted"  # no knife in this room
+        assert cli("abort", str(knife), "--fleet")["message"] == "aborted"
+        capsys.readouterr()
+        assert main(["pause", str(job), "--fleet", "--store", pg_url]) == 2
+        err = capsys.readouterr().err  # done: nothing to pause there, said in one line
+        assert err == "station pause: error: station table-c: that job is not running\n"
+    finally:
+        station.stop()
