@@ -29,8 +29,9 @@ class PostgresUnavailable(RuntimeError):
     """No PostgreSQL server binaries could be found or started here."""
 
 
-def server_bin() -> Path:
-    """The folder holding ``initdb``, ``pg_ctl`` and ``postgres``."""
+def server_bin(user: pwd.struct_passwd | None = None) -> Path:
+    """The folder holding ``initdb``, ``pg_ctl`` and ``postgres`` (that ``user`` can run:
+    a venv under a folder closed to others, such as /root, is skipped for the next)."""
     candidates: list[Path] = []
     if os.environ.get("STATION_PG_BIN"):
         candidates.append(Path(os.environ["STATION_PG_BIN"]))
@@ -43,10 +44,35 @@ def server_bin() -> Path:
     candidates += [Path(p) for p in sorted(glob.glob("/usr/lib/postgresql/*/bin"),
                                            reverse=True)]
     for folder in candidates:
-        if all((folder / exe).is_file() for exe in ("initdb", "pg_ctl", "postgres")):
+        if all((folder / exe).is_file() for exe in ("initdb", "pg_ctl", "postgres")) and \
+                _runs_as(folder / "postgres", user):
             return folder
     raise PostgresUnavailable("no PostgreSQL server binaries: `pip install pgserver` (the "
                               "dev extra does), or install Debian's postgresql")
+
+
+def _runs_as(exe: Path, user: pwd.struct_passwd | None) -> bool:
+    if user is None:
+        return True
+    try:
+        return subprocess.run([str(exe), "-V"], user=user.pw_uid, group=user.pw_gid,
+                              extra_groups=[], capture_output=True, timeout=30,
+                              cwd="/").returncode == 0
+    except OSError:
+        return False
+
+
+def _server_user() -> pwd.struct_passwd | None:
+    """Who runs the server: nobody special, unless we are root (PostgreSQL refuses it)."""
+    if os.geteuid() != 0:
+        return None
+    for name in ("postgres", "nobody"):
+        try:
+            return pwd.getpwnam(name)
+        except KeyError:
+            continue
+    raise PostgresUnavailable("running as root, and neither a postgres nor a nobody user "
+                              "exists to run the server")
 
 
 def _free_port() -> int:
@@ -56,19 +82,22 @@ def _free_port() -> int:
 
 
 class LocalPostgres:
-    """initdb, start, stop, crash and restart one server; ``url`` connects to it."""
+    """initdb, start, stop, crash and restart one server; ``url`` connects to it.
+
+    ``folder`` (default: a new one under the system's temporary folder) holds the data,
+    the log and the socket; under root every folder above it must be open to the server's
+    user, so leave the default there.
+    """
 
     def __init__(self, folder: str | Path | None = None) -> None:
-        self.bin = server_bin()
+        self._user = _server_user()
+        self.bin = server_bin(self._user)
         self.folder = Path(folder or tempfile.mkdtemp(prefix="station-pg-"))
         self.folder.mkdir(parents=True, exist_ok=True)
         self.data = self.folder / "data"
         self.logfile = self.folder / "server.log"
         self.port = _free_port()
-        self._user = None
-        if os.geteuid() == 0:
-            name = "postgres" if _user_exists("postgres") else "nobody"
-            self._user = pwd.getpwnam(name)
+        if self._user is not None:
             os.chmod(self.folder, 0o755)
             os.chown(self.folder, self._user.pw_uid, self._user.pw_gid)
 
@@ -135,10 +164,3 @@ class LocalPostgres:
     def __exit__(self, *_exc) -> None:
         self.close()
 
-
-def _user_exists(name: str) -> bool:
-    try:
-        pwd.getpwnam(name)
-    except KeyError:
-        return False
-    return True
