@@ -80,9 +80,11 @@ class Fleet:
         self.store.engine.write(work)
 
     def sign_off(self, name: str) -> None:
-        """A clean stop: the station is "stopped", not lost."""
+        """A clean stop: the station is "stopped", not lost (if the server answers soon:
+        a stopping station does not wait out an outage)."""
         self.store.engine.write(lambda tx: tx.run(
-            "update stations set state = 'stopped', job_id = null where name = ?", name))
+            "update stations set state = 'stopped', job_id = null where name = ?", name),
+            patience=5.0)
 
     def heartbeat(self, name: str, job_id: int | None, progress: dict[str, Any]) -> None:
         """I am alive, running ``job_id``; revive that job if others gave it up for lost."""

@@ -79,6 +79,7 @@ def run(args) -> int:
                     _print_room(console, ids, time.monotonic() - t0)
                 time.sleep(0.5)
             report = fleet_report(store, ids, {d.fleet.info.name: d for d, _ in stations})
+            keep_job_files(report, out)
         finally:
             for daemon, _ in stations:
                 daemon.shutdown()
@@ -113,6 +114,7 @@ def fleet_report(store, ids: list[int], daemons: dict[str, Any]) -> dict[str, An
                       and e["message"].split(": ")[0].endswith(f"-> {job.state}")), None)
         pieces = store.pieces(job_id)
         plan = job.plan or {}
+        fabric = _read_json(Path(plan["fabric"])) if plan.get("fabric") else {}
         jobs.append({
             "id": job_id, "station": job.owner, "state": job.state, "reason": job.reason,
             "requirements": job.requirements.to_dict(),
@@ -120,7 +122,7 @@ def fleet_report(store, ids: list[int], daemons: dict[str, Any]) -> dict[str, An
             "submitted_at": job.submitted_at, "claimed_at": claimed, "finished_at": ended,
             "waited_s": None if claimed is None else round(claimed - job.submitted_at, 2),
             "ran_s": None if claimed is None or ended is None else round(ended - claimed, 2),
-            "layout": plan.get("layout"),
+            "group_detected": fabric.get("group"), "layout": plan.get("layout"),
         })
     stations = {}
     for name, daemon in daemons.items():
@@ -128,13 +130,57 @@ def fleet_report(store, ids: list[int], daemons: dict[str, Any]) -> dict[str, An
         stations[name] = {"jobs": [j["id"] for j in mine],
                           "pieces_cut": sum(j["pieces_cut"] for j in mine),
                           "machine": daemon.fleet.info.tool,
-                          "table_mm": list(daemon.fleet.info.table_mm)}
+                          "table_mm": list(daemon.fleet.info.table_mm),
+                          **machine_work(daemon.config["serial"]["port"])}
     done = [j for j in jobs if j["state"] == "done"]
     return {"summary": {"stations": len(daemons), "jobs": len(jobs), "jobs_done": len(done),
                         "pieces_cut": sum(j["pieces_cut"] for j in jobs),
                         "pieces_total": sum(j["pieces_total"] for j in jobs),
                         "jobs_per_station": {n: len(s["jobs"]) for n, s in stations.items()}},
             "jobs": jobs, "stations": stations}
+
+
+def machine_work(port: str) -> dict[str, Any]:
+    """What a station's emulator really did: beam-on moves and millimetres cut."""
+    from urllib.parse import parse_qs, urlsplit
+
+    import numpy as np
+
+    from simulators.grbl import lookup
+
+    machine = lookup(parse_qs(urlsplit(port).query)["name"][0])
+    if machine is None:
+        return {"beam_on_moves": 0, "beam_on_mm": 0.0}
+    seg = np.array([[m.x0, m.y0, m.x1, m.y1] for m in machine.trace
+                    if m.power > 0 and not m.rapid], float).reshape(-1, 4)
+    return {"beam_on_moves": len(seg),
+            "beam_on_mm": round(float(np.hypot(*(seg[:, 2:] - seg[:, :2]).T).sum()), 1)}
+
+
+def keep_job_files(report: dict[str, Any], out: Path) -> None:
+    """Copy each job's marker, G-code and print into DIR/job-N (the store's folders are
+    temporary); the report names the copies."""
+    import shutil
+
+    for job in report["jobs"]:
+        layout = job.pop("layout")
+        if not layout:
+            continue
+        source = Path(layout).parent
+        target = out / f"job-{job['id']}"
+        target.mkdir(exist_ok=True)
+        job["files"] = []
+        for name in ("layout.json", "job.nc", "fabric.json", "marker.png", "frame.png"):
+            if (source / name).is_file():
+                shutil.copyfile(source / name, target / name)
+                job["files"].append(f"{target.name}/{name}")
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
 
 
 def print_summary(report: dict[str, Any], out: Path) -> None:
@@ -145,8 +191,11 @@ def print_summary(report: dict[str, Any], out: Path) -> None:
     for j in report["jobs"]:
         ran = "n/a" if j["ran_s"] is None else f"{j['ran_s']:.1f} s"
         lines.append(f"  job {j['id']:>2}  {j['station'] or '-':<8} {j['state']:<8} "
-                     f"{j['pieces_cut']}/{j['pieces_total']} pieces  ran {ran}"
+                     f"{j['pieces_cut']}/{j['pieces_total']} pieces  print "
+                     f"{j.get('group_detected') or '-':<4} ran {ran}"
                      + (f"  ({j['reason']})" if j["reason"] else ""))
-    lines.append(f"  per station   {s['jobs_per_station']}")
+    for name, st in report["stations"].items():
+        lines.append(f"  {name:<9} {len(st['jobs'])} jobs, {st['pieces_cut']} pieces; its "
+                     f"machine cut {st['beam_on_mm']:.0f} mm in {st['beam_on_moves']} moves")
     lines.append(f"  report in     {out}/report.json")
     print("\n".join(lines))

@@ -80,8 +80,9 @@ class Engine:
     dialect = ""
     location = ""
 
-    def write(self, work: Callable[[Tx], T]) -> T:
-        """Run ``work`` in one atomic, durable transaction and return its result."""
+    def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
+        """Run ``work`` in one atomic, durable transaction and return its result;
+        ``patience``: seconds to wait for an unreachable server (default: the engine's)."""
         raise NotImplementedError
 
     def read(self, work: Callable[[Tx], T]) -> T:
@@ -108,7 +109,7 @@ class SQLiteEngine(Engine):
         self._conn.execute("pragma foreign_keys=on")
         self._conn.execute("pragma busy_timeout=5000")
 
-    def write(self, work: Callable[[Tx], T]) -> T:
+    def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
         with self._lock:
             cur = self._conn.cursor()
             cur.execute("begin immediate")
@@ -154,15 +155,17 @@ class PostgresEngine(Engine):
         return psycopg.connect(self.url, autocommit=True, row_factory=dict_row,
                                connect_timeout=5)
 
-    def write(self, work: Callable[[Tx], T]) -> T:
-        return self._retrying(work, readonly=False)
+    def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
+        return self._retrying(work, readonly=False, patience=patience)
 
     def read(self, work: Callable[[Tx], T]) -> T:
         return self._retrying(work, readonly=True)
 
-    def _retrying(self, work: Callable[[Tx], T], readonly: bool) -> T:
+    def _retrying(self, work: Callable[[Tx], T], readonly: bool,
+                  patience: float | None = None) -> T:
         import psycopg
 
+        patience = self.outage_seconds if patience is None else patience
         with self._lock:
             self.retried = False
             down_since: float | None = None
@@ -190,9 +193,9 @@ class PostgresEngine(Engine):
                         log.warning("job store %s unreachable (%s); waiting", self.location,
                                     str(exc).strip().splitlines()[0] if str(exc) else exc)
                         self._tell(True)
-                    if now - down_since > self.outage_seconds:
+                    if now - down_since > patience:
                         raise StoreUnavailable(f"{self.location}: unreachable for "
-                                               f"{self.outage_seconds:g} s") from exc
+                                               f"{patience:g} s") from exc
                     self._close_quietly()
                     time.sleep(delay)
                     delay = min(delay * 2, 1.0)
