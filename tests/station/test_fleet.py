@@ -244,3 +244,42 @@ def test_console_commands_reach_the_owning_station_through_the_store(pg_url, tmp
         assert err == "station pause: error: station table-c: that job is not running\n"
     finally:
         station.stop()
+
+
+def test_a_reassigned_job_is_finished_by_another_station_cutting_only_what_was_not_cut(
+        pg_url, tmp_path, capsys):
+    from station.cli import main
+    from station.fleet import StationInfo
+
+    store = JobStore(pg_url)
+    fleet = Fleet(store, timeout=1.0)
+    ghost = StationInfo("table-gone", "laser", (1600.0, 1000.0))
+    fleet.register(ghost)  # a station that cut two pieces, then its computer died
+    job = store.submit("g.obj", None, {"pieces": 5}).id
+    assert fleet.claim(ghost).id == job
+    for state in ("capturing", "planning", "ready", "cutting"):
+        store.transition(job, state)
+    store.set_pieces(job, [f"j{job}p{i}" for i in range(5)])
+    for piece in (0, 3):
+        store.set_piece_state(job, piece, "cut")
+    store.set_piece_state(job, 1, "cutting")
+    other = RunningStation(station_config(tmp_path, "table-new", pg_url))
+    try:
+        assert wait_until(lambda: store.job(job).state == "interrupted", 10)
+        time.sleep(0.5)
+        assert store.job(job).owner == "table-gone"  # not taken over by itself
+        assert main(["reassign", str(job), "--to", "table-new", "--store", pg_url]) == 0
+        assert "queued again for table-new" in capsys.readouterr().out
+        assert wait_until(lambda: store.job(job).state == "done", 30), store.job(job)
+    finally:
+        other.stop()
+    assert store.job(job).owner == "table-new"
+    machine = other.emulator
+    for piece in range(5):
+        runs = complete_runs(machine.trace, piece_contour(job, piece, 5, KERF))
+        assert runs == (0 if piece in (0, 3) else 1), (piece, runs)
+    events = [e["message"] for e in store.events(job)]
+    assert events.count(f"piece 1 (j{job}p1) cut") == 1
+    moved = next(i for i, m in enumerate(events)
+                 if "reassigned by the operator from table-gone to station table-new" in m)
+    assert "submitted -> capturing" in events[moved:]  # the fabric is captured again
