@@ -7,10 +7,12 @@ durably. The differences between the engines stay here:
 - SQLite serialises writers with ``BEGIN IMMEDIATE`` (WAL, ``synchronous=FULL``), so a
   select-then-update inside one write cannot race; ``FOR UPDATE SKIP LOCKED`` is dropped.
 - PostgreSQL (psycopg 3) runs each write in its own transaction; claims lock their row
-  with ``FOR UPDATE SKIP LOCKED``. A lost connection (the server restarted, the network
-  dropped) is not an error for the caller: the engine reconnects with backoff and runs
-  the whole transaction again, for up to ``outage_seconds``, telling ``on_outage`` when
-  the store goes away and comes back (the daemon holds the machine meanwhile).
+  with ``FOR UPDATE SKIP LOCKED``. A transaction the server rolled back for a deadlock
+  (a heartbeat reviving a job just as another station gives it up) runs again. A lost
+  connection (the server restarted, the network dropped) is not an error for the
+  caller: the engine reconnects with backoff and runs the whole transaction again, for
+  up to ``outage_seconds``, telling ``on_outage`` when the store goes away and comes
+  back (the daemon holds the machine meanwhile).
 """
 
 from __future__ import annotations
@@ -170,6 +172,7 @@ class PostgresEngine(Engine):
             self.retried = False
             down_since: float | None = None
             delay = 0.05
+            conflicts = 0
             while True:
                 try:
                     if self._conn is None or self._conn.closed:
@@ -183,7 +186,14 @@ class PostgresEngine(Engine):
                                     time.monotonic() - down_since)
                         self._tell(False)
                     return result
-                except psycopg.OperationalError as exc:
+                except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
+                    sqlstate = getattr(exc, "sqlstate", None) or ""
+                    if sqlstate.startswith("40") and conflicts < 10:
+                        # deadlock or serialisation failure: the server rolled this
+                        # transaction back and the other went on; run it again
+                        conflicts += 1
+                        time.sleep(0.01 * conflicts)
+                        continue
                     if self._conn is not None and not self._conn.closed and \
                             not _connection_lost(exc):
                         raise  # a real fault of this statement, not of the link
@@ -227,6 +237,8 @@ def _connection_lost(exc: Exception) -> bool:
 
     if isinstance(exc, psycopg.errors.AdminShutdown | psycopg.errors.CannotConnectNow):
         return True
+    if isinstance(exc, psycopg.InterfaceError):
+        return True  # "the connection is closed"
     sqlstate = getattr(exc, "sqlstate", None)
     return sqlstate is None or sqlstate.startswith(("08", "57P"))
 

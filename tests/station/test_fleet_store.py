@@ -196,3 +196,35 @@ def test_console_requests_travel_through_the_store_to_the_owner(store_location):
     station = fleet.station(LASER.name)
     assert station["state"] == "stopped"  # signed off cleanly
     assert station["progress"] == {"step": "cutting", "fraction": 0.5}
+
+
+def test_a_transaction_rolled_back_for_a_deadlock_runs_again(pg_url):
+    """Two stores lock two rows in opposite orders: the server kills one transaction,
+    the engine runs it again, and both changes land exactly once."""
+    first, second = JobStore(pg_url), JobStore(pg_url)
+    fleet = Fleet(first)
+    fleet.register(LASER)
+    fleet.register(SMALL)
+    both_locked = threading.Barrier(2, timeout=10)
+    attempts = {"a": 0, "b": 0}
+
+    def crossing(key: str, one: str, other: str):
+        def work(tx):
+            attempts[key] += 1
+            tx.run("update stations set progress = progress || '' where name = ?", one)
+            if attempts[key] == 1:
+                both_locked.wait()
+            tx.run("update stations set profile = profile || ? where name = ?", key, other)
+        return work
+
+    threads = [threading.Thread(target=first.engine.write,
+                                args=(crossing("a", LASER.name, SMALL.name),)),
+               threading.Thread(target=second.engine.write,
+                                args=(crossing("b", SMALL.name, LASER.name),))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    profiles = {s["name"]: s["profile"] for s in fleet.stations()}
+    assert profiles == {SMALL.name: "a", LASER.name: "b"}
+    assert sorted(attempts.values()) == [1, 2]  # one ran again after the deadlock
