@@ -129,3 +129,27 @@ def test_station_align_records_pairs_and_their_price(tmp_path: Path) -> None:
     assert Placement.load(out).pairs == saved["pairs"]
     run = subprocess.run(base + ["--no-symmetry"], capture_output=True, text=True, cwd=REPO)
     assert run.returncode == 0 and json.loads(out.read_text())["pairs"] == []
+
+
+def test_front_view_shows_each_pair_mirrored(tshirt, tmp_path: Path) -> None:
+    from station.front_view import draw_front_view, front_view
+
+    pairs = mirror_pairs(tshirt)
+    placement = align_symmetric(tshirt, PRINTS["pmm"], pairs, compare=False, method="paper",
+                                restarts=2, grain_tol_deg=1.0)
+    shown, moved, axes = front_view(tshirt, placement, pairs)
+    fabric = placement.fabric
+    for p in pairs:
+        i, j = p.first, p.second
+        a, b = shown.uv[shown.piece_of_vertex == i], shown.uv[shown.piece_of_vertex == j]
+        # j is i's mirror image across one vertical axis, print included
+        axis = axes[(i, j)]
+        mirrored = a * [-1, 1] + [2 * axis, 0]
+        d = np.min(np.linalg.norm(mirrored[:, None] - b[None], axis=2), axis=1)
+        assert np.median(d) < 5.0
+        inside = a[::7]
+        w_i = moved.to_wallpaper(inside, np.full(len(inside), i))
+        w_j = moved.to_wallpaper(inside * [-1, 1] + [2 * axis, 0], np.full(len(inside), j))
+        assert np.linalg.norm(fabric.mismatch(w_i, w_j), axis=1).max() < 0.5
+    image = draw_front_view(tshirt, placement, pairs, tmp_path / "front.png")
+    assert image.shape[1] == 1600 and (tmp_path / "front.png").stat().st_size > 10_000
