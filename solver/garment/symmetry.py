@@ -79,14 +79,8 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
     vetoed_set = {_ordered(p, n) for p in vetoed}
     outlines = [garment.piece_outline(i) for i in range(n)]
     labels = _seam_partner_per_boundary_edge(garment)
-    taken: set[int] = set()
-    out: list[MirrorPair] = []
-    for i, j in declared:
-        if i in taken or j in taken:
-            raise ValueError(f"piece {i if i in taken else j} is declared in two mirror pairs")
-        rot, t, rms = _mirror_fit(outlines[i], outlines[j])
-        out.append(MirrorPair(i, j, rms, _size(outlines[i]), rot, t, declared=True))
-        taken.update((i, j))
+    out = fit_pairs(garment, declared)
+    taken = {k for p in out for k in (p.first, p.second)}
 
     area = np.abs(garment.piece_areas())
     candidates: list[MirrorPair] = []
@@ -115,6 +109,22 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
         if worst < 0 or score[worst] >= SEAM_AGREEMENT:
             return out
         del out[worst]
+
+
+def fit_pairs(garment: Garment, pairs: Iterable[Sequence[int]]) -> list[MirrorPair]:
+    """The mirror fits of pairs given by the operator or recorded in a placement, taken as
+    pairs whatever their fit (``declared``)."""
+    n = garment.n_pieces
+    out: list[MirrorPair] = []
+    taken: set[int] = set()
+    for i, j in (_ordered(p, n) for p in pairs):
+        if i in taken or j in taken:
+            raise ValueError(f"piece {i if i in taken else j} is in two mirror pairs")
+        first, second = garment.piece_outline(i), garment.piece_outline(j)
+        rot, t, rms = _mirror_fit(first, second)
+        out.append(MirrorPair(i, j, rms, _size(first), rot, t, declared=True))
+        taken.update((i, j))
+    return out
 
 
 def centre_seams(garment: Garment, pairs: Sequence[MirrorPair]) -> list[int]:

@@ -153,3 +153,25 @@ def test_front_view_shows_each_pair_mirrored(tshirt, tmp_path: Path) -> None:
         assert np.linalg.norm(fabric.mismatch(w_i, w_j), axis=1).max() < 0.5
     image = draw_front_view(tshirt, placement, pairs, tmp_path / "front.png")
     assert image.shape[1] == 1600 and (tmp_path / "front.png").stat().st_size > 10_000
+
+
+def test_reshaped_pairs_move_as_mirror_images(tshirt) -> None:
+    from solver.garment.refine import refined
+    from solver.reshape import reshape
+    from solver.reshape.energy import signed_areas
+    from solver.reshape.pairs import PairTie
+
+    pairs = mirror_pairs(tshirt)
+    fabric = PRINTS["p4m"]
+    placement = align_symmetric(tshirt, fabric, pairs, compare=False, method="paper",
+                                restarts=3, grain_tol_deg=1.0)
+    new, report = reshape(tshirt, placement, pairs=pairs)
+    base, _ = refined(tshirt, fabric.covering_radius)
+    assert new.n_vertices == base.n_vertices
+    moved = new.uv - base.uv
+    assert np.abs(moved).max() > 1.0  # it did reshape
+    # every vertex of a second piece moved as the mirror of its first piece's displacement
+    # there (interpolated in the first piece's mesh)
+    assert PairTie(base, pairs).mirror_error(moved) < 0.1
+    assert report.e_fit_after_mm2 < report.e_fit_before_mm2
+    assert np.all(signed_areas(new.uv, new.faces) > 0)
