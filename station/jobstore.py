@@ -108,11 +108,6 @@ class JobStore:
         self.location = self.engine.location
         self.schema_version = migrate(self.engine)
 
-    @property
-    def path(self) -> Path:
-        """The SQLite file (the embedded engine only)."""
-        return Path(self.location)
-
     def close(self) -> None:
         self.engine.close()
 
