@@ -87,6 +87,7 @@ def _claim_all(location: str, info: StationInfo, got: list[int], start: threadin
         got.append(job.id)
         store.transition(job.id, "capturing")
         store.transition(job.id, "failed", "test: done with it")  # frees the station
+        time.sleep(0.01)  # a station works on its job a while before it claims again
     store.close()
 
 
