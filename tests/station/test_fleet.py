@@ -17,7 +17,9 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from simulators.grbl import GrblEmulator
 from simulators.grbl.pty import PtyBridge
@@ -29,6 +31,7 @@ from .fleet_helpers import (
     RunningStation,
     beam_segments,
     complete_runs,
+    densify,
     piece_contour,
     station_config,
 )
@@ -77,9 +80,13 @@ def test_fifty_jobs_on_three_stations_each_done_once_each_piece_cut_once(pg_url,
         assert sum(e["message"] == "cutting -> done" for e in events) == 1
     machines = {s.config["station"]["name"]: s.emulator for s in stations}
     assert check_each_piece_cut_once(store, machines) == 150
-    # nothing else was cut: each machine's beam-on moves all belong to its own pieces
+    # nothing else was cut: each machine's beam-on moves all lie on its own pieces
     for name, m in machines.items():
-        assert len(beam_segments(m.trace)) == 4 * 3 * owners[name]
+        mine = np.vstack([densify(np.c_[c, np.roll(c, -1, axis=0)])
+                          for j in done if j.owner == name
+                          for c in (piece_contour(j.id, k, 3, KERF) for k in range(3))])
+        seg = beam_segments(m.trace)
+        assert len(seg) and cKDTree(mine).query(densify(seg))[0].max() < 0.4, name
     fleet = Fleet(store)
     assert {s["name"]: s["state"] for s in fleet.stations()} == {n: "stopped" for n in owners}
 
@@ -184,11 +191,16 @@ def test_the_database_restarted_mid_cut_holds_the_machine_then_goes_on(postgres,
         machine = station.emulator
         store.close()
         postgres.stop("immediate")  # as a crash would; the station's link breaks
-        time.sleep(1.0)  # the heartbeat (0.2 s) finds it down and holds the machine
+        # the heartbeat (0.2 s) finds it down and holds the machine until it is back
+        def held() -> bool:
+            running = station.daemon.running
+            return running is not None and bool(running.progress.get("held_for_store"))
+
+        assert wait_until(held, 10, 0.01)
+        assert wait_until(lambda: machine.state in ("Hold:0", "Idle"), 10, 0.01)
         before = len(beam_segments(machine.trace))
-        time.sleep(1.5)
+        time.sleep(1.0)
         assert len(beam_segments(machine.trace)) == before  # nothing cut meanwhile
-        assert machine.state.startswith(("Hold", "Idle"))
         postgres.start()
         store = JobStore(pg_url)
         assert wait_until(lambda: store.job(job).state == "done", 60), store.job(job)
