@@ -321,12 +321,16 @@ class FleetMember:
 
 def open_store(config) -> JobStore:
     """The configured job store: ``[store] url`` if set, else the SQLite file at ``path``."""
-    from station.storeengine import is_server_url
+    from station.storeengine import StoreUnavailable, is_server_url
+    from station.storeschema import SchemaTooNew
 
     url = config["store"]["url"]
     location = url if is_server_url(url) else config.resolve(url or config["store"]["path"])
-    return JobStore(location, **({"outage_seconds": config["station"]["outage_s"]}
-                                 if is_server_url(url) else {}))
+    try:
+        return JobStore(location, **({"outage_seconds": config["station"]["outage_s"]}
+                                     if is_server_url(url) else {}))
+    except (StoreUnavailable, SchemaTooNew) as exc:
+        raise JobStoreError(str(exc)) from None  # one line for the operator, exit 2
 
 
 def station_info(config, machine=None) -> StationInfo:

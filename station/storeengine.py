@@ -148,7 +148,11 @@ class PostgresEngine(Engine):
         self.on_outage = on_outage
         self.retried = False  # the last write ran again after a lost connection
         self._lock = threading.RLock()
-        self._conn = self._connect()
+        try:
+            self._conn = self._connect()
+        except Exception as exc:  # psycopg.OperationalError: the server is not there
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise StoreUnavailable(f"{self.location}: cannot connect ({first})") from None
 
     def _connect(self):
         import psycopg

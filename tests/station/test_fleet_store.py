@@ -229,3 +229,21 @@ def test_a_transaction_rolled_back_for_a_deadlock_runs_again(pg_url):
     profiles = {s["name"]: s["profile"] for s in fleet.stations()}
     assert profiles == {SMALL.name: "a", LASER.name: "b"}
     assert sorted(attempts.values()) == [1, 2]  # one ran again after the deadlock
+
+
+def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_location,
+                                                                         capsys):
+    from station.cli import main
+
+    assert main(["fleet", "--store", "postgresql://station:secret@127.0.0.1:1/none"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("station fleet: error: postgresql://station:***@127.0.0.1:1/none: "
+                          "cannot connect") and err.count("\n") == 1 and "secret" not in err
+    store = JobStore(store_location)
+    store.engine.write(lambda tx: tx.run(
+        "insert into schema_version (version, description, applied_at) values (?, ?, ?)",
+        SCHEMA_VERSION + 1, "from the future", 0.0))
+    store.close()
+    assert main(["jobs", "--fleet", "--store", store_location]) == 2
+    err = capsys.readouterr().err
+    assert "newer than this station's" in err and err.count("\n") == 1
