@@ -9,7 +9,9 @@ the same guarantee to the one table it serves.
 
 Heartbeats. Every station writes one every ``interval`` seconds (with its running job and
 progress). A station silent for ``timeout`` seconds is "lost": the next heartbeat of any
-station marks its active job "interrupted", still owned by it. Only the owner resumes an
+station marks its active job "interrupted", still owned by it (but not within
+``timeout`` of the reaper's own start or of the store coming back after an outage: then
+every heartbeat is stale and says nothing). Only the owner resumes an
 interrupted job (its controller's EEPROM holds the markers that tell which piece the
 machine finished); if it comes back within the job, its heartbeat revives it. An
 operator may reassign the job instead: it goes back to "submitted" for another station,
@@ -313,6 +315,8 @@ class FleetMember:
             except Exception as exc:  # the console shows it, as the socket would
                 answer = {"ok": False, "error": str(exc).strip("'\"")}
             self.fleet.answer(command_id, answer)
+        if time.monotonic() - self.fleet.store.engine.reachable_since < self.fleet.timeout:
+            return  # after an outage everyone's heartbeat is stale: give them time first
         reaped = self.fleet.reap()
         for job in reaped:
             log.warning("job %d interrupted: its station stopped answering", job)

@@ -81,6 +81,9 @@ class Engine:
 
     dialect = ""
     location = ""
+    #: time.monotonic() when the store last became reachable (opened, or back after an
+    #: outage): heartbeats older than that say nothing about the other stations
+    reachable_since = 0.0
 
     def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
         """Run ``work`` in one atomic, durable transaction and return its result;
@@ -101,6 +104,7 @@ class SQLiteEngine(Engine):
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.location = str(self.path)
+        self.reachable_since = time.monotonic()
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.RLock()
         self._conn = sqlite3.connect(self.path, isolation_level=None, timeout=5.0,
@@ -148,6 +152,7 @@ class PostgresEngine(Engine):
         self.on_outage = on_outage
         self.retried = False  # the last write ran again after a lost connection
         self._lock = threading.RLock()
+        self.reachable_since = time.monotonic()
         try:
             self._conn = self._connect()
         except Exception as exc:  # psycopg.OperationalError: the server is not there
@@ -186,6 +191,7 @@ class PostgresEngine(Engine):
                             cur.execute("set transaction read only")
                         result = work(Tx(cur, self.dialect))
                     if down_since is not None:
+                        self.reachable_since = time.monotonic()
                         log.warning("job store %s is back after %.1f s", self.location,
                                     time.monotonic() - down_since)
                         self._tell(False)
