@@ -61,7 +61,7 @@ class TinyJobs(StationPipeline):
 
 
 def station_config(tmp: Path, name: str, store: str, port: str | None = None,
-                   speed: float = 2000.0) -> Config:
+                   speed: float = 2000.0, lost_after: float = 3.0) -> Config:
     """A fleet station's configuration: its own emulator (or ``port``) and folders."""
     default = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={speed:g}")
     port = port or default.replace("name=station", f"name=fleet-{name}-{id(tmp)}")
@@ -70,7 +70,8 @@ def station_config(tmp: Path, name: str, store: str, port: str | None = None,
         "store": {"url": store, "work_dir": str(tmp / name / "work")},
         "control": {"socket": str(tmp / name / "station.sock")},
         "machine": {"check_mode": False},
-        "station": {"name": name, "heartbeat_s": 0.2, "lost_after_s": 3.0, "outage_s": 60.0},
+        "station": {"name": name, "heartbeat_s": 0.2, "lost_after_s": lost_after,
+                    "outage_s": 60.0},
     })
 
 

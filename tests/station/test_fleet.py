@@ -180,33 +180,41 @@ def test_a_station_killed_mid_cut_keeps_its_job_and_resumes_it_after_restart(pg_
         killed.close()
 
 
-def test_the_database_restarted_mid_cut_holds_the_machine_then_goes_on(postgres, pg_url,
-                                                                       tmp_path):
+def test_the_database_restarted_mid_cut_holds_the_machines_then_goes_on(postgres, pg_url,
+                                                                        tmp_path):
+    """Two stations cutting; the server crashes and is down longer than a station may
+    be silent: both hold, neither is taken for lost, both finish."""
     store = JobStore(pg_url)
-    station = RunningStation(station_config(tmp_path, "table-db", pg_url, speed=6.0))
+    stations = [RunningStation(station_config(tmp_path, f"table-db{i}", pg_url, speed=6.0,
+                                              lost_after=1.0)) for i in range(2)]
     try:
-        job = store.submit("g.obj", None, {"pieces": 4, "size": 40.0}).id
-        assert wait_until(lambda: sum(p["state"] == "cut" for p in store.pieces(job)) >= 1,
-                          60, 0.01)
-        machine = station.emulator
+        jobs = [store.submit("g.obj", None, {"pieces": 4, "size": 40.0}).id
+                for _ in stations]
+        assert wait_until(lambda: all(sum(p["state"] == "cut" for p in store.pieces(j)) >= 1
+                                      for j in jobs), 60, 0.01)
+        machines = {s.config["station"]["name"]: s.emulator for s in stations}
         store.close()
-        postgres.stop("immediate")  # as a crash would; the station's link breaks
-        # the heartbeat (0.2 s) finds it down and holds the machine until it is back
-        def held() -> bool:
+        postgres.stop("immediate")  # as a crash would; the stations' links break
+
+        def held(station) -> bool:  # the heartbeat (0.2 s) finds the store gone
             running = station.daemon.running
             return running is not None and bool(running.progress.get("held_for_store"))
 
-        assert wait_until(held, 10, 0.01)
-        assert wait_until(lambda: machine.state in ("Hold:0", "Idle"), 10, 0.01)
-        before = len(beam_segments(machine.trace))
-        time.sleep(1.0)
-        assert len(beam_segments(machine.trace)) == before  # nothing cut meanwhile
+        assert wait_until(lambda: all(held(s) for s in stations), 10, 0.01)
+        assert wait_until(lambda: all(m.state in ("Hold:0", "Idle")
+                                      for m in machines.values()), 10, 0.01)
+        before = [len(beam_segments(m.trace)) for m in machines.values()]
+        time.sleep(1.5)
+        assert [len(beam_segments(m.trace)) for m in machines.values()] == before
         postgres.start()
         store = JobStore(pg_url)
-        assert wait_until(lambda: store.job(job).state == "done", 60), store.job(job)
+        assert wait_until(lambda: all(store.job(j).state == "done" for j in jobs), 60), \
+            [store.job(j) for j in jobs]
     finally:
-        station.stop()
-    assert check_each_piece_cut_once(store, {"table-db": machine}) == 4
+        for s in stations:
+            s.stop()
+    assert check_each_piece_cut_once(store, machines) == 8
+    assert not [e for e in store.events() if "interrupted" in e["message"]]
 
 
 def test_console_commands_reach_the_owning_station_through_the_store(pg_url, tmp_path,
