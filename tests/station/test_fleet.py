@@ -255,7 +255,9 @@ def test_console_commands_reach_the_owning_station_through_the_store(pg_url, tmp
         assert [(r["name"], r["state"], r["job_id"]) for r in rows] == [("table-c", "busy",
                                                                          job)]
         assert cli("resume", "--station", "table-c")["message"] == "resumed"
-        assert wait_until(lambda: store.job(job).state == "done", 60), store.job(job)
+        assert main(["watch", str(job), "--fleet", "--store", pg_url]) == 0  # until done
+        assert store.job(job).state == "done"
+        assert "cutting" in capsys.readouterr().err  # the progress bars it drew
         assert store.job(knife).state == "submitted"  # no knife in this room
         assert cli("abort", str(knife), "--fleet")["message"] == "aborted"
         capsys.readouterr()
