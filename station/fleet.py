@@ -18,9 +18,11 @@ operator may reassign the job instead: it goes back to "submitted" for another s
 which re-detects the fabric and cuts only the pieces not recorded cut.
 
 Remote commands. The console writes a request (the same JSON as on the control socket)
-into ``commands`` for the owning station; that station's heartbeat thread polls its
-commands every ``interval`` seconds (0.5 s by default: that is the latency), runs them
-through the daemon's own handler and writes the answer back.
+into ``commands`` for the owning station; that station's heartbeat thread runs it through
+the daemon's own handler and writes the answer back. On PostgreSQL the request is also
+sent with NOTIFY to the station, which LISTENs on its own connection and runs it at once
+(milliseconds); without notifications (SQLite, or while that connection is down) the
+heartbeat finds it within ``interval`` seconds (0.5 s by default).
 """
 
 from __future__ import annotations
@@ -218,10 +220,17 @@ class Fleet:
 
     # ------------------------------------------------------------------ commands
     def send(self, station: str, request: dict[str, Any]) -> int:
-        """Queue a console request for ``station``; its id."""
-        return self.store.engine.write(lambda tx: tx.one(
-            "insert into commands (station, request, at) values (?, ?, ?) returning id",
-            station, json.dumps(request), time.time()))["id"]
+        """Queue a console request for ``station`` (on PostgreSQL also NOTIFY it, so that
+        it runs the request at once rather than at its next heartbeat); its id."""
+
+        def work(tx: Tx) -> int:
+            row = tx.one("insert into commands (station, request, at) values (?, ?, ?) "
+                         "returning id", station, json.dumps(request), time.time())
+            if tx.dialect == "postgresql":
+                tx.run("select pg_notify(?, ?)", channel(station), str(row["id"]))
+            return row["id"]
+
+        return self.store.engine.write(work)
 
     def open_commands(self, station: str) -> list[tuple[int, dict[str, Any]]]:
         rows = self.store.engine.read(lambda tx: tx.all(
@@ -293,6 +302,12 @@ class FleetMember:
             return
         self._stop.set()
         if self._thread is not None:
+            if self.fleet.store.engine.dialect == "postgresql":
+                try:  # wake the listener now rather than at the end of its interval
+                    self.fleet.store.engine.write(lambda tx: tx.run(
+                        "select pg_notify(?, 'stop')", channel(self.info.name)), patience=1.0)
+                except Exception:
+                    pass  # the store is gone: the listener is polling, it stops in time
             self._thread.join(10)
         try:
             self.fleet.sign_off(self.info.name)
@@ -300,11 +315,18 @@ class FleetMember:
             log.warning("could not sign off from the fleet")
 
     def _beat(self) -> None:
-        while not self._stop.wait(self.interval):
-            try:
-                self.tick()
-            except Exception:  # the next beat tries again; never let the thread die
-                log.exception("heartbeat failed")
+        listener = Listener(self.fleet.store, channel(self.info.name))
+        try:
+            while not self._stop.is_set():
+                listener.wait(self.interval, self._stop)
+                if self._stop.is_set():
+                    break
+                try:
+                    self.tick()
+                except Exception:  # the next beat tries again; never let the thread die
+                    log.exception("heartbeat failed")
+        finally:
+            listener.close()
 
     def tick(self) -> None:
         job_id, progress = self.running()
@@ -321,6 +343,51 @@ class FleetMember:
         for job in reaped:
             log.warning("job %d interrupted: its station stopped answering", job)
 
+
+
+def channel(station: str) -> str:
+    """The LISTEN/NOTIFY channel of a station (a plain identifier whatever its name)."""
+    import hashlib
+
+    return "station_" + hashlib.sha1(station.encode()).hexdigest()[:16]
+
+
+class Listener:
+    """Waits for a station's notifications on its own PostgreSQL connection.
+
+    On SQLite (no notifications) and whenever the server is unreachable, `wait` is a
+    plain sleep of one interval: the heartbeat's polling is the fallback, never lost.
+    """
+
+    def __init__(self, store: JobStore, name: str) -> None:
+        self.engine = store.engine
+        self.name = name
+        self._conn = None
+
+    def wait(self, seconds: float, stop: threading.Event) -> None:
+        if self.engine.dialect != "postgresql":
+            stop.wait(seconds)
+            return
+        try:
+            if self._conn is None or self._conn.closed:
+                import psycopg
+
+                self._conn = psycopg.connect(self.engine.url, autocommit=True,
+                                             connect_timeout=5)
+                self._conn.execute(f"listen {self.name}")
+            for _note in self._conn.notifies(timeout=seconds, stop_after=1):
+                pass
+        except Exception:  # the server went away: poll until it is back
+            self.close()
+            stop.wait(seconds)
+
+    def close(self) -> None:
+        if self._conn is not None:
+            try:
+                self._conn.close()
+            except Exception:
+                pass
+            self._conn = None
 
 
 def open_store(config) -> JobStore:
