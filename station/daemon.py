@@ -37,7 +37,8 @@ from typing import Any, Protocol
 
 from station.config import Config
 from station.control import ControlError, ControlServer
-from station.fleet import Fleet, FleetMember, open_store, station_info
+from station.fleet import Fleet, open_store, station_info
+from station.fleetmember import FleetMember
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
 
 log = logging.getLogger("station.daemon")

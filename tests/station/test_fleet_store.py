@@ -9,7 +9,8 @@ import time
 
 import pytest
 
-from station.fleet import Fleet, FleetMember, StationInfo
+from station.fleet import Fleet, StationInfo
+from station.fleetmember import FleetMember
 from station.jobstore import JobStore, JobStoreError, Requirements
 from station.storeschema import SCHEMA_VERSION, SchemaTooNew
 
