@@ -110,7 +110,8 @@ class Daemon:
             self.fleet = FleetMember(
                 Fleet(self.store, config["station"]["lost_after_s"]),
                 station_info(config, getattr(pipeline, "machine", None)),
-                self._doing, self.handle, config["station"]["heartbeat_s"])
+                self._doing, self.handle, config["station"]["heartbeat_s"],
+                wake=lambda: self._wake.set())
             self.store.engine.on_outage = self._on_outage
         self.work_dir = config.resolve(config["store"]["work_dir"])
         self.control = ControlServer(config.resolve(config["control"]["socket"]),

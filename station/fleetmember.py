@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from station.fleet import Fleet, StationInfo, channel
-from station.jobstore import ACTIVE, Job, JobStore
+from station.jobstore import ACTIVE, JOBS_CHANNEL, Job, JobStore
 
 log = logging.getLogger("station.fleet")
 
@@ -30,12 +30,13 @@ class FleetMember:
     def __init__(self, fleet: Fleet, info: StationInfo,
                  running: Callable[[], tuple[int | None, dict[str, Any]]],
                  handle: Callable[[dict[str, Any]], dict[str, Any]],
-                 interval: float = 0.5) -> None:
+                 interval: float = 0.5, wake: Callable[[], None] | None = None) -> None:
         self.fleet = fleet
         self.info = info
         self.running = running
         self.handle = handle
         self.interval = interval
+        self.wake = wake  # called when a job may have become claimable
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -79,10 +80,11 @@ class FleetMember:
             log.warning("could not sign off from the fleet")
 
     def _beat(self) -> None:
-        listener = Listener(self.fleet.store, channel(self.info.name))
+        listener = Listener(self.fleet.store, (channel(self.info.name), JOBS_CHANNEL))
         try:
             while not self._stop.is_set():
-                listener.wait(self.interval, self._stop)
+                if listener.wait(self.interval, self._stop) == JOBS_CHANNEL and self.wake:
+                    self.wake()  # a job was queued: claim it now, not at the next poll
                 if self._stop.is_set():
                     break
                 try:
@@ -115,27 +117,31 @@ class Listener:
     plain sleep of one interval: the heartbeat's polling is the fallback, never lost.
     """
 
-    def __init__(self, store: JobStore, name: str) -> None:
+    def __init__(self, store: JobStore, channels: tuple[str, ...]) -> None:
         self.engine = store.engine
-        self.name = name
+        self.channels = channels
         self._conn = None
 
-    def wait(self, seconds: float, stop: threading.Event) -> None:
+    def wait(self, seconds: float, stop: threading.Event) -> str | None:
+        """Sleep up to ``seconds``; the channel whose notification ended it, if any."""
         if self.engine.dialect != "postgresql":
             stop.wait(seconds)
-            return
+            return None
         try:
             if self._conn is None or self._conn.closed:
                 import psycopg
 
                 self._conn = psycopg.connect(self.engine.url, autocommit=True,
                                              connect_timeout=5)
-                self._conn.execute(f"listen {self.name}")
-            for _note in self._conn.notifies(timeout=seconds, stop_after=1):
-                pass
+                for name in self.channels:
+                    self._conn.execute(f"listen {name}")
+            for note in self._conn.notifies(timeout=seconds, stop_after=1):
+                return note.channel
+            return None
         except Exception:  # the server went away: poll until it is back
             self.close()
             stop.wait(seconds)
+            return None
 
     def close(self) -> None:
         if self._conn is not None:

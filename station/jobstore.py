@@ -47,6 +47,8 @@ TRANSITIONS: dict[str, tuple[str, ...]] = {
 }
 
 PIECE_STATES = ("pending", "cutting", "cut")
+#: PostgreSQL NOTIFY channel told whenever a job becomes claimable (fleet stations LISTEN)
+JOBS_CHANNEL = "station_jobs"
 TOOLS = ("laser", "knife")
 
 
@@ -129,6 +131,7 @@ class JobStore:
             self._event(tx, row["id"], "submitted", f"garment {garment}, fabric "
                         f"{fabric or 'detected from the camera'}"
                         + (f"; needs {needs}" if needs else ""))
+            announce(tx)
             return row["id"]
 
         return self.job(self.engine.write(work))
@@ -181,6 +184,7 @@ class JobStore:
             tx.run("update jobs set owner = ? where id = ?", owner, job_id)
         if new_state == "submitted":  # retry: start the plan afresh, keep cut pieces
             tx.run("update jobs set plan = null where id = ?", job_id)
+            announce(tx)
         self._event(tx, job_id, "state", f"{old} -> {new_state}"
                     + (f": {reason}" if reason else ""))
         return old
@@ -259,6 +263,12 @@ class JobStore:
     def _event(tx: Tx, job_id: int | None, kind: str, message: str) -> None:
         tx.run("insert into events (job_id, at, kind, message) values (?, ?, ?, ?)",
                job_id, time.time(), kind, message)
+
+
+def announce(tx: Tx) -> None:
+    """Tell listening stations a job can be claimed (PostgreSQL: sent at commit)."""
+    if tx.dialect == "postgresql":
+        tx.run(f"notify {JOBS_CHANNEL}")
 
 
 def describe(req: Requirements) -> str:

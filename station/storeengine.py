@@ -128,13 +128,9 @@ class SQLiteEngine(Engine):
             return result
 
     def read(self, work: Callable[[Tx], T]) -> T:
+        """Reads run in autocommit: each statement sees one committed state (WAL)."""
         with self._lock:
-            cur = self._conn.cursor()
-            cur.execute("begin")
-            try:
-                return work(Tx(cur, self.dialect))
-            finally:
-                cur.execute("rollback")
+            return work(Tx(self._conn.cursor(), self.dialect))
 
     def close(self) -> None:
         with self._lock:

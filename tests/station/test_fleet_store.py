@@ -252,3 +252,19 @@ def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_lo
     assert main(["jobs", "--fleet", "--store", store_location]) == 2
     err = capsys.readouterr().err
     assert "newer than this station's" in err and err.count("\n") == 1
+
+
+def test_an_idle_station_is_woken_by_a_submission(store_location):
+    """PostgreSQL tells listening stations at once; SQLite leaves it to their polling."""
+    store = JobStore(store_location)
+    woken = threading.Event()
+    member = FleetMember(Fleet(store), LASER, lambda: (None, {}), lambda r: {},
+                         interval=5.0, wake=woken.set)
+    member.join()
+    member.start()
+    try:
+        time.sleep(0.5)  # up and listening
+        JobStore(store_location).submit("a.obj", None, {})
+        assert woken.wait(1.0) == (store.engine.dialect == "postgresql")
+    finally:
+        member.stop()
