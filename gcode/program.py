@@ -86,6 +86,8 @@ class Check:
     travel_length_mm: float = 0.0
     bounds: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of all motion
     path: np.ndarray | None = None  # (k,2) float, every XY motion sampled at most 1 mm apart
+    cut_feeds: tuple[float, ...] = ()  # every feed (mm/min) a beam-on move asks for
+    cut_powers: tuple[float, ...] = ()  # every S a beam-on move asks for
 
     @property
     def estimated_seconds(self) -> float:
@@ -343,6 +345,8 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     seconds = np.zeros(len(lines))
     cut = travel = 0.0
     samples: list[np.ndarray] = []
+    cut_feeds: set[float] = set()
+    cut_powers: set[float] = set()
 
     def sample_line(a, b) -> None:
         k = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / path_step)))
@@ -496,9 +500,16 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
                 sample_arc(pos, c, r, sweep)
             if tool_on:
                 cut += d
+                if laser and feed < machine.min_cut_feed - eps:
+                    fail(i, f"beam on at F{feed:g}, below the machine's min_cut_feed "
+                            f"{machine.min_cut_feed:g} (a slow beam burns through)")
+                cut_feeds.add(feed)
+                if laser:
+                    cut_powers.add(s_word)
             seconds[i] = _move_time(length, feed, machine.acceleration)
         pos = target
     bounds = None if math.isinf(bx[0]) else (bx[0], bx[1], bx[2], bx[3])
     path = np.vstack(samples) if samples else np.zeros((0, 2))
     return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
-                 path=path)
+                 path=path, cut_feeds=tuple(sorted(cut_feeds)),
+                 cut_powers=tuple(sorted(cut_powers)))

@@ -636,7 +636,8 @@ def with_markers(program, job_id: int, index: dict[str, int]):
     if program.check is not None:
         c = program.check
         check = Check(seconds=np.asarray(seconds), cut_length_mm=c.cut_length_mm,
-                      travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path)
+                      travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path,
+                      cut_feeds=c.cut_feeds, cut_powers=c.cut_powers)
     return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
 
 

@@ -90,6 +90,8 @@ class GrblEmulator:
         with self._cond:
             self._power_on()
         self._stopped = False
+        self.realtime = realtime
+        self._wall = time.monotonic()  # the wall instant simulated time was last brought to
         if realtime:  # else the caller drives simulated time with advance(dt)
             self._thread = threading.Thread(target=self._run, daemon=True,
                                             name=f"grblsim-{name or id(self)}")
@@ -129,6 +131,7 @@ class GrblEmulator:
     def receive(self, data: bytes) -> None:
         """Bytes arriving on the controller's serial RX line."""
         with self._cond:
+            self._catch_up()  # a real GRBL moves continuously: answer `?` for this instant
             for byte in bytes(data):
                 self.bytes_received += 1
                 n = self.bytes_received
@@ -877,13 +880,24 @@ class GrblEmulator:
 
     # ------------------------------------------------------------------ simulated time
     def _run(self) -> None:
-        last = time.monotonic()
         while not self._stopped:
             time.sleep(0.002)
-            now = time.monotonic()
             with self._cond:
-                self.advance((now - last) * self.speed)
-            last = now
+                self._catch_up()
+
+    def _catch_up(self) -> None:
+        """Bring simulated time to the present wall instant (realtime machines only).
+
+        Called by the clock thread and on every byte received, so a status report is the
+        machine's state at the moment the ``?`` arrived, not at the clock thread's last tick
+        (at speed 50 one 2 ms tick is 0.1 simulated seconds, 5 mm at 3000 mm/min).
+        """
+        if not self.realtime:
+            return
+        now = time.monotonic()
+        dt, self._wall = now - self._wall, now
+        if dt > 0:
+            self.advance(dt * self.speed)
 
     def advance(self, dt: float) -> None:
         """Advance simulated time by dt seconds (called by the background thread)."""
