@@ -86,6 +86,7 @@ class Check:
     travel_length_mm: float = 0.0
     bounds: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of all motion
     path: np.ndarray | None = None  # (k,2) float, every XY motion sampled at most 1 mm apart
+    path_line: np.ndarray | None = None  # (k,) int, the program line of each path sample
     cut_feeds: tuple[float, ...] = ()  # every feed (mm/min) a beam-on move asks for
     cut_powers: tuple[float, ...] = ()  # every S a beam-on move asks for
 
@@ -345,6 +346,8 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     seconds = np.zeros(len(lines))
     cut = travel = 0.0
     samples: list[np.ndarray] = []
+    sample_lines: list[np.ndarray] = []
+    current = [0]  # the line being read (for the samples' line numbers)
     cut_feeds: set[float] = set()
     cut_powers: set[float] = set()
 
@@ -352,11 +355,13 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         k = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / path_step)))
         t = np.linspace(0.0, 1.0, k + 1)[:, None]
         samples.append(np.asarray(a[:2], float) * (1 - t) + np.asarray(b[:2], float) * t)
+        sample_lines.append(np.full(k + 1, current[0]))
 
     def sample_arc(a, c, r, sweep) -> None:
         k = max(2, int(math.ceil(abs(sweep) * r / path_step)))
         ang = math.atan2(a[1] - c[1], a[0] - c[0]) + sweep * np.linspace(0.0, 1.0, k + 1)
         samples.append(np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)])
+        sample_lines.append(np.full(k + 1, current[0]))
     bx = [math.inf, math.inf, -math.inf, -math.inf]
 
     def fail(i: int, msg: str):
@@ -370,6 +375,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         bx[2], bx[3] = max(bx[2], x), max(bx[3], y)
 
     for i, raw in enumerate(lines):
+        current[0] = i
         if len(raw.rstrip("\r\n")) > MAX_LINE:
             fail(i, f"line longer than GRBL's {MAX_LINE} characters")
         if any(ch in _FORBIDDEN for ch in raw.rstrip("\r\n")) and not _PIECE.match(raw.strip()):
@@ -510,6 +516,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         pos = target
     bounds = None if math.isinf(bx[0]) else (bx[0], bx[1], bx[2], bx[3])
     path = np.vstack(samples) if samples else np.zeros((0, 2))
+    path_line = np.concatenate(sample_lines) if sample_lines else np.zeros(0, int)
     return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
-                 path=path, cut_feeds=tuple(sorted(cut_feeds)),
+                 path=path, path_line=path_line, cut_feeds=tuple(sorted(cut_feeds)),
                  cut_powers=tuple(sorted(cut_powers)))

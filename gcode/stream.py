@@ -25,12 +25,13 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from gcode.grbl import Response, Status, error_message, parse_response, parse_settings
 from gcode.program import Program, strip_comment
+from gcode.watchdog import StopReason, Watchdog
 
-__all__ = ["PieceState", "Progress", "StreamError", "StreamResult", "Streamer", "is_sync_command"]
+__all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
+           "Streamer", "is_sync_command"]
 
 log = logging.getLogger("gcode.stream")
 
@@ -38,6 +39,10 @@ FEED_HOLD = b"!"
 CYCLE_START = b"~"
 STATUS = b"?"
 SOFT_RESET = b"\x18"
+SPINDLE_STOP = b"\x9e"  # real-time spindle/laser stop, honoured in Hold
+#: The first bytes on every (re)connection: a controller left modal ``M4 S700`` by a lost
+#: connection must not fire again on whatever comes next.
+BEAM_OFF = b"M5\nM9\n"
 
 # Commands GRBL must execute alone: they write EEPROM (which stalls the serial interrupt on
 # AVR) or change state that the lines behind them depend on.
@@ -99,6 +104,7 @@ class StreamResult:
     seconds: float = 0.0
     check: bool = False
     messages: list[str] = field(default_factory=list)
+    status_reports: int = 0  # reports the watchdog judged (its polling load)
 
     @property
     def pieces_cut(self) -> int:
@@ -129,7 +135,8 @@ class Streamer:
     def __init__(self, port, *, rx_buffer: int = 128, poll_hz: float = 5.0,
                  response_timeout: float = 5.0, stall_timeout: float = 5.0,
                  banner_timeout: float = 6.0, compact: bool = True,
-                 deviation_limit: float | None = 3.0,
+                 deviation_limit: float | None = 0.3, watch_mm: float = 0.5,
+                 acceleration: float = 1500.0, time_scale: float | None = None,
                  on_piece: Callable[[PieceState], None] | None = None,
                  on_progress: Callable[[Progress], None] | None = None,
                  on_fault: Callable[[dict], None] | None = None,
@@ -145,6 +152,13 @@ class Streamer:
         self.banner_timeout = banner_timeout
         self.compact = compact
         self.deviation_limit = deviation_limit
+        self.watch_mm = watch_mm
+        self.acceleration = acceleration
+        # machine seconds per wall second: 1 on a real GRBL, `speed` on the emulator
+        self.time_scale = float(time_scale if time_scale is not None else getattr(
+            getattr(port, "emulator", None), "speed", 1.0))
+        self.watchdog: Watchdog | None = None
+        self._status_wall = 0.0
         self._wco = np.zeros(2)
         self._wco_known = False  # MPos - WCO needs a WCO field seen since the last banner
         self._status_seq = 0
@@ -224,6 +238,7 @@ class Streamer:
 
         Raises StreamError if no banner arrives or the controller boots in alarm.
         """
+        self._write(BEAM_OFF)  # before anything else: see BEAM_OFF
         start = time.monotonic()
         reset_sent = False
         seen = self._banners
@@ -372,15 +387,7 @@ class Streamer:
         cum = np.concatenate([[0.0], np.cumsum(weights)])
         res = StreamResult(completed=False, reason="", lines_total=len(stream), check=check,
                            pieces=pieces)
-        tree = None
-        path = program.check.path if program.check is not None else None
-        if self.deviation_limit and path is not None and len(path) and not check:
-            here = self._work_xy() if self.status is not None else None
-            if here is not None:  # the first rapid starts wherever the head is
-                k = max(1, int(np.hypot(*(path[0] - here))))
-                path = np.vstack([here + (path[0] - here) * np.linspace(0, 1, k + 1)[:, None],
-                                  path])
-            tree = cKDTree(path)
+        wd = self._make_watchdog(program) if not check else None
         seen_status = self._status_seq
         self._frozen = check  # check mode proves nothing was cut
         self._messages = res.messages
@@ -447,7 +454,7 @@ class Streamer:
                         if piece_of[sent] >= 0:
                             set_piece(int(piece_of[sent]), "cutting")
                         sent += 1
-                    self._poll(now)
+                    self._poll(now, wd.interval if wd is not None else None)
                     for raw in self._read_lines():
                         r = parse_response(raw)
                         if r.kind in ("ok", "error"):
@@ -480,9 +487,13 @@ class Streamer:
                                          self._oldest_line(stream))
                         else:
                             self._handle_push(r)
-                    if tree is not None and self._status_seq != seen_status:
+                    if wd is not None and self._status_seq != seen_status:
                         seen_status = self._status_seq
-                        self._check_on_path(tree, stream)
+                        breach = wd.check(self.status, self._work_xy(), self._status_wall)
+                        if breach is not None:
+                            raise _Fault(breach.reason, breach.detail,
+                                         breach.line if breach.line is not None
+                                         else self._oldest_line(stream))
                     self._watchdog(stream)
                     progress()
                 progress(force=True)
@@ -511,6 +522,12 @@ class Streamer:
             else:
                 res.messages.append(f"disconnected during the safe stop: {exc}")
         res.lines_sent, res.lines_acked = sent, acked
+        if wd is not None:
+            res.status_reports = wd.reports
+            try:
+                self.port.timeout = 0.02
+            except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
+                pass
         res.seconds = time.monotonic() - t0
         if res.position is None and self.status is not None:
             res.position = self.status.position()
@@ -522,6 +539,7 @@ class Streamer:
 
     def _set_status(self, st: Status) -> None:
         self.status = st
+        self._status_wall = time.monotonic()
         self._status_seq += 1
         self._status_pending_since = None
         if st.wco is not None:
@@ -547,16 +565,21 @@ class Streamer:
             self._messages.append(r.raw)
             log.info("%s%s", self.prefix, r.raw)
 
-    def _check_on_path(self, tree: cKDTree, stream: list[tuple[int, str]]) -> None:
-        """Stop if the head is off every programmed path: GRBL has no checksum, so a byte
-        corrupted on the line can turn into a valid but wrong coordinate."""
-        xy = self._work_xy()
-        if xy is None or self.status is None or self.status.state not in ("Run", "Hold", "Jog"):
-            return
-        dist, _ = tree.query(xy)
-        if dist > self.deviation_limit + 0.5:  # + half the 1 mm path sampling
-            raise _Fault("off_path", f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is {dist:.1f} mm off "
-                         "the program's path (corrupted line?)", self._oldest_line(stream))
+    def _make_watchdog(self, program: Program) -> Watchdog | None:
+        """The watchdog over ``program``'s path, polls and port timeout set to its pace."""
+        c = program.check
+        if not self.deviation_limit or c is None or c.path is None or not len(c.path):
+            return None
+        wd = Watchdog(c.path, c.path_line, c.cut_feeds, c.cut_powers, self.acceleration,
+                      time_scale=self.time_scale, deviation_mm=self.deviation_limit,
+                      watch_mm=self.watch_mm)
+        wd.start_from(self._work_xy() if self.status is not None else None)
+        try:  # never sleep in a read longer than the next poll is due
+            self.port.timeout = min(0.02, wd.interval)
+        except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
+            pass
+        self.watchdog = wd
+        return wd
 
     def _watchdog(self, stream: list[tuple[int, str]]) -> None:
         now = time.monotonic()
@@ -612,7 +635,8 @@ class Streamer:
         """Feed hold, wait for Hold:0 (decelerated: a reset keeps position), soft reset,
         then laser and air off."""
         if hold:
-            self._write(FEED_HOLD)
+            # one write: GRBL runs the hold first, then the laser stop it allows in Hold
+            self._write(FEED_HOLD + SPINDLE_STOP)
             held = self._wait_status(
                 lambda s: (s.state == "Hold" and s.substate == 0)
                 or s.state in ("Idle", "Alarm", "Check"), hold_timeout)

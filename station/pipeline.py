@@ -617,6 +617,7 @@ def with_markers(program, job_id: int, index: dict[str, int]):
     seconds: list[float] = []
     old_seconds = program.check.seconds if program.check is not None else None
     final = {}
+    new_index = np.zeros(len(program.lines), int)  # old line -> its line in the new program
     for r in program.pieces:
         moves = [k for k in range(r.first_line, r.sync_line) if _is_motion(_code(
             program.lines[k]))]
@@ -627,6 +628,7 @@ def with_markers(program, job_id: int, index: dict[str, int]):
         if marked is not None:
             lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{marked[0] + 1} Z1")
             seconds.append(0.0)
+        new_index[k] = len(lines)
         lines.append(line)
         seconds.append(0.0 if old_seconds is None else float(old_seconds[k]))
         if marked is not None:
@@ -637,6 +639,7 @@ def with_markers(program, job_id: int, index: dict[str, int]):
         c = program.check
         check = Check(seconds=np.asarray(seconds), cut_length_mm=c.cut_length_mm,
                       travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path,
+                      path_line=None if c.path_line is None else new_index[c.path_line],
                       cut_feeds=c.cut_feeds, cut_powers=c.cut_powers)
     return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
 
