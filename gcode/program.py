@@ -87,6 +87,7 @@ class Check:
     bounds: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of all motion
     path: np.ndarray | None = None  # (k,2) float, every XY motion sampled at most 1 mm apart
     path_line: np.ndarray | None = None  # (k,) int, the program line of each path sample
+    line_power: np.ndarray | None = None  # (lines,) float, S of each beam-on move, else 0
     cut_feeds: tuple[float, ...] = ()  # every feed (mm/min) a beam-on move asks for
     cut_powers: tuple[float, ...] = ()  # every S a beam-on move asks for
 
@@ -350,6 +351,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     current = [0]  # the line being read (for the samples' line numbers)
     cut_feeds: set[float] = set()
     cut_powers: set[float] = set()
+    line_power = np.zeros(len(lines))
 
     def sample_line(a, b) -> None:
         k = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / path_step)))
@@ -512,11 +514,12 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
                 cut_feeds.add(feed)
                 if laser:
                     cut_powers.add(s_word)
+                    line_power[i] = s_word
             seconds[i] = _move_time(length, feed, machine.acceleration)
         pos = target
     bounds = None if math.isinf(bx[0]) else (bx[0], bx[1], bx[2], bx[3])
     path = np.vstack(samples) if samples else np.zeros((0, 2))
     path_line = np.concatenate(sample_lines) if sample_lines else np.zeros(0, int)
     return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
-                 path=path, path_line=path_line, cut_feeds=tuple(sorted(cut_feeds)),
-                 cut_powers=tuple(sorted(cut_powers)))
+                 path=path, path_line=path_line, line_power=line_power,
+                 cut_feeds=tuple(sorted(cut_feeds)), cut_powers=tuple(sorted(cut_powers)))

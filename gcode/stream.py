@@ -31,7 +31,7 @@ from gcode.program import Program, strip_comment
 from gcode.watchdog import StopReason, Watchdog
 
 __all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
-           "Streamer", "is_sync_command"]
+           "Streamer", "is_sync_command", "turns_beam_on"]
 
 log = logging.getLogger("gcode.stream")
 
@@ -47,6 +47,19 @@ BEAM_OFF = b"M5\nM9\n"
 # Commands GRBL must execute alone: they write EEPROM (which stalls the serial interrupt on
 # AVR) or change state that the lines behind them depend on.
 _SYNC_CMD = re.compile(r"^(\$|G10L[0-9]|G28\.1|G30\.1)", re.IGNORECASE)
+
+
+_BEAM_ON = re.compile(r"M0*[34](?![0-9])", re.IGNORECASE)
+
+
+def turns_beam_on(code: str) -> bool:
+    """True for a line with M3/M4: sent only once every line before it is answered ``ok``.
+
+    WHY: GRBL goes on after an ``error``. Were the travel to a cut's start rejected (a
+    corrupted byte), the cut would begin wherever the head stands, beam on, before the
+    host could react; waiting for the travel's ``ok`` costs one round trip per stroke.
+    """
+    return bool(_BEAM_ON.search(code.replace(" ", "")))
 
 
 def is_sync_command(code: str) -> bool:
@@ -136,7 +149,8 @@ class Streamer:
                  response_timeout: float = 5.0, stall_timeout: float = 5.0,
                  banner_timeout: float = 6.0, compact: bool = True,
                  deviation_limit: float | None = 0.3, watch_mm: float = 0.5,
-                 acceleration: float = 1500.0, time_scale: float | None = None,
+                 acceleration: float = 1500.0, rapid_feed: float = 12000.0,
+                 time_scale: float | None = None,
                  on_piece: Callable[[PieceState], None] | None = None,
                  on_progress: Callable[[Progress], None] | None = None,
                  on_fault: Callable[[dict], None] | None = None,
@@ -154,11 +168,17 @@ class Streamer:
         self.deviation_limit = deviation_limit
         self.watch_mm = watch_mm
         self.acceleration = acceleration
+        self.rapid_feed = rapid_feed
         # machine seconds per wall second: 1 on a real GRBL, `speed` on the emulator
         self.time_scale = float(time_scale if time_scale is not None else getattr(
             getattr(port, "emulator", None), "speed", 1.0))
         self.watchdog: Watchdog | None = None
         self._status_wall = 0.0
+        self._status_asked = 0.0
+        # when each unanswered `?` went out: a report is the machine's state at some
+        # instant between its question and its arrival, which bounds the machine time
+        # between two reports even when the host reads them late
+        self._asked: deque[float] = deque(maxlen=256)
         self._wco = np.zeros(2)
         self._wco_known = False  # MPos - WCO needs a WCO field seen since the last banner
         self._status_seq = 0
@@ -228,6 +248,7 @@ class Streamer:
     def _poll(self, now: float, interval: float | None = None) -> None:
         if now - self._last_poll >= (interval or self.poll_interval):
             self._write(STATUS)
+            self._asked.append(time.monotonic())
             self._last_poll = now
             if self._status_pending_since is None:
                 self._status_pending_since = now
@@ -281,6 +302,7 @@ class Streamer:
         self._inflight.clear()
         self._inflight_bytes = 0
         self._status_pending_since = None
+        self._asked.clear()
         self._wco_known = False  # GRBL sends WCO in its first report after a reset
         log.info("%sbanner Grbl %s", self.prefix, r.text)
 
@@ -289,6 +311,7 @@ class Streamer:
         before = self.status
         self._write(STATUS)
         self._last_poll = time.monotonic()
+        self._asked.append(self._last_poll)
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             for line in self._read_lines():
@@ -442,6 +465,8 @@ class Streamer:
                                          f"({n_bytes} bytes)", stream[sent][0])
                         if is_sync_command(code) and self._inflight:
                             break
+                        if self._inflight and turns_beam_on(code):
+                            break  # see turns_beam_on
                         if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
                             break
                         if self._inflight_bytes + n_bytes > self.budget:
@@ -489,7 +514,8 @@ class Streamer:
                             self._handle_push(r)
                     if wd is not None and self._status_seq != seen_status:
                         seen_status = self._status_seq
-                        breach = wd.check(self.status, self._work_xy(), self._status_wall)
+                        breach = wd.check(self.status, self._work_xy(), self._status_asked,
+                                          self._status_wall)
                         if breach is not None:
                             raise _Fault(breach.reason, breach.detail,
                                          breach.line if breach.line is not None
@@ -540,6 +566,7 @@ class Streamer:
     def _set_status(self, st: Status) -> None:
         self.status = st
         self._status_wall = time.monotonic()
+        self._status_asked = self._asked.popleft() if self._asked else self._status_wall
         self._status_seq += 1
         self._status_pending_since = None
         if st.wco is not None:
@@ -570,9 +597,9 @@ class Streamer:
         c = program.check
         if not self.deviation_limit or c is None or c.path is None or not len(c.path):
             return None
-        wd = Watchdog(c.path, c.path_line, c.cut_feeds, c.cut_powers, self.acceleration,
-                      time_scale=self.time_scale, deviation_mm=self.deviation_limit,
-                      watch_mm=self.watch_mm)
+        wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
+                                  time_scale=self.time_scale, deviation_mm=self.deviation_limit,
+                                  watch_mm=self.watch_mm)
         wd.start_from(self._work_xy() if self.status is not None else None)
         try:  # never sleep in a read longer than the next poll is due
             self.port.timeout = min(0.02, wd.interval)
@@ -613,7 +640,7 @@ class Streamer:
     def _wait_status(self, pred: Callable[[Status], bool], timeout: float) -> bool:
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            self._poll(time.monotonic(), 0.1)
+            self._poll(time.monotonic(), 0.02)
             for raw in self._read_lines():
                 r = parse_response(raw)
                 if r.kind == "status" and r.status is not None:

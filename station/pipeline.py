@@ -640,8 +640,18 @@ def with_markers(program, job_id: int, index: dict[str, int]):
         check = Check(seconds=np.asarray(seconds), cut_length_mm=c.cut_length_mm,
                       travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path,
                       path_line=None if c.path_line is None else new_index[c.path_line],
+                      line_power=_spread(c.line_power, new_index, len(lines)),
                       cut_feeds=c.cut_feeds, cut_powers=c.cut_powers)
     return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
+
+
+def _spread(per_line: np.ndarray | None, new_index: np.ndarray, n: int) -> np.ndarray | None:
+    """A per-line array moved to the lines' new places (inserted lines get 0)."""
+    if per_line is None:
+        return None
+    out = np.zeros(n)
+    out[new_index] = per_line
+    return out
 
 
 FINAL_MOVES = "final-moves.json"

@@ -132,28 +132,36 @@ class GrblEmulator:
         """Bytes arriving on the controller's serial RX line."""
         with self._cond:
             self._catch_up()  # a real GRBL moves continuously: answer `?` for this instant
-            for byte in bytes(data):
-                self.bytes_received += 1
-                n = self.bytes_received
-                if n in self.faults.drop_byte_at:
-                    self.bytes_lost += 1
-                    continue
-                if n in self.faults.flip_byte_at:
-                    byte ^= 0x01
-                if self._realtime(byte):
-                    continue
-                if byte > 0x7F:
-                    continue  # unknown extended-ASCII bytes are thrown away
-                if len(self._rx) >= C.RX_BUFFER_SIZE:
-                    self._service()  # GRBL pulls a line out if it is free to
-                if len(self._rx) >= C.RX_BUFFER_SIZE:
-                    self.bytes_lost += 1  # "Write data to buffer unless it is full."
-                    continue
-                self._rx.append(byte)
-                if byte in (0x0A, 0x0D):
-                    self._service()  # GRBL parses a line as soon as its EOL arrives
-            self._service()
-            self._cond.notify_all()
+            busy_from = time.monotonic()
+            self._receive(data)
+            # The emulator's own parsing is not the machine's time: GRBL parses a line in
+            # microseconds on its own CPU, while this Python parser takes the host's CPU
+            # for a millisecond, which at speed 50 would be 50 ms of unseen motion.
+            self._wall += time.monotonic() - busy_from
+
+    def _receive(self, data: bytes) -> None:
+        for byte in bytes(data):
+            self.bytes_received += 1
+            n = self.bytes_received
+            if n in self.faults.drop_byte_at:
+                self.bytes_lost += 1
+                continue
+            if n in self.faults.flip_byte_at:
+                byte ^= 0x01
+            if self._realtime(byte):
+                continue
+            if byte > 0x7F:
+                continue  # unknown extended-ASCII bytes are thrown away
+            if len(self._rx) >= C.RX_BUFFER_SIZE:
+                self._service()  # GRBL pulls a line out if it is free to
+            if len(self._rx) >= C.RX_BUFFER_SIZE:
+                self.bytes_lost += 1  # "Write data to buffer unless it is full."
+                continue
+            self._rx.append(byte)
+            if byte in (0x0A, 0x0D):
+                self._service()  # GRBL parses a line as soon as its EOL arrives
+        self._service()
+        self._cond.notify_all()
 
     def take_output(self, size: int | None = None) -> bytes:
         with self._cond:
@@ -329,6 +337,7 @@ class GrblEmulator:
             self._ovr_counter = 0
         elif byte == C.RT_SPINDLE_OVR_STOP:
             if self._state == "Hold":
+                self._split_trace()  # the beam changes here, mid-block
                 self._spindle_stop = not self._spindle_stop
         elif byte == C.RT_COOLANT_FLOOD_OVR_TOGGLE:
             if self._state in ("Idle", "Run", "Hold"):
@@ -665,10 +674,21 @@ class GrblEmulator:
             self._trace_block(b, b.start, self._pos.copy(), complete=False)
 
     def _trace_block(self, b: Block, p0: np.ndarray, p1: np.ndarray, complete: bool) -> None:
+        if b.traced_to is not None:  # the part before a mid-block power change is traced
+            p0 = b.traced_to
         feed = b.nominal(self._feed_ovr, self._rapid_ovr) * 60.0
+        power = 0.0 if self._spindle_stop else self._block_power(b)
         self.trace.append(Segment(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
-                                  feed, self._block_power(b), b.feed is None,
+                                  feed, power, b.feed is None,
                                   float(p0[2]), float(p1[2]), b.jog, complete))
+
+    def _split_trace(self) -> None:
+        """Trace the running block up to here: the power is about to change mid-block (the
+        spindle stop override during a feed hold turns the laser off while it brakes)."""
+        if self._planner and self._planner[0].done > 1e-9:
+            b = self._planner[0]
+            self._trace_block(b, b.start, self._pos.copy(), complete=False)
+            b.traced_to = self._pos.copy()
 
     def _block_power(self, b: Block) -> float:
         """Power applied along a block; for M4 (dynamic laser power) the mean over the block,
@@ -879,9 +899,14 @@ class GrblEmulator:
         self._run_startup_lines()
 
     # ------------------------------------------------------------------ simulated time
+    #: The most wall time one step of the clock may cover (seconds). When the process was
+    #: not running (a loaded computer, a debugger) the machine pauses instead of jumping:
+    #: at speed 50 a 10 ms stall would otherwise be half a second of motion nobody saw.
+    MAX_STEP = 0.00025
+
     def _run(self) -> None:
         while not self._stopped:
-            time.sleep(0.002)
+            time.sleep(self.MAX_STEP)
             with self._cond:
                 self._catch_up()
 
@@ -895,7 +920,7 @@ class GrblEmulator:
         if not self.realtime:
             return
         now = time.monotonic()
-        dt, self._wall = now - self._wall, now
+        dt, self._wall = min(now - self._wall, self.MAX_STEP), now
         if dt > 0:
             self.advance(dt * self.speed)
 
