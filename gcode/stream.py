@@ -62,6 +62,20 @@ def turns_beam_on(code: str) -> bool:
     return bool(_BEAM_ON.search(code.replace(" ", "")))
 
 
+def stroke_starts(program: Program, lines: list[int]) -> dict[int, np.ndarray]:
+    """Stream position -> the XY where the head must stand when that line (one turning
+    the beam on) is sent: the end of the last move before it."""
+    c = program.check
+    if c is None or c.path is None or c.path_line is None or not len(c.path):
+        return {}
+    out: dict[int, np.ndarray] = {}
+    for k, i in enumerate(lines):
+        if turns_beam_on(strip_comment(program.lines[i])):
+            j = int(np.searchsorted(c.path_line, i)) - 1  # path_line grows with the line
+            out[k] = c.path[max(j, 0)]
+    return out
+
+
 def is_sync_command(code: str) -> bool:
     """True for ``$`` system commands and EEPROM-writing G-codes (sent one at a time)."""
     return bool(_SYNC_CMD.match(code.replace(" ", "")))
@@ -173,12 +187,17 @@ class Streamer:
         self.time_scale = float(time_scale if time_scale is not None else getattr(
             getattr(port, "emulator", None), "speed", 1.0))
         self.watchdog: Watchdog | None = None
+        # machine seconds: the emulator's simulated clock, else the wall clock
+        emulator = getattr(port, "emulator", None)
+        self._clock: Callable[[], float] = (
+            (lambda: emulator.sim_time) if hasattr(emulator, "sim_time") else time.monotonic)
         self._status_wall = 0.0
         self._status_asked = 0.0
+        self._status_machine = (0.0, 0.0)  # machine time asked, received
         # when each unanswered `?` went out: a report is the machine's state at some
         # instant between its question and its arrival, which bounds the machine time
         # between two reports even when the host reads them late
-        self._asked: deque[float] = deque(maxlen=256)
+        self._asked: deque[tuple[float, float]] = deque(maxlen=256)  # (wall, machine)
         self._wco = np.zeros(2)
         self._wco_known = False  # MPos - WCO needs a WCO field seen since the last banner
         self._status_seq = 0
@@ -248,7 +267,7 @@ class Streamer:
     def _poll(self, now: float, interval: float | None = None) -> None:
         if now - self._last_poll >= (interval or self.poll_interval):
             self._write(STATUS)
-            self._asked.append(time.monotonic())
+            self._asked.append((time.monotonic(), self._clock()))
             self._last_poll = now
             if self._status_pending_since is None:
                 self._status_pending_since = now
@@ -280,16 +299,24 @@ class Streamer:
                 r = parse_response(line)
                 if r.kind == "banner":
                     self._on_banner(r)
-        # a boot in alarm announces itself right after the banner
+        # a boot in alarm announces itself right after the banner, so before the answer
+        # to a status query sent now
+        self._write(STATUS)
+        self._asked.append((time.monotonic(), self._clock()))
+        st = None
         end = time.monotonic() + 0.3
-        while time.monotonic() < end:
+        while st is None and time.monotonic() < end:
             for line in self._read_lines():
                 r = parse_response(line)
                 if r.kind == "msg" and "unlock" in (r.text or ""):
                     alarm_boot = True
                 elif r.kind == "banner":
                     self._on_banner(r)
-        st = self.query_status()
+                elif r.kind == "status" and r.status is not None:
+                    self._set_status(r.status)
+                    st = r.status
+        if st is None:
+            st = self.query_status()
         if alarm_boot or (st is not None and st.state == "Alarm"):
             raise StreamError(f"{self.prefix}controller is in ALARM after start-up: home ($H) or "
                               "unlock ($X) it first (station stream --unlock)")
@@ -311,7 +338,7 @@ class Streamer:
         before = self.status
         self._write(STATUS)
         self._last_poll = time.monotonic()
-        self._asked.append(self._last_poll)
+        self._asked.append((self._last_poll, self._clock()))
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             for line in self._read_lines():
@@ -411,6 +438,7 @@ class Streamer:
         res = StreamResult(completed=False, reason="", lines_total=len(stream), check=check,
                            pieces=pieces)
         wd = self._make_watchdog(program) if not check else None
+        starts = stroke_starts(program, [i for i, _ in stream]) if wd is not None else {}
         seen_status = self._status_seq
         self._frozen = check  # check mode proves nothing was cut
         self._messages = res.messages
@@ -465,7 +493,8 @@ class Streamer:
                                          f"({n_bytes} bytes)", stream[sent][0])
                         if is_sync_command(code) and self._inflight:
                             break
-                        if self._inflight and turns_beam_on(code):
+                        if turns_beam_on(code) and (self._inflight or not self._at_start(
+                                starts.get(sent), stream[sent][0])):
                             break  # see turns_beam_on
                         if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
                             break
@@ -514,8 +543,8 @@ class Streamer:
                             self._handle_push(r)
                     if wd is not None and self._status_seq != seen_status:
                         seen_status = self._status_seq
-                        breach = wd.check(self.status, self._work_xy(), self._status_asked,
-                                          self._status_wall)
+                        breach = wd.check(self.status, self._work_xy(),
+                                          *self._status_machine)
                         if breach is not None:
                             raise _Fault(breach.reason, breach.detail,
                                          breach.line if breach.line is not None
@@ -566,7 +595,10 @@ class Streamer:
     def _set_status(self, st: Status) -> None:
         self.status = st
         self._status_wall = time.monotonic()
-        self._status_asked = self._asked.popleft() if self._asked else self._status_wall
+        received = self._clock()
+        self._status_asked, asked = (self._asked.popleft() if self._asked
+                                     else (self._status_wall, received))
+        self._status_machine = (asked, received)
         self._status_seq += 1
         self._status_pending_since = None
         if st.wco is not None:
@@ -591,6 +623,24 @@ class Streamer:
                         "startup_exec", "setting", "startup_line"):
             self._messages.append(r.raw)
             log.info("%s%s", self.prefix, r.raw)
+
+    def _at_start(self, start: np.ndarray | None, line: int) -> bool:
+        """True once a report asked for after the last answer shows the head where the
+        stroke of ``line`` starts (the beam may come on); a head at rest elsewhere is a
+        fault: a corrupted travel move would start the cut off its path."""
+        if start is None or self.watchdog is None:
+            return True
+        xy = self._work_xy()
+        if xy is None or self.status is None or self._status_asked <= self._last_ack:
+            return False  # no report since the travel was answered: wait for one
+        d = float(np.hypot(*(xy - start)))
+        if d <= self.watchdog.deviation:
+            return True
+        if self.status.state == "Idle":
+            raise _Fault(StopReason.OFF_PATH, f"head at rest at X{xy[0]:.3f} Y{xy[1]:.3f}, "
+                         f"{d:.2f} mm from where the cut starts (corrupted travel move?)",
+                         line)
+        return False
 
     def _make_watchdog(self, program: Program) -> Watchdog | None:
         """The watchdog over ``program``'s path, polls and port timeout set to its pace."""

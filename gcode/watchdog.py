@@ -151,33 +151,40 @@ class Watchdog:
         self._reindex()
 
     def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
-        """Match ``xy`` to the path between where the head was and ``reach`` mm further:
-        (distance, segment index, position along the segment 0..1)."""
+        """Match ``xy`` to the path from where the head was: within ``reach`` mm further
+        if it is there, else anywhere ahead. Returns (distance, segment index, position
+        along the segment 0..1) of the earliest segment within the deviation (progress is
+        minimal where the path crosses itself), else of the nearest one."""
         if len(self.path) < 2:
             return math.inf, -1, 0.0
         lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
         hi = int(np.searchsorted(self._along, self._at + reach, "right"))
-        idx = np.arange(lo, min(max(hi, lo + 1), len(self.path) - 1))
+        found = self._nearest(xy, lo, min(max(hi, lo + 1), len(self.path) - 1))
+        if found[0] > self.deviation:  # not where the clock says: look further ahead
+            found = self._nearest(xy, lo, len(self.path) - 1)
+        return found
+
+    def _nearest(self, xy: np.ndarray, lo: int, hi: int) -> tuple[float, int, float]:
+        idx = np.arange(lo, max(hi, lo + 1))
         a, b = self.path[idx], self.path[idx + 1]
         ab = b - a
         t = np.clip(np.einsum("ij,ij->i", xy - a, ab)
                     / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
         d = np.hypot(*(a + t[:, None] * ab - xy).T)
-        # the earliest of equally near moves: a closed contour ends where it starts, and
-        # jumping to its end would lose the head for the rest of the contour
-        j = int(np.flatnonzero(d <= d.min() + 1e-3)[0])
+        near = np.flatnonzero(d <= self.deviation)
+        j = int(near[0]) if len(near) else int(np.argmin(d))
         return float(d[j]), int(idx[j]), float(t[j])
 
     def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float
               ) -> Breach | None:
-        """Judge one report asked for at wall time ``asked`` and read at ``received``
-        (seconds, monotonic): the machine was in that state somewhere in between."""
+        """Judge one report asked for at machine time ``asked`` and read at ``received``
+        (seconds): the machine was in that state somewhere in between."""
         self.reports += 1
         if st.overrides is not None:
             self._overrides = st.overrides
-        now = asked * self.time_scale
+        now = asked
         # at most this much machine time since the previous report (an upper bound)
-        dt = 0.5 if self._last_asked is None else (received - self._last_asked) * self.time_scale
+        dt = 0.5 if self._last_asked is None else received - self._last_asked
         # timers run only over reports close enough together to see every slow-down end
         close = dt <= self.feed_allowance / 3.0
         if not close:

@@ -59,7 +59,8 @@ class GrblEmulator:
 
     def __init__(self, *, speed: float = 1.0, faults: Faults | None = None,
                  force_origin: bool = False, name: str | None = None,
-                 settings: dict[int, float] | None = None, realtime: bool = True):
+                 settings: dict[int, float] | None = None, realtime: bool = True,
+                 paced: bool = True):
         if not speed > 0:
             raise ValueError(f"speed must be > 0, got {speed!r}")
         self.speed = float(speed)
@@ -91,7 +92,9 @@ class GrblEmulator:
             self._power_on()
         self._stopped = False
         self.realtime = realtime
+        self.paced = paced  # see HOST_STEP
         self._wall = time.monotonic()  # the wall instant simulated time was last brought to
+        self._host_wall = -1e9  # when the host last wrote
         if realtime:  # else the caller drives simulated time with advance(dt)
             self._thread = threading.Thread(target=self._run, daemon=True,
                                             name=f"grblsim-{name or id(self)}")
@@ -131,7 +134,9 @@ class GrblEmulator:
     def receive(self, data: bytes) -> None:
         """Bytes arriving on the controller's serial RX line."""
         with self._cond:
-            self._catch_up()  # a real GRBL moves continuously: answer `?` for this instant
+            self._host_wall = time.monotonic()
+            # a real GRBL moves continuously: answer `?` for this instant
+            self._catch_up(self.HOST_STEP / self.speed if self.paced else self.THREAD_STEP)
             busy_from = time.monotonic()
             self._receive(data)
             # The emulator's own parsing is not the machine's time: GRBL parses a line in
@@ -899,28 +904,37 @@ class GrblEmulator:
         self._run_startup_lines()
 
     # ------------------------------------------------------------------ simulated time
-    #: The most wall time one step of the clock may cover (seconds). When the process was
-    #: not running (a loaded computer, a debugger) the machine pauses instead of jumping:
-    #: at speed 50 a 10 ms stall would otherwise be half a second of motion nobody saw.
-    MAX_STEP = 0.00025
+    #: Clock steps: a host that keeps writing (at least every HOST_PACE wall seconds) moves
+    #: the clock itself, by at most HOST_STEP simulated seconds per write; otherwise the
+    #: clock thread does, by at most THREAD_STEP wall seconds per tick. WHY: at speed 50 a
+    #: Python host cannot keep a sub-millisecond schedule; pausing the machine between its
+    #: writes emulates a host as fast, relative to the machine, as a real one at speed 1
+    #: (a USB round trip takes 1-2 ms; 10 ms is 0.5 mm at 3000 mm/min). A stalled process
+    #: pauses its machine instead of jumping half a second of motion nobody saw. A host
+    #: that cannot know the speed (over a pty) gets an unpaced machine (``paced=False``).
+    HOST_PACE = 0.02
+    HOST_STEP = 0.01
+    THREAD_STEP = 0.005
 
     def _run(self) -> None:
         while not self._stopped:
-            time.sleep(self.MAX_STEP)
+            time.sleep(0.002)
             with self._cond:
-                self._catch_up()
+                if not self.paced or time.monotonic() - self._host_wall > self.HOST_PACE:
+                    self._catch_up(self.THREAD_STEP)
 
-    def _catch_up(self) -> None:
-        """Bring simulated time to the present wall instant (realtime machines only).
+    def _catch_up(self, max_wall: float) -> None:
+        """Bring simulated time to the present wall instant, at most ``max_wall`` of it
+        (realtime machines only; see HOST_STEP).
 
-        Called by the clock thread and on every byte received, so a status report is the
-        machine's state at the moment the ``?`` arrived, not at the clock thread's last tick
-        (at speed 50 one 2 ms tick is 0.1 simulated seconds, 5 mm at 3000 mm/min).
+        Called by the clock thread and on every write, so a status report is the machine's
+        state at the moment the ``?`` arrived, not at the clock thread's last tick (at speed
+        50 one 2 ms tick is 0.1 simulated seconds, 5 mm at 3000 mm/min).
         """
         if not self.realtime:
             return
         now = time.monotonic()
-        dt, self._wall = min(now - self._wall, self.MAX_STEP), now
+        dt, self._wall = min(now - self._wall, max_wall), now
         if dt > 0:
             self.advance(dt * self.speed)
 
