@@ -300,16 +300,20 @@ class StationPipeline:
         listening (see `with_markers` and `reconcile`): the piece in flight when the last
         daemon died may have finished on the machine's buffered moves.
         """
-        from gcode.stream import Streamer, StreamError
+        from gcode.stream import BEAM_OFF, Streamer, StreamError
 
         pieces = store.pieces(job.id)
         index = {p["name"]: p["piece"] for p in pieces}
         with self.open_port() as port:
             start_step(control, "connecting")
+            port.write(BEAM_OFF)  # before anything else: a lost link may have left M4 S700
             rest = wait_at_rest(port, stop=lambda: control.stop.is_set()
                                 or control.abort.is_set())
             control.checkpoint(hold_in_place=True)  # stopped or aborted while waiting
-            streamer = Streamer(port, on_piece=None, name=self.port_name)
+            streamer = Streamer(port, on_piece=None, name=self.port_name,
+                                rx_buffer=self.machine.rx_buffer,
+                                acceleration=self.machine.acceleration,
+                                rapid_feed=self.machine.rapid_feed)
             alarm = rest is not None and rest.state == "Alarm"
             try:
                 # at rest and silent already (or not answering): no need to wait long

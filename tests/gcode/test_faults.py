@@ -229,3 +229,47 @@ def test_reconnect_sends_beam_off_first(tiny):
     assert written[0] == BEAM_OFF == b"M5\nM9\n"
     assert em.parser_state.spindle == "M5" and not em.parser_state.flood
     again.close()
+
+
+def test_stream_command_writes_the_executed_trace_in_work_coordinates(tiny, tmp_path):
+    """`station stream --trace`: the machine's own motion, in the program's coordinates even
+    when the work origin is far from the machine's."""
+    from station.cli import main
+
+    nc, csv = tmp_path / "tiny.nc", tmp_path / "trace.csv"
+    tiny.write(nc)
+    url = f"grblsim://?speed=50&name=traced&{SETTINGS}"
+    setup = serial.serial_for_url(url, timeout=0.02)
+    Streamer(setup).connect(quiet=0.02)
+    setup.write(b"G10L2P1X100Y50\n")  # the work origin at machine X100 Y50
+    assert setup.emulator.wait_idle(2.0)
+    rc = main(["stream", str(nc), "--port", url, "--trace", str(csv), "--json",
+               "--no-settings-check"])
+    assert rc == 0
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "x0,y0,x1,y1,feed,power,rapid"
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+    assert len(rows) == len(setup.emulator.trace) >= 10
+    cut = rows[(rows[:, 5] > 0) & (rows[:, 6] == 0)]
+    a, b = _cut_segments(tiny)
+    ends = np.vstack([cut[:, 0:2], cut[:, 2:4]])
+    assert _distance(ends, a, b).max() < 0.01  # work coordinates: on the program's path
+    assert np.allclose(cut[:, 4], 3000) and (cut[:, 5] > 0).all()
+    assert _distance(np.vstack([a, b[-1:]]), cut[:, 0:2], cut[:, 2:4]).max() < 0.01
+    machine = np.array([(s.x0, s.y0) for s in setup.emulator.trace])
+    assert np.allclose(machine - rows[:, 0:2], [100, 50])
+    setup.close()
+
+
+def test_trace_needs_the_emulator(tiny, tmp_path):
+    import argparse
+
+    from station.commands.stream import run as stream_run
+
+    nc = tmp_path / "tiny.nc"
+    tiny.write(nc)
+    with pytest.raises(Exception, match="--trace needs the emulator"):
+        stream_run(argparse.Namespace(program=str(nc), port="loop://", baud=115200,
+                                      machine=None, check=False, unlock=False,
+                                      no_settings_check=True, trace=str(tmp_path / "t.csv"),
+                                      json=False))
