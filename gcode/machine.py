@@ -74,9 +74,9 @@ class Machine:
         """A copy with some cutting parameters changed (validated like the TOML)."""
         from dataclasses import replace
 
-        cut = replace(self.cut, **changes)
-        _check_cut(cut, self.source)
-        return replace(self, cut=cut)
+        m = replace(self, cut=replace(self.cut, **changes))
+        _check(m)  # the cut against the machine too: feed, power, min_cut_feed
+        return m
 
 
 #: Stated range of every number, by section and key: (low, high, low end included).

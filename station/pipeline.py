@@ -41,8 +41,8 @@ class StationPipeline:
         from gcode.machine import default_machine, load_machine
 
         profile = config["machine"]["profile"]
-        self.machine = (load_machine(config.resolve(profile)) if profile
-                        else default_machine())
+        machine = load_machine(config.resolve(profile)) if profile else default_machine()
+        self.machine = with_station_cut(machine, config)
 
     # ------------------------------------------------------------------ checks
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
@@ -465,6 +465,20 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
+def with_station_cut(machine, config: Config):
+    """The profile with station.toml's [cut] (kerf, feed, power, passes) in force, checked
+    against the profile's ranges; a refusal names the file and the key."""
+    cut = config["cut"]
+    try:
+        return machine.with_cut(kerf=float(cut["kerf_mm"]), feed=float(cut["feed_mm_min"]),
+                                power=float(cut["power"]), passes=int(cut["passes"]))
+    except ValueError as exc:
+        where = config.path or "station.toml"
+        detail = str(exc).split(": ", 1)[-1]
+        raise ValueError(f"{where}: [cut] does not fit the machine profile "
+                         f"{machine.source}: {detail}") from None
+
+
 def keep_licence_note(garment: Path, workdir: Path) -> None:
     """Copy the garment library's README beside the job's copy of the pattern, so every
     picture drawn from the copy still carries the acknowledgement its licence asks for."""
