@@ -162,7 +162,7 @@ class Streamer:
     def __init__(self, port, *, rx_buffer: int = 128, poll_hz: float = 5.0,
                  response_timeout: float = 5.0, stall_timeout: float = 5.0,
                  banner_timeout: float = 6.0, compact: bool = True,
-                 deviation_limit: float | None = 0.3, watch_mm: float = 0.5,
+                 deviation_limit: float | None = 0.3, watch_mm: float = 1.0,
                  acceleration: float = 1500.0, rapid_feed: float = 12000.0,
                  time_scale: float | None = None,
                  on_piece: Callable[[PieceState], None] | None = None,
@@ -544,7 +544,7 @@ class Streamer:
                     if wd is not None and self._status_seq != seen_status:
                         seen_status = self._status_seq
                         breach = wd.check(self.status, self._work_xy(),
-                                          *self._status_machine)
+                                          *self._status_machine, not self._inflight)
                         if breach is not None:
                             raise _Fault(breach.reason, breach.detail,
                                          breach.line if breach.line is not None

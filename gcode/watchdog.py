@@ -10,7 +10,9 @@ sent proves nothing, so every status report is held against the program:
 * the head is followed along the path in program order: in the middle of a move that
   cuts, the beam is on; in the middle of a travel move, it is off;
 * while the beam is on, the reported feed reaches the programmed cutting feed within the
-  time the profile's acceleration ($120/$121) needs, and never exceeds it.
+  time the profile's acceleration ($120/$121) needs (unless the planner runs dry: then the
+  machine slows with M4 power following the speed; a corrupted ``F1`` keeps it full), and
+  never exceeds it.
 
 Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest programmed
 cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
@@ -31,6 +33,7 @@ from gcode.grbl import Status
 
 __all__ = ["Breach", "StopReason", "Watchdog", "poll_interval"]
 
+PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
 _LEG = -2  # path_line of the leg from where the head stood to the program's first move
 
 
@@ -175,10 +178,11 @@ class Watchdog:
         j = int(near[0]) if len(near) else int(np.argmin(d))
         return float(d[j]), int(idx[j]), float(t[j])
 
-    def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float
-              ) -> Breach | None:
+    def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float,
+              starved: bool = False) -> Breach | None:
         """Judge one report asked for at machine time ``asked`` and read at ``received``
-        (seconds): the machine was in that state somewhere in between."""
+        (seconds): the machine was in that state somewhere in between. ``starved``: the
+        sender has nothing in flight (the planner may be running dry)."""
         self.reports += 1
         if st.overrides is not None:
             self._overrides = st.overrides
@@ -221,11 +225,15 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
                           f"{allowed} (corrupted S word?)", self.last_line)
         feed = float(st.feed or 0.0)
+        if st.planner_free is not None:  # Bf: reported ($10 has 2)
+            starved = st.planner_free >= PLANNER_BLOCKS - 2
+        if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
+            self._slow_since = None
         low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
         if feed > high * 1.02 + 1.0:
             return Breach(StopReason.FEED, f"beam on at F{feed:g}, above the program's "
                           f"cutting feed F{high:g} (corrupted line?)", self.last_line)
-        if feed >= 0.9 * low:
+        if feed >= 0.9 * low or starved:
             self._slow_since = None
         elif self._slow_since is None:
             self._slow_since = now
