@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gcode.grbl import Status, parse_response
+from gcode.grbl import Response, Status
 from gcode.program import Program, ProgramError, parse_pieces, program_moves
+from gcode.session import ResponseReader
 from gcode.stream import Streamer
 
 __all__ = ["FINAL_MOVES", "MARKER_SYSTEM", "distance_to_path", "final_moves",
@@ -149,24 +150,24 @@ def wait_at_rest(port, timeout: float = 120.0, stop=None) -> Status | None:
     while time.monotonic() < min(quiet_until, drain_end):
         if port.read(port.in_waiting or 1):
             quiet_until = time.monotonic() + 0.3
-    buf = b""
     seen = None
     previous = None
     end = time.monotonic() + timeout
     silent_until = time.monotonic() + 1.5
+    last: Status | None = None
+
+    def on_status(r: Response) -> None:
+        nonlocal last
+        last = r.status
+
+    reader = ResponseReader(port)  # only reports matter here; everything else is dropped
+    reader.register_response("status", on_status)
     while time.monotonic() < end:
         if stop is not None and stop():
             return None
         port.write(b"?")
         last = None
-        t = time.monotonic() + 0.15
-        while time.monotonic() < t:
-            buf += port.read(port.in_waiting or 1)
-            *lines, buf = buf.split(b"\n")
-            for raw in lines:
-                r = parse_response(raw.rstrip(b"\r").decode("ascii", "replace"))
-                if r.kind == "status" and r.status is not None:
-                    last = r.status
+        reader.wait(lambda: False, 0.15)  # the newest report of the next 0.15 s
         if last is None:
             if seen is None and time.monotonic() > silent_until:
                 return None

@@ -26,8 +26,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from gcode.grbl import Response, Status, error_message, parse_response, parse_settings
+from gcode.grbl import Response, Status, error_message, parse_settings
 from gcode.program import Program, strip_comment
+from gcode.session import PortLost, ResponseReader
 from gcode.watchdog import StopReason, Watchdog
 
 __all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
@@ -85,8 +86,7 @@ class StreamError(Exception):
     """The streamer could not start (no banner, controller in alarm, port unusable)."""
 
 
-class _Disconnect(Exception):
-    pass
+_Disconnect = PortLost  # the port failed: nothing more can be said to the controller
 
 
 @dataclass
@@ -205,8 +205,12 @@ class Streamer:
         self.on_progress = on_progress
         self.on_fault = on_fault
         self.prefix = f"{name}: "
-        self._rxbuf = b""
-        self._lines: deque[str] = deque()
+        # the one reader of the port: standing handlers here, each operation adds its own
+        self.reader = ResponseReader(port)
+        self.reader.register_response("status", lambda r: self._set_status(r.status))
+        self.reader.register_response("banner", self._on_banner)
+        for group in ("feedback", "settings", "parameters"):
+            self.reader.register_response(group, self._push)
         self._inflight: deque[tuple[int, int]] = deque()  # (stream index, bytes)
         self._inflight_bytes = 0
         self.status: Status | None = None
@@ -214,7 +218,6 @@ class Streamer:
         self._banners = 0
         self._last_poll = -1e9
         self._status_pending_since: float | None = None
-        self._last_rx = time.monotonic()
         self._last_ack = time.monotonic()
         self._pause = self._resume = self._stop = False
         self._frozen = False
@@ -244,26 +247,6 @@ class Streamer:
         except Exception as exc:  # serial.SerialException, OSError, PortNotOpenError
             raise _Disconnect(f"write failed: {exc}") from exc
 
-    def _read_lines(self):
-        """Yield complete lines received, one at a time.
-
-        Lines not consumed (a caller that returns early) stay queued for the next caller,
-        so an answer that arrives in the same read as the one awaited is never lost.
-        """
-        try:
-            n = self.port.in_waiting
-            data = self.port.read(n if n else 1)
-        except Exception as exc:
-            raise _Disconnect(f"read failed: {exc}") from exc
-        if data:
-            self._last_rx = time.monotonic()
-            self._rxbuf += data
-            *lines, self._rxbuf = self._rxbuf.split(b"\n")
-            self._lines.extend(ln.rstrip(b"\r").decode("ascii", errors="replace")
-                               for ln in lines)
-        while self._lines:
-            yield self._lines.popleft()
-
     def _poll(self, now: float, interval: float | None = None) -> None:
         if now - self._last_poll >= (interval or self.poll_interval):
             self._write(STATUS)
@@ -282,12 +265,10 @@ class Streamer:
         start = time.monotonic()
         reset_sent = False
         seen = self._banners
-        alarm_boot = False
-        while self._banners == seen:
-            now = time.monotonic()
-            if now - start > self.banner_timeout:
-                raise StreamError(f"{self.prefix}no GRBL banner within {self.banner_timeout:g} s")
-            if reset_if_silent and not reset_sent and now - start > quiet:
+
+        def reset_if_quiet() -> None:
+            nonlocal reset_sent
+            if reset_if_silent and not reset_sent and time.monotonic() - start > quiet:
                 # never reset a machine in motion (ALARM:3, position lost): ask first
                 st = self.query_status(0.5)
                 if st is not None and st.state in ("Run", "Jog", "Home"):
@@ -295,28 +276,21 @@ class Streamer:
                                       "sender's job is still moving the machine")
                 self._write(SOFT_RESET)
                 reset_sent = True
-            for line in self._read_lines():
-                r = parse_response(line)
-                if r.kind == "banner":
-                    self._on_banner(r)
+
+        if not self.reader.wait(lambda: self._banners != seen, self.banner_timeout,
+                                reset_if_quiet):
+            raise StreamError(f"{self.prefix}no GRBL banner within {self.banner_timeout:g} s")
         # a boot in alarm announces itself right after the banner, so before the answer
         # to a status query sent now
-        self._write(STATUS)
-        self._asked.append((time.monotonic(), self._clock()))
-        st = None
-        end = time.monotonic() + 0.3
-        while st is None and time.monotonic() < end:
-            for line in self._read_lines():
-                r = parse_response(line)
-                if r.kind == "msg" and "unlock" in (r.text or ""):
-                    alarm_boot = True
-                elif r.kind == "banner":
-                    self._on_banner(r)
-                elif r.kind == "status" and r.status is not None:
-                    self._set_status(r.status)
-                    st = r.status
-        if st is None:
-            st = self.query_status()
+        alarm_boot = False
+
+        def on_feedback(r: Response) -> None:
+            nonlocal alarm_boot
+            alarm_boot = alarm_boot or (r.kind == "msg" and "unlock" in (r.text or ""))
+            self._push(r)
+
+        with self.reader.handlers(feedback=on_feedback):
+            st = self.query_status(0.3) or self.query_status()
         if alarm_boot or (st is not None and st.state == "Alarm"):
             raise StreamError(f"{self.prefix}controller is in ALARM after start-up: home ($H) or "
                               "unlock ($X) it first (station stream --unlock)")
@@ -335,20 +309,13 @@ class Streamer:
 
     def query_status(self, timeout: float = 2.0) -> Status | None:
         """Ask ``?`` and wait for the report (None if none came)."""
-        before = self.status
+        seq = self._status_seq
         self._write(STATUS)
         self._last_poll = time.monotonic()
         self._asked.append((self._last_poll, self._clock()))
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            for line in self._read_lines():
-                r = parse_response(line)
-                if r.kind == "status" and r.status is not None:
-                    self._set_status(r.status)
-                    return r.status
-                if r.kind == "banner":
-                    self._on_banner(r)
-        return None if before is self.status else self.status
+        if self.reader.wait(lambda: self._status_seq != seq, timeout):
+            return self.status
+        return None
 
     def command(self, line: str, timeout: float = 10.0) -> tuple[Response, list[Response]]:
         """Send one command alone (nothing else in flight) and wait for its ok/error.
@@ -361,21 +328,19 @@ class Streamer:
         data = line.strip().encode("ascii") + b"\n"
         if len(data) > self.budget:
             raise StreamError(f"{self.prefix}command longer than the receive buffer: {line!r}")
-        self._write(data)
+        answer: list[Response] = []
         got: list[Response] = []
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            for raw in self._read_lines():
-                r = parse_response(raw)
-                if r.kind in ("ok", "error"):
-                    return r, got
-                if r.kind == "status" and r.status is not None:
-                    self._set_status(r.status)
-                elif r.kind == "banner":
-                    self._on_banner(r)
-                    got.append(r)
-                elif r.kind != "empty":
-                    got.append(r)
+
+        def banner(r: Response) -> None:
+            self._on_banner(r)
+            got.append(r)
+
+        with self.reader.handlers(ok=answer.append, error=answer.append, feedback=got.append,
+                                  settings=got.append, parameters=got.append,
+                                  alarm=got.append, unknown=got.append, banner=banner):
+            self._write(data)
+            if self.reader.wait(lambda: bool(answer), timeout):
+                return answer[0], got
         raise StreamError(f"{self.prefix}no answer to {line!r} within {timeout:g} s")
 
     def read_settings(self) -> dict[int, float]:
@@ -468,90 +433,99 @@ class Streamer:
                                       self.status.state if self.status else None,
                                       sum(p.state == "cut" for p in pieces)))
 
+        def on_answer(r: Response) -> None:
+            """``ok`` / ``error:N``: the oldest line in flight is answered."""
+            nonlocal acked
+            if not self._inflight:
+                raise _Fault("unmatched", f"{r.raw!r} with no line in flight")
+            k, nb = self._inflight.popleft()
+            self._inflight_bytes -= nb
+            self._last_ack = time.monotonic()
+            acked = k + 1
+            if r.kind == "error":
+                err = {"line": stream[k][0] + 1, "text": stream[k][1], "code": r.code,
+                       "message": error_message(r.code or 0)}
+                res.errors.append(err)
+                log.warning("%sline %d %r: %s", self.prefix, err["line"], err["text"],
+                            err["message"])
+                if not check:
+                    raise _Fault("error", err["message"], stream[k][0])
+            elif k in sync_at:
+                set_piece(sync_at[k], "cut")
+
+        def on_alarm(r: Response) -> None:
+            res.alarms.append({"code": r.code, "message": r.message})
+            raise _Fault("alarm", r.message, self._oldest_line(stream))
+
+        def on_banner(r: Response) -> None:
+            self._on_banner(r)
+            if self._banners != banners_at_start:
+                raise _Fault("reset", "the controller restarted (banner) mid-job: lines in "
+                             "flight were lost")
+
+        def on_garbled(r: Response) -> None:
+            raise _Fault("garbled", f"unreadable answer {r.raw!r}", self._oldest_line(stream))
+
+        def send_ready() -> None:
+            """Send while the next line fits; sync commands and the beam coming on go alone."""
+            nonlocal sent
+            while sent < len(stream):
+                code = stream[sent][1]
+                n_bytes = len(code) + 1
+                if n_bytes > self.budget:
+                    raise _Fault("error", f"line longer than the receive buffer "
+                                 f"({n_bytes} bytes)", stream[sent][0])
+                if is_sync_command(code) and self._inflight:
+                    break
+                if turns_beam_on(code) and (self._inflight or not self._at_start(
+                        starts.get(sent), stream[sent][0])):
+                    break  # see turns_beam_on
+                if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
+                    break
+                if self._inflight_bytes + n_bytes > self.budget:
+                    break
+                if not self._inflight:
+                    self._last_ack = time.monotonic()
+                self._write(code.encode("ascii") + b"\n")
+                self._inflight.append((sent, n_bytes))
+                self._inflight_bytes += n_bytes
+                if piece_of[sent] >= 0:
+                    set_piece(int(piece_of[sent]), "cutting")
+                sent += 1
+
+        streaming = self.reader.handlers(ok=on_answer, error=on_answer, alarm=on_alarm,
+                                         banner=on_banner, unknown=on_garbled)
         try:
             try:
                 if check:
                     self._enter_check()
                     banners_at_start = self._banners
-                while acked < len(stream):
-                    now = time.monotonic()
-                    if self._stop:
-                        self._stop = False  # consumed: the next run starts afresh
-                        raise _Fault("stopped", "stopped by the operator")
-                    if self._pause:
-                        self._pause = False
-                        self._write(FEED_HOLD)
-                    if self._resume:
-                        self._resume = False
-                        self._write(CYCLE_START)
-                    # send while the next line fits; sync commands go alone
-                    while sent < len(stream):
-                        code = stream[sent][1]
-                        n_bytes = len(code) + 1
-                        if n_bytes > self.budget:
-                            raise _Fault("error", f"line longer than the receive buffer "
-                                         f"({n_bytes} bytes)", stream[sent][0])
-                        if is_sync_command(code) and self._inflight:
-                            break
-                        if turns_beam_on(code) and (self._inflight or not self._at_start(
-                                starts.get(sent), stream[sent][0])):
-                            break  # see turns_beam_on
-                        if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
-                            break
-                        if self._inflight_bytes + n_bytes > self.budget:
-                            break
-                        if not self._inflight:
-                            self._last_ack = time.monotonic()
-                        self._write(code.encode("ascii") + b"\n")
-                        self._inflight.append((sent, n_bytes))
-                        self._inflight_bytes += n_bytes
-                        if piece_of[sent] >= 0:
-                            set_piece(int(piece_of[sent]), "cutting")
-                        sent += 1
-                    self._poll(now, wd.interval if wd is not None else None)
-                    for raw in self._read_lines():
-                        r = parse_response(raw)
-                        if r.kind in ("ok", "error"):
-                            if not self._inflight:
-                                raise _Fault("unmatched", f"{raw!r} with no line in flight")
-                            k, nb = self._inflight.popleft()
-                            self._inflight_bytes -= nb
-                            self._last_ack = time.monotonic()
-                            acked = k + 1
-                            if r.kind == "error":
-                                err = {"line": stream[k][0] + 1, "text": stream[k][1],
-                                       "code": r.code, "message": error_message(r.code or 0)}
-                                res.errors.append(err)
-                                log.warning("%sline %d %r: %s", self.prefix, err["line"],
-                                            err["text"], err["message"])
-                                if not check:
-                                    raise _Fault("error", err["message"], stream[k][0])
-                            elif k in sync_at:
-                                set_piece(sync_at[k], "cut")
-                        elif r.kind == "alarm":
-                            res.alarms.append({"code": r.code, "message": r.message})
-                            raise _Fault("alarm", r.message, self._oldest_line(stream))
-                        elif r.kind == "banner":
-                            self._on_banner(r)
-                            if self._banners != banners_at_start:
-                                raise _Fault("reset", "the controller restarted (banner) "
-                                             "mid-job: lines in flight were lost")
-                        elif r.kind == "unknown":
-                            raise _Fault("garbled", f"unreadable answer {raw!r}",
-                                         self._oldest_line(stream))
-                        else:
-                            self._handle_push(r)
-                    if wd is not None and self._status_seq != seen_status:
-                        seen_status = self._status_seq
-                        breach = wd.check(self.status, self._work_xy(),
-                                          *self._status_machine, not self._inflight)
-                        if breach is not None:
-                            raise _Fault(breach.reason, breach.detail,
-                                         breach.line if breach.line is not None
-                                         else self._oldest_line(stream))
-                    self._watchdog(stream)
-                    progress()
-                progress(force=True)
+                with streaming:
+                    while acked < len(stream):
+                        now = time.monotonic()
+                        if self._stop:
+                            self._stop = False  # consumed: the next run starts afresh
+                            raise _Fault("stopped", "stopped by the operator")
+                        if self._pause:
+                            self._pause = False
+                            self._write(FEED_HOLD)
+                        if self._resume:
+                            self._resume = False
+                            self._write(CYCLE_START)
+                        send_ready()
+                        self._poll(now, wd.interval if wd is not None else None)
+                        self.reader.pump()
+                        if wd is not None and self._status_seq != seen_status:
+                            seen_status = self._status_seq
+                            breach = wd.check(self.status, self._work_xy(),
+                                              *self._status_machine, not self._inflight)
+                            if breach is not None:
+                                raise _Fault(breach.reason, breach.detail,
+                                             breach.line if breach.line is not None
+                                             else self._oldest_line(stream))
+                        self._watchdog(stream)
+                        progress()
+                    progress(force=True)
                 if check:
                     self._leave_check()
                     res.reason = "checked" if not res.errors else "error"
@@ -616,13 +590,10 @@ class Streamer:
             return np.asarray(st.mpos[:2], float) - self._wco
         return None  # work position unknown: better no path check than a false alarm
 
-    def _handle_push(self, r: Response) -> None:
-        if r.kind == "status" and r.status is not None:
-            self._set_status(r.status)
-        elif r.kind in ("msg", "feedback", "gc", "ver", "opt", "help", "param", "echo",
-                        "startup_exec", "setting", "startup_line"):
-            self._messages.append(r.raw)
-            log.info("%s%s", self.prefix, r.raw)
+    def _push(self, r: Response) -> None:
+        """Standing handler of feedback, settings and parameters: kept and logged."""
+        self._messages.append(r.raw)
+        log.info("%s%s", self.prefix, r.raw)
 
     def _at_start(self, start: np.ndarray | None, line: int) -> bool:
         """True once a report asked for after the last answer shows the head where the
@@ -688,20 +659,16 @@ class Streamer:
             self.on_fault(res.fault)
 
     def _wait_status(self, pred: Callable[[Status], bool], timeout: float) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            self._poll(time.monotonic(), 0.02)
-            for raw in self._read_lines():
-                r = parse_response(raw)
-                if r.kind == "status" and r.status is not None:
-                    self._set_status(r.status)
-                    if pred(r.status):
-                        return True
-                elif r.kind == "banner":
-                    self._on_banner(r)
-                elif r.kind not in ("ok", "error", "empty", "unknown"):
-                    self._handle_push(r)
-        return False
+        hit: list[bool] = []
+
+        def on_status(r: Response) -> None:
+            self._set_status(r.status)
+            if pred(r.status):
+                hit.append(True)
+
+        with self.reader.handlers(status=on_status):
+            return self.reader.wait(lambda: bool(hit), timeout,
+                                    lambda: self._poll(time.monotonic(), 0.02))
 
     def _wait_idle(self, timeout: float = 120.0) -> None:
         if not self._wait_status(lambda s: s.state in ("Idle", "Check"), timeout):
@@ -721,16 +688,12 @@ class Streamer:
                 res.messages.append("no Hold:0 before the reset (controller silent?)")
         banners = self._banners
         self._write(SOFT_RESET)
-        end = time.monotonic() + self.banner_timeout
-        while self._banners == banners and time.monotonic() < end:
-            for raw in self._read_lines():
-                r = parse_response(raw)
-                if r.kind == "banner":
-                    self._on_banner(r)
-                elif r.kind == "alarm":
-                    res.alarms.append({"code": r.code, "message": r.message})
-                elif r.kind not in ("ok", "error", "empty", "unknown"):
-                    self._handle_push(r)
+
+        def on_alarm(r: Response) -> None:
+            res.alarms.append({"code": r.code, "message": r.message})
+
+        with self.reader.handlers(alarm=on_alarm):
+            self.reader.wait(lambda: self._banners != banners, self.banner_timeout)
         if self._banners == banners:
             res.messages.append("no banner after the soft reset")
             return
@@ -751,11 +714,6 @@ class Streamer:
         """``$C`` again: GRBL leaves check mode with a soft reset (a banner follows)."""
         banners = self._banners
         r, pushed = self.command("$C")
-        end = time.monotonic() + self.banner_timeout
-        while self._banners == banners and time.monotonic() < end:
-            for raw in self._read_lines():
-                rr = parse_response(raw)
-                if rr.kind == "banner":
-                    self._on_banner(rr)
+        self.reader.wait(lambda: self._banners != banners, self.banner_timeout)
         if r.kind != "ok":
             raise _Fault("error", f"could not leave check mode: {r.raw}")
