@@ -114,12 +114,12 @@ class Progress:
 
 @dataclass
 class StreamResult:
-    """What happened: ``reason`` is ``done``, ``checked``, ``error``, ``alarm``, ``reset``,
-    ``garbled``, ``unmatched``, ``off_path``, ``timeout``, ``disconnect``, ``stopped`` or
-    ``interrupted``."""
+    """What happened: ``reason`` is a :class:`StopReason` (a ``str``: ``done``, ``checked``,
+    ``error``, ``alarm``, ``reset``, ``garbled``, ``unmatched``, ``off_path``, ``feed``,
+    ``power``, ``timeout``, ``disconnect``, ``stopped`` or ``interrupted``)."""
 
     completed: bool
-    reason: str
+    reason: StopReason | str
     lines_total: int
     lines_sent: int = 0
     lines_acked: int = 0
@@ -145,7 +145,7 @@ class StreamResult:
 
 
 class _Fault(Exception):
-    def __init__(self, reason: str, detail: str, line: int | None = None):
+    def __init__(self, reason: StopReason, detail: str, line: int | None = None):
         super().__init__(detail)
         self.reason, self.detail, self.line = reason, detail, line
 
@@ -437,7 +437,7 @@ class Streamer:
             """``ok`` / ``error:N``: the oldest line in flight is answered."""
             nonlocal acked
             if not self._inflight:
-                raise _Fault("unmatched", f"{r.raw!r} with no line in flight")
+                raise _Fault(StopReason.UNMATCHED, f"{r.raw!r} with no line in flight")
             k, nb = self._inflight.popleft()
             self._inflight_bytes -= nb
             self._last_ack = time.monotonic()
@@ -449,22 +449,23 @@ class Streamer:
                 log.warning("%sline %d %r: %s", self.prefix, err["line"], err["text"],
                             err["message"])
                 if not check:
-                    raise _Fault("error", err["message"], stream[k][0])
+                    raise _Fault(StopReason.ERROR, err["message"], stream[k][0])
             elif k in sync_at:
                 set_piece(sync_at[k], "cut")
 
         def on_alarm(r: Response) -> None:
             res.alarms.append({"code": r.code, "message": r.message})
-            raise _Fault("alarm", r.message, self._oldest_line(stream))
+            raise _Fault(StopReason.ALARM, r.message, self._oldest_line(stream))
 
         def on_banner(r: Response) -> None:
             self._on_banner(r)
             if self._banners != banners_at_start:
-                raise _Fault("reset", "the controller restarted (banner) mid-job: lines in "
-                             "flight were lost")
+                raise _Fault(StopReason.RESET, "the controller restarted (banner) mid-job: "
+                             "lines in flight were lost")
 
         def on_garbled(r: Response) -> None:
-            raise _Fault("garbled", f"unreadable answer {r.raw!r}", self._oldest_line(stream))
+            raise _Fault(StopReason.GARBLED, f"unreadable answer {r.raw!r}",
+                         self._oldest_line(stream))
 
         def send_ready() -> None:
             """Send while the next line fits; sync commands and the beam coming on go alone."""
@@ -473,7 +474,7 @@ class Streamer:
                 code = stream[sent][1]
                 n_bytes = len(code) + 1
                 if n_bytes > self.budget:
-                    raise _Fault("error", f"line longer than the receive buffer "
+                    raise _Fault(StopReason.ERROR, f"line longer than the receive buffer "
                                  f"({n_bytes} bytes)", stream[sent][0])
                 if is_sync_command(code) and self._inflight:
                     break
@@ -505,7 +506,7 @@ class Streamer:
                         now = time.monotonic()
                         if self._stop:
                             self._stop = False  # consumed: the next run starts afresh
-                            raise _Fault("stopped", "stopped by the operator")
+                            raise _Fault(StopReason.STOPPED, "stopped by the operator")
                         if self._pause:
                             self._pause = False
                             self._write(FEED_HOLD)
@@ -528,14 +529,15 @@ class Streamer:
                     progress(force=True)
                 if check:
                     self._leave_check()
-                    res.reason = "checked" if not res.errors else "error"
+                    res.reason = StopReason.CHECKED if not res.errors else StopReason.ERROR
                     res.completed = not res.errors
                 else:
                     self._wait_idle()
-                    res.reason, res.completed = "done", True
+                    res.reason, res.completed = StopReason.DONE, True
             except KeyboardInterrupt:
                 self._frozen = True
-                self._record_fault(res, _Fault("interrupted", "interrupted"), stream, sent, acked)
+                self._record_fault(res, _Fault(StopReason.INTERRUPTED, "interrupted"), stream,
+                                   sent, acked)
                 self._safe_stop(res)
             except _Fault as f:
                 self._frozen = True
@@ -547,7 +549,8 @@ class Streamer:
         except _Disconnect as exc:
             self._frozen = True
             if not res.reason:
-                self._record_fault(res, _Fault("disconnect", str(exc)), stream, sent, acked)
+                self._record_fault(res, _Fault(StopReason.DISCONNECT, str(exc)), stream, sent,
+                                   acked)
             else:
                 res.messages.append(f"disconnected during the safe stop: {exc}")
         res.lines_sent, res.lines_acked = sent, acked
@@ -633,12 +636,12 @@ class Streamer:
         now = time.monotonic()
         if (self._status_pending_since is not None
                 and now - self._status_pending_since > self.response_timeout):
-            raise _Fault("timeout", f"no status report for {self.response_timeout:g} s "
+            raise _Fault(StopReason.TIMEOUT, f"no status report for {self.response_timeout:g} s "
                          "(controller silent: power cut or cable?)", self._oldest_line(stream))
         st = self.status
         if (self._inflight and st is not None and st.state == "Idle"
                 and now - self._last_ack > self.stall_timeout):
-            raise _Fault("timeout", "controller idle with lines unanswered (a lost byte?)",
+            raise _Fault(StopReason.TIMEOUT, "controller idle with lines unanswered (a lost byte?)",
                          self._oldest_line(stream))
 
     def _record_fault(self, res: StreamResult, f: _Fault, stream, sent: int, acked: int) -> None:
@@ -672,7 +675,8 @@ class Streamer:
 
     def _wait_idle(self, timeout: float = 120.0) -> None:
         if not self._wait_status(lambda s: s.state in ("Idle", "Check"), timeout):
-            raise _Fault("timeout", f"the controller did not come back to Idle in {timeout:g} s")
+            raise _Fault(StopReason.TIMEOUT,
+                         f"the controller did not come back to Idle in {timeout:g} s")
 
     def _safe_stop(self, res: StreamResult, hold: bool = True, hold_timeout: float = 10.0
                    ) -> None:
@@ -716,4 +720,4 @@ class Streamer:
         r, pushed = self.command("$C")
         self.reader.wait(lambda: self._banners != banners, self.banner_timeout)
         if r.kind != "ok":
-            raise _Fault("error", f"could not leave check mode: {r.raw}")
+            raise _Fault(StopReason.ERROR, f"could not leave check mode: {r.raw}")
