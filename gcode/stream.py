@@ -23,6 +23,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from enum import Enum
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from gcode.session import PortLost, ResponseReader
 from gcode.watchdog import StopReason, Watchdog
 
 __all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
-           "Streamer", "is_sync_command", "turns_beam_on"]
+           "StreamState", "Streamer", "is_sync_command", "turns_beam_on"]
 
 log = logging.getLogger("gcode.stream")
 
@@ -80,6 +81,19 @@ def stroke_starts(program: Program, lines: list[int]) -> dict[int, np.ndarray]:
 def is_sync_command(code: str) -> bool:
     """True for ``$`` system commands and EEPROM-writing G-codes (sent one at a time)."""
     return bool(_SYNC_CMD.match(code.replace(" ", "")))
+
+
+class StreamState(str, Enum):
+    """Where a run is: IDLE -> STREAMING (or CHECKING) -> DRAINING -> DONE, or from any
+    of them -> STOPPING (the safe stop) -> STOPPED."""
+
+    IDLE = "idle"
+    CHECKING = "checking"
+    STREAMING = "streaming"
+    DRAINING = "draining"
+    STOPPING = "stopping"
+    DONE = "done"
+    STOPPED = "stopped"
 
 
 class StreamError(Exception):
@@ -168,6 +182,7 @@ class Streamer:
                  on_piece: Callable[[PieceState], None] | None = None,
                  on_progress: Callable[[Progress], None] | None = None,
                  on_fault: Callable[[dict], None] | None = None,
+                 on_state: Callable[[StreamState], None] | None = None,
                  name: str = "grbl"):
         if poll_hz <= 0 or poll_hz > 5.0:
             raise ValueError("poll_hz must be in (0, 5]: GRBL answers status queries within "
@@ -204,6 +219,8 @@ class Streamer:
         self.on_piece = on_piece
         self.on_progress = on_progress
         self.on_fault = on_fault
+        self.on_state = on_state
+        self.state = StreamState.IDLE
         self.prefix = f"{name}: "
         # the one reader of the port: standing handlers here, each operation adds its own
         self.reader = ResponseReader(port)
@@ -498,6 +515,7 @@ class Streamer:
                                          banner=on_banner, unknown=on_garbled)
         try:
             try:
+                self._enter(StreamState.CHECKING if check else StreamState.STREAMING)
                 if check:
                     self._enter_check()
                     banners_at_start = self._banners
@@ -528,16 +546,19 @@ class Streamer:
                         progress()
                     progress(force=True)
                 if check:
+                    self._enter(StreamState.DRAINING)
                     self._leave_check()
                     res.reason = StopReason.CHECKED if not res.errors else StopReason.ERROR
                     res.completed = not res.errors
                 else:
+                    self._enter(StreamState.DRAINING)
                     self._wait_idle()
                     res.reason, res.completed = StopReason.DONE, True
             except KeyboardInterrupt:
                 self._frozen = True
                 self._record_fault(res, _Fault(StopReason.INTERRUPTED, "interrupted"), stream,
                                    sent, acked)
+                self._enter(StreamState.STOPPING)
                 self._safe_stop(res)
             except _Fault as f:
                 self._frozen = True
@@ -545,6 +566,7 @@ class Streamer:
                 # after an alarm too: GRBL wants a reset to continue, and the reset clears
                 # the parser's spindle and coolant state (the beam is already off). Motion
                 # has already stopped and a critical alarm ignores status queries, so no hold.
+                self._enter(StreamState.STOPPING)
                 self._safe_stop(res, hold=f.reason != "alarm")
         except _Disconnect as exc:
             self._frozen = True
@@ -561,11 +583,18 @@ class Streamer:
             except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
                 pass
         res.seconds = time.monotonic() - t0
+        self._enter(StreamState.DONE if res.completed else StreamState.STOPPED)
         if res.position is None and self.status is not None:
             res.position = self.status.position()
         return res
 
     # ------------------------------------------------------------ helpers
+    def _enter(self, state: StreamState) -> None:
+        self.state = state
+        log.debug("%sstream %s", self.prefix, state.value)
+        if self.on_state:
+            self.on_state(state)
+
     def _oldest_line(self, stream: list[tuple[int, str]]) -> int | None:
         return stream[self._inflight[0][0]][0] if self._inflight else None
 

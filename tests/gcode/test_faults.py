@@ -273,3 +273,25 @@ def test_trace_needs_the_emulator(tiny, tmp_path):
                                       machine=None, check=False, unlock=False,
                                       no_settings_check=True, trace=str(tmp_path / "t.csv"),
                                       json=False))
+
+
+def test_stream_states_and_stop_reason(tiny):
+    """The run is a small state machine: clean runs drain and finish, faults stop safely."""
+    from gcode.stream import StopReason, StreamState
+
+    lines = wire_lines(tiny)
+    k = next(i for i, ln in enumerate(lines) if ln.startswith(b"G1") and b"F" not in ln)
+    for fault, expected in ((None, [StreamState.STREAMING, StreamState.DRAINING,
+                                    StreamState.DONE]),
+                            (k, [StreamState.STREAMING, StreamState.STOPPING,
+                                 StreamState.STOPPED])):
+        raw = serial.serial_for_url(f"grblsim://?speed=50&{SETTINGS}", timeout=0.02)
+        port = raw if fault is None else LineFault(raw, lines, "flip", fault, 0)
+        states: list[StreamState] = []
+        st = Streamer(port, on_state=states.append)
+        st.connect(quiet=0.02)
+        res = st.run(tiny)
+        assert states == expected and st.state is expected[-1]
+        assert isinstance(res.reason, StopReason)
+        assert res.reason is (StopReason.DONE if fault is None else StopReason.FEED)
+        raw.close()
