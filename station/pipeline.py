@@ -249,7 +249,7 @@ class StationPipeline:
         self._write_report(workdir, report)
         control.checkpoint()
         start_step(control, "programming")
-        program = self.program_for(workdir / "layout.json", None)
+        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
         program.write(workdir / "job.nc")
         report["program"] = program.summary()
         credit = garment_credit(garment_path)
@@ -273,17 +273,25 @@ class StationPipeline:
         """report.json after every step, so a failed job still shows what it got to."""
         (workdir / "report.json").write_text(json.dumps(report, indent=2, default=float))
 
-    def program_for(self, layout_path: str | Path, only: set[str] | None):
-        from gcode.layout import load_layout
+    def program_for(self, layout: str | Path | dict, only: set[str] | None, *,
+                    job_dir: Path | None = None):
+        """The checked program for the pieces ``only`` (None: all) of a layout: the
+        nesting's own layout document while planning (no trip through the disk), the
+        job's LAYOUT.json when a stopped job resumes."""
+        from gcode.layout import layout_from_dict, load_layout
         from gcode.program import build_program
         from gcode.toolpath import build_toolpaths
 
-        layout = load_layout(layout_path)
+        if isinstance(layout, dict):
+            where = job_dir or Path(".")
+            layout = layout_from_dict(layout, str(where / "layout.json"))
+        else:
+            where = Path(layout).parent
+            layout = load_layout(layout)
         origin = self.config["machine"]["fabric_origin"]
         layout.origin = (float(origin[0]), float(origin[1]))
         toolpaths = build_toolpaths(layout, self.machine, only=only)
-        title = f"station {Path(layout_path).parent.name}"
-        return build_program(toolpaths, self.machine, title=title)
+        return build_program(toolpaths, self.machine, title=f"station {where.name}")
 
     # ------------------------------------------------------------------ cut
     @property
