@@ -64,6 +64,22 @@ def turns_beam_on(code: str) -> bool:
     return bool(_BEAM_ON.search(code.replace(" ", "")))
 
 
+def _piece_map(program: Program, stream: list[tuple[int, str]]
+               ) -> tuple[list[PieceState], dict[int, int], np.ndarray]:
+    """The pieces' records, stream position of each sync line -> piece, and the piece each
+    stream position belongs to (-1: none)."""
+    pos_of_line = {i: k for k, (i, _) in enumerate(stream)}
+    pieces = [PieceState(p.number, p.id, p.name, p.sync_line) for p in program.pieces]
+    sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)
+               if p.sync_line in pos_of_line}
+    piece_of = np.full(len(stream), -1)
+    line_idx = np.array([i for i, _ in stream], int)
+    for n, p in enumerate(program.pieces):
+        lo = int(np.searchsorted(line_idx, p.first_line))
+        piece_of[lo:pos_of_line.get(p.sync_line, lo) + 1] = n
+    return pieces, sync_at, piece_of
+
+
 def stroke_starts(program: Program, lines: list[int]) -> dict[int, np.ndarray]:
     """Stream position -> the XY where the head must stand when that line (one turning
     the beam on) is sent: the end of the last move before it."""
@@ -381,21 +397,7 @@ class Streamer:
         (they are in the result), only StreamError when it cannot start.
         """
         t0 = time.monotonic()
-        stream: list[tuple[int, str]] = []  # (program line index, code to send)
-        for i, line in enumerate(program.lines):
-            code = strip_comment(line)
-            if self.compact:
-                code = code.replace(" ", "")
-            if code:
-                stream.append((i, code))
-        for i, code in stream:  # refuse up front what must never reach the controller
-            bad = sorted({ch for ch in code if ch in "?!~" or not " " <= ch <= "~"})
-            if bad:
-                raise StreamError(f"{self.prefix}line {i + 1} holds real-time or non-ASCII "
-                                  f"character(s) {bad!r}: {code!r}")
-            if len(code) > 79 or len(code) + 1 > self.budget:
-                raise StreamError(f"{self.prefix}line {i + 1} is longer than GRBL accepts "
-                                  f"({len(code)} characters): {code!r}")
+        stream = self._wire_lines(program)
         st = self.query_status(1.0)
         if st is not None and st.state == "Alarm":
             raise StreamError(f"{self.prefix}controller is in ALARM: home ($H) or unlock ($X) "
@@ -403,16 +405,7 @@ class Streamer:
         if st is not None and st.state == "Check" and not check:
             # in check mode every line is answered ok and nothing moves: no piece would be cut
             raise StreamError(f"{self.prefix}controller is in check mode ($C); leave it first")
-        pos_of_line = {i: k for k, (i, _) in enumerate(stream)}
-        pieces = [PieceState(p.number, p.id, p.name, p.sync_line) for p in program.pieces]
-        sync_at = {pos_of_line[p.sync_line]: n for n, p in enumerate(pieces)
-                   if p.sync_line in pos_of_line}
-        piece_of = np.full(len(stream), -1)
-        line_idx = np.array([i for i, _ in stream], int)
-        for n, p in enumerate(program.pieces):
-            lo = int(np.searchsorted(line_idx, p.first_line))
-            hi = pos_of_line.get(p.sync_line, lo)
-            piece_of[lo:hi + 1] = n
+        pieces, sync_at, piece_of = _piece_map(program, stream)
         weights = (np.array([program.check.seconds[i] for i, _ in stream])
                    if program.check is not None and len(stream) else np.ones(len(stream)))
         weights = np.maximum(weights, 1e-3)
@@ -626,6 +619,26 @@ class Streamer:
         """Standing handler of feedback, settings and parameters: kept and logged."""
         self._messages.append(r.raw)
         log.info("%s%s", self.prefix, r.raw)
+
+    def _wire_lines(self, program: Program) -> list[tuple[int, str]]:
+        """(program line index, code to send) of every line with code; refuses up front
+        what must never reach the controller (real-time bytes, over-long lines)."""
+        stream: list[tuple[int, str]] = []
+        for i, line in enumerate(program.lines):
+            code = strip_comment(line)
+            if self.compact:
+                code = code.replace(" ", "")
+            if not code:
+                continue
+            bad = sorted({ch for ch in code if ch in "?!~" or not " " <= ch <= "~"})
+            if bad:
+                raise StreamError(f"{self.prefix}line {i + 1} holds real-time or non-ASCII "
+                                  f"character(s) {bad!r}: {code!r}")
+            if len(code) > 79 or len(code) + 1 > self.budget:
+                raise StreamError(f"{self.prefix}line {i + 1} is longer than GRBL accepts "
+                                  f"({len(code)} characters): {code!r}")
+            stream.append((i, code))
+        return stream
 
     def _at_start(self, start: np.ndarray | None, line: int) -> bool:
         """True once a report asked for after the last answer shows the head where the
