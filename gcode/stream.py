@@ -180,6 +180,112 @@ class _Fault(Exception):
         self.reason, self.detail, self.line = reason, detail, line
 
 
+class _Run:
+    """One run's bookkeeping: the lines, what was sent and answered, the pieces, and the
+    handlers the session reader calls with ``ok``/``error``/alarms/banners while it lasts."""
+
+    def __init__(self, streamer: Streamer, program: Program, stream: list[tuple[int, str]],
+                 check: bool):
+        self.st = streamer
+        self.t0 = time.monotonic()
+        self.stream = stream
+        self.check = check
+        self.pieces, self.sync_at, self.piece_of = _piece_map(program, stream)
+        weights = (np.array([program.check.seconds[i] for i, _ in stream])
+                   if program.check is not None and len(stream) else np.ones(len(stream)))
+        self.cum = np.concatenate([[0.0], np.cumsum(np.maximum(weights, 1e-3))])
+        self.res = StreamResult(completed=False, reason="", lines_total=len(stream),
+                                check=check, pieces=self.pieces)
+        self.starts = (stroke_starts(program, [i for i, _ in stream])
+                       if streamer.deviation_limit and not check else {})
+        self.sent = self.acked = 0
+        self.last_progress = 0.0
+        self.seen_status = streamer._status_seq
+        self.banners_at_start = streamer._banners
+
+    def set_piece(self, n: int, state: str) -> None:
+        st, piece = self.st, self.pieces[n]
+        if st._frozen or piece.state == state or piece.state == "cut":
+            return
+        piece.state = state
+        log.info("%spiece %d %s %s", st.prefix, piece.number, piece.id, state)
+        if st.on_piece:
+            st.on_piece(piece)
+
+    def progress(self, force: bool = False) -> None:
+        st, now = self.st, time.monotonic()
+        if not st.on_progress or (not force and now - self.last_progress < 0.1):
+            return
+        self.last_progress = now
+        frac = float(self.cum[self.acked] / self.cum[-1]) if len(self.stream) else 1.0
+        el = now - self.t0
+        eta = el * (1 - frac) / frac if frac > 0.02 else None
+        st.on_progress(Progress(len(self.stream), self.sent, self.acked, frac, el, eta,
+                                st.status.state if st.status else None,
+                                sum(p.state == "cut" for p in self.pieces)))
+
+    def send_ready(self) -> None:
+        """Send while the next line fits; sync commands and the beam coming on go alone."""
+        st, stream = self.st, self.stream
+        while self.sent < len(stream):
+            i, code = stream[self.sent]
+            n_bytes = len(code) + 1
+            if n_bytes > st.budget:
+                raise _Fault(StopReason.ERROR, f"line longer than the receive buffer "
+                             f"({n_bytes} bytes)", i)
+            if is_sync_command(code) and st._inflight:
+                break
+            if turns_beam_on(code) and (st._inflight or not st._at_start(
+                    self.starts.get(self.sent), i)):
+                break  # see turns_beam_on
+            if st._inflight and is_sync_command(stream[st._inflight[-1][0]][1]):
+                break
+            if st._inflight_bytes + n_bytes > st.budget:
+                break
+            if not st._inflight:
+                st._last_ack = time.monotonic()
+            st._write(code.encode("ascii") + b"\n")
+            st._inflight.append((self.sent, n_bytes))
+            st._inflight_bytes += n_bytes
+            if self.piece_of[self.sent] >= 0:
+                self.set_piece(int(self.piece_of[self.sent]), "cutting")
+            self.sent += 1
+
+    def on_answer(self, r: Response) -> None:
+        """``ok`` / ``error:N``: the oldest line in flight is answered."""
+        st = self.st
+        if not st._inflight:
+            raise _Fault(StopReason.UNMATCHED, f"{r.raw!r} with no line in flight")
+        k, nb = st._inflight.popleft()
+        st._inflight_bytes -= nb
+        st._last_ack = time.monotonic()
+        self.acked = k + 1
+        if r.kind == "error":
+            err = {"line": self.stream[k][0] + 1, "text": self.stream[k][1], "code": r.code,
+                   "message": error_message(r.code or 0)}
+            self.res.errors.append(err)
+            log.warning("%sline %d %r: %s", st.prefix, err["line"], err["text"],
+                        err["message"])
+            if not self.check:
+                raise _Fault(StopReason.ERROR, err["message"], self.stream[k][0])
+        elif k in self.sync_at:
+            self.set_piece(self.sync_at[k], "cut")
+
+    def on_alarm(self, r: Response) -> None:
+        self.res.alarms.append({"code": r.code, "message": r.message})
+        raise _Fault(StopReason.ALARM, r.message, self.st._oldest_line(self.stream))
+
+    def on_banner(self, r: Response) -> None:
+        self.st._on_banner(r)
+        if self.st._banners != self.banners_at_start:
+            raise _Fault(StopReason.RESET, "the controller restarted (banner) mid-job: "
+                         "lines in flight were lost")
+
+    def on_garbled(self, r: Response) -> None:
+        raise _Fault(StopReason.GARBLED, f"unreadable answer {r.raw!r}",
+                     self.st._oldest_line(self.stream))
+
+
 class Streamer:
     """Stream G-code to a GRBL 1.1 controller with character counting.
 
@@ -396,8 +502,46 @@ class Streamer:
         Returns when the job is done or has stopped safely; never raises for machine faults
         (they are in the result), only StreamError when it cannot start.
         """
-        t0 = time.monotonic()
-        stream = self._wire_lines(program)
+        job = _Run(self, program, self._wire_lines(program), check)
+        self._refuse_state(check)
+        wd = self._make_watchdog(program) if not check else None
+        self._frozen = check  # check mode proves nothing was cut
+        self._messages = job.res.messages
+        try:
+            try:
+                self._enter(StreamState.CHECKING if check else StreamState.STREAMING)
+                if check:
+                    self._enter_check()
+                    job.banners_at_start = self._banners
+                with self.reader.handlers(ok=job.on_answer, error=job.on_answer,
+                                          alarm=job.on_alarm, banner=job.on_banner,
+                                          unknown=job.on_garbled):
+                    while job.acked < len(job.stream):
+                        self._turn(job, wd)
+                    job.progress(force=True)
+                self._enter(StreamState.DRAINING)
+                self._finish(job.res, check)
+            except (KeyboardInterrupt, _Fault) as exc:
+                f = exc if isinstance(exc, _Fault) else _Fault(StopReason.INTERRUPTED,
+                                                                "interrupted")
+                self._frozen = True
+                self._record_fault(job.res, f, job.stream, job.sent, job.acked)
+                # after an alarm too: GRBL wants a reset to continue, and the reset clears
+                # the parser's spindle and coolant state (the beam is already off). Motion
+                # has already stopped and a critical alarm ignores status queries, so no hold.
+                self._enter(StreamState.STOPPING)
+                self._safe_stop(job.res, hold=f.reason != StopReason.ALARM)
+        except _Disconnect as exc:
+            self._frozen = True
+            if not job.res.reason:
+                self._record_fault(job.res, _Fault(StopReason.DISCONNECT, str(exc)),
+                                   job.stream, job.sent, job.acked)
+            else:
+                job.res.messages.append(f"disconnected during the safe stop: {exc}")
+        return self._result(job, wd)
+
+    def _refuse_state(self, check: bool) -> None:
+        """A controller in alarm, or in check mode for a real cut, cannot start a run."""
         st = self.query_status(1.0)
         if st is not None and st.state == "Alarm":
             raise StreamError(f"{self.prefix}controller is in ALARM: home ($H) or unlock ($X) "
@@ -405,177 +549,52 @@ class Streamer:
         if st is not None and st.state == "Check" and not check:
             # in check mode every line is answered ok and nothing moves: no piece would be cut
             raise StreamError(f"{self.prefix}controller is in check mode ($C); leave it first")
-        pieces, sync_at, piece_of = _piece_map(program, stream)
-        weights = (np.array([program.check.seconds[i] for i, _ in stream])
-                   if program.check is not None and len(stream) else np.ones(len(stream)))
-        weights = np.maximum(weights, 1e-3)
-        cum = np.concatenate([[0.0], np.cumsum(weights)])
-        res = StreamResult(completed=False, reason="", lines_total=len(stream), check=check,
-                           pieces=pieces)
-        wd = self._make_watchdog(program) if not check else None
-        starts = stroke_starts(program, [i for i, _ in stream]) if wd is not None else {}
-        seen_status = self._status_seq
-        self._frozen = check  # check mode proves nothing was cut
-        self._messages = res.messages
-        sent = 0
-        acked = 0
-        last_progress = 0.0
-        banners_at_start = self._banners
 
-        def set_piece(n: int, state: str) -> None:
-            if self._frozen or pieces[n].state == state or pieces[n].state == "cut":
-                return
-            pieces[n].state = state
-            log.info("%spiece %d %s %s", self.prefix, pieces[n].number, pieces[n].id, state)
-            if self.on_piece:
-                self.on_piece(pieces[n])
+    def _turn(self, job: _Run, wd: Watchdog | None) -> None:
+        """One turn of the streaming loop: operator requests, send, poll, read, judge."""
+        now = time.monotonic()
+        if self._stop:
+            self._stop = False  # consumed: the next run starts afresh
+            raise _Fault(StopReason.STOPPED, "stopped by the operator")
+        if self._pause:
+            self._pause = False
+            self._write(FEED_HOLD)
+        if self._resume:
+            self._resume = False
+            self._write(CYCLE_START)
+        job.send_ready()
+        self._poll(now, wd.interval if wd is not None else None)
+        self.reader.pump()
+        if wd is not None and self._status_seq != job.seen_status:
+            job.seen_status = self._status_seq
+            breach = wd.check(self.status, self._work_xy(), *self._status_machine,
+                              not self._inflight)
+            if breach is not None:
+                raise _Fault(breach.reason, breach.detail, breach.line
+                             if breach.line is not None else self._oldest_line(job.stream))
+        self._watchdog(job.stream)
+        job.progress()
 
-        def progress(force: bool = False) -> None:
-            nonlocal last_progress
-            now = time.monotonic()
-            if not self.on_progress or (not force and now - last_progress < 0.1):
-                return
-            last_progress = now
-            frac = float(cum[acked] / cum[-1]) if len(stream) else 1.0
-            el = now - t0
-            eta = el * (1 - frac) / frac if frac > 0.02 else None
-            self.on_progress(Progress(len(stream), sent, acked, frac, el, eta,
-                                      self.status.state if self.status else None,
-                                      sum(p.state == "cut" for p in pieces)))
+    def _finish(self, res: StreamResult, check: bool) -> None:
+        """Every line answered: leave check mode, or wait until the machine is at rest."""
+        if check:
+            self._leave_check()
+            res.reason = StopReason.CHECKED if not res.errors else StopReason.ERROR
+            res.completed = not res.errors
+        else:
+            self._wait_idle()
+            res.reason, res.completed = StopReason.DONE, True
 
-        def on_answer(r: Response) -> None:
-            """``ok`` / ``error:N``: the oldest line in flight is answered."""
-            nonlocal acked
-            if not self._inflight:
-                raise _Fault(StopReason.UNMATCHED, f"{r.raw!r} with no line in flight")
-            k, nb = self._inflight.popleft()
-            self._inflight_bytes -= nb
-            self._last_ack = time.monotonic()
-            acked = k + 1
-            if r.kind == "error":
-                err = {"line": stream[k][0] + 1, "text": stream[k][1], "code": r.code,
-                       "message": error_message(r.code or 0)}
-                res.errors.append(err)
-                log.warning("%sline %d %r: %s", self.prefix, err["line"], err["text"],
-                            err["message"])
-                if not check:
-                    raise _Fault(StopReason.ERROR, err["message"], stream[k][0])
-            elif k in sync_at:
-                set_piece(sync_at[k], "cut")
-
-        def on_alarm(r: Response) -> None:
-            res.alarms.append({"code": r.code, "message": r.message})
-            raise _Fault(StopReason.ALARM, r.message, self._oldest_line(stream))
-
-        def on_banner(r: Response) -> None:
-            self._on_banner(r)
-            if self._banners != banners_at_start:
-                raise _Fault(StopReason.RESET, "the controller restarted (banner) mid-job: "
-                             "lines in flight were lost")
-
-        def on_garbled(r: Response) -> None:
-            raise _Fault(StopReason.GARBLED, f"unreadable answer {r.raw!r}",
-                         self._oldest_line(stream))
-
-        def send_ready() -> None:
-            """Send while the next line fits; sync commands and the beam coming on go alone."""
-            nonlocal sent
-            while sent < len(stream):
-                code = stream[sent][1]
-                n_bytes = len(code) + 1
-                if n_bytes > self.budget:
-                    raise _Fault(StopReason.ERROR, f"line longer than the receive buffer "
-                                 f"({n_bytes} bytes)", stream[sent][0])
-                if is_sync_command(code) and self._inflight:
-                    break
-                if turns_beam_on(code) and (self._inflight or not self._at_start(
-                        starts.get(sent), stream[sent][0])):
-                    break  # see turns_beam_on
-                if self._inflight and is_sync_command(stream[self._inflight[-1][0]][1]):
-                    break
-                if self._inflight_bytes + n_bytes > self.budget:
-                    break
-                if not self._inflight:
-                    self._last_ack = time.monotonic()
-                self._write(code.encode("ascii") + b"\n")
-                self._inflight.append((sent, n_bytes))
-                self._inflight_bytes += n_bytes
-                if piece_of[sent] >= 0:
-                    set_piece(int(piece_of[sent]), "cutting")
-                sent += 1
-
-        streaming = self.reader.handlers(ok=on_answer, error=on_answer, alarm=on_alarm,
-                                         banner=on_banner, unknown=on_garbled)
-        try:
-            try:
-                self._enter(StreamState.CHECKING if check else StreamState.STREAMING)
-                if check:
-                    self._enter_check()
-                    banners_at_start = self._banners
-                with streaming:
-                    while acked < len(stream):
-                        now = time.monotonic()
-                        if self._stop:
-                            self._stop = False  # consumed: the next run starts afresh
-                            raise _Fault(StopReason.STOPPED, "stopped by the operator")
-                        if self._pause:
-                            self._pause = False
-                            self._write(FEED_HOLD)
-                        if self._resume:
-                            self._resume = False
-                            self._write(CYCLE_START)
-                        send_ready()
-                        self._poll(now, wd.interval if wd is not None else None)
-                        self.reader.pump()
-                        if wd is not None and self._status_seq != seen_status:
-                            seen_status = self._status_seq
-                            breach = wd.check(self.status, self._work_xy(),
-                                              *self._status_machine, not self._inflight)
-                            if breach is not None:
-                                raise _Fault(breach.reason, breach.detail,
-                                             breach.line if breach.line is not None
-                                             else self._oldest_line(stream))
-                        self._watchdog(stream)
-                        progress()
-                    progress(force=True)
-                if check:
-                    self._enter(StreamState.DRAINING)
-                    self._leave_check()
-                    res.reason = StopReason.CHECKED if not res.errors else StopReason.ERROR
-                    res.completed = not res.errors
-                else:
-                    self._enter(StreamState.DRAINING)
-                    self._wait_idle()
-                    res.reason, res.completed = StopReason.DONE, True
-            except KeyboardInterrupt:
-                self._frozen = True
-                self._record_fault(res, _Fault(StopReason.INTERRUPTED, "interrupted"), stream,
-                                   sent, acked)
-                self._enter(StreamState.STOPPING)
-                self._safe_stop(res)
-            except _Fault as f:
-                self._frozen = True
-                self._record_fault(res, f, stream, sent, acked)
-                # after an alarm too: GRBL wants a reset to continue, and the reset clears
-                # the parser's spindle and coolant state (the beam is already off). Motion
-                # has already stopped and a critical alarm ignores status queries, so no hold.
-                self._enter(StreamState.STOPPING)
-                self._safe_stop(res, hold=f.reason != "alarm")
-        except _Disconnect as exc:
-            self._frozen = True
-            if not res.reason:
-                self._record_fault(res, _Fault(StopReason.DISCONNECT, str(exc)), stream, sent,
-                                   acked)
-            else:
-                res.messages.append(f"disconnected during the safe stop: {exc}")
-        res.lines_sent, res.lines_acked = sent, acked
+    def _result(self, job: _Run, wd: Watchdog | None) -> StreamResult:
+        res = job.res
+        res.lines_sent, res.lines_acked = job.sent, job.acked
         if wd is not None:
             res.status_reports = wd.reports
             try:
                 self.port.timeout = 0.02
             except (AttributeError, ValueError, OSError):  # pragma: no cover - odd ports
                 pass
-        res.seconds = time.monotonic() - t0
+        res.seconds = time.monotonic() - job.t0
         self._enter(StreamState.DONE if res.completed else StreamState.STOPPED)
         if res.position is None and self.status is not None:
             res.position = self.status.position()
@@ -661,6 +680,7 @@ class Streamer:
     def _make_watchdog(self, program: Program) -> Watchdog | None:
         """The watchdog over ``program``'s path, polls and port timeout set to its pace."""
         c = program.check
+        self.watchdog = None
         if not self.deviation_limit or c is None or c.path is None or not len(c.path):
             return None
         wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
