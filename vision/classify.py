@@ -61,18 +61,56 @@ KAPPA = 0.05
 #: symmetry shows, so it is weighted up (isotropically, which keeps every symmetry).
 WHITEN = 1.0
 
+#: Harmonics per repeat length at which the whitening rolls off (Gaussian). Finer detail
+#: is thread-scale texture (twill lines, yarn, knit loops, the camera's resampling) that
+#: real cloth does not carry with the print's symmetry; chosen across sources (synthetic
+#: renders, textile classics, photographs of four origins), see ``bench/vision.py``.
+BAND = 12.0
 
-def _whiten(motif: np.ndarray, basis: np.ndarray, alpha: float) -> np.ndarray:
+#: Temperature of the posterior over groups (log-likelihoods divided by it): fitted so
+#: that the winner's probability matches how often it is right, across sources.
+TEMPERATURE = 1.0
+
+
+#: Relative metric tolerance of the lattice isometries tested: wide enough for a square
+#: or hexagonal print on fabric stretched or sheared by up to about 16 % (each group's
+#: answer must still snap to its lattice, see :meth:`Wallpaper.snapped`).
+HOLOHEDRY_TOL = 0.45
+
+#: Width of the prior on the strain a group needs to explain the measured lattice: a
+#: higher symmetry on a distorted lattice needs correspondingly stronger evidence.
+STRAIN_SIGMA = 0.1
+
+
+def _symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
+    """The lattice metric averaged over the tested isometries: the metric of the
+    undistorted print, under which every tested isometry is exact."""
+    g = basis.T @ basis
+    return sum((a.T @ g @ a for a in holo), g) / (len(holo) + 1)
+
+
+def _whiten(motif: np.ndarray, metric: np.ndarray, alpha: float,
+            band: float = float("inf")) -> np.ndarray:
     n = motif.shape[0]
     k = np.fft.fftfreq(n) * n
     ka, kb = np.meshgrid(k, k, indexing="ij")
-    # Cartesian frequency of harmonic (ka, kb) of the cell: B^-T k (isometries keep it).
-    binv_t = np.linalg.inv(basis).T
-    fx = binv_t[0, 0] * ka + binv_t[0, 1] * kb
-    fy = binv_t[1, 0] * ka + binv_t[1, 1] * kb
-    f = np.hypot(fx, fy)
-    out = np.fft.ifft2(np.fft.fft2(motif) * f**alpha).real
+    # Cartesian |frequency| of harmonic (ka, kb) of the cell: k^T G^-1 k (isometries of
+    # the metric G keep it, so the weighting keeps every symmetry).
+    gi = np.linalg.inv(metric)
+    f = np.sqrt(np.maximum(gi[0, 0] * ka**2 + 2 * gi[0, 1] * ka * kb + gi[1, 1] * kb**2,
+                           0.0))
+    # f in cycles per repeat length (sqrt of the cell area): the fine end is thread-scale
+    # texture (twill lines, yarn) that need not share the print's symmetry.
+    f = f * math.sqrt(math.sqrt(max(np.linalg.det(metric), 1e-12)))
+    out = np.fft.ifft2(np.fft.fft2(motif) * f**alpha * np.exp(-0.5 * (f / band) ** 2)).real
     return out - out.mean()
+
+
+def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
+    """Largest principal strain of the affine map taking ``ideal`` (2,2) onto
+    ``measured`` (columns w1, w2): 0.1 is a 10 % stretch."""
+    f = measured @ np.linalg.inv(ideal)
+    return float(np.abs(np.linalg.svd(f, compute_uv=False) - 1.0).max())
 
 
 @dataclass
@@ -88,6 +126,18 @@ class Classification:
     n_repeats: int = 0
     motif: np.ndarray | None = None
     message: str = ""
+    temperature: float = 1.0
+    strain: float = 0.0  # stretch/shear of the measured lattice against the group's
+
+    @property
+    def posterior(self) -> dict[str, float]:
+        """Calibrated probability of each group that fits the lattice (sums to 1)."""
+        if not self.scores:
+            return {}
+        names = list(self.scores)
+        ll = np.array([self.scores[k] for k in names]) / self.temperature
+        p = np.exp(ll - ll.max())
+        return dict(zip(names, (p / p.sum()).tolist(), strict=True))
 
     def to_dict(self) -> dict:
         out = {"group": self.group, "confidence": round(float(self.confidence), 4),
@@ -308,7 +358,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              max_repeats: int = 400, tau: float = TAU, kappa: float = KAPPA,
              work_side: int = 1024, flat: np.ndarray | None = None,
              scale: float | None = None, whiten: float = WHITEN,
-             prefilter: float = 1.0) -> Classification:
+             prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
+             strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
+             temperature: float = TEMPERATURE) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -322,6 +374,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     tau, kappa : float
         Score (relative to the motif's reliability) at which an operation is as likely
         present as absent, and the width of that transition.
+    holohedry_tol, strain_sigma : float
+        How far the measured lattice may be from each group's lattice (the print may
+        be stretched or sheared by the cloth or the camera) and the prior width of
+        that strain: the answer is the group the print was designed with.
+    band : float
+        Harmonics per repeat where the whitened motif rolls off (thread-scale texture
+        above it does not share the print's symmetry).
 
     Returns
     -------
@@ -354,14 +413,15 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
+    holo = holohedry(basis, tol=holohedry_tol)
     if whiten:
-        motif = _whiten(motif, basis, whiten)
-        halves = tuple(_whiten(hv, basis, whiten) for hv in halves)
+        metric = _symmetric_metric(basis, holo)
+        motif = _whiten(motif, metric, whiten, band)
+        halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
     rel = split_half_reliability(*halves)
     if motif.std() < 1e-6:
         return Classification(None, None, 0.0, message="the mean cell is flat")
     n = cell_n
-    holo = holohedry(basis)
     corr = {_key(a): _corr_all_shifts(motif, a) for a in holo}
     ceiling = max(rel, 0.3)
 
@@ -407,6 +467,12 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             if sig in seen:
                 continue
             seen.add(sig)
+            conv = basis @ u  # the group's conventional basis, working px
+            try:
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1]).basis
+            except ValueError:
+                continue  # too distorted for this group's lattice
+            prior = -0.5 * (lattice_strain(conv, ideal) / strain_sigma) ** 2
             total = np.zeros((n, n))
             present = set()
             for a, b in ops:
@@ -423,7 +489,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             ka, kb = divmod(k, n)
             absent = sum(float(_log_sig((tau - v) / kappa)) for key, v in forb.items()
                          if key not in present)
-            score = float(total[ka, kb]) + absent
+            score = float(total[ka, kb]) + absent + prior
             o = _refine_origin(total, ka, kb) / n
             if name not in best or score > best[name][0]:
                 best[name] = (score, u, o)
@@ -432,7 +498,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         return Classification(None, None, 0.0, message="no group fits the lattice")
     names = list(best)
     ll = np.array([best[k][0] for k in names])
-    post = np.exp(ll - ll.max())
+    post = np.exp((ll - ll.max()) / temperature)
     post /= post.sum()
     win = names[int(np.argmax(ll))]
     _, u, o = best[win]
@@ -443,12 +509,14 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     w1 = new_basis_px[:, 0] / scale * mm
     w2 = new_basis_px[:, 1] / scale * mm
     wp = Wallpaper.snapped(win, w1, w2, origin_in * mm, motif=motif)
+    strain = lattice_strain(np.column_stack([w1, w2]), wp.basis)
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
     return Classification(wp, win, float(post.max()),
                           scores={k: float(v) for k, v in zip(names, ll, strict=True)},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
-                          motif=motif)
+                          motif=motif, temperature=temperature,
+                          strain=strain)
 
 
 def _refine_origin(total: np.ndarray, ka: int, kb: int) -> np.ndarray:
