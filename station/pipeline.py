@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from station.config import Config
-from station.daemon import JobControl, JobInterrupted
+from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
 
 log = logging.getLogger("station.pipeline")
@@ -95,6 +95,12 @@ class StationPipeline:
                                  "give the job a FABRIC.json")
         (workdir / "camera.json").write_text(json.dumps(camera, indent=2, default=float))
         target.write_text(json.dumps(fabric, indent=2, default=float))
+        below = float(self.config["camera"]["confirm_below"])
+        if fabric.get("source") == "detected" and fabric["confidence"] < below:
+            raise JobInterrupted("paused", f"{CONFIRM_FABRIC}: {fabric['group']} at "
+                                 f"confidence {fabric['confidence']:.2f} (below {below:g}); "
+                                 f"see detection.png, then `station confirm {job.id} "
+                                 "[--group G]`")
         return str(target)
 
     def _photograph(self):
