@@ -357,7 +357,11 @@ def detect_lattice(
                             num_peaks=400)
     d = _subpixel(acf, coords) - center if len(coords) else np.zeros((0, 2))
     vals = acf[coords[:, 0], coords[:, 1]] if len(coords) else np.zeros(0)
-    keep = np.hypot(d[:, 0], d[:, 1]) >= min_period_px
+    lag = np.hypot(d[:, 0], d[:, 1])
+    # The weave's own repeat: the strongest peak at a lag finer than any print.
+    weave = (lag >= 2.0) & (lag < min_repeat_mm / px_mm)
+    weave_peak = float(vals[weave].max()) if weave.any() else 0.0
+    keep = lag >= min_period_px
     keep &= (d[:, 0] > 1e-9) | ((np.abs(d[:, 0]) <= 1e-9) & (d[:, 1] > 0))
     d, vals = d[keep], vals[keep]
 
@@ -383,6 +387,13 @@ def detect_lattice(
                              message="no 2-D lattice explains the autocorrelation peaks")
     basis, sig, n_used = _refine(acf, valid, basis)
     b1, b2 = gauss_reduce(basis[:, 0], basis[:, 1])
+    if weave_peak > support:
+        # Cloth whose yarn repeats more strongly than the coarser lattice does over its
+        # points: that "lattice" is a beat of the weave with the pixels (moire).
+        return LatticeResult("plain", mm_per_px=mm_per_px, strength=weave_peak,
+                             message=f"plain cloth: the weave (autocorrelation "
+                                     f"{weave_peak:.2f}) repeats more strongly than any "
+                                     f"print ({support:.2f})")
     # Map the (row, col) working-pixel vectors into (x, y) mm of the input image.
     w1 = b1[::-1] * px_mm
     w2 = b2[::-1] * px_mm
