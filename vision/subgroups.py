@@ -44,10 +44,10 @@ def is_subgroup(h: str, g: str) -> bool:
 def error_kind(found: str | None, truth: str, alt: str | None = None) -> str:
     """"right" (the group or the labelled alternative), "subgroup" (safe), "supergroup"
     (an invented symmetry), "other" (neither) or "missed" (no lattice found)."""
-    if found in (truth, alt):
-        return "right"
     if found is None:
         return "missed"
+    if found in (truth, alt):
+        return "right"
     down, up = is_subgroup(found, truth), is_subgroup(truth, found)
     if down and not up:
         return "subgroup"
