@@ -251,7 +251,12 @@ def split_half_reliability(a: np.ndarray, b: np.ndarray) -> float:
     """Reliability of the mean of two half-means: their correlation, stepped up by the
     Spearman-Brown formula. A symmetric print's operations cannot score above it."""
     a, b = a.ravel(), b.ravel()
-    if a.std() <= 0 or b.std() <= 0 or np.array_equal(a, b):
+    if np.array_equal(a, b):
+        # One repeat only: no second copy to measure the noise by. Taking the cell as
+        # exact lets only operations that hold on it closely count (the safe side: a
+        # single smooth cell looks nearly symmetric under many operations).
+        return 1.0
+    if a.std() <= 0 or b.std() <= 0:
         return 0.5
     rho = max(float(np.corrcoef(a, b)[0, 1]), 1e-3)
     return 2 * rho / (1 + rho)

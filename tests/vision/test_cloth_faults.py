@@ -54,8 +54,9 @@ def test_a_rectangular_plaid_is_not_read_as_a_square_check():
     assert detect_fabric(img, mm_per_px=MM).classification.group == "pmm"
 
 
-@pytest.mark.parametrize("weave", ["plain", "twill", "rib"])
-@pytest.mark.parametrize(("thread_mm", "mm_per_px"), [(0.3, 0.06), (0.5, 0.08)])
+@pytest.mark.parametrize(("weave", "thread_mm", "mm_per_px"),
+                         [("plain", 0.3, 0.06), ("twill", 0.5, 0.08), ("rib", 0.4, 0.07),
+                          ("twill", 0.3, 0.05)])
 def test_plain_cloth_is_plain_whatever_the_weave(weave, thread_mm, mm_per_px):
     img = plain_cloth((640, 480), thread_mm / mm_per_px, weave=weave, seed=7)
     lat = detect_lattice(img, mm_per_px=mm_per_px)
