@@ -182,7 +182,9 @@ def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
         for v in (a, b):
             cv2.arrowedLine(out, px(c), px(c + v), (0, 220, 255), 2, cv2.LINE_AA,
                             tipLength=0.15)
-    label = f"{wp.group} ({det.classification.confidence:.2f})"
+    # The runners-up, so the operator confirming the print sees what else it may be.
+    post = sorted(det.classification.posterior.items(), key=lambda kv: -kv[1])
+    label = ", ".join(f"{g} {p:.2f}" for g, p in post[:3] if p >= 0.01)
     if d.warning:
         label += " - " + d.warning
     cv2.putText(out, label, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)
