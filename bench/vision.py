@@ -282,6 +282,7 @@ def evaluate(s: Sample) -> dict:
     sec = time.perf_counter() - t0
     group = det.classification.group
     out = dict(group=group, kind=det.lattice.kind, conf=float(det.classification.confidence),
+               scores=dict(det.classification.scores),
                strength=float(det.lattice.strength),
                sec=sec, lattice_ok=None, err=float("nan"))
     if s.basis is not None:
@@ -378,6 +379,41 @@ def cross_validate(samples: list[Sample], grid=CV_GRID) -> str:
     return "\n".join(lines)
 
 
+def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
+                    ) -> str:
+    """The posterior's temperature under which the winner's probability best predicts
+    whether the answer is right (Bernoulli log-loss, mean over sources), and how the
+    confidence compares with the share of right answers at that temperature."""
+    rows = [(s, s.found) for s in samples if s.found.get("scores")]
+    right = np.array([f["outcome"] == "right" for _, f in rows])
+
+    def conf(t: float) -> np.ndarray:
+        out = []
+        for _, f in rows:
+            ll = np.array(list(f["scores"].values())) / t
+            p = np.exp(ll - ll.max())
+            out.append(p.max() / p.sum())
+        return np.clip(np.array(out), 1e-6, 1 - 1e-6)
+
+    def loss(t: float) -> float:
+        c = conf(t)
+        per = {}
+        for (s, _), y, ci in zip(rows, right, c, strict=True):
+            per.setdefault(s.source, []).append(-math.log(ci if y else 1 - ci))
+        return float(np.mean([np.mean(v) for v in per.values()]))
+
+    best = min(grid, key=loss)
+    c = conf(best)
+    bins = [(0.0, 0.7), (0.7, 0.9), (0.9, 0.99), (0.99, 1.01)]
+    cells = [f"confidence in [{a:g}, {min(b, 1):g}{']' if b > 1 else ')'}: "
+             f"{int(sel.sum())} answers, mean confidence {c[sel].mean():.2f}, "
+             f"share right {right[sel].mean():.2f}"
+             for a, b in bins if (sel := (c >= a) & (c < b)).any()]
+    return (f"best temperature {best:g} (mean log-loss per source "
+            f"{', '.join(f'T={t:g}: {loss(t):.3f}' for t in grid)})\n\n- "
+            + "\n- ".join(cells))
+
+
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "cloth", "classics", "plain", "photos")
         ) -> dict:
@@ -400,6 +436,7 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
                       flush=True)
     text = (f"## Vision (`python -m bench vision`, {date.today().isoformat()}, "
             f"{platform.machine()}, {per_group} per group)\n\n" + report(samples))
+    text += "\n\nConfidence calibration: " + fit_temperature(samples)
     if cv:
         text += "\n\nLeave-one-source-out cross-validation:\n\n" + cross_validate(samples)
     print(text)

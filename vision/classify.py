@@ -67,8 +67,8 @@ WHITEN = 1.0
 #: renders, textile classics, photographs of four origins), see ``bench/vision.py``.
 BAND = 12.0
 
-#: Temperature of the posterior over groups (log-likelihoods divided by it): fitted so
-#: that the winner's probability matches how often it is right, across sources.
+#: Temperature of the posterior over groups (log-likelihoods divided by it), as fitted
+#: across sources by ``bench.vision.fit_temperature`` (BENCHMARKS.md).
 TEMPERATURE = 1.0
 
 
