@@ -20,6 +20,14 @@ Method (own code, after the cited work):
    every other isometry of the lattice (rotations, mirrors, glides) low. Scores are
    divided by the motif's split-half reliability, so the thresholds do not move with
    noise or the number of repeats. ``confidence`` is the posterior of the winner.
+5. Real cloth: the whitening rolls off above ``BAND`` harmonics per repeat (yarn and
+   twill lines do not share the print's symmetry), and the isometries tested are those
+   of the lattice *up to a stretch or shear of ~16 %* (``HOLOHEDRY_TOL``): the motif is
+   sampled in lattice coordinates, so a square check pulled rectangular still maps onto
+   itself under the integer quarter turn. Each group's answer must snap to its lattice
+   (``Wallpaper.snapped``), and a prior on the strain it needs (``STRAIN_SIGMA``) asks
+   more evidence of more distortion. The answer is the group the print was designed
+   with; the strain is reported.
 
 References
 ----------
