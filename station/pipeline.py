@@ -85,7 +85,8 @@ class StationPipeline:
             fabric = {**truth.wallpaper.to_dict(),
                       "source": "simulator truth: vision unavailable"}
         else:
-            detection = detect_fabric(rectified, mm_per_px=mm_per_px)
+            detection = detect_fabric(rectified, mm_per_px=mm_per_px,
+                                      min_repeat_mm=self.config["camera"]["min_repeat_mm"])
             cv2.imwrite(str(workdir / "detection.png"), draw_overlay(rectified, detection))
             fabric = {**detection.fabric_json(), "source": "detected"}
             camera["detection"] = detection.summary()

@@ -97,11 +97,13 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
 
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
-                  distortion: bool = True) -> FabricDetection:
-    """Lattice, group with origin, and distortion of the print in ``image``."""
+                  distortion: bool = True, min_repeat_mm: float = 3.0) -> FabricDetection:
+    """Lattice, group with origin, and distortion of the print in ``image``; a repeat
+    finer than ``min_repeat_mm`` is the weave (``kind: "plain"``)."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
-    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale))
+    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
+                         min_repeat_mm=min_repeat_mm)
     cls = classify(image, lat, flat=flat, scale=scale)
     dist = Distortion()
     if distortion and lat.found and cls.group is not None:

@@ -4,12 +4,16 @@ supergroup; plain cloth is plain, whatever its weave."""
 
 from __future__ import annotations
 
+import json
+
+import cv2
 import numpy as np
 import pytest
 
 from simulators.classics import classic_print
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
 from simulators.fabric import random_print, render_print
+from station.cli import main
 from vision.lattice import detect_lattice
 from vision.pipeline import detect_fabric
 from vision.subgroups import error_kind
@@ -74,3 +78,13 @@ def test_wide_rib_stripes_are_stripes_not_a_lattice():
     img = plain_cloth((640, 480), 5.0 / 0.1, weave="rib", seed=3)
     lat = detect_lattice(img, mm_per_px=0.1)
     assert lat.kind == "stripes" and lat.period == pytest.approx(5.0, rel=0.05)
+
+
+def test_cli_reports_plain_cloth_with_a_null_group(tmp_path, capsys):
+    path = tmp_path / "plain.png"
+    cv2.imwrite(str(path), plain_cloth((500, 400), 0.4 / 0.08, weave="plain", seed=2))
+    out = tmp_path / "fabric.json"
+    assert main(["detect", str(path), "--mm-per-px", "0.08", "-o", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["kind"] == "plain"
+    assert json.loads(out.read_text())["group"] is None
+    assert main(["detect", str(path), "--mm-per-px", "0.08", "--min-repeat", "-1"]) == 2
