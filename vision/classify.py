@@ -53,6 +53,7 @@ from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
 from vision.lattice import LatticeResult, prepare_image
+from vision.subgroups import is_subgroup
 
 __all__ = ["Classification", "classify", "mean_cell", "symmetry_elements"]
 
@@ -99,7 +100,13 @@ def _symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
 
 def _whiten(motif: np.ndarray, metric: np.ndarray, alpha: float,
             band: float = float("inf")) -> np.ndarray:
-    n = motif.shape[0]
+    """The cell(s) (..., n, n) with |frequency|^alpha weighting, rolled off at ``band``."""
+    out = np.fft.ifft2(np.fft.fft2(motif) * _whitening(motif.shape[-1], metric, alpha,
+                                                       band)).real
+    return out - out.mean(axis=(-2, -1), keepdims=True)
+
+
+def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndarray:
     k = np.fft.fftfreq(n) * n
     ka, kb = np.meshgrid(k, k, indexing="ij")
     # Cartesian |frequency| of harmonic (ka, kb) of the cell: k^T G^-1 k (isometries of
@@ -110,8 +117,34 @@ def _whiten(motif: np.ndarray, metric: np.ndarray, alpha: float,
     # f in cycles per repeat length (sqrt of the cell area): the fine end is thread-scale
     # texture (twill lines, yarn) that need not share the print's symmetry.
     f = f * math.sqrt(math.sqrt(max(np.linalg.det(metric), 1e-12)))
-    out = np.fft.ifft2(np.fft.fft2(motif) * f**alpha * np.exp(-0.5 * (f / band) ** 2)).real
-    return out - out.mean()
+    return f**alpha * np.exp(-0.5 * (f / band) ** 2)
+
+
+#: An operation the mean cell shows must also hold on the single repeats, at least this
+#: well relative to how well one repeat matches the next; else it is an artefact of
+#: averaging (blur from misregistered, distorted repeats makes any cell symmetric).
+REPEAT_SUPPORT = 0.5
+
+
+def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
+                   ) -> np.ndarray:
+    """Per operation (A, s): the median over repeats of corr(c_r, c_r(A f + s)) divided
+    by the median of corr(c_r, c_r+1) (whole-cell correlations of single repeats, so
+    noise lowers both alike). About 1 for a symmetry of the print, near 0 otherwise."""
+    n = cells.shape[-1]
+    norm = np.sqrt((cells**2).sum(axis=(1, 2)))
+    nxt = np.roll(cells, -1, axis=0)
+    pair = (cells * nxt).sum(axis=(1, 2)) / np.maximum(norm * np.roll(norm, -1), 1e-12)
+    base = max(float(np.median(pair)), 1e-3)
+    g = np.arange(n)
+    fa, fb = np.meshgrid(g, g, indexing="ij")
+    out = np.empty(len(ops))
+    for k, (a, sh) in enumerate(ops):
+        ia = (a[0, 0] * fa + a[0, 1] * fb + sh[0]) % n
+        ib = (a[1, 0] * fa + a[1, 1] * fb + sh[1]) % n
+        sym = (cells * cells[:, ia, ib]).sum(axis=(1, 2)) / np.maximum(norm**2, 1e-12)
+        out[k] = float(np.median(sym)) / base
+    return out
 
 
 def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
@@ -194,8 +227,8 @@ def _cell_maps(anchor: np.ndarray, basis: np.ndarray, n: int, shape: tuple[int, 
 def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int = CELL_N,
               max_repeats: int = 400, register: bool = True):
     """Mean unit cell (n, n) over the repeats, the means of its two halves (even and odd
-    repeats), the number of repeats, their (i, j) indices and their registration shifts
-    (R, 2) in cell units.
+    repeats), the number of repeats, their (i, j) indices, their registration shifts
+    (R, 2) in cell units and the registered cells themselves (R, n, n).
 
     Registration: each repeat's cell is circularly cross-correlated with the mean of
     the others (all FFTs at once), shifted by the peak (Fourier shift theorem, exact for
@@ -252,7 +285,7 @@ def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int
     cells = sfft.ifft2(spec, workers=-1).real.astype(np.float64)
     motif = cells.mean(axis=0)
     halves = (cells[0::2].mean(0), cells[1::2].mean(0) if r >= 2 else cells[0])
-    return motif, halves, r, ij, shifts
+    return motif, halves, r, ij, shifts, cells
 
 
 def split_half_reliability(a: np.ndarray, b: np.ndarray) -> float:
@@ -421,8 +454,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     if spacing > 1.0:
         flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
     try:
-        motif, halves, nrep, _, _ = mean_cell(flat, basis, anchor, n=cell_n,
-                                              max_repeats=max_repeats)
+        motif, halves, nrep, _, _, cells = mean_cell(flat, basis, anchor, n=cell_n,
+                                                     max_repeats=max_repeats)
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
@@ -431,6 +464,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         metric = _symmetric_metric(basis, holo)
         motif = _whiten(motif, metric, whiten, band)
         halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
+        cells = _whiten(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten,
+                        band)
     rel = split_half_reliability(*halves)
     if motif.std() < 1e-6:
         return Classification(None, None, 0.0, message="the mean cell is flat")
@@ -488,11 +523,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             prior = -0.5 * (lattice_strain(conv, ideal) / strain_sigma) ** 2
             total = np.zeros((n, n))
             present = set()
+            shifts = []
             for a, b in ops:
                 ia = (b[0] + (1 - a[0, 0]) * oa - a[0, 1] * ob) % n
                 ib = (b[1] - a[1, 0] * oa + (1 - a[1, 1]) * ob) % n
                 x = corr[_key(a)][ia, ib] / ceiling
                 total += _log_sig((x - tau) / kappa)
+                shifts.append((ia, ib))
                 if round(np.linalg.det(a)) == 1:
                     present.add((_key(a), "rot"))
                 else:
@@ -505,7 +542,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             score = float(total[ka, kb]) + absent + prior
             o = _refine_origin(total, ka, kb) / n
             if name not in best or score > best[name][0]:
-                best[name] = (score, u, o)
+                at = [(a, np.array([ia[ka, kb], ib[ka, kb]]))
+                      for (a, _), (ia, ib) in zip(ops, shifts, strict=True)]
+                best[name] = (score, u, o, at)
 
     if not best:
         return Classification(None, None, 0.0, message="no group fits the lattice")
@@ -513,8 +552,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     ll = np.array([best[k][0] for k in names])
     post = np.exp((ll - ll.max()) / temperature)
     post /= post.sum()
-    win = names[int(np.argmax(ll))]
-    _, u, o = best[win]
+    win = _supported_winner(names, ll, best, cells)
+    _, u, o, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ u
     origin_w = anchor + basis @ o
@@ -530,6 +569,25 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
                           motif=motif, temperature=temperature,
                           strain=strain)
+
+
+def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray
+                      ) -> str:
+    """The likeliest group whose operations the single repeats support: when the mean
+    cell's winner has an operation the repeats do not show (:func:`repeat_support`),
+    the answer falls back to its likeliest subgroup that holds on them (the safe side).
+    Needs three repeats; with fewer the mean cell decides alone."""
+    order = [names[k] for k in np.argsort(-ll)]
+    if len(cells) < 3:
+        return order[0]
+    top = order[0]
+    for name in order:
+        if not is_subgroup(name, top):
+            continue
+        ops = best[name][3]
+        if not ops or repeat_support(cells, ops).min() >= REPEAT_SUPPORT:
+            return name
+    return order[0]
 
 
 def _refine_origin(total: np.ndarray, ka: int, kb: int) -> np.ndarray:
