@@ -12,7 +12,8 @@ Stripes (1-D repeats, a frieze across the cloth) show as a ridge of high autocor
 along the stripes; they are reported with their period and direction, never as a
 2-D lattice. Plain cloth has no off-origin peaks, or only weak ones (shading bands), or
 repeats finer than the smallest print repeat (``min_repeat_mm``: the weave, the yarn, a
-rib knit's wales); it is reported as ``"plain"``.
+rib knit's wales), or a coarser "lattice" that holds less well than the weave's own
+repeat (a moire of the yarn with the pixels); it is reported as ``"plain"``.
 
 References
 ----------
