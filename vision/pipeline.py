@@ -97,9 +97,12 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
 
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
-                  distortion: bool = True, min_repeat_mm: float = 3.0) -> FabricDetection:
+                  distortion: bool = True, min_repeat_mm: float = 3.0,
+                  stretch_tol: float = 0.03) -> FabricDetection:
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
-    finer than ``min_repeat_mm`` is the weave (``kind: "plain"``)."""
+    finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
+    stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
+    tolerances are named in ``distortion.warning``."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
@@ -111,6 +114,13 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                                   bow_tol_mm=bow_tol_mm,
                                   ideal_angle=_ideal_angle(cls.group, lat),
                                   prepared=(flat, scale))
+        if cls.strain > stretch_tol:
+            # The print was designed on the group's lattice; the cloth (or the camera)
+            # stretches it: pieces cut now come out of the print by this much.
+            fault = (f"stretched {100 * cls.strain:.1f} % off the {cls.group} lattice "
+                     f"(tolerance {100 * stretch_tol:g} %)")
+            dist.warning = (f"{dist.warning}; {fault}" if dist.warning
+                            else f"fabric lies distorted: {fault} (straighten the cloth)")
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0)
 

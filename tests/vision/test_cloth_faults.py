@@ -39,6 +39,7 @@ def test_stretched_check_is_its_design_group_with_the_stretch_reported(aspect, s
     assert vt.lattice_error(det.lattice.basis, jac @ p.wallpaper.basis) < 0.01
     strain = det.fabric_json()["distortion"]["lattice_strain"]
     assert 0.3 * (aspect - 1) < strain < 0.8 * (aspect - 1) + 0.03
+    assert ("stretched" in (det.distortion.warning or "")) == (strain > 0.03)
 
 
 @pytest.mark.parametrize("group", ["pmm", "cmm", "p2", "pm", "p6", "p4g", "p31m"])
