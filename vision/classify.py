@@ -125,6 +125,9 @@ def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndar
 #: averaging (blur from misregistered, distorted repeats makes any cell symmetric).
 REPEAT_SUPPORT = 0.5
 
+#: Confidence ceiling of an answer drawn from fewer than three whole repeats.
+FEW_REPEATS_CONFIDENCE = 0.5
+
 
 def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
                    ) -> np.ndarray:
@@ -564,7 +567,11 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     strain = lattice_strain(np.column_stack([w1, w2]), wp.basis)
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
-    return Classification(wp, win, float(post.max()),
+    confidence = float(post[names.index(win)])
+    if nrep < 3:
+        # Too few repeats for the per-repeat check: never sure enough to skip the operator.
+        confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
+    return Classification(wp, win, confidence,
                           scores={k: float(v) for k, v in zip(names, ll, strict=True)},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
                           motif=motif, temperature=temperature,

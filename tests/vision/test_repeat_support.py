@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from vision.classify import REPEAT_SUPPORT, repeat_support
+from simulators.fabric import random_print, render_print
+from vision.classify import FEW_REPEATS_CONFIDENCE, REPEAT_SUPPORT, repeat_support
+from vision.pipeline import CONFIRM_BELOW, detect_fabric
 
 N = 48
 MIRROR = (np.array([[-1, 0], [0, 1]]), np.array([0, 0]))
@@ -38,3 +40,10 @@ def test_distorted_repeats_of_an_asymmetric_cell_do_not_support_a_half_turn():
     cells += 0.2 * base.std() * rng.standard_normal(cells.shape)
     support, mirror_found = repeat_support(cells, [HALF_TURN, MIRROR])
     assert support < REPEAT_SUPPORT and mirror_found < REPEAT_SUPPORT
+
+
+def test_an_answer_from_fewer_than_three_repeats_goes_to_the_operator():
+    p = random_print("p4m", 90.0, rotation=5.0, seed=4)
+    det = detect_fabric(render_print(p, (250, 200), 0.5), mm_per_px=0.5)
+    assert det.classification.n_repeats < 3 and det.lattice.found
+    assert det.classification.confidence <= FEW_REPEATS_CONFIDENCE < CONFIRM_BELOW
