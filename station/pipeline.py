@@ -301,7 +301,7 @@ class StationPipeline:
         layout.save(workdir / "layout.json")
         control.checkpoint()
         start_step(control, "programming")
-        program = self.program_for(workdir / "layout.json", None)
+        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
         program.write(workdir / "job.nc")
         credit = garment_credit(garment_path)
         draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
