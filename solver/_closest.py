@@ -35,45 +35,53 @@ def _reduce(ox: float, oy: float, r00: float, r01: float, r10: float, r11: float
     return ox - f1 * r00 - f2 * r01, oy - f1 * r10 - f2 * r11
 
 
-@numba.njit(cache=True, nogil=True)
-def closest_equivalent(p: np.ndarray, q: np.ndarray, lin: np.ndarray, shift: np.ndarray,
-                       red: np.ndarray, red_inv: np.ndarray, d_out: np.ndarray,
-                       op_out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """For each pair i: ``d_out[i]`` = shortest ``g_k(q_i) + L - p_i`` over the operations
-    ``g_k(x) = lin[k] x + shift[k]`` and lattice vectors L, ``op_out[i]`` = its k (the
-    first on ties). ``red`` holds the reduced basis as columns, ``red_inv`` its inverse.
+@numba.njit(cache=True, nogil=True, inline="always")
+def closest_pair(px: float, py: float, qx: float, qy: float, lin: np.ndarray,
+                 shift: np.ndarray, red: np.ndarray,
+                 red_inv: np.ndarray) -> tuple[float, float, int]:  # pragma: no cover
+    """One pair: the shortest ``g_k(q) + L - p`` over the operations
+    ``g_k(x) = lin[k] x + shift[k]`` and lattice vectors L, and its k (the first on ties).
+    ``red`` holds the reduced basis as columns, ``red_inv`` its inverse.
 
     The loop over the operations only keeps squared distances, taken branch-free with
     ``min`` from ``|x - c|^2 = |x|^2 - 2 x.c + |c|^2`` (random data mispredicts every
-    compare-and-copy); the winner's vector is then rebuilt once per pair.
+    compare-and-copy); the winner's vector is then rebuilt once.
     """
-    n_ops = lin.shape[0]
     r00, r01, r10, r11 = red[0, 0], red[0, 1], red[1, 0], red[1, 1]
     i00, i01, i10, i11 = red_inv[0, 0], red_inv[0, 1], red_inv[1, 0], red_inv[1, 1]
     s0, s1 = r00 + r01, r10 + r11  # u1 + u2
     g1, g2, g3 = r00 * r00 + r10 * r10, r01 * r01 + r11 * r11, s0 * s0 + s1 * s1
-    for i in range(p.shape[0]):
-        px, py, qx, qy = p[i, 0], p[i, 1], q[i, 0], q[i, 1]
-        best, bk = math.inf, 0
-        for k in range(n_ops):
-            ox = lin[k, 0, 0] * qx + lin[k, 0, 1] * qy + shift[k, 0] - px
-            oy = lin[k, 1, 0] * qx + lin[k, 1, 1] * qy + shift[k, 1] - py
-            x, y = _reduce(ox, oy, r00, r01, r10, r11, i00, i01, i10, i11)
-            n = x * x + y * y
-            b1 = 2.0 * (x * r00 + y * r10)
-            b2 = 2.0 * (x * r01 + y * r11)
-            m = min(min(n, n - b1 + g1), min(n - b2 + g2, n - b1 - b2 + g3))
-            if m < best:
-                best, bk = m, k
-        ox = lin[bk, 0, 0] * qx + lin[bk, 0, 1] * qy + shift[bk, 0] - px
-        oy = lin[bk, 1, 0] * qx + lin[bk, 1, 1] * qy + shift[bk, 1] - py
+    best, bk = math.inf, 0
+    for k in range(lin.shape[0]):
+        ox = lin[k, 0, 0] * qx + lin[k, 0, 1] * qy + shift[k, 0] - px
+        oy = lin[k, 1, 0] * qx + lin[k, 1, 1] * qy + shift[k, 1] - py
         x, y = _reduce(ox, oy, r00, r01, r10, r11, i00, i01, i10, i11)
-        # the four corners of the cell: 0, u1, u2, u1 + u2
-        cx, cy, dd = x, y, x * x + y * y
-        for ax, ay in ((x - r00, y - r10), (x - r01, y - r11), (x - s0, y - s1)):
-            e = ax * ax + ay * ay
-            if e < dd:
-                cx, cy, dd = ax, ay, e
-        d_out[i, 0] = cx
-        d_out[i, 1] = cy
-        op_out[i] = bk
+        n = x * x + y * y
+        b1 = 2.0 * (x * r00 + y * r10)
+        b2 = 2.0 * (x * r01 + y * r11)
+        m = min(min(n, n - b1 + g1), min(n - b2 + g2, n - b1 - b2 + g3))
+        if m < best:
+            best, bk = m, k
+    ox = lin[bk, 0, 0] * qx + lin[bk, 0, 1] * qy + shift[bk, 0] - px
+    oy = lin[bk, 1, 0] * qx + lin[bk, 1, 1] * qy + shift[bk, 1] - py
+    x, y = _reduce(ox, oy, r00, r01, r10, r11, i00, i01, i10, i11)
+    # the four corners of the cell: 0, u1, u2, u1 + u2
+    cx, cy, dd = x, y, x * x + y * y
+    for ax, ay in ((x - r00, y - r10), (x - r01, y - r11), (x - s0, y - s1)):
+        e = ax * ax + ay * ay
+        if e < dd:
+            cx, cy, dd = ax, ay, e
+    return cx, cy, bk
+
+
+@numba.njit(cache=True, nogil=True)
+def closest_equivalent(p: np.ndarray, q: np.ndarray, lin: np.ndarray, shift: np.ndarray,
+                       red: np.ndarray, red_inv: np.ndarray, d_out: np.ndarray,
+                       op_out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """`closest_pair` for every row of ``p, q`` (N, 2) into ``d_out`` (N, 2), ``op_out``."""
+    for i in range(p.shape[0]):
+        dx, dy, k = closest_pair(p[i, 0], p[i, 1], q[i, 0], q[i, 1], lin, shift, red,
+                                 red_inv)
+        d_out[i, 0] = dx
+        d_out[i, 1] = dy
+        op_out[i] = k

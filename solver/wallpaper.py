@@ -400,6 +400,13 @@ class Wallpaper:
         """
         return self._run_kernel(p, q, self._lin, self._shift)
 
+    @property
+    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(lin, shift, reduced, reduced_inv)``: the operations' linear parts (n, 2, 2) and
+        shifts (n, 2) in mm, the reduced basis as columns and its inverse, as the compiled
+        kernel (:func:`solver._closest.closest_pair`) takes them."""
+        return self._lin, self._shift, self._reduced, self._reduced_inv
+
     def _run_kernel(self, p, q, lin: np.ndarray, shift: np.ndarray):
         # numba costs ~0.35 s to import: loaded on the first query, not with the CLI
         from solver._closest import closest_equivalent

@@ -72,13 +72,9 @@ def _tree_order(problem: AlignProblem, w: np.ndarray):
 
 def _cost(problem: AlignProblem, angles, t, c: int, cand: np.ndarray, rec: np.ndarray):
     """(K,) E_fit over records ``rec`` (own piece c) for candidate translations (K,2)."""
-    fr = problem.frames
-    o = fr.other[rec]
-    rc = rot(angles[c])
-    q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[rec] - t[o])
-    q_c = (fr.mid[rec][None, :, :] - cand[:, None, :]) @ rc  # R^T x for rows x
-    qo = np.broadcast_to(q_o, q_c.shape)
-    d, _ = problem.mismatch(q_c, qo)
+    tt = np.repeat(t[None], len(cand), axis=0)
+    tt[:, c] = cand
+    d, _ = problem.seam_mismatch(np.broadcast_to(angles, (len(cand), len(angles))), tt, rec)
     return np.hypot(d[..., 0], d[..., 1]) @ problem.record_weight[rec]
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from solver.align.frames import SeamFrames, seam_frames
 from solver.align.grain import GrainRule
+from solver.align.kernels import seam_closest
 from solver.wallpaper import Wallpaper
 
 
@@ -164,11 +165,25 @@ class AlignProblem:
         return (apply_rt(angles[:, c], fr.mid[rec] - trans[:, c]),
                 apply_rt(angles[:, o], fr.mid_other[rec] - trans[:, o]))
 
+    def seam_mismatch(self, angles: np.ndarray, trans: np.ndarray,
+                      rec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Records ``rec`` under placements (B,P), (B,P,2): d (B,n,2) from each record's
+        own point to the closest equivalent of its twin's point in wallpaper space, and
+        the operation (B,n); `wallpaper_points` and `mismatch` in one compiled pass."""
+        fr = self.frames
+        angles = np.asarray(angles, float)
+        trans = np.ascontiguousarray(trans, float)
+        rec = np.ascontiguousarray(rec, np.int64)
+        d = np.empty((len(trans), len(rec), 2))
+        op = np.empty((len(trans), len(rec)), np.int64)
+        seam_closest(np.cos(angles), np.sin(angles), trans, rec, fr.piece, fr.other,
+                     fr.mid, fr.mid_other, *self.wp.kernel_tables, d, op)
+        return d, op
+
     def energy(self, angles: np.ndarray, trans: np.ndarray,
                weight: np.ndarray | None = None) -> np.ndarray:
         """(B,) E_fit of Eq. (1) for a batch of placements (as solver.fit computes it)."""
         rec = np.arange(self.frames.n_edges)  # side a: one record per twin pair
         w = (self.weight if weight is None else weight) * self.frames.length[rec]
-        q_c, q_o = self.wallpaper_points(angles, trans, rec)
-        d, _ = self.mismatch(q_c, q_o)
+        d, _ = self.seam_mismatch(angles, trans, rec)
         return np.hypot(d[..., 0], d[..., 1]) @ w
