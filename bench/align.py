@@ -37,7 +37,7 @@ PRINTS = {"p1": 30.0, "pmm": 45.0, "pgg": 60.0, "cmm": 75.0, "p4m": 90.0, "p6m":
 RESTARTS = 15
 #: brute-force reference: grid points per cell axis by number of moving pieces (denser
 #: than the global method's own joint grid, solver.align.global_.GLOBAL_GRID)
-BRUTE_GRID = {1: 64, 2: 20, 3: 16, 4: 12}
+BRUTE_GRID = {1: 128, 2: 32, 3: 24, 4: 24}
 
 
 def fabric(group: str, a: float):

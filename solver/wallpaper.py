@@ -160,12 +160,16 @@ def _build_group(name: str) -> GroupInfo:
 GROUPS: dict[str, GroupInfo] = {name: _build_group(name) for name in GROUP_NAMES}
 
 
-def gauss_reduce(w1: np.ndarray, w2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def gauss_reduce(w1: np.ndarray, w2: np.ndarray, *,
+                 obtuse: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lagrange-Gauss reduction of a 2D lattice basis.
 
     Returns ``(u1, u2, U)`` with ``[u1 u2] = [w1 w2] U``, ``U`` unimodular, ``|u1| <= |u2|``
     and ``|u1 . u2| <= |u1|^2 / 2``. With such a basis the lattice vector closest to any
     point lies among the 3x3 neighbours of its rounded fractional coordinates.
+    ``obtuse`` also makes ``u1 . u2 <= 0`` (angle 90-120 degrees; ``u2 - u1`` where it is as
+    short as ``u2``), so equal lattices give equal bases up to a common sign, as lattice
+    detection compares them.
     """
     b = np.column_stack([w1, w2]).astype(float)
     u = np.eye(2, dtype=np.int64)
@@ -178,6 +182,12 @@ def gauss_reduce(w1: np.ndarray, w2: np.ndarray) -> tuple[np.ndarray, np.ndarray
             break
         b[:, 1] -= mu * b[:, 0]
         u[:, 1] -= mu * u[:, 0]
+    if obtuse and b[:, 0] @ b[:, 1] > 0:
+        diff = b[:, 1] - b[:, 0]
+        if diff @ diff <= b[:, 1] @ b[:, 1] + 1e-9:
+            b[:, 1], u[:, 1] = diff, u[:, 1] - u[:, 0]
+        if b[:, 0] @ b[:, 1] > 0:
+            b[:, 1], u[:, 1] = -b[:, 1], -u[:, 1]
     return b[:, 0].copy(), b[:, 1].copy(), u
 
 

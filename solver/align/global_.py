@@ -38,7 +38,7 @@ from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
 
 #: joint-grid points per cell axis inside the global method, by number of movable pieces
-GLOBAL_GRID = {1: 24, 2: 12, 3: 12, 4: 10}
+GLOBAL_GRID = {1: 48, 2: 20, 3: 16, 4: 16}
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:

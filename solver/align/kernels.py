@@ -117,3 +117,91 @@ def rotation_class_update(r: np.ndarray, pieces: np.ndarray, rec: np.ndarray,
             if norm > 1e-300:
                 r[b, pc, 0] = nx / norm
                 r[b, pc, 1] = ny / norm
+
+
+@numba.njit(cache=True, nogil=True)
+def joint_grid_best(unary: np.ndarray, pair: np.ndarray, sizes: np.ndarray,
+                    top: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    """The ``top`` lowest sums ``sum_i unary[i, x_i] + sum_{i<j} pair[i, j, x_i, x_j]`` over
+    every combination of up to four pieces' candidates ``x_i < sizes[i]`` (unused pieces:
+    size 1, zero tables). Exact: branch and bound on the last piece with the row minima
+    of its tables, so most of the ``prod(sizes)`` combinations are never summed.
+    Returns values (top,) ascending and the combinations (top, 4)."""
+    vals = np.full(top, np.inf)
+    idx = np.zeros((top, 4), np.int64)
+    n0, n1, n2, n3 = sizes[0], sizes[1], sizes[2], sizes[3]
+    u3min = np.min(unary[3, :n3])
+    row03 = np.empty(n0)
+    row13 = np.empty(n1)
+    row23 = np.empty(n2)
+    for i in range(n0):
+        row03[i] = np.min(pair[0, 3, i, :n3])
+    for i in range(n1):
+        row13[i] = np.min(pair[1, 3, i, :n3])
+    for i in range(n2):
+        row23[i] = np.min(pair[2, 3, i, :n3])
+    for i0 in range(n0):
+        a0 = unary[0, i0]
+        for i1 in range(n1):
+            a1 = a0 + unary[1, i1] + pair[0, 1, i0, i1]
+            for i2 in range(n2):
+                a2 = a1 + unary[2, i2] + pair[0, 2, i0, i2] + pair[1, 2, i1, i2]
+                if a2 + u3min + row03[i0] + row13[i1] + row23[i2] >= vals[top - 1]:
+                    continue
+                for i3 in range(n3):
+                    v = (a2 + unary[3, i3] + pair[0, 3, i0, i3] + pair[1, 3, i1, i3]
+                         + pair[2, 3, i2, i3])
+                    if v < vals[top - 1]:
+                        k = top - 1
+                        while k > 0 and vals[k - 1] > v:
+                            vals[k] = vals[k - 1]
+                            idx[k] = idx[k - 1]
+                            k -= 1
+                        vals[k] = v
+                        idx[k, 0], idx[k, 1], idx[k, 2], idx[k, 3] = i0, i1, i2, i3
+    return vals, idx
+
+
+@numba.njit(cache=True, nogil=True)
+def grid_pair_table(qa: np.ndarray, qb: np.ndarray, ws: np.ndarray, lin: np.ndarray,
+                    shift: np.ndarray, red: np.ndarray, red_inv: np.ndarray,
+                    basis: np.ndarray, frac_lin: np.ndarray, k: int,
+                    out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``out[x_a, x_b]`` = sum_j ws_j |closest(qa_j + W f_a, qb_j + W f_b)| over the k x k
+    grids ``f = (i, j) / k`` of both pieces (index i k + j), W = ``basis``.
+
+    Operation m maps ``qb + W f_b`` to ``g_m(qb) + W F_m f_b`` (F_m integer: the point
+    group keeps the lattice), so its offset from ``qa + W f_a`` depends on the grid step
+    ``F_m f_b - f_a`` modulo the lattice alone: each record's distance is tabulated once
+    per operation and step (k^2 of them) and the (k^2)^2 table is summed from lookups,
+    instead of k^4 closest-point queries per record."""
+    n, n_ops, kk = qa.shape[0], lin.shape[0], k * k
+    eye, zero = np.eye(2), np.zeros((1, 2))
+    eye3 = eye.reshape(1, 2, 2)
+    dist = np.empty((n, n_ops, kk))
+    for j in range(n):
+        for m in range(n_ops):
+            gx = lin[m, 0, 0] * qb[j, 0] + lin[m, 0, 1] * qb[j, 1] + shift[m, 0] - qa[j, 0]
+            gy = lin[m, 1, 0] * qb[j, 0] + lin[m, 1, 1] * qb[j, 1] + shift[m, 1] - qa[j, 1]
+            for s in range(kk):
+                fx, fy = (s // k) / k, (s % k) / k
+                dx, dy, _ = closest_pair(0.0, 0.0, gx + basis[0, 0] * fx + basis[0, 1] * fy,
+                                         gy + basis[1, 0] * fx + basis[1, 1] * fy,
+                                         eye3, zero, red, red_inv)
+                dist[j, m, s] = np.hypot(dx, dy)
+    step = np.empty(n_ops, np.int64)
+    for xa in range(kk):
+        ai, aj = xa // k, xa % k
+        for xb in range(kk):
+            bi, bj = xb // k, xb % k
+            for m in range(n_ops):
+                si = (frac_lin[m, 0, 0] * bi + frac_lin[m, 0, 1] * bj - ai) % k
+                sj = (frac_lin[m, 1, 0] * bi + frac_lin[m, 1, 1] * bj - aj) % k
+                step[m] = si * k + sj
+            total = 0.0
+            for j in range(n):
+                best = dist[j, 0, step[0]]
+                for m in range(1, n_ops):
+                    best = min(best, dist[j, m, step[m]])
+                total += ws[j] * best
+            out[xa, xb] = total

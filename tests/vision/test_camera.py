@@ -6,6 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
+from simulators.camera import Sheet, SyntheticCamera
+from simulators.fabric import random_print
 from vision.camera import CameraError, SimulatedCamera, VideoCaptureCamera, open_camera
 
 
@@ -63,7 +65,12 @@ def test_missing_source_is_a_clear_error(tmp_path):
 
 
 def test_synthetic_camera_behind_the_same_interface():
-    with open_camera(simulate=True, resolution=(320, 240), average=2) as cam:
+    def factory():
+        return SyntheticCamera(Sheet(random_print("p4m", 40.0, seed=1)), resolution=(320, 240))
+
+    with pytest.raises(ValueError, match="sim_factory"):
+        open_camera(simulate=True)
+    with open_camera(simulate=True, sim_factory=factory, average=2) as cam:
         assert isinstance(cam, SimulatedCamera)
         assert cam.resolution == (320, 240)
         frame = cam.read()
