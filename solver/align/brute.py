@@ -20,7 +20,7 @@ from solver.align.refine import bfgs_refine, irls_translations
 GRID = {1: 48, 2: 20, 3: 12, 4: 8}  # points per cell axis for 1..4 movable pieces
 
 
-def _grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
+def cell_grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
     """(k*k,2) translations of piece c that shift its print by a k x k grid over a cell."""
     f = np.arange(k) / k
     cell = np.stack(np.meshgrid(f, f, indexing="ij"), -1).reshape(-1, 2) @ problem.wp.basis.T
@@ -28,25 +28,22 @@ def _grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
     return t_ref[c] - cell @ np.array([[c_, -s_], [s_, c_]]).T
 
 
-def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
-                grid: int | None = None, top: int = 8):
-    """(translations (P,2), E_fit) of the best grid point after refinement."""
+def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
+                movable: np.ndarray, k: int, pairs: set[tuple[int, int]] | None = None):
+    """E_fit over the k x k cell grids of the ``movable`` pieces (the others at ``t_ref``)
+    as ``unary`` (m, k*k) per piece and ``pair[(i, j)]`` (k*k, k*k), i < j indices into
+    ``movable``: E_fit(x) = sum_i unary[i, x_i] + sum_(i,j) pair[i, j][x_i, x_j].
+    ``pairs`` (index pairs i < j) limits the pair tables built (the others' seams are
+    left out); the candidates (m, k*k, 2) are returned as the third value."""
     fr = problem.frames
-    movable = np.flatnonzero(~problem.fix_trans)
-    m = len(movable)
-    if m == 0:
-        return t_ref.copy(), float(problem.energy(angles[None], t_ref[None])[0])
-    if m > 4:
-        raise ValueError(f"brute force needs at most 4 movable pieces, got {m}")
-    k = grid or GRID[m]
     slot = {int(c): i for i, c in enumerate(movable)}
-    cands = [_grid(problem, angles, t_ref, int(c), k) for c in movable]
+    cands = [cell_grid(problem, angles, t_ref, int(c), k) for c in movable]
     kk = k * k
     rec = np.arange(fr.n_edges)
     w = problem.weight * fr.length[rec]
     rec, w = rec[w > 0], w[w > 0]
     a, b = fr.piece[rec], fr.other[rec]
-    unary = [np.zeros(kk) for _ in movable]
+    unary = np.zeros((len(movable), kk))
     pair: dict[tuple[int, int], np.ndarray] = {}
     frac_lin = np.rint(problem.wp.info.ops[:, :, :2]).astype(np.int64)
 
@@ -66,13 +63,30 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
             d, _ = problem.mismatch(*np.broadcast_arrays(q(pa, ma, ta), q(pb, mb, tb)))
             unary[i] += np.hypot(d[..., 0], d[..., 1]) @ ws
             continue
-        # grid offsets enter the wallpaper points as + W f (see _grid)
+        key = (min(ia, ib), max(ia, ib))
+        if pairs is not None and key not in pairs:
+            continue
+        # grid offsets enter the wallpaper points as + W f (see cell_grid)
         table = np.empty((kk, kk))
         grid_pair_table(q(pa, ma, t_ref[pa][None])[0], q(pb, mb, t_ref[pb][None])[0], ws,
                         *problem.wp.kernel_tables, problem.wp.basis, frac_lin, k, table)
-        key = (min(ia, ib), max(ia, ib))
         table = table if ia < ib else table.T
         pair[key] = pair.get(key, 0.0) + table
+    return unary, pair, cands
+
+
+def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
+                grid: int | None = None, top: int = 8):
+    """(translations (P,2), E_fit) of the best grid point after refinement."""
+    movable = np.flatnonzero(~problem.fix_trans)
+    m = len(movable)
+    if m == 0:
+        return t_ref.copy(), float(problem.energy(angles[None], t_ref[None])[0])
+    if m > 4:
+        raise ValueError(f"brute force needs at most 4 movable pieces, got {m}")
+    k = grid or GRID[m]
+    kk = k * k
+    unary, pair, cands = grid_tables(problem, angles, t_ref, movable, k)
     # every combination, summed and bounded in one compiled loop (dummy pieces pad to 4)
     sizes = np.array([kk] * m + [1] * (4 - m), np.int64)
     u4 = np.zeros((4, kk))

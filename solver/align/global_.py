@@ -36,9 +36,12 @@ from solver.align.problem import AlignProblem, rot
 from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
+from solver.align.tree_dp import tree_dp_placement
 
-#: joint-grid points per cell axis inside the global method, by number of movable pieces
-GLOBAL_GRID = {1: 48, 2: 20, 3: 16, 4: 16}
+#: joint-grid points per cell axis inside the global method, by number of movable pieces:
+#: the first search, then the one after polishing; two sizes, so that their sample points
+#: interleave and a basin narrower than one grid step is hit by either
+GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12), 4: (16, 12)}
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -212,10 +215,11 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         t_b = irls_translations(problem, ang_b, t_b, iterations=8)
         keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
         ang, t0 = ang_b[keep], t_b[keep]
-    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
-    ts = optimise_translations(problem, ang, trees)
+    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
+                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
+    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
     cand_t = np.concatenate([ts.t, t0])
-    cand_a = np.concatenate([ang, ang])
+    cand_a = np.concatenate([ang, ang, ang])
     cand_t = irls_translations(problem, cand_a, cand_t)
     zero = 1e-9 * float(paper.random_energies.mean())  # nothing below this matters
     for _ in range(sweeps if problem.energy(cand_a, cand_t).min() > zero else 0):
@@ -238,7 +242,7 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         # few movable pieces: the joint grid over all their translations is affordable
         i = int(np.argmin(e))
         tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=GLOBAL_GRID[
-            int((~problem.fix_trans).sum())])
+            int((~problem.fix_trans).sum())][0])
         cand_a = np.concatenate([cand_a, cand_a[i][None]])
         cand_t = np.concatenate([cand_t, tb[None]])
         e = np.append(e, eb)
@@ -255,7 +259,7 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         # alternate: the polished angles may open a better joint-grid basin
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
         tb, eb = brute_force(problem, a_i, t_i,
-                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())])
+                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())][1])
         if eb < e_i:
             a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
             a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
