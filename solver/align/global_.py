@@ -39,9 +39,8 @@ from solver.align.translation import optimise_translations
 from solver.align.tree_dp import tree_dp_placement
 
 #: joint-grid points per cell axis inside the global method, by number of movable pieces:
-#: the first search, then the one after polishing; two sizes, so that their sample points
-#: interleave and a basin narrower than one grid step is hit by either
-GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12), 4: (16, 12)}
+#: every size searches the best candidate; the first searches again after polishing
+GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12, 10), 4: (16, 12, 10)}
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -239,13 +238,15 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     perfect = float(e.min()) <= zero
     small = int((~problem.fix_trans).sum()) <= 4 and not perfect
     if small:
-        # few movable pieces: the joint grid over all their translations is affordable
+        # few movable pieces: the joint grid over all their translations is affordable;
+        # grids of several sizes, as their sample points interleave and a basin narrower
+        # than one grid step ranks among the best grid points of one size, not another
         i = int(np.argmin(e))
-        tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=GLOBAL_GRID[
-            int((~problem.fix_trans).sum())][0])
-        cand_a = np.concatenate([cand_a, cand_a[i][None]])
-        cand_t = np.concatenate([cand_t, tb[None]])
-        e = np.append(e, eb)
+        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())]:
+            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid)
+            cand_a = np.concatenate([cand_a, cand_a[i][None]])
+            cand_t = np.concatenate([cand_t, tb[None]])
+            e = np.append(e, eb)
     top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
     for i in top:
         a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
@@ -259,7 +260,7 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         # alternate: the polished angles may open a better joint-grid basin
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
         tb, eb = brute_force(problem, a_i, t_i,
-                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())][1])
+                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())][0])
         if eb < e_i:
             a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
             a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
