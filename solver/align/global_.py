@@ -11,7 +11,9 @@ restarts find the best basin only by luck once there are more than a few pieces.
    exhaustive search over candidates that contains (a) for every sampled seam edge and
    every symmetry operation of the print the offset that makes that edge match exactly,
    and (b) a regular grid over the primitive cell, scored against *all* pieces placed
-   so far (so seams closing cycles count too);
+   so far (so seams closing cycles count too); and, as further starts, the exact grid
+   optimum over that tree's seams (``solver.align.tree_dp``), which no greedy order can
+   miss;
 3. refine every tree placement with Eq. (9) to convergence and IRLS on E_fit itself,
    then run block-coordinate *exhaustive* sweeps: each piece in turn jumps to the best
    of the same candidates scored against all its neighbours (a move the local Eq. (9)
@@ -20,7 +22,7 @@ restarts find the best basin only by luck once there are more than a few pieces.
    own translational solve, keeping improvements (the r-RoSy field fixes angles, not
    the positions that E_fit measures);
 5. with at most four movable pieces, also search the joint grid over all their
-   translations (``solver.align.brute``), which is then affordable;
+   translations (``solver.align.brute``, compiled), at three interleaving grid sizes;
 6. polish the best with BFGS over angles and translations and keep the lowest E_fit
    of all of these and of the paper's result.
 """
