@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import ast
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
 
+import vision
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.fabric import random_print
 from vision.camera import CameraError, SimulatedCamera, VideoCaptureCamera, open_camera
@@ -76,3 +80,13 @@ def test_synthetic_camera_behind_the_same_interface():
         frame = cam.read()
         assert frame.shape == (240, 320, 3)
         assert cam.truth.wallpaper is not None and cam.truth.wallpaper.group == "p4m"
+
+
+def test_vision_never_imports_the_simulators():
+    """The design's arrows run one way: the station hands vision its simulated camera.
+    Checked on the source, so an import inside a function counts too."""
+    for path in Path(vision.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not any(n.split(".")[0] == "simulators" for n in names), path.name
