@@ -6,13 +6,14 @@ closest. With a Gauss-reduced basis ``u1, u2`` the cell they span splits along i
 diagonal into two non-obtuse (Delaunay) triangles, and a non-obtuse triangle is covered by
 the Voronoi cells of its own corners; so the closest lattice point to any point is one of
 the four corners of the reduced cell holding it (flooring the reduced fractional
-coordinates), not one of the 3x3 block around a rounding. That is 4 candidates per
-operation, ~40 flops, all in registers. NumPy cannot run this without materialising
+coordinates), not one of the 3x3 block around a rounding. Working in those fractional
+coordinates (the operations converted once per print), that is 4 candidates and ~30
+flops per operation, all in registers. NumPy cannot run this without materialising
 (N, n_ops, 4, 2) temporaries, which made the query memory-bound at 2-24 µs per pair; one
-compiled loop over the pairs keeps everything in registers and runs in tens of
-nanoseconds (``python -m bench wallpaper``). Numba is the compiler: it installs from PyPI
-as a wheel, needs no C toolchain on the station, and ``cache=True`` keeps the one-off
-compile (~1 s) out of every later process.
+compiled loop over the pairs runs in 27-102 ns (``python -m bench wallpaper``). Numba is
+the compiler: it installs from PyPI as a wheel, needs no C toolchain on the station, and
+``cache=True`` keeps the one-off compile (~1 s) out of every later process. Compiled
+callers live in this file only: numba's cache is keyed by each function's own file.
 
 This module is imported lazily by :mod:`solver.wallpaper` (measured: importing numba
 costs ~0.35 s, which ``station --help`` must not pay).
@@ -27,50 +28,45 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _reduce(ox: float, oy: float, r00: float, r01: float, r10: float, r11: float,
-            i00: float, i01: float, i10: float, i11: float) -> tuple[float, float]:
-    """The offset moved into the reduced cell [0, 1)^2 spanned by u1, u2 (by flooring)."""
-    f1 = math.floor(i00 * ox + i01 * oy)
-    f2 = math.floor(i10 * ox + i11 * oy)
-    return ox - f1 * r00 - f2 * r01, oy - f1 * r10 - f2 * r11
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def closest_pair(px: float, py: float, qx: float, qy: float, lin: np.ndarray,
-                 shift: np.ndarray, red: np.ndarray,
+def closest_pair(px: float, py: float, qx: float, qy: float, flin: np.ndarray,
+                 fshift: np.ndarray, red: np.ndarray,
                  red_inv: np.ndarray) -> tuple[float, float, int]:  # pragma: no cover
-    """One pair: the shortest ``g_k(q) + L - p`` over the operations
-    ``g_k(x) = lin[k] x + shift[k]`` and lattice vectors L, and its k (the first on ties).
-    ``red`` holds the reduced basis as columns, ``red_inv`` its inverse.
+    """One pair: the shortest ``g_k(q) + L - p`` (mm) over the operations and lattice
+    vectors L, and its k (the first on ties). ``red`` holds the reduced basis as columns,
+    ``red_inv`` its inverse; ``flin`` (n, 2, 2), ``fshift`` (n, 2) are the operations in
+    the reduced basis' fractional coordinates (`Wallpaper.kernel_tables`).
 
-    The loop over the operations only keeps squared distances, taken branch-free with
-    ``min`` from ``|x - c|^2 = |x|^2 - 2 x.c + |c|^2`` (random data mispredicts every
-    compare-and-copy); the winner's vector is then rebuilt once.
+    Per operation: the offset's fractional part in the reduced cell, then the squared
+    distance to the cell's 4 corners in the basis' metric G, ``|a - c|_G^2 =
+    |a|_G^2 - 2 c.Ga + |c|_G^2``, taken branch-free with ``min`` (random data mispredicts
+    every compare-and-copy); the winner's vector is rebuilt in mm once.
     """
     r00, r01, r10, r11 = red[0, 0], red[0, 1], red[1, 0], red[1, 1]
     i00, i01, i10, i11 = red_inv[0, 0], red_inv[0, 1], red_inv[1, 0], red_inv[1, 1]
-    s0, s1 = r00 + r01, r10 + r11  # u1 + u2
-    g1, g2, g3 = r00 * r00 + r10 * r10, r01 * r01 + r11 * r11, s0 * s0 + s1 * s1
+    g11, g22, g12 = r00 * r00 + r10 * r10, r01 * r01 + r11 * r11, r00 * r01 + r10 * r11
+    g3 = g11 + 2.0 * g12 + g22  # |u1 + u2|^2
+    fpx, fpy = i00 * px + i01 * py, i10 * px + i11 * py
+    fqx, fqy = i00 * qx + i01 * qy, i10 * qx + i11 * qy
     best, bk = math.inf, 0
-    for k in range(lin.shape[0]):
-        ox = lin[k, 0, 0] * qx + lin[k, 0, 1] * qy + shift[k, 0] - px
-        oy = lin[k, 1, 0] * qx + lin[k, 1, 1] * qy + shift[k, 1] - py
-        x, y = _reduce(ox, oy, r00, r01, r10, r11, i00, i01, i10, i11)
-        n = x * x + y * y
-        b1 = 2.0 * (x * r00 + y * r10)
-        b2 = 2.0 * (x * r01 + y * r11)
-        m = min(min(n, n - b1 + g1), min(n - b2 + g2, n - b1 - b2 + g3))
+    for k in range(flin.shape[0]):
+        fx = flin[k, 0, 0] * fqx + flin[k, 0, 1] * fqy + fshift[k, 0] - fpx
+        fy = flin[k, 1, 0] * fqx + flin[k, 1, 1] * fqy + fshift[k, 1] - fpy
+        ax, ay = fx - math.floor(fx), fy - math.floor(fy)
+        gx, gy = g11 * ax + g12 * ay, g12 * ax + g22 * ay
+        n = ax * gx + ay * gy
+        m = min(min(n, n - 2.0 * gx + g11), min(n - 2.0 * gy + g22, n - 2.0 * (gx + gy) + g3))
         if m < best:
             best, bk = m, k
-    ox = lin[bk, 0, 0] * qx + lin[bk, 0, 1] * qy + shift[bk, 0] - px
-    oy = lin[bk, 1, 0] * qx + lin[bk, 1, 1] * qy + shift[bk, 1] - py
-    x, y = _reduce(ox, oy, r00, r01, r10, r11, i00, i01, i10, i11)
+    fx = flin[bk, 0, 0] * fqx + flin[bk, 0, 1] * fqy + fshift[bk, 0] - fpx
+    fy = flin[bk, 1, 0] * fqx + flin[bk, 1, 1] * fqy + fshift[bk, 1] - fpy
+    ax, ay = fx - math.floor(fx), fy - math.floor(fy)
     # the four corners of the cell: 0, u1, u2, u1 + u2
+    x, y = r00 * ax + r01 * ay, r10 * ax + r11 * ay
     cx, cy, dd = x, y, x * x + y * y
-    for ax, ay in ((x - r00, y - r10), (x - r01, y - r11), (x - s0, y - s1)):
-        e = ax * ax + ay * ay
+    for bx, by in ((x - r00, y - r10), (x - r01, y - r11), (x - r00 - r01, y - r10 - r11)):
+        e = bx * bx + by * by
         if e < dd:
-            cx, cy, dd = ax, ay, e
+            cx, cy, dd = bx, by, e
     return cx, cy, bk
 
 

@@ -297,6 +297,10 @@ class Wallpaper:
         self._ops_cart = self._cartesian_ops()
         self._lin = np.ascontiguousarray(self._ops_cart[:, :2, :2])
         self._shift = np.ascontiguousarray(self._ops_cart[:, :2, 2])
+        # the same operations in the reduced basis' fractional coordinates (the kernel's)
+        self._flin = np.ascontiguousarray(
+            np.einsum("ij,njk,kl->nil", self._reduced_inv, self._lin, self._reduced))
+        self._fshift = np.ascontiguousarray(self._shift @ self._reduced_inv.T)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -408,14 +412,21 @@ class Wallpaper:
         that operation. Every user (E_fit, alignment, reshaping, nesting, vision) goes
         through this one compiled kernel (:mod:`solver._closest`).
         """
-        return self._run_kernel(p, q, self._lin, self._shift)
+        return self._run_kernel(p, q, self._flin, self._fshift)
 
     @property
     def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(lin, shift, reduced, reduced_inv)``: the operations' linear parts (n, 2, 2) and
-        shifts (n, 2) in mm, the reduced basis as columns and its inverse, as the compiled
-        kernel (:func:`solver._closest.closest_pair`) takes them."""
-        return self._lin, self._shift, self._reduced, self._reduced_inv
+        """``(flin, fshift, reduced, reduced_inv)`` as the compiled kernel
+        (:func:`solver._closest.closest_pair`) takes them: the operations' linear parts
+        (n, 2, 2) and shifts (n, 2) in the fractional coordinates of the reduced basis, that
+        basis as columns (mm) and its inverse."""
+        return self._flin, self._fshift, self._reduced, self._reduced_inv
+
+    @property
+    def cartesian_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lin, shift)``: the operations' linear parts (n, 2, 2) and shifts (n, 2) in mm,
+        contiguous (`cartesian_ops` without the homogeneous row)."""
+        return self._lin, self._shift
 
     def _run_kernel(self, p, q, lin: np.ndarray, shift: np.ndarray):
         # numba costs ~0.35 s to import: loaded on the first query, not with the CLI

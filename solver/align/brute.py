@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.align.kernels import grid_pair_table, joint_grid_best
+from solver.align.kernels import grid_pair_sum, grid_step_offsets, joint_grid_best
 from solver.align.problem import AlignProblem, apply_rt
 from solver.align.refine import bfgs_refine, irls_translations
 
@@ -67,9 +67,12 @@ def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
         if pairs is not None and key not in pairs:
             continue
         # grid offsets enter the wallpaper points as + W f (see cell_grid)
+        offsets = np.empty((len(ws), len(frac_lin), kk, 2))
+        grid_step_offsets(q(pa, ma, t_ref[pa][None])[0], q(pb, mb, t_ref[pb][None])[0],
+                          *problem.wp.cartesian_tables, problem.wp.basis, k, offsets)
+        reduced = problem.wp.lattice_residual(offsets)
         table = np.empty((kk, kk))
-        grid_pair_table(q(pa, ma, t_ref[pa][None])[0], q(pb, mb, t_ref[pb][None])[0], ws,
-                        *problem.wp.kernel_tables, problem.wp.basis, frac_lin, k, table)
+        grid_pair_sum(np.hypot(reduced[..., 0], reduced[..., 1]), ws, frac_lin, k, table)
         table = table if ia < ib else table.T
         pair[key] = pair.get(key, 0.0) + table
     return unary, pair, cands

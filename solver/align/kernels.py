@@ -2,9 +2,11 @@
 
 Each step of the optimiser (Eq. 9 sweeps, the polish's normal equations, E_fit of many
 candidates) maps every seam record's two midpoints into wallpaper space and asks for the
-closest equivalent point. In NumPy that is a dozen (B, n, 2) temporaries per call, and
-their allocation cost more than the query itself; here one loop does the mapping and calls
-the single closest-point kernel (:func:`solver._closest.closest_pair`) per record.
+closest equivalent point. In NumPy the mapping alone is a dozen (B, n, 2) temporaries per
+call, which cost more than the query; here one loop does it, and the query is
+`Wallpaper.closest`. No kernel here calls the closest-point kernel itself: numba's cache
+is keyed by each function's own file, so a compiled caller in another file would keep a
+stale copy of it after a change.
 """
 
 from __future__ import annotations
@@ -12,18 +14,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from solver._closest import closest_pair
-
 
 @numba.njit(cache=True, nogil=True)
-def seam_closest(cos: np.ndarray, sin: np.ndarray, t: np.ndarray, rec: np.ndarray,
-                 piece: np.ndarray, other: np.ndarray, mid: np.ndarray,
-                 mid_other: np.ndarray, lin: np.ndarray, shift: np.ndarray, red: np.ndarray,
-                 red_inv: np.ndarray, d_out: np.ndarray,
-                 op_out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Per placement b and record j: ``q_c = R_c^T (mid - t_c)``, ``q_o`` likewise on the
-    twin side, then ``d_out[b, j]`` from q_c to the closest equivalent of q_o and
-    ``op_out[b, j]`` its operation. ``cos, sin`` (B, P) hold the pieces' angles."""
+def seam_points(cos: np.ndarray, sin: np.ndarray, t: np.ndarray, rec: np.ndarray,
+                piece: np.ndarray, other: np.ndarray, mid: np.ndarray, mid_other: np.ndarray,
+                qc_out: np.ndarray, qo_out: np.ndarray) -> None:  # pragma: no cover
+    """Per placement b and record j, both midpoints in wallpaper space:
+    ``q_c = R_c^T (mid - t_c)`` and ``q_o = R_o^T (mid_other - t_o)``, (B, n, 2) each.
+    ``cos, sin`` (B, P) hold the pieces' angles."""
     for b in range(t.shape[0]):
         for j in range(rec.shape[0]):
             r = rec[j]
@@ -31,12 +29,10 @@ def seam_closest(cos: np.ndarray, sin: np.ndarray, t: np.ndarray, rec: np.ndarra
             xa, ya = mid[r, 0] - t[b, a, 0], mid[r, 1] - t[b, a, 1]
             xo, yo = mid_other[r, 0] - t[b, o, 0], mid_other[r, 1] - t[b, o, 1]
             ca, sa, co, so = cos[b, a], sin[b, a], cos[b, o], sin[b, o]
-            dx, dy, k = closest_pair(ca * xa + sa * ya, ca * ya - sa * xa,
-                                     co * xo + so * yo, co * yo - so * xo,
-                                     lin, shift, red, red_inv)
-            d_out[b, j, 0] = dx
-            d_out[b, j, 1] = dy
-            op_out[b, j] = k
+            qc_out[b, j, 0] = ca * xa + sa * ya
+            qc_out[b, j, 1] = ca * ya - sa * xa
+            qo_out[b, j, 0] = co * xo + so * yo
+            qo_out[b, j, 1] = co * yo - so * xo
 
 
 @numba.njit(cache=True, nogil=True)
@@ -163,32 +159,33 @@ def joint_grid_best(unary: np.ndarray, pair: np.ndarray, sizes: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True)
-def grid_pair_table(qa: np.ndarray, qb: np.ndarray, ws: np.ndarray, lin: np.ndarray,
-                    shift: np.ndarray, red: np.ndarray, red_inv: np.ndarray,
-                    basis: np.ndarray, frac_lin: np.ndarray, k: int,
-                    out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """``out[x_a, x_b]`` = sum_j ws_j |closest(qa_j + W f_a, qb_j + W f_b)| over the k x k
-    grids ``f = (i, j) / k`` of both pieces (index i k + j), W = ``basis``.
+def grid_step_offsets(qa: np.ndarray, qb: np.ndarray, lin: np.ndarray, shift: np.ndarray,
+                      basis: np.ndarray, k: int, out: np.ndarray) -> None:  # pragma: no cover
+    """``out[j, m, s]`` = ``g_m(qb_j) - qa_j + W f_s`` (mm) for every record j, operation m
+    (``lin``, ``shift`` in mm) and grid step ``f_s = (s // k, s % k) / k``, W = ``basis``.
 
-    Operation m maps ``qb + W f_b`` to ``g_m(qb) + W F_m f_b`` (F_m integer: the point
-    group keeps the lattice), so its offset from ``qa + W f_a`` depends on the grid step
-    ``F_m f_b - f_a`` modulo the lattice alone: each record's distance is tabulated once
-    per operation and step (k^2 of them) and the (k^2)^2 table is summed from lookups,
-    instead of k^4 closest-point queries per record."""
-    n, n_ops, kk = qa.shape[0], lin.shape[0], k * k
-    eye, zero = np.eye(2), np.zeros((1, 2))
-    eye3 = eye.reshape(1, 2, 2)
-    dist = np.empty((n, n_ops, kk))
-    for j in range(n):
-        for m in range(n_ops):
+    Operation m maps ``qb + W f_b`` to ``g_m(qb) + W F_m f_b`` (F_m integer: the point group
+    keeps the lattice), so its offset from ``qa + W f_a`` depends on the step
+    ``F_m f_b - f_a`` modulo the lattice alone: k^2 offsets per record and operation stand
+    for all (k^2)^2 pairs of grid points (`grid_pair_sum`)."""
+    for j in range(qa.shape[0]):
+        for m in range(lin.shape[0]):
             gx = lin[m, 0, 0] * qb[j, 0] + lin[m, 0, 1] * qb[j, 1] + shift[m, 0] - qa[j, 0]
             gy = lin[m, 1, 0] * qb[j, 0] + lin[m, 1, 1] * qb[j, 1] + shift[m, 1] - qa[j, 1]
-            for s in range(kk):
+            for s in range(k * k):
                 fx, fy = (s // k) / k, (s % k) / k
-                dx, dy, _ = closest_pair(0.0, 0.0, gx + basis[0, 0] * fx + basis[0, 1] * fy,
-                                         gy + basis[1, 0] * fx + basis[1, 1] * fy,
-                                         eye3, zero, red, red_inv)
-                dist[j, m, s] = np.hypot(dx, dy)
+                out[j, m, s, 0] = gx + basis[0, 0] * fx + basis[0, 1] * fy
+                out[j, m, s, 1] = gy + basis[1, 0] * fx + basis[1, 1] * fy
+
+
+@numba.njit(cache=True, nogil=True)
+def grid_pair_sum(dist: np.ndarray, ws: np.ndarray, frac_lin: np.ndarray, k: int,
+                  out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``out[x_a, x_b]`` = sum_j ws_j min_m dist[j, m, step_m(x_a, x_b)] over the k x k grids
+    of two pieces (index i k + j), ``step_m = F_m f_b - f_a`` modulo 1 (``frac_lin`` = F_m):
+    E_fit of their seams for every pair of grid points, from `grid_step_offsets`' table of
+    lattice-reduced distances."""
+    n, n_ops, kk = dist.shape[0], dist.shape[1], k * k
     step = np.empty(n_ops, np.int64)
     for xa in range(kk):
         ai, aj = xa // k, xa % k

@@ -13,7 +13,7 @@ import numpy as np
 
 from solver.align.frames import SeamFrames, seam_frames
 from solver.align.grain import GrainRule
-from solver.align.kernels import seam_closest
+from solver.align.kernels import seam_points
 from solver.wallpaper import Wallpaper
 
 
@@ -174,11 +174,11 @@ class AlignProblem:
         angles = np.asarray(angles, float)
         trans = np.ascontiguousarray(trans, float)
         rec = np.ascontiguousarray(rec, np.int64)
-        d = np.empty((len(trans), len(rec), 2))
-        op = np.empty((len(trans), len(rec)), np.int64)
-        seam_closest(np.cos(angles), np.sin(angles), trans, rec, fr.piece, fr.other,
-                     fr.mid, fr.mid_other, *self.wp.kernel_tables, d, op)
-        return d, op
+        q_c = np.empty((len(trans), len(rec), 2))
+        q_o = np.empty_like(q_c)
+        seam_points(np.cos(angles), np.sin(angles), trans, rec, fr.piece, fr.other, fr.mid,
+                    fr.mid_other, q_c, q_o)
+        return self.wp.closest(q_c, q_o)
 
     def energy(self, angles: np.ndarray, trans: np.ndarray,
                weight: np.ndarray | None = None) -> np.ndarray:

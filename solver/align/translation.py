@@ -99,7 +99,7 @@ def polish(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
     h = np.zeros((len(t), 2 * p, 2 * p))
     g = np.zeros((len(t), 2 * p))
     translation_normal_equations(np.cos(angles), np.sin(angles), rec, fr.piece, fr.other, d,
-                                 op, problem.wp.kernel_tables[0], np.ascontiguousarray(w), h, g)
+                                 op, problem.wp.cartesian_tables[0], np.ascontiguousarray(w), h, g)
     fixed = np.repeat(problem.fix_trans, 2)
     scale = float(np.mean(np.abs(np.diagonal(h, axis1=1, axis2=2)))) or 1.0
     h = h + 1e-10 * scale * np.eye(2 * p)  # the pattern may slide freely (p1): pick the
