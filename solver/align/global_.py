@@ -24,7 +24,8 @@ restarts find the best basin only by luck once there are more than a few pieces.
 5. with at most four movable pieces, also search the joint grid over all their
    translations (``solver.align.brute``, compiled), at three interleaving grid sizes;
 6. polish the best with BFGS over angles and translations and keep the lowest E_fit
-   of all of these and of the paper's result.
+   of all of these and of the paper's result; with few pieces, alternate joint grid and
+   polish while the grid still finds a better basin at the polished angles.
 """
 
 from __future__ import annotations
@@ -41,8 +42,10 @@ from solver.align.translation import optimise_translations
 from solver.align.tree_dp import tree_dp_placement
 
 #: joint-grid points per cell axis inside the global method, by number of movable pieces:
-#: every size searches the best candidate; the first searches again after polishing
+#: every size searches the best candidate; after polishing, the sizes in turn search again
+#: (at most ``ALTERNATE_ROUNDS``) while they find a better basin
 GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12, 10), 4: (16, 12, 10)}
+ALTERNATE_ROUNDS = 3
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -259,11 +262,13 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
             e[i] = float(problem.energy(a[None], tt[None])[0])
     i = int(np.argmin(e))
     if small:
-        # alternate: the polished angles may open a better joint-grid basin
+        # alternate: the polished angles may open a better joint-grid basin; repeat while
+        # the grid finds one, so the answer is grid-optimal for its own final angles
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
-        tb, eb = brute_force(problem, a_i, t_i,
-                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())][0])
-        if eb < e_i:
+        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())][:ALTERNATE_ROUNDS]:
+            tb, eb = brute_force(problem, a_i, t_i, grid=grid)
+            if eb >= e_i * (1 - 1e-9):
+                break
             a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
             a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
         cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i
