@@ -74,6 +74,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0),
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1),
     },
+    "allowance": {
+        "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0),
+        "hem_mm": Key(float, 20.0, "allowance on hems: bottom, sleeve and leg ends (mm)",
+                      minimum=0.0),
+        "opening_mm": Key(float, 10.0, "allowance on other open edges: necklines, waists, "
+                          "finished with a facing or band (mm)", minimum=0.0),
+        "notch_depth_mm": Key(float, 3.0, "notch slit depth (mm; never over half the "
+                              "allowance)", minimum=0.0),
+        "notch_spacing_mm": Key(float, 100.0, "balance notches along a seam at most this "
+                                "far apart (mm; 0: only at seam ends)", minimum=0.0),
+    },
     "cut": {
         "kerf_mm": Key(float, 0.2, "cut width", minimum=0.0),
         "feed_mm_min": Key(float, 3000.0, "cutting feed", minimum=1.0),

@@ -1,0 +1,138 @@
+"""Notches: short slits from the cut line into the seam allowance where sewers match pieces.
+
+A seam line gets a notch near both of its ends and balance notches between them, at most
+``spacing_mm`` apart (10 cm is the cutting-room habit on long seams: a sewer eases the
+seam between two marks and the print meets again at each mark). Stations are placed on
+one side of the seam by arc length and carried to the twin side through the seam's own
+edge pairing (edge a->b is sewn to a2->b2, a~a2 and b~b2 the same 3D points): the same
+parameter on twin edges is the same 3D point, so twin notches always match, even where
+the two sew lines differ in length. An end notch sits one allowance in from the seam's
+end (at the corner itself a slit would run along the neighbouring edge).
+
+Each notch starts on the cut line, where the sew line's outward normal at the station
+meets it, and runs back along that normal (perpendicular to the sew line) at most half
+the allowance deep, so it never reaches the sew line. Notches whose slit would come
+closer to the sew line than a quarter of the allowance (crowded concave corners) are
+dropped together with their twin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from solver.garment.allowance import CutLine
+from solver.garment.model import Garment
+
+__all__ = ["Notch", "seam_notches"]
+
+
+@dataclass
+class Notch:
+    """A slit from ``at`` (on the cut line) along ``direction`` (into the piece)."""
+
+    piece: int
+    at: np.ndarray  # (2,) pattern mm, on the cut line
+    direction: np.ndarray  # (2,) unit, inward, perpendicular to the sew line
+    depth: float  # mm, at most half the allowance
+    sew_point: np.ndarray  # (2,) the sew-line point it marks
+    seam_line: int
+    station: int  # twin notches share (seam_line, station)
+
+
+def _chain(rows: np.ndarray) -> np.ndarray:
+    """Order the twin pairs of one seam line along side A (a->b of one follows the last)."""
+    nxt = {int(a): k for k, a in enumerate(rows[:, 0])}
+    ends = set(rows[:, 1].tolist())
+    starts = [k for k, a in enumerate(rows[:, 0].tolist()) if a not in ends]
+    k = starts[0] if starts else 0
+    order = []
+    seen = set()
+    while k is not None and k not in seen:
+        order.append(k)
+        seen.add(k)
+        k = nxt.get(int(rows[k, 1]))
+    return rows[order] if len(order) == len(rows) else rows  # branching: keep file order
+
+
+def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """(k,2) unit normals pointing away from the piece for edges a->b (forward: as in face)."""
+    d = uv[b] - uv[a]
+    d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+    nrm = np.column_stack([d[:, 1], -d[:, 0]])
+    return np.where(forward[:, None], nrm, -nrm)
+
+
+def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np.ndarray]],
+                 *, spacing_mm: float = 100.0, depth_mm: float = 3.0) -> list[list[Notch]]:
+    """Per piece, the notches of every seam line (pattern mm), twins on matching points.
+
+    ``allowances`` are the per-edge allowances the cut lines were made with
+    (:func:`solver.garment.allowance.edge_allowances`).
+    """
+    g = garment
+    n = g.n_vertices
+    loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
+    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
+    values = np.concatenate([a for per in allowances for a in per])
+    order = np.argsort(keys)
+    keys, values = keys[order], values[order]
+
+    def lookup(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Allowance of edge u-v and whether u->v runs as in its face."""
+        fk, bk = u * n + v, v * n + u
+        fi = np.clip(np.searchsorted(keys, fk), 0, len(keys) - 1)
+        bi = np.clip(np.searchsorted(keys, bk), 0, len(keys) - 1)
+        fwd = keys[fi] == fk
+        return np.where(fwd, values[fi], np.where(keys[bi] == bk, values[bi], 0.0)), fwd
+
+    out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
+    boundaries = [c.cut.boundary for c in cuts]
+    sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+    for line in range(len(g.seam_lines)):
+        rows = _chain(g.seam_edges[g.seam_line_of_edge == line])
+        pa, pb = g.uv[rows[:, 0]], g.uv[rows[:, 1]]
+        seg = np.hypot(*(pb - pa).T)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        total = float(s[-1])
+        if total <= 1e-9:
+            continue
+        allow, _ = lookup(rows[:, 0], rows[:, 1])
+        inset = min(float(allow.max()), total / 4)
+        inner = total - 2 * inset
+        count = int(np.ceil(inner / spacing_mm)) if spacing_mm > 0 else 1
+        stations = np.linspace(inset, total - inset, max(count, 1) + 1)
+        k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
+        f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
+        sides = []
+        for cols in ((0, 1), (2, 3)):
+            a, b = rows[k, cols[0]], rows[k, cols[1]]
+            w, fwd = lookup(a, b)
+            point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
+            sides.append((int(g.piece_of_vertex[a[0]]), point,
+                          _outward(g.uv, a, b, fwd), w))
+        made = []
+        for piece, point, nrm, w in sides:
+            reach = 3.0 * np.maximum(w, 1e-6)
+            rays = shapely.linestrings(np.stack([point + 1e-6 * nrm, point + reach[:, None] * nrm],
+                                                1))
+            hits = shapely.intersection(rays, boundaries[piece])
+            t = np.full(len(point), np.nan)
+            for j, h in enumerate(hits):
+                c = shapely.get_coordinates(h)
+                if len(c):
+                    t[j] = np.hypot(*(c - point[j]).T).min()
+            depth = np.minimum(depth_mm, np.minimum(w, np.nan_to_num(t)) / 2)
+            at = point + np.nan_to_num(t)[:, None] * nrm
+            slit = shapely.linestrings(np.stack([at, at - depth[:, None] * nrm], 1))
+            clear = shapely.distance(slit, sews[piece])
+            ok = np.isfinite(t) & (w > 0) & (depth > 0) & (clear >= 0.25 * w - 1e-9)
+            made.append((piece, point, nrm, at, depth, ok))
+        both = made[0][5] & made[1][5]
+        for piece, point, nrm, at, depth, _ in made:
+            for j in np.flatnonzero(both):
+                out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
+                                        line, int(j)))
+    return out
