@@ -21,6 +21,7 @@ class Notch:
 
     at: np.ndarray  # (2,) float, machine mm
     direction: np.ndarray  # (2,) float, unit
+    depth: float | None = None  # the most the piece allows (half its seam allowance), mm
 
 
 @dataclass
@@ -99,11 +100,14 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
             try:
                 at = np.asarray(n["at"], float).reshape(2) + off
                 d = np.asarray(n.get("direction", [0.0, 0.0]), float).reshape(2)
+                depth = None if n.get("depth") is None else float(n["depth"])
             except (KeyError, TypeError, ValueError):
                 raise ValueError(f"{where}.notches[{k}]: expected {{\"at\": [x, y], "
                                  "\"direction\": [dx, dy]}") from None
+            if depth is not None and not (np.isfinite(depth) and depth > 0):
+                raise ValueError(f"{where}.notches[{k}]: depth must be a positive number")
             nd = float(np.hypot(*d))
-            notches.append(Notch(at, d / nd if nd > 0 else d))
+            notches.append(Notch(at, d / nd if nd > 0 else d, depth))
         marks_in = p.get("marks") or []
         marks = (_points(marks_in, f"{where}.marks") + off) if len(marks_in) else np.zeros((0, 2))
         grain = p.get("grainline")

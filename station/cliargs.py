@@ -74,3 +74,52 @@ def load_config_arg(args: argparse.Namespace, overrides=None):
     if path is None and Path("station.toml").is_file():
         path = "station.toml"
     return load_config(path, overrides)
+
+
+def read_name_map(path: str | Path, what: str) -> dict[int | str, float]:
+    """A JSON object {"seam line name or index": number} (weights, allowances) from a file.
+
+    Keys that are digits become indices, as ``--weights`` and ``--allowance`` take them.
+    """
+    from solver.jsonfile import read_json
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such {what} file")
+    data = read_json(p)
+    if not isinstance(data, dict):
+        raise ValueError(f'{p}: expected an object {{"seam line": {what}}}')
+    out: dict[int | str, float] = {}
+    for key, value in data.items():
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise ValueError(f"{p}: {what} of {key!r} is not a number")
+        out[int(key) if key.isdigit() else key] = float(value)
+    return out
+
+
+def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seam-allowance", type=float, metavar="MM",
+                        help="seam allowance on every sewn edge (default: station.toml "
+                        "[allowance] seam_mm, 10)")
+    parser.add_argument("--allowance", metavar="A.json",
+                        help='allowances per seam line or opening: {"front~back": 15, '
+                        '"3": 12, "hem": 30, "opening": 8, "open#2": 25, "PIECE/open": 0}')
+
+
+def allowance_rules(args: argparse.Namespace, config=None):
+    """The job's allowance rules: station.toml [allowance], then the command line."""
+    from solver.garment.allowance import AllowanceRules
+    from station.config import defaults
+
+    a = (config or defaults())["allowance"]
+    rules = AllowanceRules(a["seam_mm"], a["hem_mm"], a["opening_mm"],
+                           notch_depth_mm=a["notch_depth_mm"],
+                           notch_spacing_mm=a["notch_spacing_mm"])
+    more: dict[int | str, float] = {}
+    if getattr(args, "allowance", None):
+        more.update(read_name_map(args.allowance, "allowance"))
+    if getattr(args, "seam_allowance", None) is not None:
+        if args.seam_allowance < 0:
+            raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
+        more["seam"] = args.seam_allowance
+    return rules.with_overrides(more) if more else rules

@@ -46,6 +46,8 @@ class AllowanceRules:
     ``overrides`` keys: a seam-line index or name (as ``--weights`` takes them), ``"seam"``,
     ``"hem"``, ``"opening"`` (the class defaults), ``"open#K"`` (one opening, numbered as
     :func:`open_edges` numbers them) or ``"PIECE/open"`` (every open edge of a piece).
+    Notches (:mod:`solver.garment.notches`) are ``notch_depth_mm`` deep (at most half the
+    allowance) and at most ``notch_spacing_mm`` apart along a seam.
     """
 
     seam_mm: float = 10.0
@@ -53,6 +55,8 @@ class AllowanceRules:
     opening_mm: float = 10.0
     cap: float = 2.0
     overrides: Mapping[int | str, float] = field(default_factory=dict)
+    notch_depth_mm: float = 3.0
+    notch_spacing_mm: float = 100.0
 
     def __post_init__(self) -> None:
         for name in ("seam_mm", "hem_mm", "opening_mm"):
@@ -71,12 +75,15 @@ class AllowanceRules:
         merged = {**self.overrides, **more}
         base = {k: float(merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
         return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
-                              base.get("opening", self.opening_mm), self.cap, merged)
+                              base.get("opening", self.opening_mm), self.cap, merged,
+                              self.notch_depth_mm, self.notch_spacing_mm)
 
     def to_dict(self) -> dict:
         return {"seam_mm": self.seam_mm, "hem_mm": self.hem_mm,
                 "opening_mm": self.opening_mm, "cap": self.cap,
-                "overrides": {str(k): float(v) for k, v in self.overrides.items()}}
+                "overrides": {str(k): float(v) for k, v in self.overrides.items()},
+                "notch_depth_mm": self.notch_depth_mm,
+                "notch_spacing_mm": self.notch_spacing_mm}
 
 
 @dataclass

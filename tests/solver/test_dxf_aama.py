@@ -34,7 +34,7 @@ def test_round_trip_keeps_outline_grain_notches_marks(tmp_path):
     assert shapely.Polygon(p.outline).area == pytest.approx(src.area, rel=1e-9)
     assert np.allclose(p.grainline, src.grainline)
     assert len(p.holes) == 1 and shapely.Polygon(p.holes[0]).area == pytest.approx(400)
-    (at, d), = p.notches
+    (at, d, _), = p.notches
     assert np.allclose(at, [200, 150]) and np.allclose(d, [-1, 0], atol=1e-9)
     assert np.allclose(p.marks, [[100, 150]])
     # the reference frame turns the grain along the roll (+x)
