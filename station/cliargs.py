@@ -70,7 +70,7 @@ def load_config_arg(args: argparse.Namespace, overrides=None):
 
     from station.config import load_config
 
-    path = args.config or os.environ.get("STATION_CONFIG")
+    path = getattr(args, "config", None) or os.environ.get("STATION_CONFIG")
     if path is None and Path("station.toml").is_file():
         path = "station.toml"
     return load_config(path, overrides)
@@ -108,18 +108,9 @@ def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
 
 def allowance_rules(args: argparse.Namespace, config=None):
     """The job's allowance rules: station.toml [allowance], then the command line."""
-    from solver.garment.allowance import AllowanceRules
-    from station.config import defaults
+    from station.allowance import rules_for
 
-    a = (config or defaults())["allowance"]
-    rules = AllowanceRules(a["seam_mm"], a["hem_mm"], a["opening_mm"],
-                           notch_depth_mm=a["notch_depth_mm"],
-                           notch_spacing_mm=a["notch_spacing_mm"])
-    more: dict[int | str, float] = {}
-    if getattr(args, "allowance", None):
-        more.update(read_name_map(args.allowance, "allowance"))
-    if getattr(args, "seam_allowance", None) is not None:
-        if args.seam_allowance < 0:
-            raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
-        more["seam"] = args.seam_allowance
-    return rules.with_overrides(more) if more else rules
+    if args.seam_allowance is not None and args.seam_allowance < 0:
+        raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
+    more = read_name_map(args.allowance, "allowance") if args.allowance else None
+    return rules_for(config or load_config_arg(args), args.seam_allowance, more)

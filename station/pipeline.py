@@ -50,12 +50,17 @@ class StationPipeline:
         from solver.garment import load_garment
         from solver.wallpaper import Wallpaper
 
-        load_garment(garment, units=options.get("units"))
+        loaded = load_garment(garment, units=options.get("units"))
         if fabric is not None:
             Wallpaper.load(fabric)
-        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed"}
+        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
+                                  "seam_allowance", "allowance"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
+        from solver.garment.allowance import edge_allowances
+        from station.allowance import rules_for_job
+
+        edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
@@ -217,7 +222,8 @@ class StationPipeline:
                 1.0, (time.monotonic() - t_nest) / seconds))
 
         try:
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         except ValueError as exc:
             if garment is aligned_garment:
                 raise
@@ -230,7 +236,8 @@ class StationPipeline:
             placement.garment = str(garment_path)
             placement.save(workdir / "placement.json")
             t_nest = time.monotonic()
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         layout.save(workdir / "layout.json")
         report["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                           "density": layout.density, "pieces": len(layout.pieces)}
@@ -544,15 +551,17 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                  progress=progress)
 
 
-def nest_placement(placement_path: Path, config: Config, progress=None):
-    """Nest the aligned pieces on the fabric in view, each kept on its print position."""
+def nest_placement(placement_path: Path, config: Config, progress=None, options=None):
+    """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
+    position; ``options`` are the job's (its seam allowances)."""
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import load_problem
+    from station.allowance import rules_for_job
 
     n = config["nest"]
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
-                           gap=n["gap_mm"])
+                           gap=n["gap_mm"], allowance=rules_for_job(config, options or {}))
     layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:
