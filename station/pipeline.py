@@ -191,8 +191,14 @@ class StationPipeline:
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
         final_fit = aligned
+        from station.allowance import cuts_and_notches, rules_for_job
+
+        rules = rules_for_job(self.config, job.options)
+        report["allowance"] = rules.to_dict()
+        cuts, notches = cuts_and_notches(garment, rules)
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
-                 title=f"aligned on {wallpaper.group}", colour_of=colour_of)
+                 title=f"aligned on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                 notches=notches)
         lap("align")
         self._write_report(workdir, report)
         control.checkpoint()
@@ -207,8 +213,10 @@ class StationPipeline:
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
+            cuts, notches = cuts_and_notches(garment, rules)  # the cut follows the sew line
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
-                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of)
+                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                     notches=notches)
             lap("reshape")
             self._write_report(workdir, report)
             control.checkpoint()
