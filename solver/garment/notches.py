@@ -40,6 +40,8 @@ class Notch:
     sew_point: np.ndarray  # (2,) the sew-line point it marks
     seam_line: int
     station: int  # twin notches share (seam_line, station)
+    edge: tuple[int, int] = (0, 0)  # the pattern edge (vertices) the sew point lies on
+    t: float = 0.0  # ... at this fraction from edge[0] to edge[1]
 
 
 def _chain(rows: np.ndarray) -> np.ndarray:
@@ -112,9 +114,9 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
             w, fwd = lookup(a, b)
             point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
             sides.append((int(g.piece_of_vertex[a[0]]), point,
-                          _outward(g.uv, a, b, fwd), w))
+                          _outward(g.uv, a, b, fwd), w, a, b))
         made = []
-        for piece, point, nrm, w in sides:
+        for piece, point, nrm, w, a, b in sides:
             reach = 3.0 * np.maximum(w, 1e-6)
             rays = shapely.linestrings(np.stack([point + 1e-6 * nrm, point + reach[:, None] * nrm],
                                                 1))
@@ -129,10 +131,10 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
             slit = shapely.linestrings(np.stack([at, at - depth[:, None] * nrm], 1))
             clear = shapely.distance(slit, sews[piece])
             ok = np.isfinite(t) & (w > 0) & (depth > 0) & (clear >= 0.25 * w - 1e-9)
-            made.append((piece, point, nrm, at, depth, ok))
+            made.append((piece, point, nrm, at, depth, ok, a, b))
         both = made[0][5] & made[1][5]
-        for piece, point, nrm, at, depth, _ in made:
+        for piece, point, nrm, at, depth, _, a, b in made:
             for j in np.flatnonzero(both):
                 out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
-                                        line, int(j)))
+                                        line, int(j), (int(a[j]), int(b[j])), float(f[j])))
     return out

@@ -165,7 +165,7 @@ def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
     for p, poly in zip(layout.pieces, polys):
         if not poly.is_valid:
             faults.append(f"{p.id}: outline is not a valid polygon")
-        elif p.sew_line is not None and not poly.buffer(1e-6).contains(
+        elif p.sew_line is not None and not shapely.Polygon(p.outline).buffer(1e-6).contains(
                 shapely.Polygon(p.sew_line)):
             faults.append(f"{p.id}: the sew line leaves the cut line")
     inner = shapely.box(g - EDGE_TOL, g - EDGE_TOL, layout.length - g + EDGE_TOL,

@@ -91,7 +91,7 @@ def test_bad_files_give_one_line_errors(tmp_path):
         read_dxf_aama(junk)
 
 
-def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
+def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys, monkeypatch):
     path = tmp_path / "marker.dxf"
     write_dxf_aama([bodice("M"), Piece("sleeve", [[0, 0], [250, 0], [200, 120], [50, 120]],
                                        grainline=np.array([[0.0, 60.0], [250.0, 60.0]]))], path)
@@ -114,8 +114,14 @@ def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
     for p in layout.pieces:
         d = p.grainline[1] - p.grainline[0]
         assert abs(d[1]) < 1e-6 * np.linalg.norm(d)
-    assert main(["nest", str(path), "-o", str(out), "--time", "1"]) == 2  # no width
-    assert "--width" in capsys.readouterr().err
+    # no --width and the DXF does not say it: the station's roll (station.toml, 1000 mm)
+    monkeypatch.delenv("STATION_CONFIG", raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert main(["nest", str(path), "-o", str(out), "--time", "1", "--json"]) == 0
+    assert json.loads(out.read_text())["width"] == 1000.0
+    (tmp_path / "station.toml").write_text("[nest]\nwidth_mm = 700.0\n")
+    assert main(["nest", str(path), "-o", str(out), "--time", "1", "--json"]) == 0
+    assert json.loads(out.read_text())["width"] == 700.0
 
 
 def test_shared_industry_files_import(shared_data):
