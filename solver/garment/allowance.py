@@ -33,8 +33,8 @@ import shapely
 
 from solver.garment.model import Garment, _components
 
-__all__ = ["AllowanceRules", "CutLine", "cut_lines", "edge_allowances", "offset_outline",
-           "open_edges"]
+__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "edge_allowances",
+           "offset_outline", "open_edges"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
 
@@ -199,7 +199,7 @@ def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.nda
 
 
 def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
-                   cap: float = 2.0) -> shapely.Polygon:
+                   cap: float = 2.0, extra: list | None = None) -> shapely.Polygon:
     """The cut polygon of a piece from its sew loops (outer CCW, holes CW) and allowances.
 
     Parameters
@@ -210,6 +210,8 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
         Outward offset of each edge in mm (0: cut on the sew line).
     cap : float
         No point of a corner lies farther than ``cap`` x the larger allowance from it.
+    extra : list of shapely polygons, optional
+        More cloth to keep (the folded-in wedge of a dart, :func:`dart_fills`).
     """
     base = shapely.Polygon(loops[0], loops[1:])
     if not base.is_valid:
@@ -242,7 +244,8 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
     c2 = np.where(over[:, None], e2 - np.sqrt(np.maximum(reach**2 - a**2, 0))[:, None] * t,
                   mitre)
     fills = shapely.convex_hull(shapely.multipoints(np.stack([p, e1, c1, c2, e2], 1)[convex]))
-    whole = shapely.union_all(np.concatenate([[base], strips, fills]))
+    whole = shapely.union_all(np.concatenate([[base], strips, fills,
+                                              np.asarray(extra or [], dtype=object)]))
     if whole.geom_type != "Polygon":  # cannot happen for a connected piece; be safe
         whole = max(getattr(whole, "geoms", [whole]), key=lambda q: q.area)
     holes = [r for r in whole.interiors
@@ -252,6 +255,46 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
     return shapely.geometry.polygon.orient(cut, 1.0)
 
 
+def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) -> list:
+    """The cloth a pattern maker keeps over each dart of ``piece`` (self-seams).
+
+    A dart's two legs are sewn to each other; the wedge between them folds under, so the
+    cut line runs across its mouth as if the dart were closed: keep the wedge and the strip
+    over the mouth (the larger allowance of the edges beside it), clipped to ``cap`` x
+    that allowance from the sew line so the bound of the corners holds here too.
+    """
+    g = garment
+    loop = g.piece_loops(piece)[0]
+    pos = {int(v): k for k, v in enumerate(loop.tolist())}
+    sew = shapely.Polygon(g.uv[loop])
+    out = []
+    for line, sl in enumerate(g.seam_lines):
+        if sl.piece_a != piece or sl.piece_b != piece:
+            continue
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        ks = sorted(pos[int(v)] for v in np.unique(rows) if int(v) in pos)
+        if len(ks) < 3:
+            continue
+        # the two legs are one run of the loop: find the gap in the positions it leaves out
+        gaps = np.diff(np.concatenate([ks, [ks[0] + len(loop)]]))
+        start = ks[(int(np.argmax(gaps)) + 1) % len(ks)]
+        run = np.roll(loop, -start)[: len(loop) - int(gaps.max()) + 1]
+        wedge = shapely.make_valid(shapely.Polygon(g.uv[run]))
+        a, b = g.uv[run[0]], g.uv[run[-1]]
+        mouth = b - a
+        if np.hypot(*mouth) < 1e-9:
+            continue
+        nrm = np.array([mouth[1], -mouth[0]]) / np.hypot(*mouth)
+        if np.dot(g.uv[run].mean(0) - a, nrm) > 0:  # the strip goes away from the dart's tip
+            nrm = -nrm
+        ka, kb = pos[int(run[0])], pos[int(run[-1])]
+        w = float(max(allowance[ka - 1], allowance[kb]))
+        strip = shapely.Polygon([a, b, b + w * nrm, a + w * nrm])
+        keep = shapely.union(wedge, strip).intersection(sew.buffer(cap * w, join_style="mitre"))
+        out.append(keep)
+    return out
+
+
 def cut_lines(garment: Garment, rules: AllowanceRules | None = None) -> list[CutLine]:
     """Every piece's sew line, per-edge allowances and cut line (pattern mm)."""
     rules = rules or AllowanceRules()
@@ -259,6 +302,7 @@ def cut_lines(garment: Garment, rules: AllowanceRules | None = None) -> list[Cut
     out = []
     for i in range(garment.n_pieces):
         loops = [garment.uv[lp] for lp in garment.piece_loops(i)]
-        cut = offset_outline(loops, per_piece[i], cap=rules.cap)
+        darts = dart_fills(garment, i, per_piece[i][0], rules.cap)
+        cut = offset_outline(loops, per_piece[i], cap=rules.cap, extra=darts)
         out.append(CutLine(loops[0], loops[1:], per_piece[i][0], per_piece[i][1:], cut))
     return out
