@@ -33,7 +33,7 @@ import shapely
 
 from solver.garment.model import Garment, _components
 
-__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "edge_allowances",
+__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "edge_allowances",
            "offset_outline", "open_edges"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
@@ -255,8 +255,32 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
     return shapely.geometry.polygon.orient(cut, 1.0)
 
 
+def dart_runs(garment: Garment, piece: int) -> list[tuple[int, np.ndarray]]:
+    """The darts of ``piece``: (seam line, loop vertices from one leg's mouth end, through
+    the tip, to the other's). A dart is a self-seam whose two legs follow each other along
+    the outline."""
+    g = garment
+    loop = g.piece_loops(piece)[0]
+    pos = {int(v): k for k, v in enumerate(loop.tolist())}
+    out = []
+    for line, sl in enumerate(g.seam_lines):
+        if sl.piece_a != piece or sl.piece_b != piece:
+            continue
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        ks = sorted(pos[int(v)] for v in np.unique(rows) if int(v) in pos)
+        if len(ks) < 3:
+            continue
+        # the two legs are one run of the loop: the largest gap is the rest of the outline
+        gaps = np.diff(np.concatenate([ks, [ks[0] + len(loop)]]))
+        if len(loop) - int(gaps.max()) + 1 != len(ks):
+            continue  # not one run: a self-seam that is no dart
+        start = ks[(int(np.argmax(gaps)) + 1) % len(ks)]
+        out.append((line, np.roll(loop, -start)[: len(ks)]))
+    return out
+
+
 def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) -> list:
-    """The cloth a pattern maker keeps over each dart of ``piece`` (self-seams).
+    """The cloth a pattern maker keeps over each dart of ``piece``.
 
     A dart's two legs are sewn to each other; the wedge between them folds under, so the
     cut line runs across its mouth as if the dart were closed: keep the wedge and the strip
@@ -268,17 +292,7 @@ def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) 
     pos = {int(v): k for k, v in enumerate(loop.tolist())}
     sew = shapely.Polygon(g.uv[loop])
     out = []
-    for line, sl in enumerate(g.seam_lines):
-        if sl.piece_a != piece or sl.piece_b != piece:
-            continue
-        rows = g.seam_edges[g.seam_line_of_edge == line]
-        ks = sorted(pos[int(v)] for v in np.unique(rows) if int(v) in pos)
-        if len(ks) < 3:
-            continue
-        # the two legs are one run of the loop: find the gap in the positions it leaves out
-        gaps = np.diff(np.concatenate([ks, [ks[0] + len(loop)]]))
-        start = ks[(int(np.argmax(gaps)) + 1) % len(ks)]
-        run = np.roll(loop, -start)[: len(loop) - int(gaps.max()) + 1]
+    for _, run in dart_runs(g, piece):
         wedge = shapely.make_valid(shapely.Polygon(g.uv[run]))
         a, b = g.uv[run[0]], g.uv[run[-1]]
         mouth = b - a
@@ -287,11 +301,10 @@ def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) 
         nrm = np.array([mouth[1], -mouth[0]]) / np.hypot(*mouth)
         if np.dot(g.uv[run].mean(0) - a, nrm) > 0:  # the strip goes away from the dart's tip
             nrm = -nrm
-        ka, kb = pos[int(run[0])], pos[int(run[-1])]
-        w = float(max(allowance[ka - 1], allowance[kb]))
+        w = float(max(allowance[pos[int(run[0])] - 1], allowance[pos[int(run[-1])]]))
         strip = shapely.Polygon([a, b, b + w * nrm, a + w * nrm])
-        keep = shapely.union(wedge, strip).intersection(sew.buffer(cap * w, join_style="mitre"))
-        out.append(keep)
+        out.append(shapely.union(wedge, strip).intersection(
+            sew.buffer(cap * w, join_style="mitre")))
     return out
 
 

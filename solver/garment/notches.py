@@ -14,6 +14,10 @@ meets it, and runs back along that normal (perpendicular to the sew line) at mos
 the allowance deep, so it never reaches the sew line. Notches whose slit would come
 closer to the sew line than a quarter of the allowance (crowded concave corners) are
 dropped together with their twin.
+
+A dart (a self-seam whose legs follow each other along the outline) is sewn shut, so it
+gets no notches along its legs: one at each end of its mouth (they meet when it is sewn)
+and a drill mark just before its point (:func:`dart_marks`).
 """
 
 from __future__ import annotations
@@ -23,10 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from solver.garment.allowance import CutLine
+from solver.garment.allowance import CutLine, dart_runs
 from solver.garment.model import Garment
 
-__all__ = ["Notch", "seam_notches"]
+__all__ = ["Notch", "dart_marks", "seam_notches"]
 
 
 @dataclass
@@ -93,7 +97,35 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
     out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
     boundaries = [c.cut.boundary for c in cuts]
     sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+    darts = {line: (piece, run) for piece in range(g.n_pieces)
+             for line, run in dart_runs(g, piece)}
+
+    def emit(line: int, sides: list) -> None:
+        """Add the notches of stations that are clear on both twin sides."""
+        made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, boundaries[piece],
+                                                      sews[piece], depth_mm))
+                for piece, point, nrm, w, a, b, f in sides]
+        both = made[0][-1] & made[1][-1]
+        for piece, point, nrm, a, b, f, at, depth, _ in made:
+            for j in np.flatnonzero(both):
+                out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
+                                        line, int(j), (int(a[j]), int(b[j])), float(f[j])))
+
     for line in range(len(g.seam_lines)):
+        if line in darts:  # a dart: one notch at each end of its mouth, its legs sewn shut
+            piece, run = darts[line]
+            loop = g.piece_loops(piece)[0]
+            k = {int(v): j for j, v in enumerate(loop.tolist())}
+            before = loop[k[int(run[0])] - 1]
+            after = loop[(k[int(run[-1])] + 1) % len(loop)]
+            sides = []
+            for a, b, f in ((before, run[0], 1.0), (run[-1], after, 0.0)):
+                a, b = np.array([a]), np.array([b])
+                w, fwd = lookup(a, b)
+                sides.append((piece, g.uv[b] if f else g.uv[a], _outward(g.uv, a, b, fwd), w,
+                              a, b, np.array([f])))
+            emit(line, sides)
+            continue
         rows = _chain(g.seam_edges[g.seam_line_of_edge == line])
         pa, pb = g.uv[rows[:, 0]], g.uv[rows[:, 1]]
         seg = np.hypot(*(pb - pa).T)
@@ -103,8 +135,7 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
             continue
         allow, _ = lookup(rows[:, 0], rows[:, 1])
         inset = min(float(allow.max()), total / 4)
-        inner = total - 2 * inset
-        count = int(np.ceil(inner / spacing_mm)) if spacing_mm > 0 else 1
+        count = int(np.ceil((total - 2 * inset) / spacing_mm)) if spacing_mm > 0 else 1
         stations = np.linspace(inset, total - inset, max(count, 1) + 1)
         k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
         f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
@@ -113,28 +144,42 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
             a, b = rows[k, cols[0]], rows[k, cols[1]]
             w, fwd = lookup(a, b)
             point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
-            sides.append((int(g.piece_of_vertex[a[0]]), point,
-                          _outward(g.uv, a, b, fwd), w, a, b))
-        made = []
-        for piece, point, nrm, w, a, b in sides:
-            reach = 3.0 * np.maximum(w, 1e-6)
-            rays = shapely.linestrings(np.stack([point + 1e-6 * nrm, point + reach[:, None] * nrm],
-                                                1))
-            hits = shapely.intersection(rays, boundaries[piece])
-            t = np.full(len(point), np.nan)
-            for j, h in enumerate(hits):
-                c = shapely.get_coordinates(h)
-                if len(c):
-                    t[j] = np.hypot(*(c - point[j]).T).min()
-            depth = np.minimum(depth_mm, np.minimum(w, np.nan_to_num(t)) / 2)
-            at = point + np.nan_to_num(t)[:, None] * nrm
-            slit = shapely.linestrings(np.stack([at, at - depth[:, None] * nrm], 1))
-            clear = shapely.distance(slit, sews[piece])
-            ok = np.isfinite(t) & (w > 0) & (depth > 0) & (clear >= 0.25 * w - 1e-9)
-            made.append((piece, point, nrm, at, depth, ok, a, b))
-        both = made[0][5] & made[1][5]
-        for piece, point, nrm, at, depth, _, a, b in made:
-            for j in np.flatnonzero(both):
-                out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
-                                        line, int(j), (int(a[j]), int(b[j])), float(f[j])))
+            sides.append((int(g.piece_of_vertex[a[0]]), point, _outward(g.uv, a, b, fwd), w,
+                          a, b, f))
+        emit(line, sides)
     return out
+
+
+def _slits(point: np.ndarray, nrm: np.ndarray, w: np.ndarray, boundary, sew, depth_mm: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each outward ray from the sew line meets the cut line, the slit depth there,
+    and whether the slit keeps clear of the sew line (a quarter of the allowance)."""
+    reach = 3.0 * np.maximum(w, 1e-6)
+    rays = shapely.linestrings(np.stack([point + 1e-6 * nrm, point + reach[:, None] * nrm], 1))
+    hits = shapely.intersection(rays, boundary)
+    coords, owner = shapely.get_coordinates(hits, return_index=True)
+    t = np.full(len(point), np.inf)
+    np.minimum.at(t, owner, np.hypot(*(coords - point[owner]).T))
+    found = np.isfinite(t)
+    t = np.where(found, t, 0.0)
+    depth = np.minimum(depth_mm, np.minimum(w, t) / 2)
+    at = point + t[:, None] * nrm
+    clear = shapely.distance(shapely.linestrings(np.stack([at, at - depth[:, None] * nrm], 1)),
+                             sew)
+    ok = found & (w > 0) & (depth > 0) & (clear >= 0.25 * w - 1e-9)
+    return at, depth, ok
+
+
+def dart_marks(garment: Garment, piece: int, inset_mm: float = 10.0) -> np.ndarray:
+    """(k,2) drill marks, one per dart of ``piece``: ``inset_mm`` before the dart's point
+    on its centre line (hidden in the seam once sewn), as pattern makers mark darts."""
+    g = garment
+    marks = []
+    for _, run in dart_runs(g, piece):
+        mouth = 0.5 * (g.uv[run[0]] + g.uv[run[-1]])
+        tip = g.uv[run[int(np.argmax(np.hypot(*(g.uv[run] - mouth).T)))]]
+        d = mouth - tip
+        length = float(np.hypot(*d))
+        if length > 1e-9:
+            marks.append(tip + min(inset_mm, length / 4) * d / length)
+    return np.asarray(marks, float).reshape(-1, 2)

@@ -32,10 +32,11 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None) -> list[
 
     The outline to place and cut is the cut line (the sew line plus its allowance, see
     :mod:`solver.garment.allowance`); the sew line travels along for pictures and DXF.
-    Notches: the seam notches, plus any the file gives (moved out to the cut line).
+    Notches: the seam notches, plus any the file gives (moved out to the cut line); marks:
+    a drill mark near each dart's point.
     """
     from solver.garment.allowance import AllowanceRules, cut_lines, edge_allowances
-    from solver.garment.notches import seam_notches
+    from solver.garment.notches import dart_marks, seam_notches
 
     rules = rules or AllowanceRules()
     per_edge = edge_allowances(garment, rules)
@@ -59,7 +60,8 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None) -> list[
         grain = grains.get(i)
         pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=marks,
                             grainline=None if grain is None else np.asarray(grain, float),
-                            sew_line=cut.sew, allowance=cut.allowance))
+                            marks=dart_marks(garment, i), sew_line=cut.sew,
+                            allowance=cut.allowance))
     return pieces
 
 
