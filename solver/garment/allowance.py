@@ -250,9 +250,19 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
         whole = max(getattr(whole, "geoms", [whole]), key=lambda q: q.area)
     holes = [r for r in whole.interiors
              if any(shapely.Polygon(h).intersects(shapely.Polygon(r)) for h in loops[1:])]
-    cut = shapely.Polygon(whole.exterior, holes)
-    cut = shapely.simplify(cut, 1e-4)  # only drops collinear points the union left
+    cut = _clean(shapely.Polygon(whole.exterior, holes))
     return shapely.geometry.polygon.orient(cut, 1.0)
+
+
+def _clean(poly: shapely.Polygon, eps: float = 0.01) -> shapely.Polygon:
+    """Drop the hair-thin spikes a union of many touching pieces can leave (a vertex that
+    goes out and comes back along the same line: valid in floating point, invalid once
+    moved and rounded), and the collinear points; changes nothing wider than ``eps`` mm."""
+    opened = poly.buffer(-eps, join_style="mitre", mitre_limit=10.0).buffer(
+        eps, join_style="mitre", mitre_limit=10.0)
+    if opened.geom_type != "Polygon":
+        opened = max(getattr(opened, "geoms", [poly]), key=lambda q: q.area)
+    return shapely.simplify(shapely.set_precision(opened, 1e-6), 1e-4)
 
 
 def dart_runs(garment: Garment, piece: int) -> list[tuple[int, np.ndarray]]:

@@ -64,7 +64,10 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | 
     result: dict = {}
 
     def work() -> None:
-        result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+        try:
+            result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+        except BaseException as exc:  # noqa: BLE001 - a Rust panic is a BaseException
+            result["error"] = exc
 
     thread = threading.Thread(target=work, daemon=True)
     t0 = time.monotonic()
@@ -79,6 +82,9 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | 
                 progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
                          f"density {sol.density:.1%}")
                 last = time.monotonic()
+    if "sol" not in result:  # e.g. a piece wider than the strip at every allowed angle
+        raise ValueError(f"sparrow could not nest the pieces: "
+                         f"{str(result.get('error', 'no result')).splitlines()[0]}")
     sol = result["sol"]
     keys = {str(k): k for k in shapes}
     out: dict = {k: [] for k in shapes}
