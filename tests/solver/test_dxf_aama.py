@@ -135,3 +135,34 @@ def test_shared_industry_files_import(shared_data):
             assert shapely.Polygon(p.outline).is_valid, (f.name, p.name)
             assert p.area > 100.0 and p.grainline is not None
         assert len(dxf_sizes(f)) >= 1
+
+
+@pytest.mark.parametrize("garment", ["berkeley/skirt-coarse.obj",
+                                     "garmentcode/pants_specification.json"])
+def test_cut_and_sew_lines_round_trip_on_layers_1_and_14(tmp_path, data_dir, garment):
+    from solver.garment import load_garment
+    from solver.nest.sources import garment_pieces
+
+    g = load_garment(data_dir / "garments" / garment,
+                     units="m" if garment.startswith("berkeley") else None)
+    pieces = garment_pieces(g)
+    write_dxf_aama(pieces, tmp_path / "p.dxf")
+    doc = ezdxf.readfile(tmp_path / "p.dxf")
+    layers = {str(e.dxf.layer) for b in doc.blocks for e in b if e.dxftype() == "POLYLINE"}
+    assert {"1", "14"} <= layers
+    back = read_dxf_aama(tmp_path / "p.dxf")
+    assert [p.name for p in back] == [p.name for p in pieces]
+    for p, q in zip(pieces, back):
+        np.testing.assert_allclose(q.outline, p.outline, atol=1e-6)  # layer 1: the cut line
+        np.testing.assert_allclose(q.sew_line, p.sew_line, atol=1e-6)  # layer 14
+        assert shapely.Polygon(q.outline).contains(shapely.Polygon(q.sew_line))
+
+
+def test_without_layer_14_the_sew_line_is_the_stated_allowance_inside(tmp_path):
+    write_dxf_aama([bodice("M")], tmp_path / "net.dxf")
+    (piece,) = read_dxf_aama(tmp_path / "net.dxf", allowance_mm=10.0)
+    cut, sew = shapely.Polygon(piece.outline), shapely.Polygon(piece.sew_line)
+    assert cut.contains(sew)
+    d = cut.exterior.distance(shapely.points(np.asarray(piece.sew_line)))
+    assert d.min() == pytest.approx(10.0, abs=1e-6)
+    assert read_dxf_aama(tmp_path / "net.dxf")[0].sew_line is None  # nothing stated
