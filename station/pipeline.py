@@ -195,7 +195,7 @@ class StationPipeline:
 
         rules = rules_for_job(self.config, job.options)
         report["allowance"] = rules.to_dict()
-        cuts, notches = cuts_and_notches(garment, rules)
+        cuts, notches = cuts_and_notches(garment, rules, placement)
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
                  title=f"aligned on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
                  notches=notches)
@@ -213,7 +213,7 @@ class StationPipeline:
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
-            cuts, notches = cuts_and_notches(garment, rules)  # the cut follows the sew line
+            cuts, notches = cuts_and_notches(garment, rules, placement)  # follows the sew
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
                      title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
                      notches=notches)

@@ -22,6 +22,7 @@ and a drill mark just before its point (:func:`dart_marks`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +31,10 @@ import shapely
 from solver.garment.allowance import CutLine, dart_runs
 from solver.garment.model import Garment
 
-__all__ = ["Notch", "dart_marks", "seam_notches"]
+__all__ = ["Notch", "dart_marks", "placement_lattice", "print_stations", "seam_notches"]
+
+
+LatticeCoords = Callable[[int, np.ndarray], np.ndarray]  # (piece, (k,2) uv) -> (k,2) frac
 
 
 @dataclass
@@ -72,11 +76,15 @@ def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) 
 
 
 def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np.ndarray]],
-                 *, spacing_mm: float = 100.0, depth_mm: float = 3.0) -> list[list[Notch]]:
+                 *, spacing_mm: float = 100.0, depth_mm: float = 3.0,
+                 lattice_coords: LatticeCoords | None = None) -> list[list[Notch]]:
     """Per piece, the notches of every seam line (pattern mm), twins on matching points.
 
     ``allowances`` are the per-edge allowances the cut lines were made with
-    (:func:`solver.garment.allowance.edge_allowances`).
+    (:func:`solver.garment.allowance.edge_allowances`). With ``lattice_coords`` (the
+    print's fractional lattice coordinates of pattern points on a piece, from the
+    placement) the balance notches go where the print's lattice lines cross the sew line
+    (:func:`print_stations`), the match points a cutter lines a plaid up on.
     """
     g = garment
     n = g.n_vertices
@@ -135,8 +143,15 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
             continue
         allow, _ = lookup(rows[:, 0], rows[:, 1])
         inset = min(float(allow.max()), total / 4)
-        count = int(np.ceil((total - 2 * inset) / spacing_mm)) if spacing_mm > 0 else 1
-        stations = np.linspace(inset, total - inset, max(count, 1) + 1)
+        if lattice_coords is None:
+            count = int(np.ceil((total - 2 * inset) / spacing_mm)) if spacing_mm > 0 else 1
+            stations = np.linspace(inset, total - inset, max(count, 1) + 1)
+        else:
+            piece_a = int(g.piece_of_vertex[rows[0, 0]])
+            f_a = lattice_coords(piece_a, g.uv[rows[:, 0]])
+            f_b = lattice_coords(piece_a, g.uv[rows[:, 1]])
+            stations = print_stations(s, f_a, f_b, inset, spacing_mm,
+                                      min_gap=max(2.0 * float(allow.max()), 20.0))
         k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
         f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
         sides = []
@@ -148,6 +163,54 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
                           a, b, f))
         emit(line, sides)
     return out
+
+
+def placement_lattice(placement) -> LatticeCoords:
+    """The print's fractional lattice coordinates of pattern points, as ``placement``
+    (:class:`solver.placement.Placement`) lays each piece on its fabric."""
+    fabric = placement.fabric
+    basis = np.column_stack([fabric.w1, fabric.w2])
+
+    def coords(piece: int, uv: np.ndarray) -> np.ndarray:
+        wp = placement.to_wallpaper(np.asarray(uv, float), np.full(len(uv), piece))
+        return np.linalg.solve(basis, (wp - fabric.origin).T).T
+
+    return coords
+
+
+def print_stations(s: np.ndarray, f_start: np.ndarray, f_end: np.ndarray, inset: float,
+                   spacing_mm: float, min_gap: float) -> np.ndarray:
+    """Arc-length stations on one side of a seam: both ends (``inset`` in), every crossing of
+    a lattice line of the print (a fractional coordinate passing an integer), none closer
+    than ``min_gap`` to a kept one, and fill-ins so no gap exceeds ``spacing_mm``.
+
+    ``s`` (k+1,) are the arc lengths of the edge ends; ``f_start``, ``f_end`` (k,2) the
+    lattice coordinates of each edge's two ends.
+    """
+    total = float(s[-1])
+    lo, hi = np.floor(np.minimum(f_start, f_end)), np.floor(np.maximum(f_start, f_end))
+    cross = []
+    for j in range(2):  # the two families of lattice lines
+        n = (hi[:, j] - lo[:, j]).astype(int)
+        edge = np.repeat(np.arange(len(n)), n)
+        level = lo[edge, j] + 1 + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+        span = f_end[edge, j] - f_start[edge, j]
+        t = (level - f_start[edge, j]) / np.where(span == 0, 1.0, span)
+        cross.append(s[edge] + t * (s[edge + 1] - s[edge]))
+    cross = np.sort(np.concatenate(cross))
+    cross = cross[(cross > inset + min_gap) & (cross < total - inset - min_gap)]
+    kept = [inset]
+    for c in cross:  # greedy: a crossing at least min_gap past the last kept station
+        if c - kept[-1] >= min_gap:
+            kept.append(float(c))
+    if total - inset - kept[-1] < min_gap and len(kept) > 1:
+        kept.pop()
+    kept.append(total - inset)
+    out = [kept[0]]
+    for a, b in zip(kept[:-1], kept[1:]):
+        extra = int(np.ceil((b - a) / spacing_mm)) - 1 if spacing_mm > 0 else 0
+        out += list(np.linspace(a, b, extra + 2)[1:])
+    return np.asarray(out)
 
 
 def _slits(point: np.ndarray, nrm: np.ndarray, w: np.ndarray, boundary, sew, depth_mm: float

@@ -27,22 +27,25 @@ def kind_of(path: str | Path) -> str:
     raise ValueError(f"{path}: not a DXF-AAMA file, a strip-packing instance or a PLACEMENT.json")
 
 
-def garment_pieces(garment, rules=None, names: list[str] | None = None) -> list[Piece]:
+def garment_pieces(garment, rules=None, names: list[str] | None = None,
+                   placement=None) -> list[Piece]:
     """One nesting piece per garment piece: cut line, sew line, allowances, notches, grain.
 
     The outline to place and cut is the cut line (the sew line plus its allowance, see
     :mod:`solver.garment.allowance`); the sew line travels along for pictures and DXF.
-    Notches: the seam notches, plus any the file gives (moved out to the cut line); marks:
-    a drill mark near each dart's point.
+    Notches: the seam notches (with ``placement``, on the print's lattice lines), plus any
+    the file gives (moved out to the cut line); marks: a drill mark near each dart's point.
     """
     from solver.garment.allowance import AllowanceRules, cut_lines, edge_allowances
-    from solver.garment.notches import dart_marks, seam_notches
+    from solver.garment.notches import dart_marks, placement_lattice, seam_notches
 
     rules = rules or AllowanceRules()
     per_edge = edge_allowances(garment, rules)
     cuts = cut_lines(garment, rules)
     notches = seam_notches(garment, cuts, per_edge, spacing_mm=rules.notch_spacing_mm,
-                           depth_mm=rules.notch_depth_mm)
+                           depth_mm=rules.notch_depth_mm,
+                           lattice_coords=None if placement is None or placement.fabric is None
+                           else placement_lattice(placement))
     names = names or list(garment.piece_names)
     grains = getattr(garment, "grainlines", None) or {}
     pieces = []
@@ -90,7 +93,7 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
-    pieces = garment_pieces(garment, allowance, placement.piece_names or None)
+    pieces = garment_pieces(garment, allowance, placement.piece_names or None, placement)
     for i, piece in enumerate(pieces):
         a = placement.angles[i]
         r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         from station.allowance import cuts_and_notches
         from station.render import draw_fit
 
-        cuts, notches = cuts_and_notches(garment, allowance_rules(args))
+        cuts, notches = cuts_and_notches(garment, allowance_rules(args), placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.json:

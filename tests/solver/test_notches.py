@@ -100,3 +100,35 @@ def test_a_dart_gets_a_drill_mark_before_its_point():
         for (_, run), m in zip(runs, marks):
             assert cuts[i].cut.contains(shapely.Point(m))  # in the cloth (the kept wedge)
             assert np.hypot(*(g.uv[run] - m).T).min() <= 10.0 + 1e-9
+
+
+def test_on_a_print_balance_notches_sit_where_lattice_lines_cross_the_seam(data_dir):
+    from solver.garment.notches import placement_lattice
+    from solver.placement import Placement
+    from solver.wallpaper import Wallpaper
+
+    g = load_garment(data_dir / "garments" / "berkeley" / "tshirt-coarse.obj", units="m")
+    fabric = Wallpaper("p4m", [60.0, 0.0], [0.0, 60.0], [7.0, 3.0])
+    placement = Placement.identity(g.n_pieces, fabric)
+    placement.angles[:] = np.radians([10, 40, 70, 100, 130, 160])
+    rules = AllowanceRules()
+    cuts = cut_lines(g, rules)
+    lattice = placement_lattice(placement)
+    notches = seam_notches(g, cuts, edge_allowances(g, rules), spacing_mm=100, depth_mm=3,
+                           lattice_coords=lattice)
+    first_side = {tuple(e) for e in g.seam_edges[:, :2].tolist()}  # stations measured here
+    side_a = defaultdict(list)
+    for per_piece in notches:
+        for q in per_piece:
+            if q.edge in first_side:
+                side_a[q.seam_line].append(q)
+    on_lines = interior = 0
+    for qs in side_a.values():
+        qs.sort(key=lambda q: q.station)
+        for q in qs[1:-1]:
+            f = lattice(q.piece, q.sew_point[None])[0]
+            interior += 1
+            on_lines += bool(np.abs(f - np.round(f)).min() < 1e-9)
+        gaps = np.hypot(*np.diff([q.sew_point for q in qs], axis=0).T)
+        assert gaps.max() <= 100.0 + 1e-6 and gaps.min() >= 20.0 - 1e-6  # chords <= arcs
+    assert interior > 20 and on_lines >= 0.8 * interior
