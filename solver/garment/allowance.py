@@ -16,11 +16,11 @@ line. Holes stay holes (their open edges eat into them); pockets the union close
 between overlapping strips are filled, as a cutter would.
 
 Which open edges are hems: open edges chain (through shared 3D points) into the garment's
-openings. The opening that reaches the garment's top (neckline, waist) and any other
-opening reaching the top of the pieces it runs on is finished with a facing or band
-(``opening_mm``); every other opening (bottom, sleeve and leg ends) is a hem (``hem_mm``).
-Heights are 3D y when the garment has a drape (the Berkeley, ARCSim and GarmentCode
-convention), else pattern y within each piece (flat patterns are drawn upright).
+openings. An opening that reaches the garment's top (neckline, waist) is finished with a
+facing or band (``opening_mm``); every other opening (bottom, sleeve and leg ends) is a
+hem (``hem_mm``). Heights are along the drape's up direction (:func:`drape_up`, or given)
+when the garment has a drape, else pattern y within each piece (flat patterns are drawn
+upright).
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ import shapely
 
 from solver.garment.model import Garment, _components
 
-__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "edge_allowances",
-           "offset_outline", "open_edges"]
+__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "drape_up",
+           "edge_allowances", "offset_outline", "open_edges"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
 
@@ -110,11 +110,13 @@ def _edge_key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
 
 
-def open_edges(garment: Garment) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def open_edges(garment: Garment, up: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Open boundary edges (sewn to nothing), the opening each belongs to, and whether hem.
 
     Returns ``edges`` (k,2) vertex pairs as in their face, ``opening`` (k,) int and
-    ``is_hem`` (n_openings,) bool. Openings are numbered by their first edge.
+    ``is_hem`` (n_openings,) bool. Openings are numbered by their first edge. ``up`` is
+    the drape's up direction (default: :func:`drape_up`).
     """
     g, n = garment, garment.n_vertices
     bhe = g.boundary_half_edges()
@@ -130,7 +132,8 @@ def open_edges(garment: Garment) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rank[np.argsort(first, kind="stable")] = np.arange(len(first))
     opening = rank[inv.ravel()]
     if g.xyz is not None:
-        h = g.xyz[:, 1]
+        up = drape_up(g.xyz, edges, opening) if up is None else np.asarray(up, float)
+        h = g.xyz @ (up / np.linalg.norm(up))
         top, span = float(h.max()), float(np.ptp(h)) or 1.0
         reach = np.full(len(first), -np.inf)
         np.maximum.at(reach, opening, h[edges].max(axis=1))
@@ -143,6 +146,38 @@ def open_edges(garment: Garment) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         np.maximum.at(reach, opening, rel[edges].max(axis=1))
         is_hem = reach < 1.0 - TOP_FRACTION
     return edges, opening, is_hem
+
+
+def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
+    """The drape's up direction, from its openings (the files disagree: Berkeley is z-up,
+    GarmentCode y-up).
+
+    Hems, necklines and waists are horizontal loops, so the coordinate axis their planes'
+    normals favour (weighted by length) is vertical; sleeve ends in a T-pose vote for the
+    arm. A garment hangs from its smaller end: the neckline or waist is shorter than the
+    hems below it, so up is the side of the mid-height with less length of horizontal
+    openings.
+    """
+    k = int(opening.max()) + 1
+    length = np.linalg.norm(xyz[edges[:, 1]] - xyz[edges[:, 0]], axis=1)
+    total = np.bincount(opening, weights=length, minlength=k)
+    mid_pts = 0.5 * (xyz[edges[:, 0]] + xyz[edges[:, 1]])
+    centre = np.stack([np.bincount(opening, weights=mid_pts[:, j] * length, minlength=k)
+                       for j in range(3)], 1) / np.maximum(total, 1e-12)[:, None]
+    normal = np.zeros((k, 3))
+    for o in range(k):  # one small SVD per opening (a handful per garment)
+        p = mid_pts[opening == o] - centre[o]
+        if len(p) >= 3:
+            normal[o] = np.abs(np.linalg.svd(p, full_matrices=False)[2][-1])
+    axis = int(np.argmax(total @ normal))
+    level = normal[:, axis] > 0.7  # horizontal loops only: armholes and sleeves do not vote
+    h = centre[:, axis]
+    middle = 0.5 * (xyz[:, axis].min() + xyz[:, axis].max())
+    above = total[level & (h > middle)].sum()
+    below = total[level & (h <= middle)].sum()
+    up = np.zeros(3)
+    up[axis] = 1.0 if above <= below else -1.0
+    return up
 
 
 def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.ndarray]]:
