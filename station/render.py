@@ -70,9 +70,10 @@ def dashed(image: np.ndarray, ring_px: np.ndarray, colour, thickness: int = 1,
         return
     marks = np.arange(0.0, s[-1], dash_px)
     pts = np.column_stack([np.interp(marks, s, ring[:, 0]), np.interp(marks, s, ring[:, 1])])
-    pairs = pts[: len(pts) // 2 * 2].reshape(-1, 2, 2)
-    cv2.polylines(image, list(np.round(pairs * 16).astype(np.int32)), False, colour, thickness,
-                  cv2.LINE_AA, shift=4)
+    pairs = list(np.round(pts[: len(pts) // 2 * 2].reshape(-1, 2, 2) * 16).astype(np.int32))
+    # a light halo under the dark dash: readable on pale cloth and on a dark plaid alike
+    cv2.polylines(image, pairs, False, (245, 245, 245), thickness + 2, cv2.LINE_AA, shift=4)
+    cv2.polylines(image, pairs, False, colour, thickness, cv2.LINE_AA, shift=4)
 
 
 def notch_ticks(image: np.ndarray, notches, to_px, min_mm: float) -> None:

@@ -93,3 +93,14 @@ def test_a_piece_wider_than_the_roll_is_refused_by_name(clean_cwd, data_dir, cap
     assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "mm across the roll" in err and "piece" in err
+
+
+def test_inspect_names_the_openings_an_allowance_file_takes(data_dir, capsys):
+    garment = data_dir / "garments" / "berkeley" / "tshirt-coarse.obj"
+    assert main(["inspect", str(garment), "--units", "m", "--json"]) == 0
+    openings = json.loads(capsys.readouterr().out)["opening_list"]
+    assert [o["name"] for o in openings] == ["open#0", "open#1", "open#2", "open#3"]
+    assert sorted(o["kind"] for o in openings) == ["hem", "hem", "hem", "opening"]
+    neck = next(o for o in openings if o["kind"] == "opening")
+    bottom = max(openings, key=lambda o: o["length_mm"])
+    assert bottom["kind"] == "hem" and neck["length_mm"] < bottom["length_mm"]
