@@ -64,16 +64,14 @@ class AllowanceRules:
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"allowance {name} must be finite and >= 0, got {v!r}")
         for key, v in self.overrides.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) \
-                    or v < 0:
-                raise ValueError(f"allowance for {key!r} must be a number >= 0, got {v!r}")
+            _check_mm(key, v)
         if not self.cap >= 1.0:
             raise ValueError(f"allowance cap must be >= 1, got {self.cap!r}")
 
     def with_overrides(self, more: Mapping[int | str, float]) -> AllowanceRules:
         """Copy with ``more`` overrides on top; ``seam``/``hem``/``opening`` set defaults."""
         merged = {**self.overrides, **more}
-        base = {k: float(merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
+        base = {k: _check_mm(k, merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
         return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
                               base.get("opening", self.opening_mm), self.cap, merged,
                               self.notch_depth_mm, self.notch_spacing_mm)
@@ -84,6 +82,13 @@ class AllowanceRules:
                 "overrides": {str(k): float(v) for k, v in self.overrides.items()},
                 "notch_depth_mm": self.notch_depth_mm,
                 "notch_spacing_mm": self.notch_spacing_mm}
+
+
+def _check_mm(key, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or value < 0:
+        raise ValueError(f"allowance for {key!r} must be a number >= 0, got {value!r}")
+    return float(value)
 
 
 @dataclass
