@@ -353,8 +353,7 @@ def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) 
             nrm = -nrm
         w = float(max(allowance[pos[int(run[0])] - 1], allowance[pos[int(run[-1])]]))
         strip = shapely.Polygon([a, b, b + w * nrm, a + w * nrm])
-        out.append(shapely.union(wedge, strip).intersection(
-            sew.buffer(cap * w, join_style="mitre")))
+        out.append(shapely.union(wedge, strip).intersection(sew.buffer(cap * w)))  # round
     return out
 
 

@@ -141,3 +141,20 @@ def test_the_cut_line_runs_across_a_dart_as_if_it_were_closed():
         sew = shapely.Polygon(cuts[i].sew)
         assert sew.buffer(2 * cuts[i].allowance.max() + 0.5).contains(cuts[i].cut)
         assert cuts[i].cut.exterior.is_simple
+
+
+def test_shared_garments_keep_the_cut_line_bounds(shared_data):
+    """Held-out shapes: GarmentCode dresses (side and waist darts), GPG, ARCSim meshes."""
+    root = shared_data / "garments"
+    files = (sorted((root / "garmentcode" / "generated").glob("*/*_specification.json"))
+             + sorted((root / "garment_pattern_generator").glob("*.json"))
+             + sorted((root / "arcsim_meshes").glob("*.obj")))
+    assert files
+    for path in files:
+        g = load_garment(path, units="m" if path.suffix == ".obj" else None)
+        for c in cut_lines(g):
+            sew = shapely.Polygon(c.sew, c.sew_holes)
+            allow = np.concatenate([c.allowance, *c.hole_allowance])
+            assert c.cut.is_valid and c.cut.exterior.is_simple, path.name
+            assert sew.buffer(allow.min() - 0.5).difference(c.cut).area < 1e-6, path.name
+            assert sew.buffer(2 * allow.max() + 0.5).contains(c.cut), path.name
