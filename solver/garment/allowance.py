@@ -19,8 +19,8 @@ Which open edges are hems: open edges chain (through shared 3D points) into the 
 openings. An opening that reaches the garment's top (neckline, waist) is finished with a
 facing or band (``opening_mm``); every other opening (bottom, sleeve and leg ends) is a
 hem (``hem_mm``). Heights are along the drape's up direction (:func:`drape_up`, or given)
-when the garment has a drape, else pattern y within each piece (flat patterns are drawn
-upright).
+when the garment has a drape, else world y where a specification places its panels around
+the body, else pattern y within each piece (flat patterns are drawn upright).
 """
 
 from __future__ import annotations
@@ -139,6 +139,13 @@ def open_edges(garment: Garment, up: np.ndarray | None = None
     if g.xyz is not None:
         up = drape_up(g.xyz, edges, opening) if up is None else np.asarray(up, float)
         h = g.xyz @ (up / np.linalg.norm(up))
+        top, span = float(h.max()), float(np.ptp(h)) or 1.0
+        reach = np.full(len(first), -np.inf)
+        np.maximum.at(reach, opening, h[edges].max(axis=1))
+        is_hem = reach < top - TOP_FRACTION * span
+    elif len(g.panel_height) == g.n_pieces:  # a specification places its panels: world y
+        abc = np.array([g.panel_height[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
+        h = abc[:, 0] * g.uv[:, 0] + abc[:, 1] * g.uv[:, 1] + abc[:, 2]
         top, span = float(h.max()), float(np.ptp(h)) or 1.0
         reach = np.full(len(first), -np.inf)
         np.maximum.at(reach, opening, h[edges].max(axis=1))

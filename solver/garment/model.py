@@ -63,6 +63,9 @@ class Garment:
         Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
     grainlines, notches : dict
         Per piece index, where the input has them (mm, pattern coordinates).
+    panel_height : dict
+        Per piece ``(a, b, c)``: a specification places its panel around the body, and the
+        pattern point (u, v) sits at world height ``a u + b v + c`` mm (up = +y there).
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -86,6 +89,7 @@ class Garment:
         default_factory=dict
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    panel_height: dict[int, tuple[float, float, float]] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -151,6 +155,7 @@ class Garment:
             seam_lines=list(self.seam_lines),
             grainlines=dict(self.grainlines),
             notches={k: list(v) for k, v in self.notches.items()},
+            panel_height=dict(self.panel_height),
             _loops=None,
         )
 
@@ -282,6 +287,7 @@ def build_garment(
     grainlines: dict | None = None,
     notches: dict | None = None,
     twins: np.ndarray | None = None,
+    panel_height: dict | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
@@ -368,6 +374,7 @@ def build_garment(
     seam_edges = seam_edges[so]
 
     names = list(piece_names) if piece_names is not None else []
+    panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
     if len(names) != n_pieces:
         if piece_names is not None:
             warnings.warn(
@@ -391,6 +398,7 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
+        panel_height=dict(panel_height or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),

@@ -314,6 +314,7 @@ def load_spec(
     grainlines: dict[int, tuple[tuple[float, float], tuple[float, float]]] = {}
     notches: dict[int, list[tuple[float, float]]] = {}
     boxes: list[np.ndarray] = []
+    heights: dict[int, tuple[float, float, float]] = {}
     absolute = props.get("pattern_layout") == "absolute"
     zero_edges = 0
     for p, polys in enumerate(dense):
@@ -341,6 +342,7 @@ def load_spec(
             verts = verts + np.array([shift, 0.0])
             box = box + np.array([shift, 0.0, shift, 0.0])
         boxes.append(box)
+        heights[p] = _panel_height(panels[order[p]], k, shift)
         marks = _panel_marks(path, order[p], panels[order[p]], k, np.array([shift, 0.0]))
         if marks[0] is not None:
             grainlines[p] = marks[0]
@@ -380,7 +382,28 @@ def load_spec(
         grainlines=grainlines,
         notches=notches,
         twins=all_twins,
+        panel_height={p: h for p, h in heights.items() if h is not None},
     )
+
+
+def _panel_height(panel: dict, k: float, shift: float) -> tuple[float, float, float] | None:
+    """How high (mm, world y) each pattern point of a panel sits where the specification
+    places the panel around the body (``rotation``: intrinsic XYZ Euler degrees, as
+    GarmentCode builds it; ``translation`` in file units): ``h = a u + b v + c``. None when
+    the panel is not placed."""
+    rot, trans = panel.get("rotation"), panel.get("translation")
+    try:
+        rot = np.asarray(rot, float).reshape(3)
+        trans = np.asarray(trans, float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    if not (np.isfinite(rot).all() and np.isfinite(trans).all()) or not (
+            rot.any() or trans.any()):  # all zero: what save_spec writes, i.e. not placed
+        return None
+    from scipy.spatial.transform import Rotation
+
+    row = Rotation.from_euler("XYZ", rot, degrees=True).as_matrix()[1]
+    return float(row[0]), float(row[1]), float(trans[1] * k - row[0] * shift)
 
 
 def _panel_marks(
