@@ -34,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the pieces over the print, seams coloured by mismatch, with "
                    "the cut line (solid), the sew line (dashed) and the notches")
+    p.add_argument("--front-view", metavar="OUT.png",
+                   help="draw left/right pairs side by side as worn, grain up, print on")
     add_allowance_arguments(p)
     add_config_argument(p)
     p.set_defaults(func=run)
@@ -68,6 +70,12 @@ def run(args: argparse.Namespace) -> int:
         cuts, notches = cuts_and_notches(garment, allowance_rules(args), placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
+    if args.front_view:
+        from solver.garment.symmetry import mirror_pairs
+        from station.front_view import draw_front_view
+
+        draw_front_view(garment, placement, mirror_pairs(garment), args.front_view)
+        result["front_view"] = str(args.front_view)
     if args.json:
         print(json.dumps(result))
     else:
