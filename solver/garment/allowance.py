@@ -136,7 +136,9 @@ def open_edges(garment: Garment, up: np.ndarray | None = None
     rank = np.empty(len(first), np.int64)
     rank[np.argsort(first, kind="stable")] = np.arange(len(first))
     opening = rank[inv.ravel()]
-    if g.xyz is not None:
+    flat = g.xyz is None or float(np.ptp(g.xyz, axis=0).min()) <= 1e-9 * max(
+        float(np.ptp(g.xyz, axis=0).max()), 1e-9)  # a drape with no depth says nothing
+    if not flat:
         up = drape_up(g.xyz, edges, opening) if up is None else np.asarray(up, float)
         h = g.xyz @ (up / np.linalg.norm(up))
         top, span = float(h.max()), float(np.ptp(h)) or 1.0
