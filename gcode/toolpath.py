@@ -336,7 +336,8 @@ def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarra
                 fabric: Polygon | None = None) -> PieceToolpath:
     """The toolpath of one piece, entered from head position ``pos``.
 
-    ``fabric`` (machine mm) trims the outline's cut to the cloth (see :func:`_on_fabric`).
+    ``fabric`` (machine mm) trims the outline's cut to the cloth (see :func:`_on_fabric`),
+    less the chordal tolerance an arc fit may stray by.
     """
     c = machine.cut
     poly = _polygon(piece, source)
@@ -363,6 +364,9 @@ def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarra
         hole_poly = Polygon(ring)
         closed = _lead_in(ring, c.lead_in, hole_poly)
         tp.contours.append(_contour("hole", True, closed, machine))
+    if fabric is not None:  # arcs may stray by the tolerance: keep that much inside
+        fabric = fabric.buffer(-c.tolerance, join_style="mitre")
+    notches = _on_fabric(notches, fabric)  # a notch's start half a kerf out, off the cloth
     ordered_notches, pos = _order_open(notches, pos, reversible=True)
     for p in ordered_notches:
         tp.contours.append(_contour("notch", False, p, machine))
