@@ -90,10 +90,13 @@ def run(args) -> int:
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),
                "seconds": round(seconds, 3), "printed": problem.fabric is not None,
-               "output": str(args.output)}
+               "output": str(args.output), "allowance": layout.allowance}
     if args.json:
         print(json.dumps(summary))
     else:
+        a = layout.allowance
+        cut = (f", cut lines with {a['seam_mm']:g} mm seams, {a['hem_mm']:g} mm hems"
+               if a else "")
         print(f"{summary['pieces']} pieces, length {layout.length:.1f} mm, "
-              f"density {layout.density:.1%}, {seconds:.1f} s -> {args.output}")
+              f"density {layout.density:.1%}{cut}, {seconds:.1f} s -> {args.output}")
     return 0
