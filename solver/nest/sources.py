@@ -141,8 +141,8 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     width = width if width is not None else found_width or default_width
     if width is None:
         raise ValueError("give the fabric width with --width (the input does not say it)")
-    rules = None
-    if allowance is not None or any(kind_of(p) == "placement" for p in paths):
+    rules = None  # reported where this run made cut lines (garments), not a DXF's own
+    if any(kind_of(p) == "placement" for p in paths):
         from solver.garment.allowance import AllowanceRules
 
         rules = (allowance or AllowanceRules()).to_dict()
