@@ -201,6 +201,7 @@ def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.nda
     errors that list what exists.
     """
     g, n = garment, garment.n_vertices
+    rules = rules.with_overrides({})  # "seam", "hem", "opening" keys become the defaults
     ov = dict(rules.overrides)
     names = {s.name: i for i, s in enumerate(g.seam_lines)}
     seam_mm = np.full(len(g.seam_lines), rules.seam_mm)
