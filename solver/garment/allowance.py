@@ -308,6 +308,7 @@ def _clean(poly: shapely.Polygon, eps: float = 0.01) -> shapely.Polygon:
     """Drop the hair-thin spikes a union of many touching pieces can leave (a vertex that
     goes out and comes back along the same line: valid in floating point, invalid once
     moved and rounded), and the collinear points; changes nothing wider than ``eps`` mm."""
+    poly = shapely.set_precision(poly, 1e-6)  # near-zero sides make GEOS's mitre divide by 0
     opened = poly.buffer(-eps, join_style="mitre", mitre_limit=10.0).buffer(
         eps, join_style="mitre", mitre_limit=10.0)
     if opened.geom_type != "Polygon":
