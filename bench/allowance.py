@@ -32,11 +32,9 @@ def _best(fn, *args, repeats: int = 3):
 
 
 def _ours(g, rules):
-    from solver.garment.allowance import cut_lines, edge_allowances
-    from solver.garment.notches import seam_notches
+    from solver.garment.notches import cut_ready
 
-    cuts = cut_lines(g, rules)
-    return cuts, seam_notches(g, cuts, edge_allowances(g, rules))
+    return cut_ready(g, rules)
 
 
 def _baseline(sews):

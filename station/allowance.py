@@ -41,17 +41,3 @@ def rules_for_job(config: Config, options: Mapping[str, Any]) -> AllowanceRules:
                              or seam < 0):
         raise ValueError(f"job option seam_allowance must be a number >= 0, got {seam!r}")
     return rules_for(config, seam, overrides)
-
-
-def cuts_and_notches(garment, rules: AllowanceRules, placement=None) -> tuple[list, list]:
-    """Per piece the cut line and the notches (on the print's lattice lines when the
-    placement is given, as nesting puts them), as the pictures draw them."""
-    from solver.garment.allowance import cut_lines, edge_allowances
-    from solver.garment.notches import placement_lattice, seam_notches
-
-    cuts = cut_lines(garment, rules)
-    notches = seam_notches(garment, cuts, edge_allowances(garment, rules),
-                           spacing_mm=rules.notch_spacing_mm, depth_mm=rules.notch_depth_mm,
-                           lattice_coords=None if placement is None
-                           else placement_lattice(placement))
-    return cuts, notches

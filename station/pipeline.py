@@ -191,11 +191,12 @@ class StationPipeline:
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
         final_fit = aligned
-        from station.allowance import cuts_and_notches, rules_for_job
+        from solver.garment.notches import cut_ready
+        from station.allowance import rules_for_job
 
         rules = rules_for_job(self.config, job.options)
         report["allowance"] = rules.to_dict()
-        cuts, notches = cuts_and_notches(garment, rules, placement)
+        cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
                  title=f"aligned on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
                  notches=notches)
@@ -213,7 +214,7 @@ class StationPipeline:
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
-            cuts, notches = cuts_and_notches(garment, rules, placement)  # follows the sew
+            cuts, notches = cut_ready(garment, rules, placement)  # follows the sew
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
                      title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
                      notches=notches)

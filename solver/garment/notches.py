@@ -31,7 +31,8 @@ import shapely
 from solver.garment.allowance import CutLine, dart_runs
 from solver.garment.model import Garment
 
-__all__ = ["Notch", "dart_marks", "placement_lattice", "print_stations", "seam_notches"]
+__all__ = ["Notch", "cut_ready", "dart_marks", "placement_lattice", "print_stations",
+           "seam_notches"]
 
 
 LatticeCoords = Callable[[int, np.ndarray], np.ndarray]  # (piece, (k,2) uv) -> (k,2) frac
@@ -75,13 +76,13 @@ def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) 
     return np.where(forward[:, None], nrm, -nrm)
 
 
-def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np.ndarray]],
-                 *, spacing_mm: float = 100.0, depth_mm: float = 3.0,
+def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 100.0,
+                 depth_mm: float = 3.0,
                  lattice_coords: LatticeCoords | None = None) -> list[list[Notch]]:
     """Per piece, the notches of every seam line (pattern mm), twins on matching points.
 
-    ``allowances`` are the per-edge allowances the cut lines were made with
-    (:func:`solver.garment.allowance.edge_allowances`). With ``lattice_coords`` (the
+    ``cuts`` (:func:`solver.garment.allowance.cut_lines`) carry the per-edge allowances
+    they were made with. With ``lattice_coords`` (the
     print's fractional lattice coordinates of pattern points on a piece, from the
     placement) the balance notches go where the print's lattice lines cross the sew line
     (:func:`print_stations`), the match points a cutter lines a plaid up on.
@@ -90,7 +91,7 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
     n = g.n_vertices
     loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
     keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
-    values = np.concatenate([a for per in allowances for a in per])
+    values = np.concatenate([a for c in cuts for a in (c.allowance, *c.hole_allowance)])
     order = np.argsort(keys)
     keys, values = keys[order], values[order]
 
@@ -163,6 +164,18 @@ def seam_notches(garment: Garment, cuts: list[CutLine], allowances: list[list[np
                           a, b, f))
         emit(line, sides)
     return out
+
+
+def cut_ready(garment: Garment, rules, placement=None) -> tuple[list[CutLine], list[list[Notch]]]:
+    """Per piece the cut line and the notches with ``rules`` (AllowanceRules); with the
+    placement the balance notches sit on the print's lattice lines."""
+    from solver.garment.allowance import cut_lines
+
+    cuts = cut_lines(garment, rules)
+    lattice = None if placement is None or placement.fabric is None else placement_lattice(
+        placement)
+    return cuts, seam_notches(garment, cuts, spacing_mm=rules.notch_spacing_mm,
+                              depth_mm=rules.notch_depth_mm, lattice_coords=lattice)
 
 
 def placement_lattice(placement) -> LatticeCoords:

@@ -36,16 +36,11 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     Notches: the seam notches (with ``placement``, on the print's lattice lines), plus any
     the file gives (moved out to the cut line); marks: a drill mark near each dart's point.
     """
-    from solver.garment.allowance import AllowanceRules, cut_lines, edge_allowances
-    from solver.garment.notches import dart_marks, placement_lattice, seam_notches
+    from solver.garment.allowance import AllowanceRules
+    from solver.garment.notches import cut_ready, dart_marks
 
     rules = rules or AllowanceRules()
-    per_edge = edge_allowances(garment, rules)
-    cuts = cut_lines(garment, rules)
-    notches = seam_notches(garment, cuts, per_edge, spacing_mm=rules.notch_spacing_mm,
-                           depth_mm=rules.notch_depth_mm,
-                           lattice_coords=None if placement is None or placement.fabric is None
-                           else placement_lattice(placement))
+    cuts, notches = cut_ready(garment, rules, placement)
     names = names or list(garment.piece_names)
     grains = getattr(garment, "grainlines", None) or {}
     pieces = []

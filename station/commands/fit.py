@@ -64,10 +64,10 @@ def run(args: argparse.Namespace) -> int:
         "seconds": time.perf_counter() - start,
     }
     if args.png:
-        from station.allowance import cuts_and_notches
+        from solver.garment.notches import cut_ready
         from station.render import draw_fit
 
-        cuts, notches = cuts_and_notches(garment, allowance_rules(args), placement)
+        cuts, notches = cut_ready(garment, allowance_rules(args), placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.front_view:

@@ -9,7 +9,7 @@ import pytest
 import shapely
 
 from solver.garment import load_garment
-from solver.garment.allowance import AllowanceRules, cut_lines, dart_runs, edge_allowances
+from solver.garment.allowance import AllowanceRules, cut_lines, dart_runs
 from solver.garment.notches import dart_marks, seam_notches
 from tests.solver.test_allowance import GARMENTS
 
@@ -21,9 +21,8 @@ def notched(request):
     path, units = request.param
     g = load_garment(DATA / "garments" / path, units=units)
     rules = AllowanceRules(seam_mm=12, hem_mm=25, opening_mm=8)
-    per_edge = edge_allowances(g, rules)
     cuts = cut_lines(g, rules)
-    return g, cuts, seam_notches(g, cuts, per_edge, spacing_mm=100, depth_mm=4), rules
+    return g, cuts, seam_notches(g, cuts, spacing_mm=100, depth_mm=4), rules
 
 
 def test_every_notch_is_a_short_slit_inside_the_allowance(notched):
@@ -114,7 +113,7 @@ def test_on_a_print_balance_notches_sit_where_lattice_lines_cross_the_seam(data_
     rules = AllowanceRules()
     cuts = cut_lines(g, rules)
     lattice = placement_lattice(placement)
-    notches = seam_notches(g, cuts, edge_allowances(g, rules), spacing_mm=100, depth_mm=3,
+    notches = seam_notches(g, cuts, spacing_mm=100, depth_mm=3,
                            lattice_coords=lattice)
     first_side = {tuple(e) for e in g.seam_edges[:, :2].tolist()}  # stations measured here
     side_a = defaultdict(list)
