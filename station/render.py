@@ -246,7 +246,8 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
 
 
 def _draw_marker_details(image, layout, to_px, scale: float) -> None:
-    """Keep-outs (red), holes, notches (red slits) and grain lines (green arrows)."""
+    """Keep-outs (red), holes, notches (red slits), marks (red crosses) and grain lines
+    (green arrows)."""
     keepouts = [to_px(k) for k in layout.get("keepouts", [])]
     if keepouts:
         shade = image.copy()
@@ -254,9 +255,15 @@ def _draw_marker_details(image, layout, to_px, scale: float) -> None:
         cv2.addWeighted(shade, 0.5, image, 0.5, 0, dst=image)
     holes = [to_px(h) for piece in layout["pieces"] for h in piece.get("holes", [])]
     cv2.polylines(image, holes, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+    arm = 3.0 / scale  # marks (drill holes, dart points) as small crosses, 3 px each way
     for piece in layout["pieces"]:
         notch_ticks(image, [(n["at"], n["direction"], n.get("depth"))
                             for n in piece.get("notches", [])], to_px, 4.0 / scale)
+        for m in np.asarray(piece.get("marks") or [], float).reshape(-1, 2):
+            for d in ((arm, arm), (arm, -arm)):
+                a, b = to_px(np.stack([m - d, m + d]))
+                cv2.line(image, tuple(map(int, a)), tuple(map(int, b)), (0, 0, 200), 1,
+                         cv2.LINE_AA, shift=4)
         if piece.get("grainline") is not None:
             a, b = to_px(piece["grainline"])
             cv2.arrowedLine(image, tuple(a), tuple(b), (0, 130, 0), 1, cv2.LINE_AA, shift=4)
