@@ -37,3 +37,24 @@ def test_submission_refuses_bad_allowance_options(data_dir, options, fault):
     pipeline.check(garment, None, {"units": "m"})  # the good job passes
     with pytest.raises(ValueError, match=fault):
         pipeline.check(garment, None, {"units": "m", **options})
+
+
+def test_the_daemon_nests_a_job_with_its_own_allowances(tmp_path, data_dir):
+    import json
+
+    import numpy as np
+
+    from station.cli import main
+    from station.pipeline import nest_placement
+
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps({"group": "p4m", "w1": [50, 0], "w2": [0, 50]}))
+    garment = data_dir / "garments" / "garment_pattern_generator" / "tee.json"
+    assert main(["align", str(garment), "--fabric", str(fabric), "--restarts", "1",
+                 "-o", str(tmp_path / "P.json")]) == 0
+    config = load_config(None, {"nest": {"seconds": 1.0}})
+    layout = nest_placement(tmp_path / "P.json", config, None,
+                            {"seam_allowance": 14, "allowance": {"hem": 26}})
+    assert layout.allowance["seam_mm"] == 14.0 and layout.allowance["hem_mm"] == 26.0
+    used = set(np.concatenate([p.allowance for p in layout.pieces]).tolist())
+    assert {14.0, 26.0} <= used
