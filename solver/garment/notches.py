@@ -85,7 +85,8 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     they were made with. With ``lattice_coords`` (the
     print's fractional lattice coordinates of pattern points on a piece, from the
     placement) the balance notches go where the print's lattice lines cross the sew line
-    (:func:`print_stations`), the match points a cutter lines a plaid up on.
+    (:func:`print_stations`), the match points a cutter lines a plaid up on, no closer
+    than half the spacing (a fine print would otherwise notch every few centimetres).
     """
     g = garment
     n = g.n_vertices
@@ -152,7 +153,7 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
             f_a = lattice_coords(piece_a, g.uv[rows[:, 0]])
             f_b = lattice_coords(piece_a, g.uv[rows[:, 1]])
             stations = print_stations(s, f_a, f_b, inset, spacing_mm,
-                                      min_gap=max(2.0 * float(allow.max()), 20.0))
+                                      min_gap=max(2.0 * float(allow.max()), spacing_mm / 2))
         k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
         f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
         sides = []

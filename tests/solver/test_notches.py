@@ -129,5 +129,5 @@ def test_on_a_print_balance_notches_sit_where_lattice_lines_cross_the_seam(data_
             interior += 1
             on_lines += bool(np.abs(f - np.round(f)).min() < 1e-9)
         gaps = np.hypot(*np.diff([q.sew_point for q in qs], axis=0).T)
-        assert gaps.max() <= 100.0 + 1e-6 and gaps.min() >= 20.0 - 1e-6  # chords <= arcs
-    assert interior > 20 and on_lines >= 0.8 * interior
+        assert gaps.max() <= 100.0 + 1e-6 and gaps.min() >= 45.0  # chords, a bit under arcs
+    assert interior > 20 and on_lines >= 0.7 * interior  # the rest fill gaps over 100 mm
