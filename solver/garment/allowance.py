@@ -12,8 +12,8 @@ the union of the piece with all strips and corner fills (shapely, one vectorised
 a union of polygons is always a simple polygon, so darts and self-seams (whose strips
 overlap) give a clean outline that never crosses itself, concave corners come out mitred
 by the overlap itself, and no point lies farther than ``cap`` x allowance from the sew
-line. Holes stay holes (their open edges eat into them); pockets the union closes off
-between overlapping strips are filled, as a cutter would.
+line. Holes stay holes: their allowance eats into them, and one too small for it is cut on
+its sew line; pockets the union closes off between overlapping strips are filled.
 
 Which open edges are hems: open edges chain (through shared 3D points) into the garment's
 openings. An opening that reaches the garment's top (neckline, waist) is finished with a
@@ -298,9 +298,15 @@ def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
                                               np.asarray(extra or [], dtype=object)]))
     if whole.geom_type != "Polygon":  # cannot happen for a connected piece; be safe
         whole = max(getattr(whole, "geoms", [whole]), key=lambda q: q.area)
-    holes = [r for r in whole.interiors
-             if any(shapely.Polygon(h).intersects(shapely.Polygon(r)) for h in loops[1:])]
-    cut = _clean(shapely.Polygon(whole.exterior, holes))
+    sew_holes = [shapely.Polygon(h) for h in loops[1:]]
+    holes = [shapely.Polygon(r) for r in whole.interiors]
+    kept = [r for r in holes if any(h.intersects(r) for h in sew_holes)]
+    # a hole too small for its allowance stays a hole: it is cut on its sew line
+    lost = [h for h in sew_holes if not any(h.intersects(r) for r in kept)]
+    cut = shapely.Polygon(whole.exterior, [r.exterior for r in kept])
+    if lost:
+        cut = cut.difference(shapely.union_all(lost))
+    cut = _clean(cut)
     return shapely.geometry.polygon.orient(cut, 1.0)
 
 

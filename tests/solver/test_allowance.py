@@ -128,6 +128,9 @@ def test_holes_stay_holes_and_a_dart_leaves_a_simple_outline():
     cut = offset_outline([outer, hole], [np.full(7, 10.0), np.full(4, 5.0)])
     assert cut.is_valid and cut.exterior.is_simple and len(cut.interiors) == 1
     assert shapely.Polygon(cut.interiors[0]).area == pytest.approx(20.0 ** 2)
+    small = offset_outline([outer, hole], [np.full(7, 10.0), np.full(4, 20.0)])
+    assert len(small.interiors) == 1  # too small for 20 mm: cut on its sew line
+    assert shapely.Polygon(small.interiors[0]).area == pytest.approx(30.0 ** 2)
 
 
 def test_the_cut_line_runs_across_a_dart_as_if_it_were_closed():
