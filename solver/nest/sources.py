@@ -45,7 +45,7 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     grains = getattr(garment, "grainlines", None) or {}
     pieces = []
     for i, cut in enumerate(cuts):
-        marks = [(q.at, q.direction, q.depth) for q in notches[i]]
+        slits = [(q.at, q.direction, q.depth) for q in notches[i]]
         for at in garment.notches.get(i, []):  # the file's notches sit on the sew line
             at = np.asarray(at, float)
             ring = cut.cut.exterior
@@ -54,9 +54,9 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
             dist = float(np.linalg.norm(d))
             if dist > 1e-9:
                 depth = min(rules.notch_depth_mm, dist / 2)
-                marks.append((edge, d / dist, depth))
+                slits.append((edge, d / dist, depth))
         grain = grains.get(i)
-        pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=marks,
+        pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=slits,
                             grainline=None if grain is None else np.asarray(grain, float),
                             marks=dart_marks(garment, i), sew_line=cut.sew,
                             allowance=cut.allowance))
