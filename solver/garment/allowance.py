@@ -16,11 +16,13 @@ line. Holes stay holes: their allowance eats into them, and one too small for it
 its sew line; pockets the union closes off between overlapping strips are filled.
 
 Which open edges are hems: open edges chain (through shared 3D points) into the garment's
-openings. An opening that reaches the garment's top (neckline, waist) is finished with a
-facing or band (``opening_mm``); every other opening (bottom, sleeve and leg ends) is a
-hem (``hem_mm``). Heights are along the drape's up direction (:func:`drape_up`, or given)
-when the garment has a drape, else world y where a specification places its panels around
-the body, else pattern y within each piece (flat patterns are drawn upright).
+openings. An opening that reaches the garment's top (neckline, waist, armhole) is finished
+with a facing or band (``opening_mm``); every other opening (bottom, sleeve and leg ends)
+is a hem (``hem_mm``), and so is an upright loop alone on its pieces (the cuff of a
+sleeve held out level, which reaches the shoulder's height). Heights are along the drape's
+up direction (:func:`drape_up`, or given) when the garment has a drape, else world y where
+a specification places its panels around the body, else pattern y within each piece (flat
+patterns are drawn upright).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ __all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", 
            "edge_allowances", "offset_outline", "open_edges"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
+LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
 
 
 @dataclass(frozen=True)
@@ -139,27 +142,51 @@ def open_edges(garment: Garment, up: np.ndarray | None = None
     flat = g.xyz is None or float(np.ptp(g.xyz, axis=0).min()) <= 1e-9 * max(
         float(np.ptp(g.xyz, axis=0).max()), 1e-9)  # a drape with no depth says nothing
     if not flat:
-        up = drape_up(g.xyz, edges, opening) if up is None else np.asarray(up, float)
-        h = g.xyz @ (up / np.linalg.norm(up))
-        top, span = float(h.max()), float(np.ptp(h)) or 1.0
-        reach = np.full(len(first), -np.inf)
-        np.maximum.at(reach, opening, h[edges].max(axis=1))
-        is_hem = reach < top - TOP_FRACTION * span
-    elif len(g.panel_height) == g.n_pieces:  # a specification places its panels: world y
-        abc = np.array([g.panel_height[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
-        h = abc[:, 0] * g.uv[:, 0] + abc[:, 1] * g.uv[:, 1] + abc[:, 2]
-        top, span = float(h.max()), float(np.ptp(h)) or 1.0
-        reach = np.full(len(first), -np.inf)
-        np.maximum.at(reach, opening, h[edges].max(axis=1))
-        is_hem = reach < top - TOP_FRACTION * span
+        pos = g.xyz
+        up = drape_up(pos, edges, opening) if up is None else np.asarray(up, float)
+    elif len(g.panel_frames) == g.n_pieces:  # a specification places its panels: y up
+        frames = np.stack([g.panel_frames[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
+        pos = np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
+        up = np.array([0.0, 1.0, 0.0]) if up is None else np.asarray(up, float)
     else:  # flat pattern: heights relative to each piece's own box
         box = g.piece_bboxes()
         piece = g.piece_of_vertex
         rel = (g.uv[:, 1] - box[piece, 1]) / np.maximum(box[piece, 3] - box[piece, 1], 1e-9)
         reach = np.full(len(first), -np.inf)
         np.maximum.at(reach, opening, rel[edges].max(axis=1))
-        is_hem = reach < 1.0 - TOP_FRACTION
-    return edges, opening, is_hem
+        return edges, opening, reach < 1.0 - TOP_FRACTION
+    up = up / np.linalg.norm(up)
+    h = pos @ up
+    top, span = float(h.max()), float(np.ptp(h)) or 1.0
+    reach = np.full(len(first), -np.inf)
+    np.maximum.at(reach, opening, h[edges].max(axis=1))
+    _, normal, _ = _opening_planes(pos, edges, opening)
+    level = np.abs(normal @ up) > LEVEL
+    # a limb's end: an upright loop (a T-pose sleeve's cuff reaches the shoulder's height)
+    # on pieces that have no other opening; an armhole's pieces also carry the neckline
+    pieces = g.piece_of_vertex[edges[:, 0]]
+    touches = np.zeros((len(first), g.n_pieces), bool)
+    touches[opening, pieces] = True
+    others = touches.sum(0)[None, :] - touches  # other openings on each piece
+    alone = ~np.any(touches & (others > 0), axis=1)
+    return edges, opening, (reach < top - TOP_FRACTION * span) | (~level & alone)
+
+
+def _opening_planes(pos: np.ndarray, edges: np.ndarray, opening: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per opening its centre (k,3), unit plane normal (k,3) and length (k,) in 3D."""
+    k = int(opening.max()) + 1
+    length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
+    total = np.bincount(opening, weights=length, minlength=k)
+    mid = 0.5 * (pos[edges[:, 0]] + pos[edges[:, 1]])
+    centre = np.stack([np.bincount(opening, weights=mid[:, j] * length, minlength=k)
+                       for j in range(3)], 1) / np.maximum(total, 1e-12)[:, None]
+    normal = np.zeros((k, 3))
+    for o in range(k):  # one small SVD per opening (a handful per garment)
+        p = mid[opening == o] - centre[o]
+        if len(p) >= 3:
+            normal[o] = np.linalg.svd(p, full_matrices=False)[2][-1]
+    return centre, normal, total
 
 
 def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
@@ -172,19 +199,10 @@ def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndar
     hems below it, so up is the side of the mid-height with less length of horizontal
     openings.
     """
-    k = int(opening.max()) + 1
-    length = np.linalg.norm(xyz[edges[:, 1]] - xyz[edges[:, 0]], axis=1)
-    total = np.bincount(opening, weights=length, minlength=k)
-    mid_pts = 0.5 * (xyz[edges[:, 0]] + xyz[edges[:, 1]])
-    centre = np.stack([np.bincount(opening, weights=mid_pts[:, j] * length, minlength=k)
-                       for j in range(3)], 1) / np.maximum(total, 1e-12)[:, None]
-    normal = np.zeros((k, 3))
-    for o in range(k):  # one small SVD per opening (a handful per garment)
-        p = mid_pts[opening == o] - centre[o]
-        if len(p) >= 3:
-            normal[o] = np.abs(np.linalg.svd(p, full_matrices=False)[2][-1])
+    centre, normal, total = _opening_planes(xyz, edges, opening)
+    normal = np.abs(normal)
     axis = int(np.argmax(total @ normal))
-    level = normal[:, axis] > 0.7  # horizontal loops only: armholes and sleeves do not vote
+    level = normal[:, axis] > LEVEL  # horizontal loops only: armholes, sleeves do not vote
     h = centre[:, axis]
     middle = 0.5 * (xyz[:, axis].min() + xyz[:, axis].max())
     above = total[level & (h > middle)].sum()

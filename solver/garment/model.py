@@ -63,9 +63,9 @@ class Garment:
         Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
     grainlines, notches : dict
         Per piece index, where the input has them (mm, pattern coordinates).
-    panel_height : dict
-        Per piece ``(a, b, c)``: a specification places its panel around the body, and the
-        pattern point (u, v) sits at world height ``a u + b v + c`` mm (up = +y there).
+    panel_frames : dict
+        Per piece a (3,3) float array ``F``: a specification places its panel around the
+        body, and the pattern point (u, v) sits at ``F @ (u, v, 1)`` (mm, world, +y up).
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -89,7 +89,7 @@ class Garment:
         default_factory=dict
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
-    panel_height: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+    panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -155,7 +155,7 @@ class Garment:
             seam_lines=list(self.seam_lines),
             grainlines=dict(self.grainlines),
             notches={k: list(v) for k, v in self.notches.items()},
-            panel_height=dict(self.panel_height),
+            panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
             _loops=None,
         )
 
@@ -287,7 +287,7 @@ def build_garment(
     grainlines: dict | None = None,
     notches: dict | None = None,
     twins: np.ndarray | None = None,
-    panel_height: dict | None = None,
+    panel_frames: dict | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
@@ -398,7 +398,7 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
-        panel_height=dict(panel_height or {}) if panels_are_pieces else {},
+        panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),

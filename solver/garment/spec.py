@@ -314,7 +314,7 @@ def load_spec(
     grainlines: dict[int, tuple[tuple[float, float], tuple[float, float]]] = {}
     notches: dict[int, list[tuple[float, float]]] = {}
     boxes: list[np.ndarray] = []
-    heights: dict[int, tuple[float, float, float]] = {}
+    frames: dict[int, np.ndarray | None] = {}
     absolute = props.get("pattern_layout") == "absolute"
     zero_edges = 0
     for p, polys in enumerate(dense):
@@ -342,7 +342,7 @@ def load_spec(
             verts = verts + np.array([shift, 0.0])
             box = box + np.array([shift, 0.0, shift, 0.0])
         boxes.append(box)
-        heights[p] = _panel_height(panels[order[p]], k, shift)
+        frames[p] = _panel_frame(panels[order[p]], k, shift)
         marks = _panel_marks(path, order[p], panels[order[p]], k, np.array([shift, 0.0]))
         if marks[0] is not None:
             grainlines[p] = marks[0]
@@ -382,15 +382,15 @@ def load_spec(
         grainlines=grainlines,
         notches=notches,
         twins=all_twins,
-        panel_height={p: h for p, h in heights.items() if h is not None},
+        panel_frames={p: f for p, f in frames.items() if f is not None},
     )
 
 
-def _panel_height(panel: dict, k: float, shift: float) -> tuple[float, float, float] | None:
-    """How high (mm, world y) each pattern point of a panel sits where the specification
-    places the panel around the body (``rotation``: intrinsic XYZ Euler degrees, as
-    GarmentCode builds it; ``translation`` in file units): ``h = a u + b v + c``. None when
-    the panel is not placed."""
+def _panel_frame(panel: dict, k: float, shift: float) -> np.ndarray | None:
+    """Where the specification places a panel around the body: ``F`` (3,3) with world =
+    ``F @ (u, v, 1)`` mm for the pattern point (u, v) (``rotation``: intrinsic XYZ Euler
+    degrees, as GarmentCode builds it; ``translation`` in file units). None when the panel
+    is not placed (all zero is what :func:`save_spec` writes)."""
     rot, trans = panel.get("rotation"), panel.get("translation")
     try:
         rot = np.asarray(rot, float).reshape(3)
@@ -398,12 +398,12 @@ def _panel_height(panel: dict, k: float, shift: float) -> tuple[float, float, fl
     except (TypeError, ValueError):
         return None
     if not (np.isfinite(rot).all() and np.isfinite(trans).all()) or not (
-            rot.any() or trans.any()):  # all zero: what save_spec writes, i.e. not placed
+            rot.any() or trans.any()):
         return None
     from scipy.spatial.transform import Rotation
 
-    row = Rotation.from_euler("XYZ", rot, degrees=True).as_matrix()[1]
-    return float(row[0]), float(row[1]), float(trans[1] * k - row[0] * shift)
+    r = Rotation.from_euler("XYZ", rot, degrees=True).as_matrix()
+    return np.column_stack([r[:, 0], r[:, 1], trans * k - r[:, 0] * shift])
 
 
 def _panel_marks(

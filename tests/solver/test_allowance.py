@@ -83,12 +83,20 @@ def test_open_edges_split_into_hems_and_openings():
         assert int(np.argmax(height)) == int(np.argmin(is_hem)), path
     # a flat GarmentCode specification places its panels around the body (y up)
     spec = load_garment(DATA / "garments" / "garmentcode" / "tshirt_specification.json")
-    assert len(spec.panel_height) == spec.n_pieces
+    assert len(spec.panel_frames) == spec.n_pieces
     edges, opening, is_hem = open_edges(spec)
     assert len(is_hem) == 4 and is_hem.sum() == 3  # neckline; bottom and sleeve hems
     neck = int(np.argmin(is_hem))
     assert {spec.piece_names[p] for p in spec.piece_of_vertex[edges[opening == neck, 0]]} == {
         "left_ftorso", "left_btorso", "right_ftorso", "right_btorso"}
+    # GPG's tee holds its sleeves out level: the cuffs reach the shoulder's height, yet
+    # they are hems (upright loops alone on the sleeves); the neckline is not
+    tee = load_garment(DATA / "garments" / "garment_pattern_generator" / "tee.json")
+    edges, opening, is_hem = open_edges(tee)
+    assert len(is_hem) == 4 and is_hem.sum() == 3
+    neck = int(np.argmin(is_hem))
+    assert {tee.piece_names[p] for p in tee.piece_of_vertex[edges[opening == neck, 0]]} == {
+        "front", "back"}
 
 
 def test_overrides_change_only_what_they_name(garment):
