@@ -64,7 +64,7 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
 
 
 def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
-                          units: str | None = None, allowance=None):
+                          units: str | None = None, allowance=None, fabric=None):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
@@ -72,7 +72,8 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
     ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
     ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
-    makes the cut lines.
+    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
+    balance notches follow.
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -88,6 +89,8 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
+    if fabric is not None:
+        placement.fabric = fabric
     pieces = garment_pieces(garment, allowance, placement.piece_names or None, placement)
     for i, piece in enumerate(pieces):
         a = placement.angles[i]
@@ -123,7 +126,8 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
         else:
-            got, wp = pieces_from_placement(path, units=units, allowance=allowance)
+            got, wp = pieces_from_placement(path, units=units, allowance=allowance,
+                                            fabric=fabric)
             pieces += got
             found_fabric = found_fabric or wp
     for p in pieces:
