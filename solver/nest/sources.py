@@ -64,7 +64,8 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
 
 
 def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
-                          units: str | None = None, allowance=None, fabric=None):
+                          units: str | None = None, allowance=None, fabric=None,
+                          plain: bool = False):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
@@ -73,7 +74,7 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
     ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
     makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
-    balance notches follow.
+    balance notches follow (``plain``: no print, notches by spacing alone).
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -91,7 +92,8 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
                          f"{garment.n_pieces}")
     if fabric is not None:
         placement.fabric = fabric
-    pieces = garment_pieces(garment, allowance, placement.piece_names or None, placement)
+    pieces = garment_pieces(garment, allowance, placement.piece_names or None,
+                            None if plain else placement)
     for i, piece in enumerate(pieces):
         a = placement.angles[i]
         r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
@@ -105,12 +107,13 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
                  sizes: list[str] | None = None, units: str | None = None,
                  quantity: int = 1, pairs: bool = False,
                  keepouts: list[np.ndarray] | None = None, allowance=None,
-                 default_width: float | None = None) -> NestProblem:
+                 default_width: float | None = None, plain: bool = False) -> NestProblem:
     """Several inputs (garments, sizes) in one marker; ``fabric`` overrides any given print.
 
     ``units`` are those of a DXF or garment file that does not state them; ``allowance``
     (AllowanceRules) makes garments' cut lines, and a DXF's sew line where it has none.
     The width is ``width``, else the input's, else ``default_width`` (the station's roll).
+    ``plain``: nest on plain cloth whatever print the inputs name.
     """
     pieces: list[Piece] = []
     found_width, found_fabric = None, None
@@ -127,7 +130,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
         else:
             got, wp = pieces_from_placement(path, units=units, allowance=allowance,
-                                            fabric=fabric)
+                                            fabric=fabric, plain=plain)
             pieces += got
             found_fabric = found_fabric or wp
     for p in pieces:
@@ -145,5 +148,6 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         from solver.garment.allowance import AllowanceRules
 
         rules = (allowance or AllowanceRules()).to_dict()
-    return NestProblem(pieces, float(width), length, gap, fabric or found_fabric,
-                       list(keepouts or []), allowance=rules)
+    return NestProblem(pieces, float(width), length, gap,
+                       None if plain else fabric or found_fabric, list(keepouts or []),
+                       allowance=rules)
