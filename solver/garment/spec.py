@@ -34,9 +34,11 @@ import numpy as np
 import shapely
 import triangle
 
+import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, _boundary_half_edges, _components, build_garment
 from solver.units import mm_per_unit, units_from_meter_fraction
+from untrusted import read_json
 
 DEFAULT_RESOLUTION_MM = 20.0
 #: gap left between panels when they are laid out side by side in the pattern plane
@@ -134,21 +136,29 @@ def _length(poly: np.ndarray) -> float:
 
 
 def _read_json(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise GarmentError(path, "not a text (UTF-8) file") from None
-    if not text.strip():
-        raise GarmentError(path, "empty file")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise GarmentError(
-            path, f"not valid JSON (truncated?): {exc.msg} at line {exc.lineno}"
-        ) from None
+    data = read_json(path, what="pattern specification")
     if not isinstance(data, dict) or not isinstance(data.get("pattern"), dict):
         raise GarmentError(path, "no 'pattern' object: not a sewing-pattern specification")
     return data
+
+
+def _check_size(path: Path, verts_mm: list[np.ndarray], res: float) -> None:
+    """Err before meshing if the pattern is wider than a garment can be or its mesh would
+    exceed the face limit (about 2.3 faces per res x res square of panel area)."""
+    lim = untrusted.limits
+    for v in verts_mm:
+        span = float(np.ptp(v, axis=0).max())
+        if not span <= lim.MAX_GARMENT_MM:
+            raise GarmentError(path, f"a panel spans {span:.3g} mm; a garment is at most "
+                               f"{lim.MAX_GARMENT_MM:g} mm across (wrong units_in_meter?)")
+    x = [v[:, 0] for v in verts_mm]
+    y = [v[:, 1] for v in verts_mm]
+    area = sum(abs(float(np.dot(a, np.roll(b, -1)) - np.dot(np.roll(a, -1), b))) / 2
+               for a, b in zip(x, y))
+    faces = 2.3 * area / res**2
+    if faces > lim.MAX_FACES:
+        raise GarmentError(path, f"meshing at {res:g} mm would make about {faces:.3g} faces, "
+                           f"beyond the limit of {lim.MAX_FACES:,}")
 
 
 def _panel_geometry(path: Path, name: str, panel: Any) -> tuple[np.ndarray, list[dict]]:
@@ -274,6 +284,7 @@ def load_spec(
         verts, edges = _panel_geometry(path, name, panels[name])
         meshes.append(_panel_mesh(path, name, panels[name], verts, edges))
         verts = verts * k
+        _check_size(path, [verts], res)
         polys = []
         for ei, e in enumerate(edges):
             i, j = (int(x) for x in e["endpoints"])
@@ -285,6 +296,8 @@ def load_spec(
                 raise GarmentError(path, f"panel {exc}") from None
         geom.append((verts, edges))
         dense.append(polys)
+
+    _check_size(path, [v for v, _ in geom], res)
 
     # stitches: validate and give both edges the same sample count; a meshed panel's
     # edges are one segment each, and so are the edges sewn to them
