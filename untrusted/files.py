@@ -24,7 +24,7 @@ def read_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise MissingInput(path, f"no such {what}") from None
+        raise MissingInput(path, f"{what} not found") from None
     except IsADirectoryError:
         raise InputError(path, f"is a folder, expected a {what}") from None
     except OSError as exc:

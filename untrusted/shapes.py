@@ -35,8 +35,8 @@ def sequence(value: Any, source: str | Path, where: str, *, max_len: int,
     if not isinstance(value, list):
         raise InputError(source, f"{where} must be a list, got {_kind(value)}")
     if not min_len <= len(value) <= max_len:
-        raise InputError(source, f"{where} has {len(value):,} elements; expected "
-                         f"{min_len:,} to {max_len:,}")
+        raise InputError(source, f"{where} has {len(value):,} elements; expected at least "
+                         f"{min_len:,} and at most {max_len:,}")
     return value
 
 
@@ -86,14 +86,15 @@ def points(value: Any, source: str | Path, where: str, *, dim: int = 2, min_len:
         raise InputError(source, f"{where} must be a list of {dim}-number points, "
                          f"got {_kind(value)}")
     if not min_len <= len(value) <= max_len:
-        raise InputError(source, f"{where} has {len(value):,} points; expected {min_len:,} "
-                         f"to {max_len:,}")
+        raise InputError(source, f"{where} has {len(value):,} points; expected at least "
+                         f"{min_len:,} and at most {max_len:,}")
     if any(not isinstance(p, (list, tuple)) or len(p) != dim for p in value):
         raise InputError(source, f"{where} must be a list of [{', '.join('xyz'[:dim])}] points")
     try:
         arr = np.array(value, dtype=float).reshape(len(value), dim)
     except (TypeError, ValueError, OverflowError):
-        raise InputError(source, f"{where} holds a coordinate that is not a number") from None
+        raise InputError(source, f"{where} must be a list of points: a coordinate is "
+                         "not a number") from None
     return _bounded(arr, source, where, max_abs)
 
 

@@ -73,12 +73,15 @@ def check_tree(value: Any, source: str | Path, *, max_depth: int = MAX_DEPTH) ->
 
 def parse_json(text: str, source: str | Path) -> Any:
     """Parsed JSON ``text``; every fault is an InputError naming ``source``."""
+    if not text.strip():
+        raise InputError(source, "empty file")
     try:
         value = json.loads(text, parse_constant=_reject_constant, parse_int=_int,
                            parse_float=_float)
     except json.JSONDecodeError as exc:
-        raise InputError(source, f"not valid JSON ({exc.msg} at line {exc.lineno} column "
-                         f"{exc.colno})") from None
+        cut = " (truncated?)" if exc.pos >= len(text.rstrip()) else ""
+        raise InputError(source, f"not valid JSON{cut}: {exc.msg} at line {exc.lineno} "
+                         f"column {exc.colno}") from None
     except _Fault as exc:
         raise InputError(source, str(exc)) from None
     except RecursionError:

@@ -38,7 +38,6 @@ import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, _boundary_half_edges, _components, build_garment
 from solver.units import mm_per_unit, units_from_meter_fraction
-from untrusted import read_json
 
 DEFAULT_RESOLUTION_MM = 20.0
 #: gap left between panels when they are laid out side by side in the pattern plane
@@ -136,7 +135,12 @@ def _length(poly: np.ndarray) -> float:
 
 
 def _read_json(path: Path) -> dict:
-    data = read_json(path, what="pattern specification")
+    try:
+        data = untrusted.read_json(path, what="pattern specification")
+    except untrusted.MissingInput:
+        raise
+    except untrusted.InputError as exc:
+        raise GarmentError(path, exc.fault) from None
     if not isinstance(data, dict) or not isinstance(data.get("pattern"), dict):
         raise GarmentError(path, "no 'pattern' object: not a sewing-pattern specification")
     return data
