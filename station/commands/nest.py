@@ -63,8 +63,11 @@ def run(args) -> int:
         keepouts=load_keepouts(args.keepout) if args.keepout else None)
     progress = stderr_progress
     t0 = time.monotonic()
-    layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
-                  method=args.method)
+    try:
+        layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
+                      method=args.method)
+    except ValueError as exc:  # e.g. a piece wider than the fabric: name the input
+        raise UserError(f"{', '.join(map(str, args.inputs))}: {exc}") from None
     seconds = time.monotonic() - t0
     faults = verify_layout(layout, problem)
     if faults:
