@@ -120,7 +120,7 @@ def _check_cut(c: CutParams, source: str) -> None:
         (c.feed > 0, "feed must be > 0"),
         (c.power >= 0, "power must be >= 0"),
         (1 <= c.passes <= untrusted.limits.MAX_PASSES,
-         f"passes must be 1 to {untrusted.limits.MAX_PASSES}"),
+         f"passes must be >= 1 and <= {untrusted.limits.MAX_PASSES}"),
         (c.kerf >= 0, "kerf must be >= 0"),
         (c.tolerance > 0, "tolerance must be > 0"),
         (c.lead_in >= 0, "lead_in must be >= 0"),
