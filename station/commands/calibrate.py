@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-import cv2
+from untrusted import read_image
 
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 
@@ -54,16 +54,8 @@ def _folder_views(folder: Path, table: str | None):
         table_path = files.pop()
     else:
         raise UserError(f"{folder}: no images")
-    views = []
-    for f in files:
-        im = cv2.imread(str(f), cv2.IMREAD_COLOR)
-        if im is None:
-            raise UserError(f"{f}: not an image OpenCV can read")
-        views.append(im)
-    tv = cv2.imread(str(table_path), cv2.IMREAD_COLOR)
-    if tv is None:
-        raise UserError(f"{table_path}: not an image OpenCV can read")
-    return views, tv
+    views = [read_image(f) for f in files]
+    return views, read_image(table_path)
 
 
 def _simulated_views(board_spec, n: int):
