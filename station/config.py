@@ -53,10 +53,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "store": {
         "path": Key(str, "station-data/jobs.db", "SQLite job store"),
         "work_dir": Key(str, "station-data/jobs", "per-job files (frames, plans, G-code)"),
+        "umask": Key(int, 0o027, "the daemon's umask (0o027: job files 0640, folders 0750)",
+                     minimum=0, maximum=0o777),
     },
     "control": {
         "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),
         "group": Key(str, "", "group allowed to use the socket besides the station's user"),
+        "check_seconds": Key(float, 120.0, "time allowed to read and check one submission",
+                             minimum=1.0, maximum=3600.0),
+        "check_memory_mb": Key(int, 4096, "memory allowed to read and check one submission",
+                               minimum=64, maximum=1 << 20),
     },
     "align": {
         "method": Key(str, "global", "alignment method", choices=("paper", "global")),
@@ -197,7 +203,8 @@ def example_toml() -> str:
         lines.append(f"[{section}]")
         for name, key in keys.items():
             value = key.default
-            text = (str(value).lower() if isinstance(value, bool)
+            text = (f"0o{value:03o}" if name == "umask" else str(value).lower()
+                    if isinstance(value, bool)
                     else f'"{value}"' if isinstance(value, str) else repr(value))
             lines.append(f"{name} = {text}  # {key.help}")
         lines.append("")
