@@ -29,45 +29,36 @@ class _Fault(Exception):
     """Raised from a parser hook; turned into an InputError naming the source."""
 
 
-def _reject_constant(name: str) -> Any:
-    raise _Fault(f"{name} is not a number the station accepts (only finite numbers)")
-
-
 def _int(text: str) -> int:
     if len(text.lstrip("-")) > MAX_INT_DIGITS:
         raise _Fault(f"integer {text[:12]}... has more than {MAX_INT_DIGITS} digits")
     return int(text)
 
 
-def _float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise _Fault(f"number {text[:24]} is out of range")
-    return value
+def _path(keys: tuple) -> str:
+    return "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in keys).lstrip(".")
 
 
 def check_tree(value: Any, source: str | Path, *, max_depth: int = MAX_DEPTH) -> Any:
     """``value`` unchanged if it nests at most ``max_depth`` deep and its numbers are finite
-    and fit int64; walks containers iteratively so depth itself cannot crash it."""
-    stack: list[tuple[Any, int]] = [(value, 1)]
+    and fit int64; the fault names the key path (``pieces[2].outline[0][1]``). Walks
+    containers iteratively, so depth itself cannot crash it."""
+    stack: list[tuple[Any, tuple]] = [(value, ())]
     while stack:
-        node, depth = stack.pop()
-        if isinstance(node, dict):
-            children = node.values()
-        elif isinstance(node, list):
-            children = node
-        else:
-            continue
-        if depth > max_depth:
+        node, keys = stack.pop()
+        if len(keys) >= max_depth:
             raise InputError(source, f"nested more than {max_depth} levels deep")
-        for child in children:
+        items = node.items() if isinstance(node, dict) else enumerate(node)
+        for key, child in items:
             if isinstance(child, (dict, list)):
-                stack.append((child, depth + 1))
+                stack.append((child, (*keys, key)))
             elif isinstance(child, float) and not math.isfinite(child):
-                raise InputError(source, f"non-finite number {child}")
+                raise InputError(source, f"{_path((*keys, key))} = {child}: only finite "
+                                 "numbers are accepted")
             elif isinstance(child, int) and not isinstance(child, bool) \
                     and not -INT_LIMIT <= child <= INT_LIMIT:
-                raise InputError(source, "integer out of the 64-bit range")
+                raise InputError(source, f"{_path((*keys, key))}: integer out of the 64-bit "
+                                 "range")
     return value
 
 
@@ -76,8 +67,7 @@ def parse_json(text: str, source: str | Path) -> Any:
     if not text.strip():
         raise InputError(source, "empty file")
     try:
-        value = json.loads(text, parse_constant=_reject_constant, parse_int=_int,
-                           parse_float=_float)
+        value = json.loads(text, parse_int=_int)
     except json.JSONDecodeError as exc:
         cut = " (truncated?)" if exc.pos >= len(text.rstrip()) else ""
         raise InputError(source, f"not valid JSON{cut}: {exc.msg} at line {exc.lineno} "
@@ -86,7 +76,11 @@ def parse_json(text: str, source: str | Path) -> Any:
         raise InputError(source, str(exc)) from None
     except RecursionError:
         raise InputError(source, f"nested more than {MAX_DEPTH} levels deep") from None
-    return check_tree(value, source)
+    if isinstance(value, (dict, list)):
+        return check_tree(value, source)
+    if isinstance(value, float) and not math.isfinite(value):
+        raise InputError(source, f"{value}: only finite numbers are accepted")
+    return value
 
 
 def read_json(path: str | Path, *, what: str = "JSON file", max_bytes: int = MAX_JSON_BYTES
@@ -99,7 +93,7 @@ def read_json(path: str | Path, *, what: str = "JSON file", max_bytes: int = MAX
 def parse_toml(text: str, source: str | Path) -> dict[str, Any]:
     """Parsed TOML ``text`` with the same guarantees as :func:`parse_json`."""
     try:
-        value = tomllib.loads(text, parse_float=_float)
+        value = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(source, f"not valid TOML ({exc})") from None
     except (_Fault, ValueError) as exc:  # ValueError: an integer of > 4300 digits
