@@ -123,7 +123,6 @@ class Daemon:
         """Run until SIGTERM/SIGINT (or, with ``once``, until no job is left)."""
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, self._on_signal)
-        os.umask(self.config["store"]["umask"])  # job files 0640, folders 0750 by default
         try:
             self.recover()
             self.control.start()
