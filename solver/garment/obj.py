@@ -89,7 +89,10 @@ def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # partial parse: counted below
-        numbers = np.fromstring(" ".join(lines).replace("/", " "), dtype=np.int64, sep=" ")
+        try:
+            numbers = np.fromstring(" ".join(lines).replace("/", " "), dtype=np.int64, sep=" ")
+        except ValueError:  # unparsable: the slow path below names the line
+            numbers = np.zeros(0, np.int64)
     try:
         if triangles and len(numbers) == 3 * per * len(lines):
             arr = numbers.reshape(len(lines), 3, per)
@@ -164,7 +167,10 @@ def _fast_blocks(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
     def numbers(chunk: np.ndarray, dtype: type) -> np.ndarray:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # partial parse: counted
-            return np.fromstring(chunk.tobytes().decode("latin-1"), dtype=dtype, sep=" ")
+            try:
+                return np.fromstring(chunk.tobytes().decode("latin-1"), dtype=dtype, sep=" ")
+            except ValueError:  # NumPy 2 refuses unparsable text: the line reader says where
+                return np.zeros(0, dtype)
 
     v_chunk, v_tok = block(is_v, 2)
     if not (v_tok == 3).all():

@@ -143,7 +143,62 @@ def _read_json(path: Path) -> dict:
         raise GarmentError(path, exc.fault) from None
     if not isinstance(data, dict) or not isinstance(data.get("pattern"), dict):
         raise GarmentError(path, "no 'pattern' object: not a sewing-pattern specification")
+    try:
+        _check_structure(path, data)
+    except untrusted.InputError as exc:
+        raise GarmentError(path, exc.fault) from None
     return data
+
+
+def _check_structure(path: Path, data: dict) -> None:
+    """Types and sizes of everything the importer reads, before any geometry is built."""
+    lim = untrusted.limits
+    pattern = data["pattern"]
+    if data.get("properties") is not None:
+        untrusted.mapping(data["properties"], path, "properties")
+    panels = pattern.get("panels")
+    if isinstance(panels, dict):
+        untrusted.count(panels, path, "pattern.panels", limit=lim.MAX_PIECES)
+        for name, panel in panels.items():
+            where = f"panel {name!r}"
+            panel = untrusted.mapping(panel, path, where)
+            untrusted.points(panel.get("vertices"), path, f"{where} vertices", min_len=3,
+                             max_abs=math.inf)
+            edges = untrusted.sequence(panel.get("edges"), path, f"{where} edges", min_len=2,
+                                       max_len=lim.MAX_PANEL_POINTS)
+            for k, e in enumerate(edges):
+                e = untrusted.mapping(e, path, f"{where} edge {k}")
+                ends = untrusted.sequence(e.get("endpoints"), path, f"{where} edge {k} "
+                                          "endpoints", min_len=2, max_len=2)
+                for v in ends:
+                    untrusted.integer(v, path, f"{where} edge {k} endpoint", lo=0,
+                                      hi=lim.MAX_PANEL_POINTS)
+                curvature = e.get("curvature")
+                if isinstance(curvature, list):
+                    untrusted.vector(curvature, path, f"{where} edge {k} curvature",
+                                     max_abs=1e6)
+                elif isinstance(curvature, dict):
+                    params = curvature.get("params")
+                    if not isinstance(params, list) or len(params) > 3 or not all(
+                            isinstance(x, (int, float, list)) for x in params):
+                        raise untrusted.InputError(path, f"{where} edge {k} curvature params "
+                                                   "must be a short list of numbers or points")
+                    for x in params:
+                        if isinstance(x, list):
+                            untrusted.vector(x, path, f"{where} edge {k} curvature", max_abs=1e6)
+                        else:
+                            untrusted.number(x, path, f"{where} edge {k} curvature", lo=-1e9,
+                                             hi=1e9)
+    order = pattern.get("panel_order", [])
+    if not isinstance(order, list) or not all(isinstance(n, str) for n in order):
+        raise untrusted.InputError(path, "pattern.panel_order must be a list of panel names")
+    stitches = untrusted.sequence(pattern.get("stitches", []), path, "pattern.stitches",
+                                  max_len=lim.MAX_PANEL_POINTS)
+    for s, st in enumerate(stitches):
+        sides = st if isinstance(st, list) else []
+        for side in sides[:2]:
+            if isinstance(side, dict) and not isinstance(side.get("panel"), str):
+                raise untrusted.InputError(path, f"stitch {s} panel must be a panel name")
 
 
 def _check_size(path: Path, verts_mm: list[np.ndarray], res: float) -> None:
