@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -33,9 +34,10 @@ from vision.calibration import Calibration
 DATA = Path(__file__).resolve().parents[1] / "data"
 SECONDS = 5.0  # per input, generous for a loaded 2-core machine
 
-FUZZ = settings(max_examples=12, deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                       HealthCheck.too_slow])
+EXAMPLES = os.environ.get("FUZZ_EXAMPLES")  # e.g. 800 for a long random run by hand
+FUZZ = settings(max_examples=int(EXAMPLES or 30), deadline=None, derandomize=not EXAMPLES,
+                database=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                      HealthCheck.too_slow])
 
 EXTREME = st.sampled_from([0, -1, 1e308, -1e308, 5e-324, 2**63, -(2**63) - 1, 10**25,
                            math.nan, math.inf, -math.inf, 1e-12, 1e12, True, None, "", "x",
@@ -204,3 +206,16 @@ def test_a_huge_png_header_is_refused_before_decoding(tmp_path):
     path.write_bytes(bytes(data))
     with pytest.raises(ValueError, match="bomb.png: image of 200000 x 200000 pixels exceeds"):
         read_image(path)
+
+
+@FUZZ
+@given(line=st.binary(max_size=300) | SHAPES.map(lambda v: json.dumps(v).encode()))
+def test_control_requests(line):
+    """Whatever a client sends, the daemon answers with one JSON object and stays up."""
+    from station.control import ControlServer
+
+    server = ControlServer("/nonexistent/station.sock", lambda req: {"echo": req["cmd"]})
+    answer = server.answer(line + b"\n")
+    assert isinstance(answer, dict) and isinstance(answer["ok"], bool)
+    assert answer["ok"] or isinstance(answer["error"], str)
+    json.dumps(answer)
