@@ -49,6 +49,26 @@ def read_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
     return data
 
 
+def check_file(path: str | Path, *, what: str, max_bytes: int) -> Path:
+    """``path`` if it names a regular file within ``max_bytes``, for readers (like ezdxf's)
+    that must open the file themselves."""
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise MissingInput(path, f"{what} not found") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot open the {what} ({exc.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(path, f"is a folder, expected a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(path, f"is not a regular file, expected a {what}")
+    if st.st_size > max_bytes:
+        raise InputError(path, f"{what} of {st.st_size:,} bytes exceeds the limit of "
+                         f"{max_bytes:,}")
+    return path
+
+
 def decode_text(data: bytes, source: str | Path, what: str) -> str:
     """UTF-8 text (a leading BOM is dropped); a bad byte is an InputError naming its offset."""
     try:

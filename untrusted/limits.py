@@ -12,6 +12,7 @@ MAX_JSON_BYTES = 64 * MiB  # FABRIC, PLACEMENT, LAYOUT, garment specs, instances
 MAX_TOML_BYTES = 1 * MiB  # station.toml, machine profiles
 MAX_OBJ_BYTES = 1024 * MiB  # a 2 M-face garment with one vt per corner is about 250 MiB
 MAX_GCODE_BYTES = 256 * MiB
+MAX_DXF_BYTES = 256 * MiB
 MAX_IMAGE_BYTES = 256 * MiB
 MAX_IMAGE_PIXELS = 100_000_000  # 100 Mpx: a 10k x 10k table photograph
 MAX_DEPTH = 32  # JSON/TOML nesting; real files nest at most 6 deep

@@ -57,6 +57,27 @@ def _program(path: Path) -> Any:
     return load_program(path, default_machine())
 
 
+def _dxf(path: Path) -> Any:
+    from solver.dxf_aama import read_dxf_aama
+
+    return read_dxf_aama(path, units="mm")
+
+
+def _dxf_text() -> str:
+    """A small DXF-AAMA file of two pieces, written by the station itself."""
+    import tempfile
+
+    from solver.dxf_aama import write_dxf_aama
+    from solver.nest.instance import Piece
+
+    pieces = [Piece("front", [[0, 0], [100, 0], [100, 80], [0, 80]]),
+              Piece("back", [[0, 0], [60, 0], [30, 50]])]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "p.dxf"
+        write_dxf_aama(pieces, path)
+        return path.read_text()
+
+
 def _toml(tables: Any) -> str:
     """A TOML rendering of tables of scalars and lists (enough for the fuzzed documents)."""
     def value(v: Any) -> str:
@@ -121,6 +142,7 @@ PROGRAM = "G21 G90 G94 G17\nG0 X10 Y10\n(piece 1 begin a front)\nM4 S700\nG1 X50
 TEXT_READERS: dict[str, tuple[Callable[[Path], Any], str, str]] = {
     "obj": (load_garment, OBJ, ".obj"),
     "program": (_program, PROGRAM, ".nc"),
+    "dxf": (_dxf, _dxf_text(), ".dxf"),
 }
 ALL = {**{k: (f, ".json") for k, (f, _) in JSON_READERS.items()},
        **{k: (f, ".toml") for k, (f, _) in TOML_READERS.items()},
