@@ -59,6 +59,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "control": {
         "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),
         "group": Key(str, "", "group allowed to use the socket besides the station's user"),
+        "submit_folders": Key(list, [], "folders submissions may come from (empty: any "
+                              "folder the station's user can read)"),
         "check_seconds": Key(float, 120.0, "time allowed to read and check one submission",
                              minimum=1.0, maximum=3600.0),
         "check_memory_mb": Key(int, 4096, "memory allowed to read and check one submission",
@@ -170,6 +172,10 @@ def _check_control(config: Config, where: str) -> None:
         except KeyError:
             raise ConfigError(f"{where}: control.group {group!r} is not a group on this "
                               "machine") from None
+    folders = config["control"]["submit_folders"]
+    if not all(isinstance(f, str) and f and len(f) <= 4096 for f in folders) or \
+            len(folders) > 100:
+        raise ConfigError(f"{where}: control.submit_folders must be a list of folder paths")
     origin = config["machine"]["fabric_origin"]
     if len(origin) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                    and abs(v) <= 1e6 for v in origin):

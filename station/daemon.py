@@ -116,7 +116,9 @@ class Daemon:
         self._lock = threading.Lock()
         self.intake = Intake(self.work_dir / "inputs", getattr(pipeline, "check", None),
                              seconds=config["control"]["check_seconds"],
-                             memory_bytes=config["control"]["check_memory_mb"] << 20)
+                             memory_bytes=config["control"]["check_memory_mb"] << 20,
+                             allowed=[config.resolve(f)
+                                      for f in config["control"]["submit_folders"]])
 
     # ------------------------------------------------------------------ lifecycle
     def serve(self, once: bool = False) -> int:

@@ -31,9 +31,10 @@ class Intake:
     """Admits submissions into ``folder`` (one sub-folder per submission)."""
 
     def __init__(self, folder: Path, check: Check | None, *, seconds: float,
-                 memory_bytes: int) -> None:
+                 memory_bytes: int, allowed: list[Path] | None = None) -> None:
         self.folder = folder
         self.check = check
+        self.allowed = [p.resolve() for p in allowed or []]
         self.seconds = seconds
         self.memory_bytes = memory_bytes
         self._turn = threading.Semaphore(1)
@@ -44,6 +45,11 @@ class Intake:
         fabric = req.get("fabric")
         if fabric is not None:
             fabric = self._source(fabric, "fabric", untrusted.limits.MAX_JSON_BYTES)
+        for path in (garment, fabric):
+            if path is not None and self.allowed and \
+                    not any(path.is_relative_to(folder) for folder in self.allowed):
+                raise ControlError(f"{path}: submissions are accepted only from "
+                                   f"{', '.join(map(str, self.allowed))}")
         options = _options(req.get("options"))
         target = self.folder / secrets.token_hex(6)
         g_copy: Path | None = None

@@ -257,3 +257,26 @@ def test_serve_writes_job_files_0640(tmp_path):
     assert done.returncode == 0, done.stderr
     assert os.stat(tmp_path / "jobs.db").st_mode & 0o777 == 0o640
     assert os.stat(tmp_path / "jobs.db.lock").st_mode & 0o777 == 0o640
+
+
+def test_submissions_can_be_limited_to_configured_folders(tmp_path):
+    cfg = config_file(tmp_path)
+    (tmp_path / "incoming").mkdir()
+    cfg.write_text(cfg.read_text() + f'submit_folders = ["{tmp_path / "incoming"}"]\n')
+    daemon = Daemon(load_config(cfg), CheckingPipeline())
+    daemon.control.start()
+    inside = tmp_path / "incoming" / "shirt.obj"
+    inside.write_text("# stand-in\n")
+    outside = tmp_path / "elsewhere.obj"
+    outside.write_text("# stand-in\n")
+    sock = tmp_path / "station.sock"
+    try:
+        with pytest.raises(ControlError, match="accepted only from"):
+            request(sock, "submit", garment=str(outside), fabric=None)
+        (tmp_path / "incoming" / "link.obj").symlink_to(outside)
+        with pytest.raises(ControlError, match="accepted only from"):
+            request(sock, "submit", garment=str(tmp_path / "incoming" / "link.obj"))
+        assert request(sock, "submit", garment=str(inside))["job"]["id"] == 1
+    finally:
+        daemon.control.stop()
+        daemon.lock.release()
