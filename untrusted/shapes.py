@@ -88,14 +88,16 @@ def points(value: Any, source: str | Path, where: str, *, dim: int = 2, min_len:
     if not min_len <= len(value) <= max_len:
         raise InputError(source, f"{where} has {len(value):,} points; expected at least "
                          f"{min_len:,} and at most {max_len:,}")
-    if any(not isinstance(p, (list, tuple)) or len(p) != dim for p in value):
-        raise InputError(source, f"{where} must be a list of [{', '.join('xyz'[:dim])}] points")
     try:
-        arr = np.array(value, dtype=float).reshape(len(value), dim)
+        arr = np.array(value)  # ragged lists fail here; text, null or bools give other kinds
     except (TypeError, ValueError, OverflowError):
-        raise InputError(source, f"{where} must be a list of points: a coordinate is "
-                         "not a number") from None
-    return _bounded(arr, source, where, max_abs)
+        arr = np.zeros((0,), object)
+    if arr.dtype.kind not in "iuf" or arr.shape != (len(value), dim):
+        kind = "a coordinate is not a number" if arr.dtype.kind not in "iuf" and \
+            arr.shape == (len(value), dim) else f"each point needs {dim} numbers"
+        raise InputError(source, f"{where} must be a list of [{', '.join('xyz'[:dim])}] "
+                         f"points: {kind}")
+    return _bounded(arr.astype(float), source, where, max_abs)
 
 
 def vector(value: Any, source: str | Path, where: str, *, dim: int = 2,
