@@ -18,6 +18,21 @@ from solver.jsonfile import read_json
 from solver.wallpaper import Wallpaper
 
 
+def _pairs(value: Any, n_pieces: int) -> list[list]:
+    """PLACEMENT.json "pairs", checked: two different piece indices and a mode each."""
+    if not isinstance(value, list):
+        raise ValueError('"pairs" must be a list of [i, j, "mirror" | "same"]')
+    out = []
+    for item in value:
+        if not (isinstance(item, list) and len(item) == 3 and item[2] in ("mirror", "same")
+                and all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k < n_pieces
+                        for k in item[:2]) and item[0] != item[1]):
+            raise ValueError(f'pair {item!r} is not [i, j, "mirror" | "same"] with two '
+                             f"different pieces of 0..{n_pieces - 1}")
+        out.append([item[0], item[1], item[2]])
+    return out
+
+
 def rotation_matrices(angles: np.ndarray) -> np.ndarray:
     """(P,) angles in radians -> (P, 2, 2) rotation matrices."""
     c, s = np.cos(angles), np.sin(angles)
@@ -39,6 +54,8 @@ class Placement:
     piece_names: list[str] | None = None
     garment_units: str | None = None  # units the garment file was read in (it may not say)
     report: dict[str, Any] = field(default_factory=dict)
+    # left/right pairs and how each was kept: [[i, j, "mirror" | "same"], ...]
+    pairs: list[list] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.angles = np.asarray(self.angles, float).reshape(-1)
@@ -81,6 +98,7 @@ class Placement:
                  "translation_mm": [float(t[0]), float(t[1])]}
                 for i, (a, t) in enumerate(zip(self.angles, self.translations))
             ],
+            "pairs": [[int(i), int(j), str(mode)] for i, j, mode in self.pairs],
             "report": self.report,
         }
 
@@ -96,6 +114,7 @@ class Placement:
                 garment_units=d.get("garment_units"),
                 piece_names=[p.get("name", f"piece{p['index']}") for p in pieces],
                 report=d.get("report", {}),
+                pairs=_pairs(d.get("pairs", []), len(pieces)),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"placement lacks or misstates {exc}") from None

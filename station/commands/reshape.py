@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="reshaped garment; the suffix picks the format")
     p.add_argument("--fix", action="append", default=[], metavar="PIECE",
                    help="piece (name or index) that must keep its shape; repeatable")
+    p.add_argument("--no-symmetry", action="store_true",
+                   help="reshape every piece on its own (default: the placement's left/right "
+                   "pairs move as mirror images)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the reshaped pieces over the print, seams coloured by mismatch")
@@ -105,6 +108,7 @@ def _print_round(record: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from solver.garment.symmetry import fit_pairs
     from solver.reshape import reshape
 
     out = Path(args.output)
@@ -121,7 +125,11 @@ def run(args: argparse.Namespace) -> int:
     fixed = _fixed_mask(garment, args.fix)
     print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
           f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
-    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round)
+    pairs = [] if args.no_symmetry else fit_pairs(garment, [p[:2] for p in placement.pairs])
+    if pairs:
+        print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
+              "(from the placement) move as mirror images", file=sys.stderr)
+    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round, pairs=pairs)
     if report.subdivisions:
         print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "
               f"covering radius: the mesh was subdivided {report.subdivisions}x "
