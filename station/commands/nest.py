@@ -51,8 +51,8 @@ def run(args) -> int:
     from solver.wallpaper import Wallpaper
     from station.cli import UserError
 
-    if args.time <= 0:
-        raise UserError("--time must be positive")
+    if not 0 < args.time <= 3600:  # also refuses NaN; sparrow cannot take more than an hour
+        raise UserError("--time must be above 0 and at most 3600 seconds")
     if args.gap < 0:
         raise UserError("--gap must not be negative")
     fabric = Wallpaper.load(args.fabric) if args.fabric else None
