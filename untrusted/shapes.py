@@ -45,7 +45,7 @@ def number(value: Any, source: str | Path, where: str, *, lo: float = -math.inf,
     """A finite float in ``[lo, hi]`` (``(lo, hi]`` if ``lo_open``); bools are not numbers."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(source, f"{where} must be a number, got {_kind(value)}")
-    x = float(value) if abs(value) < 1e308 else math.copysign(math.inf, value)
+    x = float(value) if abs(value) < 1e308 else (math.inf if value > 0 else -math.inf)
     if not math.isfinite(x):
         raise InputError(source, f"{where} must be finite, got {value!r}")
     if x < lo or x > hi or (lo_open and x == lo):
