@@ -131,6 +131,7 @@ class Daemon:
             log.info("serving on %s, job store %s", self.control.path, self.store.path)
             self.run_loop(once)
         finally:
+            self.intake.stop()
             self.control.stop()
             self.lock.release()
             log.info("stopped")

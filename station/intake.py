@@ -8,8 +8,10 @@ thread, so a burst of huge submissions costs one bounded child, never the daemon
 from __future__ import annotations
 
 import math
+import os
 import secrets
 import shutil
+import signal
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -38,6 +40,19 @@ class Intake:
         self.seconds = seconds
         self.memory_bytes = memory_bytes
         self._turn = threading.Semaphore(1)
+        self._child: int | None = None
+
+    def stop(self) -> None:
+        """Kill a check in progress (the daemon is stopping; its submitter gets an error)."""
+        pid = self._child
+        if pid is not None:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def _track(self, pid: int | None) -> None:
+        self._child = pid
 
     def admit(self, req: dict[str, Any]) -> tuple[str, str | None, dict[str, Any]]:
         """(garment copy, fabric copy or None, options) of an accepted submission."""
@@ -64,7 +79,8 @@ class Intake:
             if self.check is not None:
                 with self._turn:
                     run_limited(self.check, str(g_copy), None if f_copy is None else str(f_copy),
-                                options, seconds=self.seconds, memory_bytes=self.memory_bytes)
+                                options, seconds=self.seconds, memory_bytes=self.memory_bytes,
+                                on_child=self._track)
         except (SandboxError, OSError) as exc:
             shutil.rmtree(target, ignore_errors=True)
             raise ControlError(_named(str(exc), garment, g_copy, fabric, f_copy)) from None

@@ -45,15 +45,21 @@ def _child(func: Callable[..., Any], args: tuple, memory_bytes: int, out: int) -
         os._exit(0)
 
 
-def run_limited(func: Callable[..., Any], *args: Any, seconds: float, memory_bytes: int
-                ) -> None:
-    """``func(*args)`` in a child process; its faults come back as :class:`SandboxError`."""
+def run_limited(func: Callable[..., Any], *args: Any, seconds: float, memory_bytes: int,
+                on_child: Callable[[int | None], None] | None = None) -> None:
+    """``func(*args)`` in a child process; its faults come back as :class:`SandboxError`.
+
+    ``on_child(pid)`` is told the child's pid when it starts and ``None`` when it is gone,
+    so an owner that stops can kill it.
+    """
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:  # pragma: no cover - runs in the child
         os.close(read_end)
         _child(func, args, memory_bytes, write_end)
     os.close(write_end)
+    if on_child is not None:
+        on_child(pid)
     chunks: list[bytes] = []
     deadline = time.monotonic() + seconds
     timed_out = False
@@ -74,6 +80,8 @@ def run_limited(func: Callable[..., Any], *args: Any, seconds: float, memory_byt
         if timed_out:
             os.kill(pid, signal.SIGKILL)
         _, status = os.waitpid(pid, 0)
+        if on_child is not None:
+            on_child(None)
     if timed_out:
         raise SandboxError(f"checking took longer than {seconds:g} s")
     message = b"".join(chunks).decode(errors="replace")

@@ -280,3 +280,25 @@ def test_submissions_can_be_limited_to_configured_folders(tmp_path):
     finally:
         daemon.control.stop()
         daemon.lock.release()
+
+
+def test_stopping_kills_a_check_in_progress(station, tmp_path):
+    daemon, sock, garment, fabric, cfg = station
+    slow = tmp_path / "slow.obj"
+    slow.write_text("# takes 2.5 s to check\n")
+    errors = []
+
+    def submit() -> None:
+        try:
+            request(sock, "submit", garment=str(slow), timeout=30)
+        except ControlError as exc:
+            errors.append(str(exc))
+
+    thread = threading.Thread(target=submit)
+    thread.start()
+    assert wait_until(lambda: daemon.intake._child is not None, 5)
+    t0 = time.monotonic()
+    daemon.intake.stop()
+    thread.join(10)
+    assert time.monotonic() - t0 < 2.0 and errors and "signal 9" in errors[0]
+    assert request(sock, "jobs")["jobs"] == []
