@@ -3,6 +3,7 @@ OpenCV decodes (and allocates) anything."""
 
 from __future__ import annotations
 
+import os
 import struct
 from pathlib import Path
 
@@ -15,10 +16,19 @@ from untrusted.limits import MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS
 _JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
 
 
+# OpenCV's own backstop for the formats parsed by neither header reader below (TIFF, WebP..):
+# it reads this once, at its first decode
+os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_IMAGE_PIXELS))
+
+
 def header_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) from a PNG or JPEG header; None for other formats or a bad header."""
+    """(width, height) from a PNG, BMP or JPEG header; None for other formats or a bad
+    header."""
     if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
         return struct.unpack(">II", data[16:24])
+    if data[:2] == b"BM" and len(data) >= 26:
+        width, height = struct.unpack("<ii", data[18:26])
+        return abs(width), abs(height)
     if data[:2] == b"\xff\xd8":
         i = 2
         while i + 9 <= len(data):
