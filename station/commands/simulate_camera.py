@@ -85,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--views is for --charuco calibration sessions")
     if not 0 <= args.jpeg <= 100:
         raise UserError(f"--jpeg must be 0..100, got {args.jpeg}")
+    if not 1 <= args.hfov <= 170:  # also refuses NaN
+        raise UserError(f"--hfov must be 1..170 degrees, got {args.hfov}")
     try:
         camera = CameraModel.default(tuple(args.resolution), hfov_deg=args.hfov)
     except ValueError as exc:
