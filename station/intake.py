@@ -25,6 +25,8 @@ from station.sandbox import SandboxError, run_limited
 #: licence README must stay beside the copy (see station.render.garment_credit)
 _COMPANIONS = ("README.txt", "BERKELEY-README.txt")
 MAX_OPTIONS = 16
+#: integer job options and their ranges (10^9 alignment restarts allocated 23 GB)
+INT_OPTIONS = {"restarts": (1, 10_000), "seed": (0, 2**32 - 1)}
 
 Check = Callable[[str, "str | None", dict[str, Any]], None]
 
@@ -112,6 +114,11 @@ def _options(value: Any) -> dict[str, Any]:
         if not ok or len(key) > 100:
             raise ControlError(f"option {key[:100]!r} must be a short number, text or "
                                "true/false")
+        if key in INT_OPTIONS and v is not None:
+            lo, hi = INT_OPTIONS[key]
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ControlError(f"option {key} must be an integer {lo:,} to {hi:,}, "
+                                   f"got {v!r}")
     return dict(options)
 
 

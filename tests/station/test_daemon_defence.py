@@ -302,3 +302,14 @@ def test_stopping_kills_a_check_in_progress(station, tmp_path):
     thread.join(10)
     assert time.monotonic() - t0 < 2.0 and errors and "signal 9" in errors[0]
     assert request(sock, "jobs")["jobs"] == []
+
+
+def test_job_options_are_bounded_at_submit(station):
+    daemon, sock, garment, fabric, cfg = station
+    for options, match in (({"restarts": 10**9}, "restarts must be an integer 1 to 10,000"),
+                           ({"seed": -1}, "seed must be an integer"),
+                           ({"units": "x" * 1000}, "short number, text"),
+                           ({f"k{i}": 1 for i in range(17)}, "at most 16 keys")):
+        with pytest.raises(ControlError, match=match):
+            request(sock, "submit", garment=str(garment), fabric=str(fabric), options=options)
+    assert request(sock, "jobs")["jobs"] == []
