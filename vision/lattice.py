@@ -35,7 +35,9 @@ from scipy import fft as sfft
 from scipy import ndimage
 from skimage.feature import peak_local_max
 
-__all__ = ["LatticeResult", "detect_lattice", "gauss_reduce", "prepare_image"]
+from solver.wallpaper import gauss_reduce
+
+__all__ = ["LatticeResult", "detect_lattice", "prepare_image"]
 
 #: Largest side of the working image: the lattice is fitted on many peaks, so a
 #: moderate resolution keeps sub-pixel precision while the FFT stays fast.
@@ -87,29 +89,6 @@ class LatticeResult:
         if self.kind == "stripes":
             out.update(period=self.period, direction_deg=self.direction_deg)
         return out
-
-
-def gauss_reduce(b1: np.ndarray, b2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lagrange/Gauss reduction: the two shortest vectors spanning the same lattice.
-
-    Returned with ``|w1| <= |w2|`` and ``w1 . w2 <= 0`` (angle 90..120 degrees), so
-    equal lattices give equal bases up to a common sign.
-    """
-    u = np.asarray(b1, float).copy()
-    v = np.asarray(b2, float).copy()
-    if u @ u > v @ v:
-        u, v = v, u
-    for _ in range(64):
-        m = np.round((u @ v) / (u @ u))
-        v = v - m * u
-        if v @ v >= u @ u - 1e-12:
-            break
-        u, v = v, u
-    if u @ v > 0:
-        v = v - u if (v - u) @ (v - u) <= v @ v + 1e-9 else -v
-        if u @ v > 0:
-            v = -v
-    return u, v
 
 
 def _gray(image: np.ndarray) -> np.ndarray:
@@ -373,7 +352,7 @@ def detect_lattice(
         return LatticeResult("none", mm_per_px=mm_per_px, strength=float(vals.max()),
                              message="no 2-D lattice explains the autocorrelation peaks")
     basis, sig, n_used = _refine(acf, valid, basis)
-    b1, b2 = gauss_reduce(basis[:, 0], basis[:, 1])
+    b1, b2, _ = gauss_reduce(basis[:, 0], basis[:, 1], obtuse=True)
     # Map the (row, col) working-pixel vectors into (x, y) mm of the input image.
     w1 = b1[::-1] * px_mm
     w2 = b2[::-1] * px_mm
@@ -425,7 +404,7 @@ def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.95):
             cross = abs(u[0] * v[1] - u[1] * v[0])
             if cross < 0.2 * np.hypot(*u) * np.hypot(*v):
                 continue
-            r1, r2 = gauss_reduce(u, v)
+            r1, r2, _ = gauss_reduce(u, v, obtuse=True)
             if r1[0] < 0 or (r1[0] == 0 and r1[1] < 0):
                 r1, r2 = -r1, -r2
             key = tuple(np.round(np.concatenate([r1, r2]) / 1.5).astype(int))
