@@ -66,8 +66,9 @@ def _check_widths(problem: NestProblem) -> None:
         seen.add(item.key)
         across = min(float(np.ptp(affine(c, item.ref)[:, 1])) for c in item.candidates)
         if across > room + 1e-9:
-            raise ValueError(f"piece {item.name!r} is {across:.1f} mm across the roll at its "
-                             f"narrowest allowed angle; the fabric leaves {room:g} mm "
+            raise ValueError(f"piece {item.name!r} cannot be nested: it is {across:.1f} mm "
+                             "across the roll at its narrowest allowed angle; the fabric "
+                             f"leaves {room:g} mm "
                              "(wider fabric, --width, or a smaller allowance)")
 
 
