@@ -61,12 +61,17 @@ class StationPipeline:
         from solver.garment import load_garment
         from solver.wallpaper import Wallpaper
 
-        load_garment(garment, units=options.get("units"))
+        loaded = load_garment(garment, units=options.get("units"))
         if fabric is not None:
             Wallpaper.load(fabric)
-        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed"}
+        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
+                                  "seam_allowance", "allowance"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
+        from solver.garment.allowance import edge_allowances
+        from station.allowance import rules_for_job
+
+        edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
@@ -207,8 +212,15 @@ class StationPipeline:
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
         final_fit = aligned
+        from solver.garment.notches import cut_ready
+        from station.allowance import rules_for_job
+
+        rules = rules_for_job(self.config, job.options)
+        report["allowance"] = rules.to_dict()
+        cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
-                 title=f"aligned on {wallpaper.group}", colour_of=colour_of)
+                 title=f"aligned on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                 notches=notches)
         lap("align")
         self._write_report(workdir, report)
         control.checkpoint()
@@ -223,8 +235,10 @@ class StationPipeline:
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
+            cuts, notches = cut_ready(garment, rules, placement)  # follows the sew
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
-                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of)
+                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                     notches=notches)
             lap("reshape")
             self._write_report(workdir, report)
             control.checkpoint()
@@ -238,7 +252,8 @@ class StationPipeline:
                 1.0, (time.monotonic() - t_nest) / seconds))
 
         try:
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         except ValueError as exc:
             if garment is aligned_garment:
                 raise
@@ -251,7 +266,8 @@ class StationPipeline:
             placement.garment = str(garment_path)
             placement.save(workdir / "placement.json")
             t_nest = time.monotonic()
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         layout.save(workdir / "layout.json")
         report["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                           "density": layout.density, "pieces": len(layout.pieces)}
@@ -297,7 +313,8 @@ class StationPipeline:
         placement.garment = str(garment_path)
         placement.save(workdir / "placement.json")
         start_step(control, "nesting", 0.0)
-        layout = nest_placement(workdir / "placement.json", self.config, plain=True)
+        layout = nest_placement(workdir / "placement.json", self.config, None, job.options,
+                                plain=True)
         layout.save(workdir / "layout.json")
         control.checkpoint()
         start_step(control, "programming")
@@ -630,19 +647,20 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                  progress=progress)
 
 
-def nest_placement(placement_path: Path, config: Config, progress=None, *,
+def nest_placement(placement_path: Path, config: Config, progress=None, options=None, *,
                    plain: bool = False):
-    """Nest the aligned pieces on the fabric in view, each kept on its print position
-    (``plain``: on plain cloth, free of any print)."""
+    """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
+    position (``plain``: on plain cloth, free of any print); ``options`` are the job's
+    (its seam allowances)."""
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import load_problem
+    from station.allowance import rules_for_job
 
     n = config["nest"]
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
-                           gap=n["gap_mm"])
-    if plain:
-        problem.fabric = None
+                           gap=n["gap_mm"], allowance=rules_for_job(config, options or {}),
+                           plain=plain)
     layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+import untrusted
 from solver.garment.errors import GarmentError
 
 
@@ -63,6 +64,9 @@ class Garment:
         Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
     grainlines, notches : dict
         Per piece index, where the input has them (mm, pattern coordinates).
+    panel_frames : dict
+        Per piece a (3,3) float array ``F``: a specification places its panel around the
+        body, and the pattern point (u, v) sits at ``F @ (u, v, 1)`` (mm, world, +y up).
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -86,6 +90,7 @@ class Garment:
         default_factory=dict
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -151,6 +156,7 @@ class Garment:
             seam_lines=list(self.seam_lines),
             grainlines=dict(self.grainlines),
             notches={k: list(v) for k, v in self.notches.items()},
+            panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
             _loops=None,
         )
 
@@ -268,6 +274,20 @@ def _polygon_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
+def _check_extent(source: str | Path, points: np.ndarray, what: str) -> None:
+    """A garment spans at most :data:`untrusted.limits.MAX_GARMENT_MM` in every axis: larger
+    (or non-finite) coordinates mean wrong units or a corrupt file, and would overflow later."""
+    limit = untrusted.limits.MAX_GARMENT_MM
+    if len(points) == 0:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = np.ptp(points, axis=0)
+    if not np.all(np.isfinite(points)) or not bool(np.all(span <= limit)):
+        raise GarmentError(source, f"the {what} spans {float(np.max(span)):.3g} mm (or holds a "
+                           f"non-finite number); a garment is at most {limit:g} mm across "
+                           "(wrong --units?)")
+
+
 def build_garment(
     uv: np.ndarray,
     faces: np.ndarray,
@@ -282,6 +302,7 @@ def build_garment(
     grainlines: dict | None = None,
     notches: dict | None = None,
     twins: np.ndarray | None = None,
+    panel_frames: dict | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
@@ -297,6 +318,9 @@ def build_garment(
     n = uv.shape[0]
     if faces.size == 0:
         raise GarmentError(source, "no faces")
+    _check_extent(source, uv, "sewing pattern")
+    if xyz is not None:
+        _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
 
     # degenerate slivers: repeated corner or (numerically) zero pattern area
     area = triangle_areas(uv, faces)
@@ -368,6 +392,7 @@ def build_garment(
     seam_edges = seam_edges[so]
 
     names = list(piece_names) if piece_names is not None else []
+    panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
     if len(names) != n_pieces:
         if piece_names is not None:
             warnings.warn(
@@ -391,6 +416,7 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
+        panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),

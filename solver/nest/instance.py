@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+import untrusted
 from solver.jsonfile import read_json
 from solver.wallpaper import gauss_reduce
 
@@ -86,9 +87,13 @@ class Piece:
     base: np.ndarray = field(default_factory=lambda: IDENTITY.copy())
     holes: list[np.ndarray] = field(default_factory=list)
     grainline: np.ndarray | None = None  # (2, 2) input coordinates
-    notches: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (at, direction)
+    # (at, direction, depth): depth None lets the cutter choose; given, it is the most the
+    # seam allowance takes
+    notches: list[tuple] = field(default_factory=list)
     marks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     size: str | None = None
+    sew_line: np.ndarray | None = None  # (k, 2) the sew line inside the cut line ``outline``
+    allowance: np.ndarray | None = None  # (k,) mm per sew-line edge sew_line[j] -> [j + 1]
 
     def __post_init__(self) -> None:
         try:
@@ -100,6 +105,11 @@ class Piece:
         if int(self.quantity) < 1:
             raise ValueError(f"piece {self.name!r}: quantity must be at least 1")
         self.quantity = int(self.quantity)
+        self.notches = [(np.asarray(n[0], float), np.asarray(n[1], float),
+                         None if len(n) < 3 or n[2] is None else float(n[2]))
+                        for n in self.notches]
+        if self.sew_line is not None:
+            self.sew_line = np.asarray(self.sew_line, float).reshape(-1, 2)
         if self.orientations is not None:
             self.orientations = tuple(float(a) % 360.0 for a in self.orientations) or (0.0,)
         self.base = np.asarray(self.base, float).reshape(2, 3)
@@ -120,6 +130,7 @@ class NestProblem:
     fabric: object | None = None  # solver.wallpaper.Wallpaper
     keepouts: list[np.ndarray] = field(default_factory=list)
     name: str = ""
+    allowance: dict | None = None  # the rules garments' cut lines were made with (reported)
 
     def __post_init__(self) -> None:
         if not self.pieces:
@@ -200,21 +211,41 @@ def candidate_maps(piece: Piece, mirrored: bool, fabric) -> list[np.ndarray]:
 def load_esicup(path: str | Path) -> NestProblem:
     """An ESICUP/jagua-rs strip-packing instance (``strip_height`` is the fabric width)."""
     path = Path(path)
-    d = read_json(path)
+    src = str(path)
+    lim = untrusted.limits
+    d = untrusted.mapping(read_json(path), src)
     if "strip_height" not in d or "items" not in d:
-        raise ValueError(f"{path}: not a strip-packing instance (needs strip_height and items)")
-    pieces = []
-    for it in d["items"]:
-        shape = it.get("shape", {})
+        raise untrusted.InputError(src, "not a strip-packing instance (needs strip_height and "
+                                   "items)")
+    width = untrusted.number(d["strip_height"], src, "strip_height", lo=0.0,
+                             hi=lim.MAX_COORD_MM, lo_open=True)
+    items = untrusted.sequence(d["items"], src, "items", min_len=1, max_len=lim.MAX_PIECES)
+    pieces, total = [], 0
+    for i, it in enumerate(items):
+        where = f"items[{i}]"
+        it = untrusted.mapping(it, src, where)
+        shape = untrusted.mapping(it.get("shape", {}), src, f"{where}.shape")
         if "data" not in shape or "id" not in it:
-            raise ValueError(f"{path}: item {it.get('id', '?')} lacks an id or shape data")
+            raise untrusted.InputError(src, f"item {it.get('id', i)} lacks an id or shape data")
         if shape.get("type", "simple_polygon") != "simple_polygon":
-            raise ValueError(f"{path}: item {it.get('id')}: only simple_polygon shapes are read")
+            raise untrusted.InputError(src, f"{where}: only simple_polygon shapes are read")
+        outline = untrusted.points(shape["data"], src, f"{where}.shape.data", min_len=3)
+        demand = untrusted.integer(it.get("demand", 1), src, f"{where}.demand", lo=1,
+                                   hi=lim.MAX_DEMAND)
+        total += demand
         orient = it.get("allowed_orientations")
+        if orient is not None:
+            untrusted.sequence(orient, src, f"{where}.allowed_orientations", min_len=1,
+                               max_len=360)
+            orient = tuple(untrusted.number(a, src, f"{where}.allowed_orientations", lo=-360,
+                                            hi=360) for a in orient)
         try:
-            pieces.append(Piece(str(it["id"]), np.asarray(shape["data"], float),
-                                quantity=int(it.get("demand", 1)),
-                                orientations=None if orient is None else tuple(orient)))
+            pieces.append(Piece(str(it["id"])[:200], outline, quantity=demand,
+                                orientations=orient))
         except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
-    return NestProblem(pieces, float(d["strip_height"]), name=d.get("name", path.stem))
+            raise untrusted.InputError(src, str(exc)) from None
+    if total > lim.MAX_DEMAND:
+        raise untrusted.InputError(src, f"the items' demands add up to {total:,}; at most "
+                                   f"{lim.MAX_DEMAND:,} copies are nested at once")
+    name = d.get("name", path.stem)
+    return NestProblem(pieces, width, name=name if isinstance(name, str) else path.stem)

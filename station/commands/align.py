@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from solver.jsonfile import read_json
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
@@ -66,18 +64,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load_weights(path: str) -> dict:
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: no such weights file")
-    data = read_json(p)
-    if not isinstance(data, dict):
-        raise ValueError(f'{p}: expected an object {{"seam line": weight}}')
-    out = {}
-    for key, value in data.items():
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise ValueError(f"{p}: weight of {key!r} is not a number")
-        out[int(key) if key.isdigit() else key] = float(value)
-    return out
+    from station.cliargs import read_name_map
+
+    return read_name_map(path, "weight")
 
 
 def _mirror_pairs(args: argparse.Namespace, garment) -> list:
@@ -92,8 +81,8 @@ def run(args: argparse.Namespace) -> int:
     from solver.align import align
     from solver.placement import Placement
 
-    if args.restarts < 1:
-        raise ValueError(f"--restarts must be at least 1, got {args.restarts}")
+    if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
+        raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     if args.grain is not None and not args.grain >= 0:
         raise ValueError(f"--grain tolerance must be >= 0 degrees, got {args.grain}")
     garment = load_garment_arg(args)

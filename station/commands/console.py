@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "may take the job (fleet)")
     p.add_argument("--min-table", metavar="XxY", type=_table,
                    help="only a station whose table travels at least X by Y mm (fleet)")
+    p.add_argument("--seam-allowance", type=float, metavar="MM",
+                   help="seam allowance for this job (default: station.toml)")
+    p.add_argument("--allowance", metavar="A.json",
+                   help="allowances per seam line or opening for this job (sent by value)")
+    p.add_argument("--wait", type=float, default=600.0, metavar="SECONDS",
+                   help="how long to wait while the daemon checks the garment (default 600)")
     _common(p, run_submit)
 
     for name, text in (("jobs", "list every job"), ("status", "state, pieces and progress")):
@@ -98,6 +105,8 @@ def _ask(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
 def _ask_fleet(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
     from station.fleetconsole import FleetConsole
 
+    fields.pop("timeout", None)  # the socket's: the store answers at once
+    fields.pop("on_wait", None)
     store = open_fleet_store(args)
     try:
         if cmd == "submit":
@@ -126,17 +135,40 @@ def _check_job(args: argparse.Namespace, fields: dict[str, Any]) -> None:
                                                  fields.get("options") or {})
 
 
+class _Patience:
+    """Tells the operator, once and then every 10 s, that the daemon is still checking."""
+
+    def __init__(self, garment: str) -> None:
+        self.garment = garment
+        self.next = 1.0
+
+    def __call__(self, elapsed: float) -> None:
+        if elapsed >= self.next:
+            print(f"station submit: the daemon is checking {self.garment} "
+                  f"({elapsed:.0f} s)...", file=sys.stderr, flush=True)
+            self.next = elapsed + 10.0
+
+
 def run_submit(args: argparse.Namespace) -> int:
     options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
-                                 ("method", args.method), ("restarts", args.restarts))
+                                 ("method", args.method), ("restarts", args.restarts),
+                                 ("seam_allowance", args.seam_allowance))
                if v is not None}
     fleet = {k: v for k, v in (("tool", args.tool), ("table_mm", args.min_table)) if v}
     if fleet and not (args.station or args.fleet):
         raise UserError("--tool and --min-table choose among the stations of a fleet: "
                         "add --fleet")
+    if args.allowance:
+        from station.cliargs import read_name_map
+
+        options["allowance"] = {str(k): v for k, v in
+                                read_name_map(args.allowance, "allowance").items()}
+    if not args.wait > 0:
+        raise UserError("--wait must be positive")
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
-                  options=options, **fleet)
+                  options=options, timeout=args.wait, on_wait=_Patience(args.garment),
+                  **fleet)
     if args.json:
         print(json.dumps(answer))
     else:

@@ -184,11 +184,23 @@ def summarise(status: dict[str, Any], plan: dict[str, Any], camera: dict[str, An
                                if "e_fit_after_mm2" in reshape else None),
         "reshape_rejected": reshape.get("rejected"),
         "nest_density": (plan.get("nest") or {}).get("density"),
+        "allowance": plan.get("allowance"),
         "pieces_cut": pieces.get("cut", 0),
         "pieces_total": sum(pieces.values()) if pieces else 0,
         "step_seconds": plan.get("seconds"),
         "seconds": round(seconds, 1),
     }
+
+
+def cut_ready_parts(s: dict[str, Any]) -> list[str]:
+    """The parts of the demo's one "cut-ready" line, one per concern: the seam allowance
+    here; grain and the largest reshape move add their own part to the same list."""
+    parts = []
+    a = s.get("allowance")
+    if a:
+        parts.append(f"seam allowance {a['seam_mm']:g} mm (hems {a['hem_mm']:g}, openings "
+                     f"{a['opening_mm']:g})")
+    return parts
 
 
 def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
@@ -209,6 +221,8 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     ]
     if s.get("reshape_rejected"):
         lines.append(f"  !!! reshaped pattern {s['reshape_rejected']}; the aligned one was cut")
+    if parts := cut_ready_parts(s):
+        lines.append(f"  cut-ready     {'; '.join(parts)}")
     lines += [
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
         f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",
