@@ -56,10 +56,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "fabric_origin": Key(list, [0.0, 0.0], "table position (mm) of the fabric's corner"),
     },
     "store": {
+        "url": Key(str, "", "shared job store: postgresql://user@host/db (empty: the "
+                   "SQLite file at path)"),
         "path": Key(str, "station-data/jobs.db", "SQLite job store"),
         "work_dir": Key(str, "station-data/jobs", "per-job files (frames, plans, G-code)"),
         "umask": Key(int, 0o027, "the daemon's umask (0o027: job files 0640, folders 0750)",
                      minimum=0, maximum=0o777),
+    },
+    "station": {
+        "name": Key(str, "", "this station's name in a fleet sharing one job store (empty: "
+                    "a lone station taking every job in order)"),
+        "heartbeat_s": Key(float, 0.5, "heartbeat and remote-command poll interval",
+                           minimum=0.05),
+        "lost_after_s": Key(float, 30.0, "a station silent this long is lost: its job "
+                            "becomes interrupted", minimum=1.0),
+        "outage_s": Key(float, 600.0, "how long to hold the machine and wait for an "
+                        "unreachable database server before failing", minimum=1.0),
     },
     "control": {
         "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),

@@ -39,6 +39,8 @@ from typing import Any, Protocol
 from station.config import Config
 from station.control import ControlError, ControlServer
 from station.daemon_lock import DaemonLock, lock_path
+from station.fleet import Fleet, open_store, station_info
+from station.fleetmember import FleetMember
 from station.intake import Intake
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
 
@@ -111,7 +113,15 @@ class Daemon:
         self.pipeline = pipeline
         # first of all: a second daemon on this store must leave everything untouched
         self.lock = DaemonLock(lock_path(config)).acquire()
-        self.store = JobStore(config.resolve(config["store"]["path"]))
+        self.store = open_store(config)
+        self.fleet: FleetMember | None = None
+        if config["station"]["name"]:
+            self.fleet = FleetMember(
+                Fleet(self.store, config["station"]["lost_after_s"]),
+                station_info(config, getattr(pipeline, "machine", None)),
+                self._doing, self.handle, config["station"]["heartbeat_s"],
+                wake=lambda: self._wake.set())
+            self.store.engine.on_outage = self._on_outage
         self.work_dir = config.resolve(config["store"]["work_dir"])
         self.control = ControlServer(config.resolve(config["control"]["socket"]),
                                      self.handle, config["control"]["group"])
@@ -133,31 +143,41 @@ class Daemon:
         try:
             self.recover()
             self.control.start()
-            log.info("serving on %s, job store %s", self.control.path, self.store.path)
+            log.info("serving on %s, job store %s%s", self.control.path, self.store.location,
+                     f", station {self.fleet.info.name}" if self.fleet else "")
             self.run_loop(once)
         finally:
             self.intake.stop()
             self.control.stop()
+            if self.fleet is not None:
+                self.fleet.stop()
             self.lock.release()
             log.info("stopped")
         return 0
 
     def run_loop(self, once: bool = False) -> None:
-        """Take jobs in order until stopped (or, with ``once``, until the queue is empty)."""
-        while not self._stop.is_set():
-            job = self.store.next_job()
-            if job is None:
-                if once:
-                    return
-                self._wake.wait(0.5)
-                self._wake.clear()
-                continue
-            try:
-                self.run_job(job)
-            except Exception:  # the loop outlives any one job, even a broken failure path
-                log.exception("job %d: the job loop caught an error; the job is set aside",
-                              job.id)
-                self._set_aside(job.id)
+        """Take jobs in order until stopped (or, with ``once``, until the queue is empty).
+
+        A lone station takes the store's next job; a fleet station claims one it may run.
+        """
+        try:
+            while not self._stop.is_set():
+                job = self.fleet.claim() if self.fleet else self.store.next_job()
+                if job is None:
+                    if once:
+                        return
+                    self._wake.wait(0.5)
+                    self._wake.clear()
+                    continue
+                try:
+                    self.run_job(job)
+                except Exception:  # the loop outlives any one job, even a broken failure path
+                    log.exception("job %d: the job loop caught an error; the job is set aside",
+                                  job.id)
+                    self._set_aside(job.id)
+        finally:
+            if self.fleet is not None:
+                self.fleet.stop()
 
     def _set_aside(self, job_id: int) -> None:
         """Fail a job whose own failure handling broke, so next_job() moves on."""
@@ -182,7 +202,18 @@ class Daemon:
         self.shutdown()
 
     def recover(self) -> None:
-        """After a crash, a job found active was interrupted: pause it, say so."""
+        """After a crash, a job found active was interrupted: pause it, say so.
+
+        In a fleet only this station's own jobs are touched: they become "interrupted"
+        and this station resumes them itself (the claim takes them first).
+        """
+        if self.fleet is not None:
+            self.fleet.join()
+            for job in self.fleet.interrupt_own():
+                log.warning("job %d was interrupted; station %s resumes it", job.id,
+                            self.fleet.info.name)
+            self.fleet.start()
+            return
         for job in self.store.jobs(ACTIVE):
             reset = self.store.reset_unfinished_pieces(job.id)
             self.store.transition(job.id, "paused", "interrupted: the daemon was not running"
@@ -243,11 +274,37 @@ class Daemon:
             log.exception("job %d: recording its failure failed", job_id)
 
     def _interrupt(self, job_id: int, state: str, reason: str) -> None:
+        if self.fleet is not None and state == "paused" and self._stop.is_set():
+            state = "interrupted"  # the station stopped: it takes its job up again itself
         self.store.reset_unfinished_pieces(job_id)
         current = self.store.job(job_id).state
         if current != state and state in TRANSITIONS[current]:
             self.store.transition(job_id, state, reason)
         log.info("job %d %s: %s", job_id, state, reason)
+
+    # ------------------------------------------------------------------ fleet
+    def _doing(self) -> tuple[int | None, dict[str, Any]]:
+        """The running job and its progress, for the fleet's heartbeat."""
+        running = self.running
+        return (None, {}) if running is None else (running.job_id, dict(running.progress))
+
+    def _on_outage(self, down: bool) -> None:
+        """The shared store went away (or came back): hold the cut in place meanwhile.
+
+        Nothing can be recorded while the server is down, so the machine must not run
+        ahead of the store: a feed hold now, released when the store answers again. (A
+        piece's sync point cannot pass either: recording it waits for the store.)
+        """
+        running = self.running
+        if running is None or running.progress.get("step") != "cutting":
+            return
+        if down and not running.pause.is_set():
+            log.warning("job store unreachable: feed hold until it is back")
+            running.progress["held_for_store"] = True
+            running.pause.set()
+        elif not down and running.progress.pop("held_for_store", False):
+            log.warning("job store back: resuming the cut")
+            running.pause.clear()
 
     # ------------------------------------------------------------------ control
     def handle(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -389,11 +446,7 @@ class Daemon:
         return running
 
     def _summary(self, job: Job) -> dict[str, Any]:
-        pieces = self.store.pieces(job.id)
-        counts = {s: sum(p["state"] == s for p in pieces) for s in ("pending", "cutting", "cut")}
-        out = {"id": job.id, "state": job.state, "reason": job.reason,
-               "garment": job.garment, "fabric": job.fabric, "pieces": counts,
-               "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+        out = self.store.summary(job)
         running = self.running
         if running is not None and running.job_id == job.id:
             out["progress"] = dict(running.progress)

@@ -22,7 +22,7 @@ class AlreadyRunning(UserError):
 
 def lock_path(config: Config) -> Path:
     """``jobs.db.lock`` beside a file store; ``<work_dir>.lock`` for a server store."""
-    store = config["store"]["path"]
+    store = config["store"]["url"] or config["store"]["path"]  # url: a shared server
     if "://" not in store:
         path = config.resolve(store)
         return path.with_name(path.name + ".lock")

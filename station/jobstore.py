@@ -1,80 +1,80 @@
-"""The job store: jobs, their pieces' cut state and an event log, in SQLite.
+"""The job store: jobs, their pieces' cut state and an event log, in SQLite or PostgreSQL.
 
 Nothing may be lost when the daemon is killed or the power fails, so every state change
-is one short transaction (``BEGIN IMMEDIATE`` … ``COMMIT``) in WAL mode with
-``synchronous=FULL``: once a call returns, the change is on disk. A piece is marked cut
-only by its sync point (see `gcode.stream`), in the same transaction as the event that
-records it, so the log and the state never disagree.
+is one short transaction (see `station.storeengine`: SQLite in WAL mode with
+``synchronous=FULL``, or a PostgreSQL server): once a call returns, the change is stored.
+A piece is marked cut only by its sync point (see `gcode.stream`), in the same
+transaction as the event that records it, so the log and the state never disagree.
 
-The schema is plain DDL that is safe to run on every start.
+The location is a path (SQLite, the embedded default for one table) or a
+``postgresql://`` URL (one server for a room of stations, see `station.fleet`). The
+schema is versioned (`station.storeschema`).
 """
 
 from __future__ import annotations
 
 import json
-import sqlite3
-import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from station.storeengine import Engine, Tx, open_engine
+from station.storeschema import migrate
+
 STATES = ("submitted", "capturing", "planning", "ready", "cutting", "done",
-          "paused", "failed", "aborted")
+          "paused", "interrupted", "failed", "aborted")
 ACTIVE = ("capturing", "planning", "ready", "cutting")
 FINAL = ("done", "failed", "aborted")
 
 # Allowed transitions: the happy path, plus pause/fail/abort from any active state.
+# "interrupted": the station that owned the job stopped (its heartbeat ended); only that
+# station resumes it (it alone knows its controller's markers), or an operator reassigns
+# it ("submitted" again: the new station re-detects the fabric and cuts what is not cut).
 TRANSITIONS: dict[str, tuple[str, ...]] = {
     "submitted": ("capturing", "planning", "aborted", "failed"),
-    "capturing": ("planning", "paused", "failed", "aborted"),
-    "planning": ("ready", "paused", "failed", "aborted"),
-    "ready": ("cutting", "paused", "failed", "aborted"),
-    "cutting": ("done", "paused", "failed", "aborted"),
-    "paused": ("capturing", "planning", "ready", "cutting", "failed", "aborted"),
+    "capturing": ("planning", "paused", "interrupted", "failed", "aborted"),
+    "planning": ("ready", "paused", "interrupted", "failed", "aborted"),
+    "ready": ("cutting", "paused", "interrupted", "failed", "aborted"),
+    "cutting": ("done", "paused", "interrupted", "failed", "aborted"),
+    "paused": ("capturing", "planning", "ready", "cutting", "submitted", "failed",
+               "aborted"),
+    "interrupted": ("capturing", "planning", "ready", "cutting", "submitted", "failed",
+                    "aborted"),
     "failed": ("submitted",),  # retry
     "aborted": ("submitted",),  # retry
     "done": (),
 }
 
 PIECE_STATES = ("pending", "cutting", "cut")
-
-_SCHEMA = """
-create table if not exists jobs (
-    id integer primary key autoincrement,
-    garment text not null,
-    fabric text,                       -- FABRIC.json path, or null to detect from the camera
-    options text not null default '{}',
-    state text not null default 'submitted',
-    reason text not null default '',
-    resume_state text,                 -- where a paused job goes back to
-    submitted_at real not null,
-    updated_at real not null,
-    plan text                          -- JSON: files the planning step wrote
-);
-create table if not exists pieces (
-    job_id integer not null references jobs(id),
-    piece integer not null,
-    name text not null,
-    state text not null default 'pending',
-    cut_at real,
-    primary key (job_id, piece)
-);
-create table if not exists events (
-    id integer primary key autoincrement,
-    job_id integer references jobs(id),
-    at real not null,
-    kind text not null,
-    message text not null
-);
-create index if not exists events_job on events(job_id, id);
-"""
+#: PostgreSQL NOTIFY channel told whenever a job becomes claimable (fleet stations LISTEN)
+JOBS_CHANNEL = "station_jobs"
+TOOLS = ("laser", "knife")
 
 
 class JobStoreError(ValueError):
     """A request the store refuses (unknown job, forbidden transition); nothing changed."""
+
+
+@dataclass(frozen=True)
+class Requirements:
+    """What a station must have to take a job: a tool, a table at least this large
+    (machine x and y travel, mm), or one station by name. None: anything goes."""
+
+    tool: str | None = None
+    table_mm: tuple[float, float] | None = None
+    station: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.tool is not None and self.tool not in TOOLS:
+            raise JobStoreError(f"tool must be one of {', '.join(TOOLS)}, got {self.tool!r}")
+        if self.table_mm is not None and (len(self.table_mm) != 2
+                                          or min(self.table_mm) <= 0):
+            raise JobStoreError(f"table size must be two positive mm, got {self.table_mm!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"tool": self.tool, "table_mm": list(self.table_mm) if self.table_mm else None,
+                "station": self.station}
 
 
 @dataclass(frozen=True)
@@ -89,169 +89,209 @@ class Job:
     submitted_at: float
     updated_at: float
     plan: dict[str, Any] | None
+    owner: str | None = None
+    requirements: Requirements = Requirements()
 
     def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
+        out = dict(self.__dict__)
+        out["requirements"] = self.requirements.to_dict()
+        return out
 
 
 class JobStore:
-    """SQLite-backed jobs, pieces and events; safe to share between threads."""
+    """Jobs, pieces and events on one engine; safe to share between threads.
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._lock = threading.RLock()
-        self._conn = sqlite3.connect(self.path, isolation_level=None, timeout=5.0,
-                                     check_same_thread=False)
-        self._conn.row_factory = sqlite3.Row
-        self._conn.execute("pragma journal_mode=wal")
-        self._conn.execute("pragma synchronous=full")
-        self._conn.execute("pragma foreign_keys=on")
-        self._conn.execute("pragma busy_timeout=5000")
-        with self._lock:
-            self._conn.executescript(_SCHEMA)
+    ``location`` is an SQLite path or a ``postgresql://`` URL; ``engine_options`` go to
+    `station.storeengine.PostgresEngine` (outage wait and hook).
+    """
+
+    def __init__(self, location: str | Path, **engine_options: Any) -> None:
+        self.engine: Engine = open_engine(location, **engine_options)
+        self.location = self.engine.location
+        self.schema_version = migrate(self.engine)
 
     def close(self) -> None:
-        with self._lock:
-            self._conn.close()
-
-    @contextmanager
-    def transaction(self) -> Iterator[sqlite3.Cursor]:
-        """One atomic, durable change: committed on success, rolled back on error."""
-        with self._lock:
-            cur = self._conn.cursor()
-            cur.execute("begin immediate")
-            try:
-                yield cur
-            except BaseException:
-                cur.execute("rollback")
-                raise
-            cur.execute("commit")
+        self.engine.close()
 
     # ------------------------------------------------------------------ jobs
-    def submit(self, garment: str, fabric: str | None, options: dict[str, Any]) -> Job:
+    def submit(self, garment: str, fabric: str | None, options: dict[str, Any],
+               requirements: Requirements | None = None) -> Job:
+        req = requirements or Requirements()
         now = time.time()
-        with self.transaction() as cur:
-            cur.execute(
-                "insert into jobs (garment, fabric, options, submitted_at, updated_at) "
-                "values (?, ?, ?, ?, ?)",
-                (garment, fabric, json.dumps(options, sort_keys=True), now, now),
-            )
-            job_id = cur.lastrowid
-            self._event(cur, job_id, "submitted", f"garment {garment}, fabric "
-                        f"{fabric or 'detected from the camera'}")
-        return self.job(job_id)
+
+        def work(tx: Tx) -> int:
+            row = tx.one(
+                "insert into jobs (garment, fabric, options, submitted_at, updated_at, "
+                "req_tool, req_x_mm, req_y_mm, req_station) values (?, ?, ?, ?, ?, ?, ?, ?, ?) "
+                "returning id",
+                garment, fabric, json.dumps(options, sort_keys=True), now, now, req.tool,
+                req.table_mm[0] if req.table_mm else None,
+                req.table_mm[1] if req.table_mm else None, req.station)
+            needs = describe(req)
+            self._event(tx, row["id"], "submitted", f"garment {garment}, fabric "
+                        f"{fabric or 'detected from the camera'}"
+                        + (f"; needs {needs}" if needs else ""))
+            announce(tx)
+            return row["id"]
+
+        return self.job(self.engine.write(work))
 
     def job(self, job_id: int) -> Job:
-        row = self._conn.execute("select * from jobs where id = ?", (job_id,)).fetchone()
+        row = self.engine.read(lambda tx: tx.one("select * from jobs where id = ?", job_id))
         if row is None:
             raise JobStoreError(f"no job {job_id}")
-        return _job(row)
+        return job_from_row(row)
 
     def jobs(self, states: tuple[str, ...] | None = None) -> list[Job]:
         if states:
             marks = ",".join("?" * len(states))
-            rows = self._conn.execute(f"select * from jobs where state in ({marks}) "
-                                      "order by id", states)
+            rows = self.engine.read(lambda tx: tx.all(
+                f"select * from jobs where state in ({marks}) order by id", *states))
         else:
-            rows = self._conn.execute("select * from jobs order by id")
-        return [_job(r) for r in rows.fetchall()]
+            rows = self.engine.read(lambda tx: tx.all("select * from jobs order by id"))
+        return [job_from_row(r) for r in rows]
 
     def next_job(self) -> Job | None:
-        """The oldest job waiting to run: one interrupted mid-way first, then submitted."""
-        row = self._conn.execute(
+        """The oldest job waiting to run: one interrupted mid-way first, then submitted
+        (one station alone on its store; a fleet claims with `station.fleet.claim`)."""
+        row = self.engine.read(lambda tx: tx.one(
             "select * from jobs where state in ('capturing','planning','ready','cutting',"
-            "'submitted') order by case when state = 'submitted' then 1 else 0 end, id limit 1"
-        ).fetchone()
-        return None if row is None else _job(row)
+            "'submitted') order by case when state = 'submitted' then 1 else 0 end, id "
+            "limit 1"))
+        return None if row is None else job_from_row(row)
 
     def transition(self, job_id: int, new_state: str, reason: str = "") -> Job:
         """Move a job to ``new_state`` if allowed; the event records why."""
         if new_state not in STATES:
             raise JobStoreError(f"unknown job state {new_state!r}")
-        with self.transaction() as cur:
-            row = cur.execute("select state, resume_state from jobs where id = ?",
-                              (job_id,)).fetchone()
-            if row is None:
-                raise JobStoreError(f"no job {job_id}")
-            old = row["state"]
-            if new_state not in TRANSITIONS[old]:
-                raise JobStoreError(f"job {job_id} is {old}; it cannot become {new_state}")
-            resume = old if new_state == "paused" else None
-            cur.execute("update jobs set state = ?, reason = ?, resume_state = ?, "
-                        "updated_at = ? where id = ?",
-                        (new_state, reason, resume, time.time(), job_id))
-            if new_state == "submitted":  # retry: start the plan afresh, keep cut pieces
-                cur.execute("update jobs set plan = null where id = ?", (job_id,))
-            self._event(cur, job_id, "state", f"{old} -> {new_state}"
-                        + (f": {reason}" if reason else ""))
+        self.engine.write(lambda tx: self.transition_in(tx, job_id, new_state, reason))
         return self.job(job_id)
 
+    def transition_in(self, tx: Tx, job_id: int, new_state: str, reason: str = "",
+                      owner: str | None = None) -> str:
+        """`transition` inside a caller's transaction (``owner`` also set if given);
+        the state it left."""
+        row = tx.one("select state, resume_state from jobs where id = ?", job_id)
+        if row is None:
+            raise JobStoreError(f"no job {job_id}")
+        old = row["state"]
+        if new_state not in TRANSITIONS[old]:
+            raise JobStoreError(f"job {job_id} is {old}; it cannot become {new_state}")
+        resume = old if new_state in ("paused", "interrupted") else None
+        tx.run("update jobs set state = ?, reason = ?, resume_state = ?, updated_at = ? "
+               "where id = ?", new_state, reason, resume, time.time(), job_id)
+        if owner is not None:
+            tx.run("update jobs set owner = ? where id = ?", owner, job_id)
+        if new_state == "submitted":  # retry: start the plan afresh, keep cut pieces
+            tx.run("update jobs set plan = null where id = ?", job_id)
+            announce(tx)
+        self._event(tx, job_id, "state", f"{old} -> {new_state}"
+                    + (f": {reason}" if reason else ""))
+        return old
+
     def set_plan(self, job_id: int, plan: dict[str, Any]) -> None:
-        with self.transaction() as cur:
-            cur.execute("update jobs set plan = ?, updated_at = ? where id = ?",
-                        (json.dumps(plan), time.time(), job_id))
+        self.engine.write(lambda tx: tx.run(
+            "update jobs set plan = ?, updated_at = ? where id = ?",
+            json.dumps(plan), time.time(), job_id))
+
+    def summary(self, job: Job) -> dict[str, Any]:
+        """What the console shows of a job: state, owner, piece counts, times."""
+        pieces = self.pieces(job.id)
+        counts = {s: sum(p["state"] == s for p in pieces) for s in PIECE_STATES}
+        return {"id": job.id, "state": job.state, "reason": job.reason,
+                "garment": job.garment, "fabric": job.fabric, "pieces": counts,
+                "owner": job.owner, "requirements": job.requirements.to_dict(),
+                "submitted_at": job.submitted_at, "updated_at": job.updated_at}
 
     # ------------------------------------------------------------------ pieces
     def set_pieces(self, job_id: int, names: list[str]) -> None:
         """Declare the job's pieces once planning knows them; cut states are kept."""
-        with self.transaction() as cur:
-            cur.executemany(
-                "insert or ignore into pieces (job_id, piece, name) values (?, ?, ?)",
-                [(job_id, i, n) for i, n in enumerate(names)],
-            )
+
+        def work(tx: Tx) -> None:
+            known = {r["piece"] for r in tx.all("select piece from pieces where job_id = ?",
+                                                job_id)}
+            new = [(job_id, i, n) for i, n in enumerate(names) if i not in known]
+            if new:
+                tx.many("insert into pieces (job_id, piece, name) values (?, ?, ?)", new)
+
+        self.engine.write(work)
 
     def pieces(self, job_id: int) -> list[dict[str, Any]]:
-        rows = self._conn.execute("select piece, name, state, cut_at from pieces "
-                                  "where job_id = ? order by piece", (job_id,))
-        return [dict(r) for r in rows.fetchall()]
+        return self.engine.read(lambda tx: tx.all(
+            "select piece, name, state, cut_at from pieces where job_id = ? order by piece",
+            job_id))
 
     def set_piece_state(self, job_id: int, piece: int, state: str) -> None:
         """Record a piece's cut state; 'cut' is final and is never undone or repeated."""
         if state not in PIECE_STATES:
             raise JobStoreError(f"unknown piece state {state!r}")
-        with self.transaction() as cur:
-            row = cur.execute("select state, name from pieces where job_id = ? and piece = ?",
-                              (job_id, piece)).fetchone()
+
+        def work(tx: Tx) -> None:
+            row = tx.one("select state, name from pieces where job_id = ? and piece = ?",
+                         job_id, piece)
             if row is None:
                 raise JobStoreError(f"job {job_id} has no piece {piece}")
             if row["state"] == "cut":
+                if state == "cut" and getattr(self.engine, "retried", False):
+                    return  # our own commit landed before the link dropped
                 raise JobStoreError(f"piece {piece} ({row['name']}) of job {job_id} is "
                                     "already cut")
-            cur.execute("update pieces set state = ?, cut_at = ? where job_id = ? and piece = ?",
-                        (state, time.time() if state == "cut" else None, job_id, piece))
-            self._event(cur, job_id, "piece", f"piece {piece} ({row['name']}) {state}")
+            tx.run("update pieces set state = ?, cut_at = ? where job_id = ? and piece = ?",
+                   state, time.time() if state == "cut" else None, job_id, piece)
+            self._event(tx, job_id, "piece", f"piece {piece} ({row['name']}) {state}")
+
+        self.engine.write(work)
 
     def reset_unfinished_pieces(self, job_id: int) -> int:
         """After an interruption the piece in progress is not cut: back to pending."""
-        with self.transaction() as cur:
-            cur.execute("update pieces set state = 'pending' where job_id = ? "
-                        "and state = 'cutting'", (job_id,))
-            return cur.rowcount
+        return self.engine.write(lambda tx: tx.run(
+            "update pieces set state = 'pending' where job_id = ? and state = 'cutting'",
+            job_id))
 
     # ------------------------------------------------------------------ events
     def log(self, job_id: int | None, kind: str, message: str) -> None:
-        with self.transaction() as cur:
-            self._event(cur, job_id, kind, message)
+        self.engine.write(lambda tx: self._event(tx, job_id, kind, message))
 
     def events(self, job_id: int | None = None, after: int = 0) -> list[dict[str, Any]]:
         if job_id is None:
-            rows = self._conn.execute("select * from events where id > ? order by id", (after,))
-        else:
-            rows = self._conn.execute("select * from events where job_id = ? and id > ? "
-                                      "order by id", (job_id, after))
-        return [dict(r) for r in rows.fetchall()]
+            return self.engine.read(lambda tx: tx.all(
+                "select * from events where id > ? order by id", after))
+        return self.engine.read(lambda tx: tx.all(
+            "select * from events where job_id = ? and id > ? order by id", job_id, after))
 
     @staticmethod
-    def _event(cur: sqlite3.Cursor, job_id: int | None, kind: str, message: str) -> None:
-        cur.execute("insert into events (job_id, at, kind, message) values (?, ?, ?, ?)",
-                    (job_id, time.time(), kind, message))
+    def _event(tx: Tx, job_id: int | None, kind: str, message: str) -> None:
+        tx.run("insert into events (job_id, at, kind, message) values (?, ?, ?, ?)",
+               job_id, time.time(), kind, message)
 
 
-def _job(row: sqlite3.Row) -> Job:
+def announce(tx: Tx) -> None:
+    """Tell listening stations a job can be claimed (PostgreSQL: sent at commit)."""
+    if tx.dialect == "postgresql":
+        tx.run(f"notify {JOBS_CHANNEL}")
+
+
+def describe(req: Requirements) -> str:
+    """The requirements in words, for events and the console ('' when none)."""
+    parts = []
+    if req.tool:
+        parts.append(req.tool)
+    if req.table_mm:
+        parts.append(f"table >= {req.table_mm[0]:g} x {req.table_mm[1]:g} mm")
+    if req.station:
+        parts.append(f"station {req.station}")
+    return ", ".join(parts)
+
+
+def job_from_row(row: dict[str, Any]) -> Job:
+    x, y = row.get("req_x_mm"), row.get("req_y_mm")
     return Job(
         id=row["id"], garment=row["garment"], fabric=row["fabric"],
         options=json.loads(row["options"]), state=row["state"], reason=row["reason"],
         resume_state=row["resume_state"], submitted_at=row["submitted_at"],
         updated_at=row["updated_at"], plan=json.loads(row["plan"]) if row["plan"] else None,
+        owner=row.get("owner"),
+        requirements=Requirements(row.get("req_tool"),
+                                  (x, y) if x is not None and y is not None else None,
+                                  row.get("req_station")),
     )

@@ -9,19 +9,28 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-FINAL_STATES = ("done", "failed", "aborted", "paused")
+FINAL_STATES = ("done", "failed", "aborted", "paused", "interrupted")
 
 
-def follow(sock: Path, job: int, stream=None, interval: float = 0.2) -> dict[str, Any]:
-    """Poll the daemon and draw a progress bar per step until the job stops; its status."""
+def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
+           interval: float = 0.2) -> dict[str, Any]:
+    """Poll the daemon and draw a progress bar per step until the job stops; its status.
+
+    ``sock`` is the daemon's control socket, or a function giving a job's status (the
+    fleet console's, which reads the shared store).
+    """
     from station.control import request
+
+    def status_of(job: int) -> dict[str, Any]:
+        return sock(job) if callable(sock) else request(sock, "status", job=job)["job"]
 
     bar = ProgressBar(stream or sys.stderr)
     while True:
-        status = request(sock, "status", job=job)["job"]
+        status = status_of(job)
         if status["state"] in FINAL_STATES:
             bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
             return status

@@ -1,7 +1,9 @@
 """The operator's console: `station submit|jobs|status|pause|resume|abort|retry|log`.
 
 Each command sends one request to the running daemon over its control socket and prints
-the answer, for people or (``--json``) for programs.
+the answer, for people or (``--json``) for programs. With ``--station NAME`` or
+``--fleet`` the request goes through the shared job store instead, to whichever station
+owns the job (`station.fleetconsole`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reshape", action="store_true", help="nudge the pieces' shapes")
     p.add_argument("--method", choices=("paper", "global"))
     p.add_argument("--restarts", type=int)
+    p.add_argument("--tool", choices=("laser", "knife"), help="only a station with this tool "
+                   "may take the job (fleet)")
+    p.add_argument("--min-table", metavar="XxY", type=_table,
+                   help="only a station whose table travels at least X by Y mm (fleet)")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -60,7 +66,24 @@ def _common(p: argparse.ArgumentParser, func) -> None:
     add_config_argument(p)
     p.add_argument("--socket", metavar="PATH", help="control socket (default: from the config)")
     p.add_argument("--json", action="store_true", help="print the daemon's answer as JSON")
+    p.add_argument("--station", metavar="NAME", help="a station of the fleet: through the "
+                   "shared job store, not the local socket")
+    p.add_argument("--fleet", action="store_true", help="through the shared job store, to "
+                   "the station that owns the job")
+    p.add_argument("--store", metavar="URL", help="the shared job store (default: from the "
+                   "config)")
     p.set_defaults(func=func)
+
+
+def _table(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected XxY in mm, e.g. 1200x900"
+                                         ) from None
+    if x <= 0 or y <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: sizes must be positive")
+    return x, y
 
 
 def _socket(args: argparse.Namespace) -> Path:
@@ -72,9 +95,44 @@ def _socket(args: argparse.Namespace) -> Path:
 
 def _ask(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
     try:
+        if getattr(args, "station", None) or getattr(args, "fleet", False):
+            return _ask_fleet(args, cmd, **fields)
         return request(_socket(args), cmd, **fields)
     except ControlError as exc:
         raise UserError(str(exc)) from None
+
+
+def _ask_fleet(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
+    from station.fleetconsole import FleetConsole
+
+    fields.pop("timeout", None)  # the socket's: the store answers at once
+    fields.pop("on_wait", None)
+    store = open_fleet_store(args)
+    try:
+        if cmd == "submit":
+            _check_job(args, fields)
+        return FleetConsole(store).request(cmd, args.station, **fields)
+    finally:
+        store.close()
+
+
+def open_fleet_store(args: argparse.Namespace):
+    """The shared job store named by ``--store`` or the configuration."""
+    from station.fleet import open_store
+
+    overrides = {"store": {"url": args.store}} if getattr(args, "store", None) else None
+    return open_store(load_config_arg(args, overrides))
+
+
+def _check_job(args: argparse.Namespace, fields: dict[str, Any]) -> None:
+    """Refuse here what no station could run, as the daemon does before queueing."""
+    from station.pipeline import StationPipeline
+
+    for key in ("garment", "fabric"):
+        if fields.get(key) is not None and not Path(fields[key]).is_file():
+            raise UserError(f"{fields[key]}: no such {key} file")
+    StationPipeline(load_config_arg(args)).check(fields["garment"], fields.get("fabric"),
+                                                 fields.get("options") or {})
 
 
 class _Patience:
@@ -96,6 +154,10 @@ def run_submit(args: argparse.Namespace) -> int:
                                  ("method", args.method), ("restarts", args.restarts),
                                  ("seam_allowance", args.seam_allowance))
                if v is not None}
+    fleet = {k: v for k, v in (("tool", args.tool), ("table_mm", args.min_table)) if v}
+    if fleet and not (args.station or args.fleet):
+        raise UserError("--tool and --min-table choose among the stations of a fleet: "
+                        "add --fleet")
     if args.allowance:
         from station.cliargs import read_name_map
 
@@ -105,7 +167,8 @@ def run_submit(args: argparse.Namespace) -> int:
         raise UserError("--wait must be positive")
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
-                  options=options, timeout=args.wait, on_wait=_Patience(args.garment))
+                  options=options, timeout=args.wait, on_wait=_Patience(args.garment),
+                  **fleet)
     if args.json:
         print(json.dumps(answer))
     else:
@@ -131,7 +194,8 @@ def run_simple(args: argparse.Namespace) -> int:
             job = f"job {e['job_id']}" if e["job_id"] is not None else "station"
             print(f"{stamp}  {job:>8}  {e['kind']:<9} {e['message']}")
     else:
-        print(f"job {answer['job']}: {answer['message']}")
+        where = f" (station {answer['station']})" if answer.get("station") else ""
+        print(f"job {answer['job']}{where}: {answer['message']}")
     return 0
 
 
@@ -140,6 +204,8 @@ def _line(job: dict[str, Any]) -> str:
     total = sum(p.values())
     text = f"job {job['id']:>3}  {job['state']:<10} {p['cut']}/{total} pieces cut  " \
            f"{Path(job['garment']).name}"
+    if job.get("owner"):
+        text += f"  @{job['owner']}"
     progress = job.get("progress") or {}
     if "fraction" in progress:
         text += f"  {100 * progress['fraction']:.0f}%"

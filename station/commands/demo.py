@@ -49,11 +49,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--garment", default=str(EXAMPLE), help="garment (default: the example "
                    "Berkeley t-shirt, in metres)")
     p.add_argument("--units", default="m", choices=("m", "cm", "mm", "in"))
-    p.add_argument("--restarts", type=int, default=8, help="alignment restarts")
-    p.add_argument("--nest-seconds", type=float, default=20.0, help="time for nesting")
-    p.add_argument("--no-reshape", action="store_true", help="skip reshaping")
+    p.add_argument("--restarts", type=int, help="alignment restarts (default 8; fleet 2)")
+    p.add_argument("--nest-seconds", type=float,
+                   help="time for nesting (default 20; fleet 3)")
+    p.add_argument("--no-reshape", action="store_true", help="skip reshaping (a fleet "
+                   "demo always does)")
     p.add_argument("--speed", type=float, default=20.0,
                    help="emulated machine's speed-up (simulated s per wall s)")
+    p.add_argument("--fleet", type=int, default=0, metavar="N",
+                   help="N simulated stations sharing one PostgreSQL job store (started "
+                   "here), each with its own emulator and camera")
+    p.add_argument("--jobs", type=int, default=8, metavar="M",
+                   help="jobs to queue for the fleet (with --fleet)")
     p.set_defaults(func=run)
 
 
@@ -69,6 +76,17 @@ def run(args: argparse.Namespace) -> int:
     garment = Path(args.garment)
     if not garment.is_file():
         raise FileNotFoundError(f"{garment}: no such garment file")
+    fleet = args.fleet > 0
+    args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
+    args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
+                         else (3.0 if fleet else 20.0))
+    if fleet:
+        from station.fleetdemo import run as run_fleet
+
+        args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
+        if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
+            raise ValueError("--restarts, --nest-seconds and --speed must be positive")
+        return run_fleet(args)
     if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
         raise ValueError("--restarts, --nest-seconds and --speed must be positive")
     out = Path(args.out)

@@ -18,12 +18,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("job", nargs="?", type=int)
     add_config_argument(p)
     p.add_argument("--socket", metavar="PATH", help="control socket (default: from the config)")
+    p.add_argument("--fleet", action="store_true", help="follow the job on whichever station "
+                   "of the fleet runs it, through the shared job store")
+    p.add_argument("--store", metavar="URL", help="the shared job store (default: from the "
+                   "config)")
     p.set_defaults(func=run)
+
+
+def _run_fleet(args: argparse.Namespace) -> int:
+    from station.commands.console import open_fleet_store
+    from station.fleetconsole import FleetConsole
+    from station.progress import follow
+
+    if args.job is None:
+        raise UserError("--fleet needs a job number")
+    store = open_fleet_store(args)
+    try:
+        console = FleetConsole(store)
+        final = follow(lambda job: console.summary(job), args.job)
+    except ControlError as exc:
+        raise UserError(str(exc)) from None
+    finally:
+        store.close()
+    return 0 if final["state"] == "done" else 1
 
 
 def run(args: argparse.Namespace) -> int:
     from station.progress import follow
 
+    if args.fleet or args.store:
+        return _run_fleet(args)
     if args.socket:
         sock = args.socket
     else:

@@ -1,4 +1,5 @@
-"""The job store keeps every job, piece state and event, and refuses bad transitions."""
+"""The job store keeps every job, piece state and event, and refuses bad transitions:
+the same tests on both engines (an SQLite file and a real PostgreSQL server)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,8 @@ import pytest
 from station.jobstore import JobStore, JobStoreError
 
 
-def test_job_lifecycle_is_recorded_with_reasons(tmp_path):
-    store = JobStore(tmp_path / "jobs.db")
+def test_job_lifecycle_is_recorded_with_reasons(store_location):
+    store = JobStore(store_location)
     job = store.submit("shirt.obj", "fabric.json", {"reshape": True})
     assert job.state == "submitted" and job.options == {"reshape": True}
     for state in ("capturing", "planning", "ready", "cutting"):
@@ -28,8 +29,8 @@ def test_job_lifecycle_is_recorded_with_reasons(tmp_path):
     assert messages[-1] == "cutting -> done"
 
 
-def test_forbidden_transition_changes_nothing(tmp_path):
-    store = JobStore(tmp_path / "jobs.db")
+def test_forbidden_transition_changes_nothing(store_location):
+    store = JobStore(store_location)
     job = store.submit("a.obj", None, {})
     n_events = len(store.events(job.id))
     with pytest.raises(JobStoreError, match="cannot become done"):
@@ -40,8 +41,8 @@ def test_forbidden_transition_changes_nothing(tmp_path):
     assert len(store.events(job.id)) == n_events
 
 
-def test_a_cut_piece_is_never_cut_again(tmp_path):
-    store = JobStore(tmp_path / "jobs.db")
+def test_a_cut_piece_is_never_cut_again(store_location):
+    store = JobStore(store_location)
     job = store.submit("a.obj", None, {})
     store.set_pieces(job.id, ["front", "back", "sleeve"])
     store.set_piece_state(job.id, 0, "cutting")
@@ -66,21 +67,23 @@ def _write_forever(path: str) -> None:
         i += 1
 
 
-def test_sigkill_mid_write_loses_nothing_committed(tmp_path):
-    path = str(tmp_path / "jobs.db")
+def test_sigkill_mid_write_loses_nothing_committed(store_location):
+    path = store_location
     proc = multiprocessing.get_context("spawn").Process(target=_write_forever, args=(path,))
     proc.start()
     store = None
     try:
         for _ in range(200):
             proc.join(0.05)
-            if os.path.exists(path):
-                store = JobStore(path)
+            if path.startswith("postgresql://") or os.path.exists(path):
+                store = store or JobStore(path)
                 if store.jobs() and sum(p["state"] == "cut" for p in store.pieces(1)) > 20:
                     break
     finally:
         os.kill(proc.pid, signal.SIGKILL)
         proc.join()
+        if store is not None:
+            store.close()
     store = JobStore(path)
     pieces = store.pieces(1)
     cut = [p["piece"] for p in pieces if p["state"] == "cut"]
