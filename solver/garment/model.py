@@ -22,6 +22,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from solver.garment.errors import GarmentError
+from solver.garment.grain import PieceGrain, piece_grains
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,9 @@ class Garment:
         Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
     grainlines, notches : dict
         Per piece index, where the input has them (mm, pattern coordinates).
+    grain : tuple of PieceGrain
+        Each piece's grain direction and its source (`solver.garment.grain`); empty until
+        :meth:`grains` infers it or :meth:`with_grain` sets it.
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -86,6 +90,7 @@ class Garment:
         default_factory=dict
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    grain: tuple[PieceGrain, ...] = ()
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -104,6 +109,21 @@ class Garment:
     def piece_of_face(self) -> np.ndarray:
         """(F,) int piece of each face."""
         return self.piece_of_vertex[self.faces[:, 0]]
+
+    def grains(self) -> tuple[PieceGrain, ...]:
+        """Each piece's grain: as set by :meth:`with_grain`, else from the file, the drape
+        or (with a warning) the outline, inferred once and kept."""
+        if len(self.grain) != self.n_pieces:
+            self.grain = piece_grains(self)
+        return self.grain
+
+    def with_grain(self, *, lines: Mapping[int | str, float] | None = None,
+                   bias=(), up: np.ndarray | str | None = None) -> Garment:
+        """Copy whose grain takes the operator's ``lines`` (degrees by piece name or index),
+        ``bias`` pieces and the drape's ``up`` axis into account."""
+        out = self.copy()
+        out.grain = piece_grains(self, lines=lines, bias=bias, up=up)
+        return out
 
     def seam_weights(self) -> np.ndarray:
         """(E,) float weight of each seam edge, taken from its seam line."""
