@@ -62,11 +62,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "restarts": Key(int, 15, "random restarts", minimum=1),
         "seed": Key(int, 0, "random seed"),
         "reflect": Key(bool, False, "allow mirror-symmetric fits across seams"),
-        "grain_tolerance_deg": Key(float, -1.0, "keep pieces on grain within this many "
-                                   "degrees (negative: off)"),
+        "grain_tolerance_deg": Key(float, 1.0, "keep each piece's grain within this many "
+                                   "degrees of the fabric's grain (negative: turn freely)"),
+        "nap": Key(bool, False, "one-way print or napped fabric: every grain at 0 degrees"),
+        "fabric_grain_deg": Key(float, 0.0, "the fabric's grain in fabric space (0: along "
+                                "the roll); a fabric's FABRIC.json grain_deg wins"),
+        "up": Key(str, "auto", "the drapes' up axis", choices=("auto", "x", "y", "z", "-x",
+                                                               "-y", "-z")),
     },
     "reshape": {
         "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
+        "max_move_mm": Key(float, 10.0, "largest move of any pattern vertex when reshaping",
+                           minimum=0.1),
     },
     "nest": {
         "width_mm": Key(float, 1000.0, "usable fabric width across the table", minimum=1.0),

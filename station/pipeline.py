@@ -53,9 +53,16 @@ class StationPipeline:
         load_garment(garment, units=options.get("units"))
         if fabric is not None:
             Wallpaper.load(fabric)
-        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed"}
+        unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
+                                  "grain_lines", "bias"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
+        lines, bias = options.get("grain_lines", {}), options.get("bias", [])
+        if not isinstance(lines, dict) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in lines.values()):
+            raise ValueError('job option grain_lines must be {"piece": degrees}')
+        if not isinstance(bias, list) or not all(isinstance(b, (str, int)) for b in bias):
+            raise ValueError("job option bias must be a list of pieces")
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
@@ -181,7 +188,9 @@ class StationPipeline:
             control.progress.update(step="aligning", fraction=min(1.0, k / max(n, 1)))
             control.checkpoint()
 
-        placement = align_garment(garment, wallpaper, self.config, job.options, on_restart)
+        garment = grained(garment, self.config, job.options)
+        placement = align_garment(garment, wallpaper, self.config, job.options, on_restart,
+                                  fabric_grain_deg=fabric_doc.get("grain_deg"))
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
@@ -194,16 +203,18 @@ class StationPipeline:
         aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
             start_step(control, "reshaping")
-            from solver.reshape import reshape
+            from solver.reshape import ReshapeOptions, reshape
 
-            garment, reshaped = reshape(garment, placement)
+            garment, reshaped = reshape(garment, placement, options=ReshapeOptions(
+                max_move_mm=self.config["reshape"]["max_move_mm"]))
             garment_path = workdir / "garment-reshaped.obj"
             save_obj(garment, garment_path)
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
-                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of)
+                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of,
+                     original=aligned_garment)
             lap("reshape")
             self._write_report(workdir, report)
             control.checkpoint()
@@ -527,8 +538,9 @@ def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float
 
 
 def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
-                  progress=None):
-    """The best placement of the print on every piece (solver.align).
+                  progress=None, fabric_grain_deg: float | None = None):
+    """The best placement of the print on every piece (solver.align), on grain as the
+    configuration says; ``fabric_grain_deg`` (FABRIC.json's) wins over the station's.
 
     ``progress(k, n, e_random, e_aligned)`` is called as each random restart finishes.
     """
@@ -541,7 +553,16 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                  restarts=int(options.get("restarts", a["restarts"])),
                  seed=int(options.get("seed", a["seed"])),
                  reflect=a["reflect"], grain_tol_deg=grain if grain >= 0 else None,
+                 nap=a["nap"], fabric_grain_deg=(a["fabric_grain_deg"] if fabric_grain_deg
+                                                 is None else fabric_grain_deg),
                  progress=progress)
+
+
+def grained(garment, config: Config, options: dict[str, Any]):
+    """``garment`` with the job's grain lines and bias pieces and the station's up axis."""
+    up = config["align"]["up"]
+    return garment.with_grain(lines=options.get("grain_lines"), bias=options.get("bias", ()),
+                              up=None if up == "auto" else up)
 
 
 def nest_placement(placement_path: Path, config: Config, progress=None):

@@ -62,8 +62,13 @@ def garment_credit(source: str | Path) -> str | None:
 
 def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path, *,
              width_px: int = 1600, red_mm: float = 20.0,
-             colour_of: ColourOf | None = None, title: str | None = None) -> np.ndarray:
-    """Draw the pieces (pattern space) over the print and save a PNG; returns the image."""
+             colour_of: ColourOf | None = None, title: str | None = None,
+             original=None) -> np.ndarray:
+    """Draw the pieces (pattern space) over the print and save a PNG; returns the image.
+
+    Each piece shows its grain line as an arrow; ``original`` (the garment before
+    reshaping) is overlaid as a thin grey outline so that the change can be seen.
+    """
     uv = garment.uv
     lo, hi = uv.min(axis=0), uv.max(axis=0)
     margin = 0.04 * float(np.max(hi - lo))
@@ -96,6 +101,12 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
         for loop in garment.piece_loops(piece):
             ring = to_px(uv[loop])
             cv2.polylines(image, [ring], True, (60, 60, 60), 1, cv2.LINE_AA, shift=4)
+    if original is not None:
+        for piece in range(original.n_pieces):
+            for loop in original.piece_loops(piece):
+                cv2.polylines(image, [to_px(original.uv[loop])], True, (150, 150, 150), 1,
+                              cv2.LINE_AA, shift=4)
+    draw_grain_arrows(image, garment, to_px, scale)
     # One polylines call per colour level (not per edge), on both twins of every edge.
     edges = garment.seam_edges
     segments = np.concatenate([
@@ -116,6 +127,29 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     if not cv2.imwrite(str(path), image):
         raise ValueError(f"{path}: cannot write the picture (folder missing or not a .png?)")
     return image
+
+
+def grain_arrows(garment) -> np.ndarray:
+    """(P,2,2) per piece a grain-line arrow (tail, head) in pattern mm: through the
+    piece's centroid along its grain, 60 % of the piece's extent along that direction."""
+    deg = np.radians([g.deg for g in garment.grains()])
+    d = np.column_stack([np.cos(deg), np.sin(deg)])
+    out = np.empty((garment.n_pieces, 2, 2))
+    for i in range(garment.n_pieces):  # one small projection per piece
+        pts = garment.uv[garment.piece_of_vertex == i]
+        centre = pts.mean(axis=0)
+        half = 0.3 * float(np.ptp(pts @ d[i]))
+        out[i] = [centre - half * d[i], centre + half * d[i]]
+    return out
+
+
+def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
+    """Each piece's grain line, dark blue, arrow head at the grain's direction."""
+    for tail, head in grain_arrows(garment):
+        a, b = to_px(np.array([tail])), to_px(np.array([head]))
+        length = max(float(np.hypot(*(head - tail))) * scale, 1.0)
+        cv2.arrowedLine(image, tuple(int(v) for v in a[0]), tuple(int(v) for v in b[0]),
+                        (120, 40, 20), 2, cv2.LINE_AA, shift=4, tipLength=min(0.3, 20 / length))
 
 
 def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str) -> None:

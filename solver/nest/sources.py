@@ -26,13 +26,15 @@ def kind_of(path: str | Path) -> str:
     raise ValueError(f"{path}: not a DXF-AAMA file, a strip-packing instance or a PLACEMENT.json")
 
 
-def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
+def pieces_from_placement(path: str | Path, *, orientations=None,
                           units: str | None = None):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
     wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``. ``units`` are the garment
-    file's (Berkeley OBJ files are in metres and do not say so).
+    file's (Berkeley OBJ files are in metres and do not say so). The turns allowed on the
+    fabric follow the placement's grain rule: 0 and 180 degrees (keeps the grain), 0 only
+    with a nap, any with the grain off; ``orientations`` overrides it.
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -49,6 +51,11 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
     names = placement.piece_names or list(garment.piece_names)
+    if orientations is None:
+        rule = placement.grain_rule
+        orientations = ((0.0,) if rule.get("nap") else
+                        None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
+                        else (0.0, 180.0))
     grains = getattr(garment, "grainlines", None) or {}
     notch_pts = getattr(garment, "notches", None) or {}
     pieces = []

@@ -11,6 +11,10 @@ from solver.jsonfile import read_json
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
+    add_grain_arguments,
+    fabric_grain_deg,
+    garment_with_grain,
+    grain_tolerance,
     load_fabric,
     load_garment_arg,
 )
@@ -39,9 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "no --init); :rot or :trans fixes only that part; repeatable")
     p.add_argument("--init", metavar="PLACEMENT.json",
                    help="placement that fixed pieces (and --no-rotation/--no-translation) keep")
-    p.add_argument("--grain", nargs="?", type=float, const=2.0, default=None, metavar="TOL",
-                   help="cut on grain: each piece within TOL degrees (default 2) of 0 or 180 "
-                   "degrees to the print, measured from its grain line or vertical axis")
+    add_grain_arguments(p, rule=True)
     p.add_argument("--reflect", action="store_true",
                    help="also favour mirror symmetry across seams (paper Eqs. 7-8)")
     p.add_argument("--no-rotation", action="store_true",
@@ -80,9 +82,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.restarts < 1:
         raise ValueError(f"--restarts must be at least 1, got {args.restarts}")
-    if args.grain is not None and not args.grain >= 0:
-        raise ValueError(f"--grain tolerance must be >= 0 degrees, got {args.grain}")
-    garment = load_garment_arg(args)
+    tol = grain_tolerance(args.grain)
+    garment = garment_with_grain(load_garment_arg(args), args)
     fabric = load_fabric(args.fabric)
     weights = _load_weights(args.weights) if args.weights else None
     init = Placement.load(args.init) if args.init else None
@@ -93,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
 
     placement = align(
         garment, fabric, method=args.method, restarts=args.restarts, seed=args.seed,
-        weights=weights, fix=args.fix, grain_tol_deg=args.grain, reflect=args.reflect,
+        weights=weights, fix=args.fix, grain_tol_deg=tol, nap=args.nap,
+        fabric_grain_deg=fabric_grain_deg(args.fabric), reflect=args.reflect,
         rotation=not args.no_rotation, translation=not args.no_translation, init=init,
         use_drape=not args.pattern_frames, progress=progress)
     placement.garment = str(args.garment)
@@ -115,4 +117,12 @@ def run(args: argparse.Namespace) -> int:
               f"(random) -> {rep['e_fit_aligned_mm2']:.1f} mm² "
               f"({rep['e_fit_aligned_cm2']:.2f} cm², ratio {rep['ratio_aligned_random']:.2f}) "
               f"in {rep['seconds']:.2f} s; wrote {args.output}")
+        grain = ("free rotation (--grain off)" if tol is None else
+                 f"on grain within {tol:g} deg{' (nap)' if args.nap else ''}")
+        print(f"  grain: {grain}, largest off-grain angle {rep['off_grain_max_deg']:.2f} deg",
+              file=sys.stdout)
+        for g in rep["grain"]:
+            print(f"    {g['piece']:<20s} grain {g['grain_deg']:8.2f} deg ({g['grain_source']}"
+                  f"{', bias' if g['bias'] else ''})  turn {g['turn_deg']:8.2f}  "
+                  f"off grain {g['off_grain_deg']:.2f}")
     return 0
