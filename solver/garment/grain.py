@@ -50,7 +50,7 @@ class PieceGrain:
         return self.source == "outline"
 
     def to_dict(self) -> dict:
-        return {"grain_deg": round(self.deg, 6), "grain_source": self.source,
+        return {"grain_deg": self.deg, "grain_source": self.source,
                 "bias": self.bias}
 
 

@@ -29,11 +29,12 @@ def skirt():
 
 @pytest.fixture(scope="module")
 def shorts_aligned():
-    """The shorts under the paper's alignment (quick; test_reshape.py uses the global one)."""
+    """The shorts under the paper's alignment (quick; test_reshape.py uses the global one),
+    turned freely: these tests are about the targets' geometry, not the grain."""
     from solver.align.driver import align
 
     g = load_garment(BERKELEY / "shorts-iso.obj", units="m")
-    return g, align(g, P4M, method="paper", restarts=3, seed=0)
+    return g, align(g, P4M, method="paper", restarts=3, seed=0, grain_tol_deg=None)
 
 
 def test_matched_targets_fit_each_edge_under_its_own_symmetry(shorts_aligned):
@@ -135,6 +136,11 @@ def test_berkeley_p4m_after_global_alignment_halves_e_fit(name):
     assert len(new.faces) == len(g.faces) * 4 ** report.subdivisions
     assert report.e_fit_after_mm2 <= 0.5 * report.e_fit_before_mm2
     assert report.flipped_triangles == 0
+    # a change a pattern maker accepts: every vertex within 10 mm, every area within 1 %
+    assert np.hypot(*(new.uv - refined(g, P4M.covering_radius)[0].uv).T).max() <= 10.0
+    assert report.area_change_max_pct <= 1.0
+    assert max(p["max_move_mm"] for p in report.pieces) == pytest.approx(
+        report.max_displacement_mm, abs=1e-4)
     assert report.length_mismatch_final_mm <= report.epsilon_mm
     assert all(shapely.LinearRing(new.piece_outline(i)).is_simple
                for i in range(new.n_pieces))
