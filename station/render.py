@@ -129,23 +129,11 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     return image
 
 
-def grain_arrows(garment) -> np.ndarray:
-    """(P,2,2) per piece a grain-line arrow (tail, head) in pattern mm: through the
-    piece's centroid along its grain, 60 % of the piece's extent along that direction."""
-    deg = np.radians([g.deg for g in garment.grains()])
-    d = np.column_stack([np.cos(deg), np.sin(deg)])
-    out = np.empty((garment.n_pieces, 2, 2))
-    for i in range(garment.n_pieces):  # one small projection per piece
-        pts = garment.uv[garment.piece_of_vertex == i]
-        centre = pts.mean(axis=0)
-        half = 0.3 * float(np.ptp(pts @ d[i]))
-        out[i] = [centre - half * d[i], centre + half * d[i]]
-    return out
-
-
 def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
     """Each piece's grain line, dark blue, arrow head at the grain's direction."""
-    for tail, head in grain_arrows(garment):
+    from solver.garment.grain import grain_lines
+
+    for tail, head in grain_lines(garment):
         a, b = to_px(np.array([tail])), to_px(np.array([head]))
         length = max(float(np.hypot(*(head - tail))) * scale, 1.0)
         cv2.arrowedLine(image, tuple(int(v) for v in a[0]), tuple(int(v) for v in b[0]),

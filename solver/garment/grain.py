@@ -171,6 +171,21 @@ def outline_grain(garment) -> np.ndarray:
     return np.degrees(np.arctan2(vec[:, 1], vec[:, 0]))
 
 
+def grain_lines(garment, degrees: Iterable[float] | None = None) -> np.ndarray:
+    """(P,2,2) per piece a grain line (tail, head) in pattern mm for pictures and markers:
+    through the piece's centroid along its grain (``degrees``, else ``garment.grains()``),
+    60 % of the piece's extent in that direction."""
+    deg = np.radians(list(degrees) if degrees is not None else [g.deg for g in garment.grains()])
+    d = np.column_stack([np.cos(deg), np.sin(deg)])
+    out = np.empty((garment.n_pieces, 2, 2))
+    for i in range(garment.n_pieces):  # one small projection per piece
+        pts = garment.uv[garment.piece_of_vertex == i]
+        centre = pts.mean(axis=0)
+        half = 0.3 * float(np.ptp(pts @ d[i]))
+        out[i] = [centre - half * d[i], centre + half * d[i]]
+    return out
+
+
 def resolve_piece(garment, key: int | str, what: str) -> int:
     """A piece named by name or index -> its index (ValueError naming ``what``)."""
     names = {n: i for i, n in enumerate(garment.piece_names)}

@@ -56,7 +56,12 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
         orientations = ((0.0,) if rule.get("nap") else
                         None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
                         else (0.0, 180.0))
-    grains = getattr(garment, "grainlines", None) or {}
+    grains = dict(getattr(garment, "grainlines", None) or {})
+    if placement.grains:  # the grain the alignment kept, drawn where the file has none
+        from solver.garment.grain import grain_lines
+
+        lines = grain_lines(garment, [g["grain_deg"] for g in placement.grains])
+        grains = {i: grains.get(i, lines[i]) for i in range(garment.n_pieces)}
     notch_pts = getattr(garment, "notches", None) or {}
     pieces = []
     for i in range(garment.n_pieces):
