@@ -1,0 +1,74 @@
+"""Grain on the command line: `station inspect` reports it, `station align` keeps it by
+default, and the station's configuration turns it on."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from station.cli import main
+from station.config import load_config
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "garments"
+PANTS = DATA / "berkeley" / "pants-coarse.obj"
+SPEC = DATA / "garment_pattern_generator" / "pants_straight_sides.json"
+
+
+def run(capsys, argv: list[str]) -> tuple[int, dict | None, str]:
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, (json.loads(out) if code == 0 and "--json" in argv else None), err
+
+
+def test_inspect_reports_each_pieces_grain_and_its_source(capsys):
+    code, rep, err = run(capsys, ["inspect", str(PANTS), "--units", "m", "--json",
+                                  "--grain-line", "piece1=10"])
+    assert code == 0 and err == ""
+    sources = [p["grain_source"] for p in rep["piece_list"]]
+    assert sources == ["drape", "operator", "drape", "drape"]
+    assert rep["piece_list"][1]["grain_deg"] == 10.0
+    assert abs(rep["piece_list"][0]["grain_deg"] - 90.0) < 5.0  # upright pants piece
+    assert rep["grain_guessed"] == []
+    code, rep, err = run(capsys, ["inspect", str(SPEC), "--json"])
+    assert code == 0 and rep["grain_guessed"]  # a flat pattern without grain lines
+    assert "warning" in err and "guessed" in err and err.count("\n") == 1
+    assert {p["grain_source"] for p in rep["piece_list"]} == {"outline"}
+    code, _, err = run(capsys, ["inspect", str(SPEC), "--grain-line", "sleeve=0"])
+    assert code == 2 and "no piece 'sleeve'" in err and err.count("\n") == 1
+
+
+def test_align_is_on_grain_by_default_and_free_on_request(tmp_path, capsys):
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80],
+                                  "grain_deg": 90}))
+    out = tmp_path / "p.json"
+    base = ["align", str(PANTS), "--units", "m", "--fabric", str(fabric), "--restarts", "2",
+            "-o", str(out), "--json"]
+    code, rep, _ = run(capsys, base + ["--nap"])
+    assert code == 0
+    doc = json.loads(out.read_text())
+    assert doc["grain"] == {"tolerance_deg": 1.0, "nap": True, "fabric_grain_deg": 90.0}
+    turn = np.array([p["angle_deg"] + 90.0 - p["grain_deg"] for p in doc["pieces"]])
+    off = np.abs((turn + 180.0) % 360.0 - 180.0)  # the nap allows 0 only
+    assert np.all(off <= 1.0 + 1e-9)
+    assert rep["off_grain_max_deg"] == pytest.approx(off.max(), abs=1e-6)
+    code, rep, _ = run(capsys, base + ["--grain", "off"])
+    assert code == 0 and json.loads(out.read_text())["grain"]["tolerance_deg"] is None
+    code, _, err = run(capsys, base + ["--grain", "-3"])
+    assert code == 2 and "--grain" in err and err.count("\n") == 1
+
+
+def test_station_defaults_cut_on_grain_and_bound_reshaping(tmp_path):
+    cfg = load_config(None)
+    assert cfg["align"]["grain_tolerance_deg"] == 1.0 and cfg["align"]["nap"] is False
+    assert cfg["reshape"]["max_move_mm"] == 10.0
+    bad = tmp_path / "station.toml"
+    bad.write_text("[reshape]\nmax_move_mm = 0\n")
+    with pytest.raises(ValueError, match="max_move_mm"):
+        load_config(bad)
+    bad.write_text('[align]\nup = "w"\n')
+    with pytest.raises(ValueError, match="align.up"):
+        load_config(bad)
