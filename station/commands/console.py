@@ -29,6 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reshape", action="store_true", help="nudge the pieces' shapes")
     p.add_argument("--method", choices=("paper", "global"))
     p.add_argument("--restarts", type=int)
+    p.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
+                   help="a piece's grain direction (pattern space, degrees); repeatable")
+    p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
     _common(p, run_submit)
 
     for name, text in (("jobs", "list every job"), ("status", "state, pieces and progress")):
@@ -74,6 +77,12 @@ def run_submit(args: argparse.Namespace) -> int:
     options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
                                  ("method", args.method), ("restarts", args.restarts))
                if v is not None}
+    if args.grain_line:
+        from solver.garment.grain import parse_grain_lines
+
+        options["grain_lines"] = parse_grain_lines(args.grain_line)
+    if args.bias:
+        options["bias"] = list(args.bias)
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
                   options=options)

@@ -72,3 +72,20 @@ def test_station_defaults_cut_on_grain_and_bound_reshaping(tmp_path):
     bad.write_text('[align]\nup = "w"\n')
     with pytest.raises(ValueError, match="align.up"):
         load_config(bad)
+
+
+def test_job_options_carry_grain_lines_and_bias_pieces():
+    from station.pipeline import StationPipeline, grained
+
+    station = StationPipeline(load_config(None), simulate=True)
+    station.check(str(PANTS), None, {"units": "m", "grain_lines": {"piece0": 45.0},
+                                     "bias": ["piece1"]})
+    for bad in ({"grain_lines": {"piece0": "up"}}, {"grain_lines": [1]}, {"bias": "piece1"}):
+        with pytest.raises(ValueError, match="grain_lines|bias"):
+            station.check(str(PANTS), None, {"units": "m", **bad})
+    from solver.garment import load_garment
+
+    g = grained(load_garment(PANTS, units="m"), station.config,
+                {"grain_lines": {"piece0": 45.0}, "bias": ["piece1"]})
+    assert (g.grains()[0].deg, g.grains()[0].source) == (45.0, "operator")
+    assert g.grains()[1].bias and not g.grains()[0].bias
