@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 SOURCES = ("file", "operator", "drape", "outline")
-LIMB_SPREAD = 0.25  # normals' 2nd / 1st spread above which a piece wraps around an axis
+LIMB_SPREAD = 0.45  # normals' 2nd / 1st spread above which a piece wraps around an axis
 LIMB_ANGLE_DEG = 30.0  # a wrapped piece whose axis is this far from vertical is a limb
 AXES = {"x": 0, "y": 1, "z": 2}
 

@@ -74,6 +74,24 @@ def test_shared_berkeley_body_grain_runs_along_the_vertical(shared_data):
         check_body_grain_vertical(g, detect_up(g.xyz))
 
 
+def test_tshirt_sleeves_take_their_grain_along_the_arm():
+    """The t-shirt's sleeves (pieces 2 and 3, tubes out to the sides) are limbs: their
+    grain runs along the arm's axis, horizontal here, not up the body."""
+    g = load_garment(DATA / "berkeley" / "tshirt-coarse.obj", units="m")
+    up = parse_up("z")
+    deg, limb = drape_grain(g, up)
+    assert np.flatnonzero(limb).tolist() == [2, 3]
+    jac, area = _face_jacobians(g)
+    pf = g.piece_of_face()
+    for i in (2, 3):
+        m = pf == i
+        mean = np.einsum("f,fij->ij", area[m], jac[m]) / area[m].sum()
+        d = np.array([np.cos(np.radians(deg[i])), np.sin(np.radians(deg[i]))])
+        assert _angle(mean @ d, up) > 45.0  # along the (outstretched) arm
+        tip = g.xyz[g.piece_of_vertex == i].mean(0) - g.xyz.mean(0)
+        assert _angle(mean @ d, -tip) < 90.0  # towards the shoulder, as a cap points
+
+
 def test_pants_grain_is_the_patterns_long_axis():
     """The Berkeley pants pieces are drawn upright (955 mm tall): grain within 5 deg of
     +90 deg (towards the waist)."""
