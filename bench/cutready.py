@@ -42,8 +42,16 @@ def main() -> None:
         return
     wanted = [w for w in os.environ.get("CUTREADY_BENCH_GARMENTS", "").split(",") if w]
     prints = [w for w in os.environ.get("CUTREADY_BENCH_PRINTS", "").split(",") if w]
-    cases, notes = berkeley_garments()
-    cases = [(n, g) for n, g in cases if not wanted or any(w in n for w in wanted)]
+    if wanted:  # load only those (the full list compares every -m/-w pair first)
+        from bench.reshape import _load
+
+        notes = []
+        cases = [(str(p.relative_to(GARMENTS).with_suffix("")), _load(p))
+                 for p in sorted(GARMENTS.rglob("*.obj"))
+                 if not p.stem.endswith(("-m", "-w"))
+                 and any(w in str(p.relative_to(GARMENTS)) for w in wanted)]
+    else:
+        cases, notes = berkeley_garments()
     print(f"\nalign(method='global', restarts={RESTARTS}, seed={SEED}) on grain (1 deg), "
           "then reshape (max_move_mm=10, max_area_change=1 %)")
     print("| garment | print | E_fit random cm² | aligned free cm² | aligned on grain cm² | "

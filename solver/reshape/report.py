@@ -32,7 +32,7 @@ class ReshapeReport:
     max_move_bound_mm: float = float("inf")  # the bound the moves were held to
     area_change_max_pct: float = 0.0  # largest |area change| of a piece, % of its area
     # per piece: name, largest move (mm), area change (%), seam length change (mm and %)
-    pieces: tuple = ()
+    pieces: tuple[dict, ...] = ()
 
     @property
     def e_fit_ratio(self) -> float:
