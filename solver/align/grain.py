@@ -58,7 +58,10 @@ class GrainRule:
         turns = [allowed_turns(g.bias, nap) for g in grains]
         m = max(len(t) for t in turns)
         table = np.radians([list(t) + [t[-1]] * (m - len(t)) for t in turns])
-        return cls(centres=base[:, None] + table, tol=float(np.radians(tol_deg)), base=base)
+        # a hair inside the tolerance, so that angles written in degrees and checked
+        # again after rounding still lie within it
+        return cls(centres=base[:, None] + table, tol=float(np.radians(tol_deg)) * (1 - 1e-7),
+                   base=base)
 
     def relative_deg(self, angles: np.ndarray) -> np.ndarray:
         """(...,P) rotation of each piece relative to the print, degrees in (-180, 180]."""

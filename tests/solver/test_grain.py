@@ -151,8 +151,8 @@ def test_default_placement_is_on_grain(name):
     g = load_garment(DATA / "berkeley" / name, units="m")
     p = align(g, PLAID, restarts=3)
     assert p.grain_rule == {"tolerance_deg": 1.0, "nap": False, "fabric_grain_deg": 0.0}
-    assert np.all(_off(_turns(p, g), [0.0, 180.0]) <= 1.0 + 1e-6)
-    assert p.report["off_grain_max_deg"] <= 1.0 + 1e-6
+    assert np.all(_off(_turns(p, g), [0.0, 180.0]) <= 1.0)  # exactly, after rounding
+    assert p.report["off_grain_max_deg"] <= 1.0
     free = align(g, PLAID, restarts=3, grain_tol_deg=None)
     assert free.report["off_grain_max_deg"] > 1.0  # the rule is what keeps the grain
 
