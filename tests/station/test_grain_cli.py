@@ -47,6 +47,10 @@ def test_align_is_on_grain_by_default_and_free_on_request(tmp_path, capsys):
     out = tmp_path / "p.json"
     base = ["align", str(PANTS), "--units", "m", "--fabric", str(fabric), "--restarts", "2",
             "-o", str(out), "--json"]
+    code, rep, _ = run(capsys, base)  # the defaults: 0 or 180 degrees, within 1
+    doc = json.loads(out.read_text())
+    turn = np.array([p["angle_deg"] + 90.0 - p["grain_deg"] for p in doc["pieces"]]) % 180.0
+    assert np.all(np.minimum(turn, 180.0 - turn) <= 1.0)
     code, rep, _ = run(capsys, base + ["--nap"])
     assert code == 0
     doc = json.loads(out.read_text())
