@@ -64,7 +64,7 @@ class GrainRule:
                    base=base)
 
     def relative_deg(self, angles: np.ndarray) -> np.ndarray:
-        """(...,P) rotation of each piece relative to the print, degrees in (-180, 180]."""
+        """(...,P) turn of each piece's grain from the fabric's grain, degrees in (-180, 180]."""
         return np.degrees(_wrap(angles - self.base))
 
     def violation(self, angles: np.ndarray) -> np.ndarray:
