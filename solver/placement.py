@@ -17,6 +17,21 @@ from solver.jsonfile import read_json
 from solver.wallpaper import Wallpaper
 
 
+def _pairs(value: Any, n_pieces: int) -> list[list]:
+    """PLACEMENT.json "pairs", checked: two different piece indices and a mode each."""
+    if not isinstance(value, list):
+        raise ValueError('"pairs" must be a list of [i, j, "mirror" | "same"]')
+    out = []
+    for item in value:
+        if not (isinstance(item, list) and len(item) == 3 and item[2] in ("mirror", "same")
+                and all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k < n_pieces
+                        for k in item[:2]) and item[0] != item[1]):
+            raise ValueError(f'pair {item!r} is not [i, j, "mirror" | "same"] with two '
+                             f"different pieces of 0..{n_pieces - 1}")
+        out.append([item[0], item[1], item[2]])
+    return out
+
+
 def rotation_matrices(angles: np.ndarray) -> np.ndarray:
     """(P,) angles in radians -> (P, 2, 2) rotation matrices."""
     c, s = np.cos(angles), np.sin(angles)
@@ -43,6 +58,8 @@ class Placement:
     # the cutting rule: {"tolerance_deg": float | None (None: free rotation), "nap": bool,
     # "fabric_grain_deg": float}; nesting keeps to it
     grain_rule: dict[str, Any] = field(default_factory=dict)
+    # left/right pairs and how each was kept: [[i, j, "mirror" | "same"], ...]
+    pairs: list[list] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.angles = np.asarray(self.angles, float).reshape(-1)
@@ -87,6 +104,7 @@ class Placement:
                  **(self.grains[i] if self.grains else {})}
                 for i, (a, t) in enumerate(zip(self.angles, self.translations))
             ],
+            "pairs": [[int(i), int(j), str(mode)] for i, j, mode in self.pairs],
             "report": self.report,
         }
 
@@ -105,6 +123,7 @@ class Placement:
                 grains=([{k: p[k] for k in ("grain_deg", "grain_source", "bias") if k in p}
                          for p in pieces] if all("grain_deg" in p for p in pieces) else None),
                 grain_rule=dict(d.get("grain") or {}),
+                pairs=_pairs(d.get("pairs", []), len(pieces)),
             )
         except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"placement lacks or misstates {exc}") from None

@@ -39,7 +39,7 @@ __all__ = [
 
 def reshape(garment, placement, *, fixed: np.ndarray | None = None,
             options: ReshapeOptions | None = None,
-            progress: Callable[[dict], None] | None = None):
+            progress: Callable[[dict], None] | None = None, pairs=()):
     """Reshaped copy of ``garment`` (3D kept, pattern replaced) and its `ReshapeReport`.
 
     A mesh whose seam edges are on average longer than the print's covering radius is
@@ -47,6 +47,8 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     more vertices: a seam cannot follow a print that repeats within one of its edges. A
     pattern that already fits perfectly is left as it is, mesh included.
     ``progress`` gets each finished round's record (targets, gamma, L, E_fit, iterations).
+    ``pairs`` (`solver.garment.symmetry.MirrorPair`) keep their halves mirrored: the
+    second piece's displacement is the mirror of the first's.
     """
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
@@ -61,7 +63,8 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     levels = 0
     if options.refine and fit_report(garment, placement).e_fit_mm2 > 0:
         garment, levels = refined(garment, placement.fabric.covering_radius)
-    result = optimise(garment, placement, fixed=fixed, options=options, progress=progress)
+    result = optimise(garment, placement, fixed=fixed, options=options, progress=progress,
+                      pairs=pairs)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
     return new, reshape_report(garment, placement, result, subdivisions=levels,

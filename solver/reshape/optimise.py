@@ -33,13 +33,14 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 
 from solver.fit import fit_report
+from solver.garment.symmetry import MirrorPair
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -59,6 +60,7 @@ from solver.reshape.ideal import (
     matched_seams,
 )
 from solver.reshape.outline import OutlineGuard
+from solver.reshape.pairs import PairTie
 
 
 @dataclass(frozen=True)
@@ -137,6 +139,25 @@ class OptimiseState:
     refreshes: int = 0
     since_refresh: int = 0
     history: list = field(default_factory=list)  # per round: gamma, L, energy, iterations
+    tie: PairTie | None = None  # mirror pairs whose displacements are one (solver.reshape.pairs)
+
+
+def _in_subspace(state: OptimiseState, field: np.ndarray) -> np.ndarray:
+    """``field`` (V,2) with fixed vertices at zero and mirror pairs tied."""
+    field[~state.free] = 0.0
+    if state.tie is not None:
+        field = state.tie.project(field)
+        field[~state.free] = 0.0
+    return field
+
+
+def _free_direction(state: OptimiseState, d: np.ndarray) -> np.ndarray:
+    """A flat direction over the free coordinates, projected onto the tied subspace."""
+    if state.tie is None:
+        return d
+    full = np.zeros_like(state.uv)
+    full[state.free] = d.reshape(-1, 2)
+    return _in_subspace(state, full)[state.free].ravel()
 
 
 def _gauss_newton_matrix(energy: PatternEnergy, uv: np.ndarray, gamma: float) -> sp.csr_matrix:
@@ -219,7 +240,7 @@ def _descent_without(state: OptimiseState, direction: np.ndarray,
     candidates = (masked, lambda: -state.precond.solve(g_kept) * np.repeat(keep, 2),
                   lambda: -g_kept)
     for cand in candidates:
-        d = cand() if callable(cand) else cand
+        d = _free_direction(state, cand() if callable(cand) else cand)
         slope = _dot(gf.ravel(), d)
         if slope < 0:
             return d, slope
@@ -248,12 +269,12 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     for a, rho, s, y in reversed(alphas):
         b = rho * _dot(y, r)
         r += s * (a - b)
-    d = -r
+    d = _free_direction(state, -r)
     slope = _dot(gf, d)
     if not slope < 0:  # lost descent: restart from the model's Newton direction
         state.s_hist.clear()
         state.y_hist.clear()
-        d = -state.precond.solve(gf)
+        d = _free_direction(state, -state.precond.solve(gf))
         slope = _dot(gf, d)
     direction = np.zeros_like(state.uv)
     direction[free] = d.reshape(-1, 2)
@@ -282,7 +303,7 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     if not (np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope):
         state.round_done = True
         return True
-    g1[~free] = 0.0
+    g1 = _in_subspace(state, g1)
     step = t * d
     yv = g1[free].ravel() - gf
     if _dot(yv, step) > 1e-12 * _dot(step, step):
@@ -402,8 +423,8 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
             state.history_gamma = state.gamma
         if not state.gamma > 0.25 * state.precond_gamma:
             state.precond = None
-        state.energy, state.grad = energy(state.uv, state.gamma)
-        state.grad[~state.free] = 0.0
+        state.energy, grad = energy(state.uv, state.gamma)
+        state.grad = _in_subspace(state, grad)
         if state.dofs.size:
             while not optimise_step(state, energy, options):
                 pass
@@ -427,14 +448,17 @@ def _seam_length(garment) -> float:
 
 def optimise(garment, placement, *, fixed: np.ndarray | None = None,
              options: ReshapeOptions | None = None,
-             progress: Callable[[dict], None] | None = None) -> OptimiseResult:
+             progress: Callable[[dict], None] | None = None,
+             pairs: Sequence[MirrorPair] = ()) -> OptimiseResult:
     """Reshape ``garment``'s pattern towards its ideal seam lines (paper Sec. 5).
 
     First towards the paper's ideal seam lines, then (``options.refinements`` times at
     most) towards the matched targets of the pattern reached so far, keeping the pattern
     with the lowest E_fit among those whose twin length mismatch L is within eps.
     ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position;
-    ``progress`` is called with each finished round's history entry.
+    ``progress`` is called with each finished round's history entry; ``pairs`` (mirror
+    pairs of `solver.garment.symmetry`) move as one: the second piece's displacement is
+    the first's, mirrored.
     """
     options = options or ReshapeOptions()
     start = time.perf_counter()
@@ -450,8 +474,10 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
                           options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
+    moving = [p for p in pairs if not (fixed[p.first] or fixed[p.second])]
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
-                          dofs=(2 * idx[:, None] + np.array([0, 1])).ravel())
+                          dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
+                          tie=PairTie(garment, moving) if moving else None)
     seams = garment.seam_edges
     l_init = twin_length_mismatch(garment.uv, seams)
     eps = max(0.5 * l_init, options.eps_floor * _seam_length(garment))

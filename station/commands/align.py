@@ -52,6 +52,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="keep the translations (of --init, else 0) and align rotations only")
     p.add_argument("--pattern-frames", action="store_true",
                    help="ignore the drape: take seam frames from the twin pattern edges")
+    p.add_argument("--pairs", metavar="P.json",
+                   help='declare or veto left/right pairs: {"pairs": [[i, j]], "not_pairs": '
+                   "[[k, l]]} (indices or piece names); pairs are found by default")
+    p.add_argument("--no-symmetry", action="store_true",
+                   help="align every piece on its own (default: left/right pairs mirror the "
+                   "print, or keep the same print position where the print has no mirror "
+                   "along the grain)")
     p.add_argument("-o", "--output", required=True, metavar="PLACEMENT.json",
                    help="where to write the placement (angles in degrees, mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -75,6 +82,13 @@ def _load_weights(path: str) -> dict:
     return out
 
 
+def _mirror_pairs(args: argparse.Namespace, garment) -> list:
+    from solver.garment.symmetry import mirror_pairs, read_pairs_file
+
+    declared, vetoed = read_pairs_file(args.pairs, garment) if args.pairs else ([], [])
+    return mirror_pairs(garment, declared=declared, vetoed=vetoed)
+
+
 def run(args: argparse.Namespace) -> int:
     # Imported here: solver.align pulls in SciPy, which every other command can skip.
     from solver.align import align
@@ -92,12 +106,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"station align: start {k}/{n}: E_fit {e_random:.1f} -> {e_aligned:.1f} mm²",
               file=sys.stderr, flush=True)
 
-    placement = align(
-        garment, fabric, method=args.method, restarts=args.restarts, seed=args.seed,
-        weights=weights, fix=args.fix, grain_tol_deg=tol, nap=args.nap,
-        fabric_grain_deg=fabric_grain_deg(args.fabric), reflect=args.reflect,
+    grain_deg = fabric_grain_deg(args.fabric)
+    options = dict(
+        method=args.method, restarts=args.restarts, seed=args.seed,
+        weights=weights, fix=args.fix, grain_tol_deg=tol, reflect=args.reflect,
         rotation=not args.no_rotation, translation=not args.no_translation, init=init,
         use_drape=not args.pattern_frames, progress=progress)
+    pairs = [] if args.no_symmetry else _mirror_pairs(args, garment)
+    if pairs:
+        from solver.align.symmetric import align_symmetric
+
+        placement = align_symmetric(garment, fabric, pairs, grain_deg=grain_deg, nap=args.nap,
+                                    **options)
+    else:
+        placement = align(garment, fabric, nap=args.nap, fabric_grain_deg=grain_deg, **options)
     placement.garment = str(args.garment)
     placement.garment_units = args.units or placement.garment_units
     placement.save(args.output)
@@ -125,4 +147,12 @@ def run(args: argparse.Namespace) -> int:
             print(f"    {g['piece']:<20s} grain {g['grain_deg']:8.2f} deg ({g['grain_source']}"
                   f"{', bias' if g['bias'] else ''})  turn {g['turn_deg']:8.2f}  "
                   f"off grain {g['off_grain_deg']:.2f}")
+        sym = rep.get("symmetry")
+        if sym:
+            kept = ", ".join(f"{i}~{j} {mode}" for i, j, mode in sym["pairs"])
+            price = (f"; unconstrained E_fit {sym['e_fit_unconstrained_mm2']:.1f} mm² "
+                     f"(price x{sym['price_ratio']:.2f})" if "price_ratio" in sym else "")
+            print(f"  pairs: {kept}{price}")
+            if "note" in sym:
+                print(f"  note: {sym['note']}")
     return 0

@@ -33,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the pieces over the print, seams coloured by mismatch")
+    p.add_argument("--front-view", metavar="OUT.png",
+                   help="draw left/right pairs side by side as worn, grain up, print on")
     p.set_defaults(func=run)
 
 
@@ -63,6 +65,12 @@ def run(args: argparse.Namespace) -> int:
 
         draw_fit(garment, placement, report, args.png)
         result["png"] = str(args.png)
+    if args.front_view:
+        from solver.garment.symmetry import mirror_pairs
+        from station.front_view import draw_front_view
+
+        draw_front_view(garment, placement, mirror_pairs(garment), args.front_view)
+        result["front_view"] = str(args.front_view)
     if args.json:
         print(json.dumps(result))
     else:

@@ -24,12 +24,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resolution-mm", type=float, metavar="MM",
                    help="target edge length when meshing a JSON specification (default 20)")
     add_grain_arguments(p)
+    p.add_argument("--pairs", metavar="P.json",
+                   help='declare or veto mirror pairs: {"pairs": [[i, j]], "not_pairs": [[k, l]]} '
+                   "(indices or piece names)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
 
-def garment_summary(g) -> dict:
-    """Plain-JSON description of a garment: counts, units and per-piece sizes in mm."""
+def garment_summary(g, pairs=None) -> dict:
+    """Plain-JSON description of a garment: counts, units, per-piece sizes in mm, and its
+    left/right pairs (``pairs``: MirrorPair list, found when not given)."""
+    from solver.garment.symmetry import centre_seams, mirror_pairs
+
+    if pairs is None:
+        pairs = mirror_pairs(g)
     bbox = g.piece_bboxes()
     area = g.piece_areas()
     seam_count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
@@ -82,6 +90,9 @@ def garment_summary(g) -> dict:
         "grain_guessed": [g.piece_names[i] for i, gr in enumerate(grains) if gr.guessed],
         "piece_list": pieces,
         "seam_line_list": lines,
+        "mirror_pairs": [[p.first, p.second] for p in pairs],
+        "mirror_pair_fits": [p.to_dict() for p in pairs],
+        "centre_seams": centre_seams(g, pairs),
     }
 
 
@@ -110,14 +121,28 @@ def _print_text(s: dict, out) -> None:
         print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
               f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}",
               file=out)
+    if s["mirror_pair_fits"]:
+        print("  mirror pairs (left/right):", file=out)
+        for p in s["mirror_pair_fits"]:
+            i, j = p["pieces"]
+            how = "declared" if p["declared"] else "found"
+            print(f"    {i:3d} ~ {j:<3d} outline RMS {p['rms_mm']:.2f} mm "
+                  f"({100 * p['rms_mm'] / p['size_mm']:.2f} % of size, {how})", file=out)
+    else:
+        print("  mirror pairs: none", file=out)
+    names = [s["seam_line_list"][k]["name"] for k in s["centre_seams"]]
+    print(f"  centre seams: {', '.join(names) if names else 'none'}", file=out)
 
 
 def run(args: argparse.Namespace) -> int:
     from station.cliargs import garment_with_grain, load_garment_arg
 
     start = time.perf_counter()
+    from solver.garment.symmetry import mirror_pairs, read_pairs_file
+
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
-    summary = garment_summary(g)
+    declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
+    summary = garment_summary(g, mirror_pairs(g, declared=declared, vetoed=vetoed))
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))

@@ -42,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="no pattern vertex moves farther than MM (default 10); each piece's "
                    "area also stays within 1 %%")
     add_grain_arguments(p)
+    p.add_argument("--no-symmetry", action="store_true",
+                   help="reshape every piece on its own (default: the placement's left/right "
+                   "pairs move as mirror images)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the reshaped pieces over the print, seams coloured by mismatch")
@@ -111,6 +114,7 @@ def _print_round(record: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from solver.garment.symmetry import fit_pairs
     from solver.reshape import ReshapeOptions, reshape
 
     out = Path(args.output)
@@ -129,7 +133,11 @@ def run(args: argparse.Namespace) -> int:
     fixed = _fixed_mask(garment, args.fix)
     print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
           f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
-    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round,
+    pairs = [] if args.no_symmetry else fit_pairs(garment, [p[:2] for p in placement.pairs])
+    if pairs:
+        print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
+              "(from the placement) move as mirror images", file=sys.stderr)
+    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round, pairs=pairs,
                           options=ReshapeOptions(max_move_mm=args.max_move))
     if report.subdivisions:
         print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "

@@ -1,0 +1,67 @@
+"""Symmetric placement benchmark (issue 14): the price and the speed of mirrored pairs.
+
+For every Berkeley garment of the alignment benchmark that has left/right pairs, under
+each print of that benchmark, with the global method on grain (1 degree, 15 restarts,
+seed 0): E_fit of the unconstrained alignment and of the symmetric one (pairs as a hard
+constraint), their ratio (aim: <= 1.25 where the pairs are mirrored), and the time of
+each, measured in the same run (aim: the symmetric search at least as fast).
+
+    python -m bench symmetry
+    BENCH_ALIGN_ONLY=tshirt,pants python -m bench symmetry
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from datetime import date
+
+import numpy as np
+
+from bench.align import BERKELEY, PRINTS, SHARED, fabric
+
+
+def main() -> None:
+    from solver.align.symmetric import align_symmetric
+    from solver.garment import load_garment
+    from solver.garment.symmetry import mirror_pairs
+
+    root = SHARED / "berkeley_garment_library" / "Garments"
+    if not root.is_dir():
+        print(f"skipped: {root} is absent")
+        return
+    only = [w for w in os.environ.get("BENCH_ALIGN_ONLY", "").split(",") if w]
+    print(f"# {date.today()}  {platform.processor() or platform.machine()}  "
+          f"load {os.getloadavg()[0]:.1f}  global method, grain 1 deg, 15 restarts, seed 0")
+    print("| garment | print | pairs | E_fit free cm² | E_fit symmetric cm² | sym/free "
+          "| s free | s symmetric | time sym/free |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    ratios, speed = [], []
+    for rel in BERKELEY:
+        if only and not any(w in rel for w in only):
+            continue
+        g = load_garment(root / rel, units="m")
+        pairs = mirror_pairs(g)
+        if not pairs:
+            continue
+        for group, repeat in PRINTS.items():
+            wp = fabric(group, repeat)
+            placement = align_symmetric(g, wp, pairs, method="global", restarts=15, seed=0,
+                                        grain_tol_deg=1.0)
+            sym = placement.report["symmetry"]
+            free, constrained = sym["e_fit_unconstrained_mm2"], sym["e_fit_symmetric_mm2"]
+            t_free, t_sym = sym["seconds"]["unconstrained"], sym["seconds"]["symmetric"]
+            modes = sorted({m for *_, m in sym["pairs"]})
+            ratio = constrained / free if free > 0 else 1.0
+            if modes == ["mirror"]:
+                ratios.append(ratio)
+                speed.append(t_sym / t_free)
+            print(f"| {rel.split('/')[-1]} | {group} {repeat:g} mm | {len(pairs)} "
+                  f"{'/'.join(modes)} | {free / 100:.1f} | {constrained / 100:.1f} | "
+                  f"{ratio:.2f} | {t_free:.2f} | {t_sym:.2f} | {t_sym / t_free:.2f} |",
+                  flush=True)
+    if ratios:
+        print(f"\nmirrored pairs: E_fit symmetric/free median {np.median(ratios):.2f}, "
+              f"max {np.max(ratios):.2f} ({np.mean(np.array(ratios) <= 1.25):.0%} within "
+              f"1.25); time symmetric/free median {np.median(speed):.2f}, "
+              f"max {np.max(speed):.2f}")

@@ -1,0 +1,271 @@
+"""Symmetric placement: the print on a left/right pair mirrors, as a tailor cuts "a pair".
+
+For a mirror pair (i, j) with ``q = M p`` (``M = R_m FLIP p + t_m``, from
+`solver.garment.symmetry`), the print on j at ``M p`` must equal the print on i at ``p``.
+With ``w_c(p) = R_c^T (p - t_c)`` (the placement's wallpaper coordinates) that means
+
+    w_j(q) = h(w_i(M^-1 q))        h(w) = G w + tau, an opposite isometry,
+
+which holds for every point exactly when h is an operation of the print's group: then
+piece j's placement follows from piece i's,
+
+    R_j = R_m FLIP R_i G^T,        t_j = t_m + R_j (G R_i^T t_i - tau),
+
+and E_fit of the garment equals E_fit of a *quotient* garment in which j's pattern is
+mapped back onto i (``M^-1``) and shares i's placement: the pair shares its unknowns, so
+the search has fewer of them, and every method of `solver.align` runs on it unchanged.
+The grain rule asks for ``G`` to keep the fabric's grain (a mirror or glide along it, or
+across it where the print has no nap).
+
+Where the group has no such operation (p1, p2, p3, p4, p6, or mirrors off grain) the pair
+is kept "same": ``G`` is the reflection along the grain and ``tau = 0``, so the print's
+lattice sits at the same place relative to the flipped outline, but the motif is not
+mirrored; the quotient is then only the search space, and E_fit is measured on the
+garment itself.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from solver.garment.model import Garment
+from solver.garment.symmetry import FLIP, MirrorPair
+from solver.placement import Placement, rotation_matrices
+from solver.wallpaper import Wallpaper
+
+MODES = ("mirror", "same")
+
+
+@dataclass(frozen=True)
+class PairRule:
+    """How the pair (first, second) is kept: ``mode`` and the opposite isometry ``op``
+    (3x3 homogeneous, wallpaper mm) taking the first piece's print to the second's."""
+
+    pair: MirrorPair
+    mode: str
+    op: np.ndarray
+
+    @property
+    def first(self) -> int:
+        return self.pair.first
+
+    @property
+    def second(self) -> int:
+        return self.pair.second
+
+
+def _reflection_along(axis: np.ndarray) -> np.ndarray:
+    """Linear reflection that keeps ``axis`` and reverses its normal."""
+    a = axis / np.linalg.norm(axis)
+    return 2.0 * np.outer(a, a) - np.eye(2)
+
+
+def pair_rule(pair: MirrorPair, fabric: Wallpaper, *, grain_deg: float = 0.0,
+              nap: bool = False, tol: float = 1e-6) -> PairRule:
+    """The rule for one pair: a grain-keeping opposite operation of the print if it has
+    one ("mirror"; along the grain preferred, across it allowed without nap), else "same".
+    """
+    axis = np.array([np.cos(np.radians(grain_deg)), np.sin(np.radians(grain_deg))])
+    along = _reflection_along(axis)
+    best = None
+    for op in fabric.cartesian_ops():
+        lin = op[:2, :2]
+        if np.linalg.det(lin) > 0:
+            continue
+        if np.allclose(lin, along, atol=tol):
+            best = op
+            break
+        if not nap and best is None and np.allclose(lin, -along, atol=tol):
+            best = op
+    if best is not None:
+        return PairRule(pair, "mirror", best.copy())
+    same = np.eye(3)
+    same[:2, :2] = along
+    return PairRule(pair, "same", same)
+
+
+def expand(quotient: Placement, rules: Sequence[PairRule], keep: np.ndarray,
+           n_pieces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Angles (P,) and translations (P,2) of the whole garment from the quotient's.
+
+    ``keep`` (P,) gives each piece's index in the quotient (the second piece of a pair
+    maps to its first piece's index).
+    """
+    angles = quotient.angles[keep].copy()
+    trans = quotient.translations[keep].copy()
+    for rule in rules:
+        i, j = rule.first, rule.second
+        r_i = rotation_matrices(angles[i:i + 1])[0]
+        g, tau = rule.op[:2, :2], rule.op[:2, 2]
+        r_j = rule.pair.rotation @ FLIP @ r_i @ g.T
+        angles[j] = np.arctan2(r_j[1, 0], r_j[0, 0])
+        trans[j] = rule.pair.translation + r_j @ (g @ r_i.T @ trans[i] - tau)
+    return angles, trans
+
+
+def quotient_garment(garment: Garment, rules: Sequence[PairRule]) -> tuple[Garment, np.ndarray]:
+    """The garment with the second piece of every pair mapped onto the first (``M^-1``)
+    and merged into it, and ``keep`` (P,): each piece's index in the quotient."""
+    p = garment.n_pieces
+    owner = np.arange(p)
+    uv = garment.uv.copy()
+    faces = garment.faces.copy()
+    face_piece = garment.piece_of_face()
+    for rule in rules:
+        i, j = rule.first, rule.second
+        owner[j] = i
+        on = garment.piece_of_vertex == j
+        uv[on] = (garment.uv[on] - rule.pair.translation) @ rule.pair.rotation @ FLIP
+        mirrored = face_piece == j
+        faces[mirrored] = faces[mirrored][:, [0, 2, 1]]  # keep triangles counter-clockwise
+    kept = np.flatnonzero(owner == np.arange(p))
+    index = np.full(p, -1)
+    index[kept] = np.arange(len(kept))
+    keep = index[owner]
+    lines = [dataclasses.replace(s, piece_a=int(keep[s.piece_a]), piece_b=int(keep[s.piece_b]))
+             for s in garment.seam_lines]
+    q = garment.copy()
+    q.uv, q.faces = uv, faces
+    q.piece_of_vertex = keep[garment.piece_of_vertex]
+    q.piece_names = [garment.piece_names[k] for k in kept]
+    q.seam_lines = lines
+    q.grainlines = {int(keep[k]): v for k, v in garment.grainlines.items() if k in kept}
+    q.grain = tuple(garment.grains()[k] for k in kept)  # a pair takes its first's grain
+    q.notches = {int(keep[k]): v for k, v in garment.notches.items() if k in kept}
+    q._loops = None
+    return q, keep
+
+
+def pair_mismatch_mm(garment: Garment, placement: Placement, rule: PairRule,
+                     samples: int = 64) -> float:
+    """Largest print mismatch (mm) between points of the first piece and their mirror
+    images on the second: 0 when the pair is mirrored exactly ("mirror" rules)."""
+    outline = garment.piece_outline(rule.first)
+    pts = outline[np.linspace(0, len(outline) - 1, min(samples, len(outline))).astype(int)]
+    inside = np.vstack([pts, 0.5 * (pts + pts.mean(axis=0))])
+    w_i = placement.to_wallpaper(inside, np.full(len(inside), rule.first))
+    w_j = placement.to_wallpaper(rule.pair.map_first_to_second(inside),
+                                 np.full(len(inside), rule.second))
+    return float(placement.fabric.mismatch_distance(w_j, w_i).max())
+
+
+def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorPair], *,
+                    compare: bool = True, grain_deg: float = 0.0, nap: bool = False,
+                    fix: list[str] | None = None, init: Placement | None = None,
+                    **options) -> Placement:
+    """`solver.align.align` with every mirror pair kept as a hard constraint.
+
+    The search runs on the quotient garment (one set of unknowns per pair). With
+    ``compare`` the unconstrained alignment is run too, so that the report shows the
+    constraint's price: ``symmetry.e_fit_unconstrained_mm2`` beside ``e_fit_aligned_mm2``.
+    ``fix`` names pieces as `align` does; the second piece of a pair follows its first.
+    """
+    import time
+
+    from solver.align.driver import align, grain_report
+    from solver.fit import fit_report
+
+    start = time.perf_counter()
+    rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap) for p in pairs]
+    quotient, keep = quotient_garment(garment, rules)
+    seconds = {"symmetric": 0.0, "unconstrained": 0.0}
+    q_init = None
+    if init is not None:
+        if init.n_pieces != garment.n_pieces:
+            raise ValueError(f"initial placement has {init.n_pieces} pieces, the garment "
+                             f"{garment.n_pieces}")
+        first_of = _first_of(keep)
+        q_init = Placement(init.angles[first_of], init.translations[first_of], fabric)
+    q_fix = [_fix_in_quotient(spec, garment, quotient, keep) for spec in fix or []]
+    options = dict(options, nap=nap, fabric_grain_deg=grain_deg)
+    q_options = dict(options)
+    if options.get("grain_tol_deg", 1.0) is not None:
+        # the second piece inherits the first's angle to the grain, plus the pair's own
+        # small disagreement of grain lines: keep the first that much closer to grain
+        slack = _pair_grain_disagreement(garment, fabric, rules, keep)
+        q_options["grain_tol_deg"] = max(options.get("grain_tol_deg", 1.0) - slack, 0.0)
+    t0 = time.perf_counter()
+    q_place = align(quotient, fabric, fix=q_fix or None, init=q_init, **q_options)
+    seconds["symmetric"] = time.perf_counter() - t0
+    angles, trans = expand(q_place, rules, keep, garment.n_pieces)
+    placement = Placement(angles, trans, fabric, garment=garment.source or None,
+                          garment_units=q_place.garment_units,
+                          piece_names=list(garment.piece_names),
+                          grains=[g.to_dict() for g in garment.grains()],
+                          grain_rule=dict(q_place.grain_rule))
+    fit = fit_report(garment, placement)
+    report = dict(q_place.report)
+    report.update(fit.summary())
+    report.update(grain_report(garment, angles, nap=nap, fabric_grain_deg=grain_deg))
+    report["grain_tol_deg"] = options.get("grain_tol_deg", 1.0)
+    placement.grain_rule["tolerance_deg"] = report["grain_tol_deg"]
+    report.update(pieces=int(garment.n_pieces), seam_edges=int(len(garment.seam_edges)),
+                  e_fit_aligned_mm2=fit.e_fit_mm2, e_fit_aligned_cm2=fit.e_fit_cm2)
+    if report.get("e_fit_random_mm2"):
+        report["ratio_aligned_random"] = fit.e_fit_mm2 / report["e_fit_random_mm2"]
+    symmetry = {
+        "pairs": [[r.first, r.second, r.mode] for r in rules],
+        "unknowns_pieces": int(quotient.n_pieces),
+        "pair_print_mismatch_mm": [pair_mismatch_mm(garment, placement, r) for r in rules],
+        "e_fit_symmetric_mm2": fit.e_fit_mm2,
+    }
+    same = [f"{r.first}-{r.second}" for r in rules if r.mode == "same"]
+    if same:
+        symmetry["note"] = (f"{fabric.group} has no mirror or glide along the grain: pairs "
+                            f"{', '.join(same)} keep the same print position on the flipped "
+                            "outline, but their print is not mirrored")
+    if compare:
+        t0 = time.perf_counter()
+        free = align(garment, fabric, fix=fix, init=init, **options)
+        seconds["unconstrained"] = time.perf_counter() - t0
+        e_free = free.report["e_fit_aligned_mm2"]
+        symmetry["e_fit_unconstrained_mm2"] = e_free
+        symmetry["price_ratio"] = fit.e_fit_mm2 / e_free if e_free > 0 else 1.0
+    symmetry["seconds"] = seconds
+    report["symmetry"] = symmetry
+    report["seconds"] = time.perf_counter() - start
+    placement.report = report
+    placement.pairs = symmetry["pairs"]
+    return placement
+
+
+def _first_of(keep: np.ndarray) -> np.ndarray:
+    """For each quotient piece, the garment piece it stands for (a pair's first piece)."""
+    first_of = np.full(int(keep.max()) + 1, -1)
+    first_of[keep[::-1]] = np.arange(len(keep))[::-1]  # the last write is the lowest piece
+    return first_of
+
+
+def _pair_grain_disagreement(garment: Garment, fabric: Wallpaper, rules: Sequence[PairRule],
+                             keep: np.ndarray) -> float:
+    """Degrees by which a pair's second piece lies off its grain when its first lies
+    exactly on grain (0 for a pair whose grain lines mirror each other)."""
+    from solver.align.grain import GrainRule
+
+    if not rules:
+        return 0.0
+    grain = GrainRule.from_garment(garment, 0.0)  # the turns, whatever the fabric's grain
+    on_grain = Placement(grain.centres[:, 0], np.zeros((garment.n_pieces, 2)), fabric)
+    first_of = _first_of(keep)
+    angles, _ = expand(Placement(on_grain.angles[first_of], on_grain.translations[first_of],
+                                 fabric), rules, keep, garment.n_pieces)
+    seconds = [r.second for r in rules]
+    return float(np.degrees(grain.violation(angles)[seconds].max()))
+
+
+def _fix_in_quotient(spec: str, garment: Garment, quotient: Garment, keep: np.ndarray) -> str:
+    """A ``--fix`` spec of the garment, in the quotient's piece indices."""
+    name, sep, kind = spec.rpartition(":") if spec.endswith((":rot", ":trans")) else (
+        spec, "", "")
+    names = {n: i for i, n in enumerate(garment.piece_names)}
+    if name in names:
+        c = names[name]
+    elif name.isdigit() and int(name) < garment.n_pieces:
+        c = int(name)
+    else:
+        return spec  # align reports the unknown piece
+    return f"{int(keep[c])}{sep}{kind}"

@@ -1,0 +1,177 @@
+"""Symmetric placement (solver.align.symmetric): left/right pairs mirror the print exactly."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from solver.align.symmetric import align_symmetric, expand, pair_rule, quotient_garment
+from solver.fit import fit_report
+from solver.garment import load_garment
+from solver.garment.symmetry import mirror_pairs
+from solver.placement import Placement
+from solver.wallpaper import Wallpaper
+
+REPO = Path(__file__).resolve().parents[2]
+TSHIRT = REPO / "examples" / "tshirt-iso.obj"
+PRINTS = {
+    "p4m": Wallpaper("p4m", (50, 0), (0, 50), (7, 3)),
+    "pmm": Wallpaper("pmm", (60, 0), (0, 80)),
+    "cmm": Wallpaper("cmm", (30, -40), (30, 40)),  # centred cell, mirrors along x and y
+    "pmg": Wallpaper("pmg", (40, 0), (0, 55)),
+}
+
+
+@pytest.fixture(scope="module")
+def tshirt():
+    return load_garment(TSHIRT, units="m")
+
+
+def _sampled_mirror_mismatch(g, placement: Placement, i: int, j: int, pair) -> float:
+    """Max print mismatch between points of piece i (outline and inside) and their mirror
+    images on piece j, by Wallpaper.mismatch."""
+    rng = np.random.default_rng(1)
+    pts = g.uv[g.piece_of_vertex == i]
+    pts = pts[rng.choice(len(pts), size=min(200, len(pts)), replace=False)]
+    w_i = placement.to_wallpaper(pts, np.full(len(pts), i))
+    w_j = placement.to_wallpaper(pair.map_first_to_second(pts), np.full(len(pts), j))
+    return float(np.linalg.norm(placement.fabric.mismatch(w_i, w_j), axis=1).max())
+
+
+@pytest.mark.parametrize("group", sorted(PRINTS))
+def test_pairs_mirror_the_print_exactly_on_grain(tshirt, group: str) -> None:
+    fabric = PRINTS[group]
+    pairs = mirror_pairs(tshirt)
+    placement = align_symmetric(tshirt, fabric, pairs, compare=False, method="paper",
+                                restarts=3, grain_tol_deg=1.0)
+    assert sorted(map(tuple, placement.pairs)) == [(0, 3, "mirror"), (1, 2, "mirror"),
+                                                   (4, 5, "mirror")]
+    by_pieces = {(p.first, p.second): p for p in pairs}
+    for i, j, _ in placement.pairs:
+        assert _sampled_mirror_mismatch(tshirt, placement, i, j, by_pieces[(i, j)]) < 0.1
+    # the report's E_fit is the garment's own
+    assert placement.report["e_fit_aligned_mm2"] == pytest.approx(
+        fit_report(tshirt, placement).e_fit_mm2)
+
+
+def test_quotient_has_the_same_fit_as_the_garment(tshirt) -> None:
+    fabric = PRINTS["p4m"]
+    rules = [pair_rule(p, fabric) for p in mirror_pairs(tshirt)]
+    quotient, keep = quotient_garment(tshirt, rules)
+    assert quotient.n_pieces == 3 and len(quotient.seam_edges) == len(tshirt.seam_edges)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        q = Placement(rng.uniform(-np.pi, np.pi, 3), rng.uniform(-100, 100, (3, 2)), fabric)
+        angles, trans = expand(q, rules, keep, tshirt.n_pieces)
+        full = Placement(angles, trans, fabric)
+        assert fit_report(tshirt, full).e_fit_mm2 == pytest.approx(
+            fit_report(quotient, q).e_fit_mm2, rel=1e-9)
+
+
+def test_print_without_mirror_keeps_pairs_same_and_says_so(tshirt) -> None:
+    fabric = Wallpaper("p1", (50, 0), (10, 45))
+    pairs = mirror_pairs(tshirt)
+    placement = align_symmetric(tshirt, fabric, pairs, method="paper", restarts=3,
+                                grain_tol_deg=1.0)
+    assert {mode for _, _, mode in placement.pairs} == {"same"}
+    sym = placement.report["symmetry"]
+    assert "not mirrored" in sym["note"]
+    assert sym["e_fit_unconstrained_mm2"] > 0 and sym["price_ratio"] > 0
+    # "same": the print's lattice sits at the mirrored place on the flipped outline
+    by_pieces = {(p.first, p.second): p for p in pairs}
+    for i, j, _ in placement.pairs:
+        anchor = placement.translations[i]  # where the print's origin lies on piece i
+        on_j = by_pieces[(i, j)].map_first_to_second(anchor[None])
+        w = placement.to_wallpaper(on_j, np.array([j]))
+        assert np.linalg.norm(fabric.mismatch(w, np.zeros((1, 2)))) < 1e-6
+
+
+def test_mirrors_off_grain_fall_back_to_same(tshirt) -> None:
+    # a pmm print turned 30 degrees on the fabric has no mirror along the grain
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    fabric = Wallpaper("pmm", (60 * c, 60 * s), (-80 * s, 80 * c))
+    rules = [pair_rule(p, fabric) for p in mirror_pairs(tshirt)]
+    assert {r.mode for r in rules} == {"same"}
+    assert {r.mode for r in (pair_rule(p, PRINTS["pmm"], nap=True)
+                             for p in mirror_pairs(tshirt))} == {"mirror"}
+
+
+def test_flat_pattern_pairs_mirror() -> None:
+    g = load_garment(REPO / "tests" / "data" / "garments" / "garmentcode" /
+                     "pants_specification.json")
+    pairs = mirror_pairs(g)
+    placement = align_symmetric(g, PRINTS["pmm"], pairs, compare=False, method="paper",
+                                restarts=2, grain_tol_deg=1.0)
+    assert len(placement.pairs) == 2 and {m for *_, m in placement.pairs} == {"mirror"}
+    by_pieces = {(p.first, p.second): p for p in pairs}
+    for i, j, _ in placement.pairs:
+        assert _sampled_mirror_mismatch(g, placement, i, j, by_pieces[(i, j)]) < 0.1
+
+
+def test_station_align_records_pairs_and_their_price(tmp_path: Path) -> None:
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps(PRINTS["pmm"].to_dict()))
+    out = tmp_path / "placement.json"
+    base = [sys.executable, "-m", "station.cli", "align", str(TSHIRT), "--units", "m",
+            "--fabric", str(fabric), "--restarts", "2", "--grain", "1", "-o", str(out)]
+    run = subprocess.run(base + ["--json"], capture_output=True, text=True, cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    rep = json.loads(run.stdout)
+    saved = json.loads(out.read_text())
+    assert sorted(map(tuple, saved["pairs"])) == [(0, 3, "mirror"), (1, 2, "mirror"),
+                                                  (4, 5, "mirror")]
+    assert rep["symmetry"]["e_fit_unconstrained_mm2"] > 0
+    assert Placement.load(out).pairs == saved["pairs"]
+    run = subprocess.run(base + ["--no-symmetry"], capture_output=True, text=True, cwd=REPO)
+    assert run.returncode == 0 and json.loads(out.read_text())["pairs"] == []
+
+
+def test_front_view_shows_each_pair_mirrored(tshirt, tmp_path: Path) -> None:
+    from station.front_view import draw_front_view, front_view
+
+    pairs = mirror_pairs(tshirt)
+    placement = align_symmetric(tshirt, PRINTS["pmm"], pairs, compare=False, method="paper",
+                                restarts=2, grain_tol_deg=1.0)
+    shown, moved, axes = front_view(tshirt, placement, pairs)
+    fabric = placement.fabric
+    for p in pairs:
+        i, j = p.first, p.second
+        a, b = shown.uv[shown.piece_of_vertex == i], shown.uv[shown.piece_of_vertex == j]
+        # j is i's mirror image across one vertical axis, print included
+        axis = axes[(i, j)]
+        mirrored = a * [-1, 1] + [2 * axis, 0]
+        d = np.min(np.linalg.norm(mirrored[:, None] - b[None], axis=2), axis=1)
+        assert np.median(d) < 5.0
+        inside = a[::7]
+        w_i = moved.to_wallpaper(inside, np.full(len(inside), i))
+        w_j = moved.to_wallpaper(inside * [-1, 1] + [2 * axis, 0], np.full(len(inside), j))
+        assert np.linalg.norm(fabric.mismatch(w_i, w_j), axis=1).max() < 0.5
+    image = draw_front_view(tshirt, placement, pairs, tmp_path / "front.png")
+    assert image.shape[1] == 1600 and (tmp_path / "front.png").stat().st_size > 10_000
+
+
+def test_reshaped_pairs_move_as_mirror_images(tshirt) -> None:
+    from solver.garment.refine import refined
+    from solver.reshape import reshape
+    from solver.reshape.energy import signed_areas
+    from solver.reshape.pairs import PairTie
+
+    pairs = mirror_pairs(tshirt)
+    fabric = PRINTS["p4m"]
+    placement = align_symmetric(tshirt, fabric, pairs, compare=False, method="paper",
+                                restarts=3, grain_tol_deg=1.0)
+    new, report = reshape(tshirt, placement, pairs=pairs)
+    base, _ = refined(tshirt, fabric.covering_radius)
+    assert new.n_vertices == base.n_vertices
+    moved = new.uv - base.uv
+    assert np.abs(moved).max() > 1.0  # it did reshape
+    # every vertex of a second piece moved as the mirror of its first piece's displacement
+    # there (interpolated in the first piece's mesh)
+    assert PairTie(base, pairs).mirror_error(moved) < 0.1
+    assert report.e_fit_after_mm2 < report.e_fit_before_mm2
+    assert np.all(signed_areas(new.uv, new.faces) > 0)
