@@ -20,6 +20,7 @@ import json
 import logging
 import shutil
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +51,7 @@ class StationPipeline:
         from solver.garment import load_garment
         from solver.wallpaper import Wallpaper
 
-        load_garment(garment, units=options.get("units"))
+        loaded = load_garment(garment, units=options.get("units"))
         if fabric is not None:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
@@ -63,6 +64,9 @@ class StationPipeline:
             raise ValueError('job option grain_lines must be {"piece": degrees}')
         if not isinstance(bias, list) or not all(isinstance(b, (str, int)) for b in bias):
             raise ValueError("job option bias must be a list of pieces")
+        with warnings.catch_warnings():  # a guessed grain is reported when the job runs
+            warnings.simplefilter("ignore")
+            grained(loaded, self.config, options)  # names every piece that does not exist
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:

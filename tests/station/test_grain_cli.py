@@ -87,6 +87,8 @@ def test_job_options_carry_grain_lines_and_bias_pieces():
     for bad in ({"grain_lines": {"piece0": "up"}}, {"grain_lines": [1]}, {"bias": "piece1"}):
         with pytest.raises(ValueError, match="grain_lines|bias"):
             station.check(str(PANTS), None, {"units": "m", **bad})
+    with pytest.raises(ValueError, match="no piece 'sleeve'"):  # refused at submission
+        station.check(str(PANTS), None, {"units": "m", "grain_lines": {"sleeve": 0.0}})
     from solver.garment import load_garment
 
     g = grained(load_garment(PANTS, units="m"), station.config,
