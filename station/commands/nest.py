@@ -37,6 +37,11 @@ def register(sub) -> None:
                    choices=("auto", "resnap", "resnap-margin", "fill", "repair", "naive"),
                    help="search on a print (default auto: fill, and resnap (many pieces) or "
                    "resnap-margin (few); the best wins)")
+    p.add_argument("--nap", action="store_true",
+                   help="one-way print or napped fabric: no piece turns by 180 degrees")
+    p.add_argument("--grain", choices=("on", "off"),
+                   help="on: turn pieces only by 0 or 180 degrees, off: turn freely "
+                   "(default: what each input says; a placement keeps its grain rule)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.add_argument("--png", metavar="OUT.png", help="draw the marker")
     p.set_defaults(func=run)
@@ -61,6 +66,10 @@ def run(args) -> int:
         sizes=args.size.split(",") if args.size else None, units=args.units,
         quantity=args.quantity, pairs=args.pairs,
         keepouts=load_keepouts(args.keepout) if args.keepout else None)
+    if args.nap or args.grain:
+        turns = (0.0,) if args.nap else None if args.grain == "off" else (0.0, 180.0)
+        for piece in problem.pieces:
+            piece.orientations = turns
     progress = stderr_progress
     t0 = time.monotonic()
     layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,

@@ -95,3 +95,24 @@ def test_job_options_carry_grain_lines_and_bias_pieces():
                 {"grain_lines": {"piece0": 45.0}, "bias": ["piece1"]})
     assert (g.grains()[0].deg, g.grains()[0].source) == (45.0, "operator")
     assert g.grains()[1].bias and not g.grains()[0].bias
+
+
+def test_nest_keeps_the_placements_grain_and_nap_forbids_the_half_turn(tmp_path, capsys):
+    """LAYOUT.json's transform of a piece is its placement frame turned by the nest's move:
+    its angle is -angle_deg (placement), plus 180 where the half turn is allowed."""
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80]}))
+    placement = tmp_path / "p.json"
+    assert main(["align", str(PANTS), "--units", "m", "--fabric", str(fabric),
+                 "--restarts", "2", "-o", str(placement)]) == 0
+    angles = np.array([p["angle_deg"] for p in json.loads(placement.read_text())["pieces"]])
+    for extra, allowed in (([], (0.0, 180.0)), (["--nap"], (0.0,))):
+        layout = tmp_path / "layout.json"
+        capsys.readouterr()
+        assert main(["nest", str(placement), "-o", str(layout), "--width", "1000",
+                     "--time", "1"] + extra) == 0
+        placed = json.loads(layout.read_text())["pieces"]
+        turn = np.array([np.degrees(np.arctan2(p["transform"][1][0], p["transform"][0][0]))
+                         for p in placed]) + angles
+        off = np.abs((turn[:, None] - np.array(allowed)[None] + 180.0) % 360.0 - 180.0)
+        assert np.all(off.min(axis=1) < 1e-6), (extra, turn)
