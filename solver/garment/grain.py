@@ -3,11 +3,13 @@
 A cutter lays every piece with its grain line along the fabric's grain. The direction
 comes from the first source available, per piece:
 
-1. ``file``: a grain line in the pattern file (JSON ``grainline``, DXF-AAMA layer 7);
+1. ``file``: a grain line in the pattern file (JSON ``grainline``; a DXF-AAMA piece's
+   layer 7 line sets its frame in `solver.dxf_aama` directly);
 2. ``operator``: ``--grain-line PIECE=DEG`` or a job option;
 3. ``drape``: the 3D drape. Per piece the linear map ``J`` (3x2) from pattern to 3D is
-   fitted by least squares over the piece's triangle edges (vectorised over all pieces
-   with ``np.bincount``); the grain is the pattern direction ``d = J^+ a`` whose 3D image
+   fitted by least squares over the piece's triangles (the area-weighted mean of their
+   Jacobians, vectorised over all pieces with ``np.bincount``); the grain is the pattern
+   direction ``d = J^+ a`` whose 3D image
    best matches the axis ``a``: the garment's up axis for body pieces, the limb's axis for
    sleeves and legs. A piece is a limb when it wraps around an axis (its area-weighted
    face normals spread around it, as on a tube) that lies far from vertical; that axis is
