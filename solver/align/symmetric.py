@@ -168,8 +168,11 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
 
     from solver.align.driver import align, grain_report
     from solver.fit import fit_report
+    from solver.garment.grain import paired_grains
 
     start = time.perf_counter()
+    garment = garment.copy()  # the pairs' two pieces take mirrored grains
+    garment.grain = paired_grains(garment.grains(), pairs)
     rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap) for p in pairs]
     quotient, keep = quotient_garment(garment, rules)
     seconds = {"symmetric": 0.0, "unconstrained": 0.0}

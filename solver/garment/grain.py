@@ -173,6 +173,40 @@ def outline_grain(garment) -> np.ndarray:
     return np.degrees(np.arctan2(vec[:, 1], vec[:, 0]))
 
 
+_RANK = {"file": 0, "operator": 1, "drape": 2, "outline": 3}
+
+
+def paired_grains(grains: tuple[PieceGrain, ...], pairs) -> tuple[PieceGrain, ...]:
+    """Grains with each mirror pair's two pieces cut mirrored (`solver.garment.symmetry`
+    ``MirrorPair``: ``p_second = rotation @ FLIP @ p_first + translation``): the better
+    source wins (file, operator, drape, outline), two inferred grains meet halfway; two
+    given grains are kept as given. Without it a left and a right sleeve inferred from
+    a slightly asymmetric drape could not both be on grain once they are mirrored."""
+    from solver.garment.symmetry import FLIP
+
+    out = list(grains)
+    for pair in pairs:
+        gi, gj = out[pair.first], out[pair.second]
+        ri, rj = _RANK[gi.source], _RANK[gj.source]
+        if ri == rj and ri < _RANK["drape"]:
+            continue
+        m = pair.rotation @ FLIP  # first's directions -> second's
+        di = np.array([np.cos(np.radians(gi.deg)), np.sin(np.radians(gi.deg))])
+        dj = np.array([np.cos(np.radians(gj.deg)), np.sin(np.radians(gj.deg))])
+        back = np.linalg.solve(m, dj)
+        if ri == rj:
+            d = di + (back if di @ back >= 0 else -back)
+        else:
+            d = di if ri < rj else back
+        d_second = m @ d
+        out[pair.first] = PieceGrain(float(np.degrees(np.arctan2(d[1], d[0]))),
+                                     gi.source if ri <= rj else gj.source, gi.bias)
+        out[pair.second] = PieceGrain(
+            float(np.degrees(np.arctan2(d_second[1], d_second[0]))),
+            gj.source if rj <= ri else gi.source, gj.bias)
+    return tuple(out)
+
+
 def grain_lines(garment, degrees: Iterable[float] | None = None) -> np.ndarray:
     """(P,2,2) per piece a grain line (tail, head) in pattern mm for pictures and markers:
     through the piece's centroid along its grain (``degrees``, else ``garment.grains()``),

@@ -116,3 +116,20 @@ def test_nest_keeps_the_placements_grain_and_nap_forbids_the_half_turn(tmp_path,
                          for p in placed]) + angles
         off = np.abs((turn[:, None] - np.array(allowed)[None] + 180.0) % 360.0 - 180.0)
         assert np.all(off.min(axis=1) < 1e-6), (extra, turn)
+
+
+@pytest.mark.parametrize("garment", [DATA / "berkeley" / "tshirt-coarse.obj",
+                                     DATA.parents[2] / "examples" / "tshirt-iso.obj"],
+                         ids=lambda p: p.name)
+def test_default_align_with_mirror_pairs_is_on_grain(tmp_path, capsys, garment):
+    """Left and right pieces are aligned as mirror images by default; their grains are
+    mirrored too, so both halves of every pair land on grain."""
+    fabric = tmp_path / "fabric.json"
+    fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80]}))
+    out = tmp_path / "p.json"
+    code, rep, _ = run(capsys, ["align", str(garment), "--units", "m", "--fabric",
+                                str(fabric), "--restarts", "3", "-o", str(out), "--json"])
+    assert code == 0 and rep["symmetry"]["pairs"]  # the mirror-pair path was taken
+    doc = json.loads(out.read_text())
+    turn = np.array([p["angle_deg"] - p["grain_deg"] for p in doc["pieces"]]) % 180.0
+    assert np.all(np.minimum(turn, 180.0 - turn) <= 1.0)
