@@ -138,11 +138,14 @@ def run(args: argparse.Namespace) -> int:
     from station.cliargs import garment_with_grain, load_garment_arg
 
     start = time.perf_counter()
+    from solver.garment.grain import paired_grains
     from solver.garment.symmetry import mirror_pairs, read_pairs_file
 
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
-    summary = garment_summary(g, mirror_pairs(g, declared=declared, vetoed=vetoed))
+    pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
+    g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
+    summary = garment_summary(g, pairs)
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))

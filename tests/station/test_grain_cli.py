@@ -28,8 +28,11 @@ def test_inspect_reports_each_pieces_grain_and_its_source(capsys):
                                   "--grain-line", "piece1=10"])
     assert code == 0 and err == ""
     sources = [p["grain_source"] for p in rep["piece_list"]]
-    assert sources == ["drape", "operator", "drape", "drape"]
-    assert rep["piece_list"][1]["grain_deg"] == 10.0
+    pair = [j for i, j in rep["mirror_pairs"] if i == 1] + [i for i, j in
+                                                            rep["mirror_pairs"] if j == 1]
+    assert pair == [2]  # piece1's mirror image takes the operator's grain, mirrored
+    assert sources == ["drape", "operator", "operator", "drape"]
+    assert rep["piece_list"][1]["grain_deg"] == pytest.approx(10.0)
     assert abs(rep["piece_list"][0]["grain_deg"] - 90.0) < 5.0  # upright pants piece
     assert rep["grain_guessed"] == []
     code, rep, err = run(capsys, ["inspect", str(SPEC), "--json"])
