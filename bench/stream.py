@@ -228,9 +228,56 @@ def bench_planner() -> None:
               f"{ideal:.1f} |")
 
 
+def _stream_once(prog: Program, speed: float, watchdog: bool) -> tuple[float, object, object]:
+    """One cut through the wire model: (seconds, result, emulator)."""
+    raw = _open(speed)
+    st = Streamer(Wire(raw), deviation_limit=0.3 if watchdog else None)
+    st.connect(quiet=0.05)
+    t = time.perf_counter()
+    res = st.run(prog)
+    dt = time.perf_counter() - t
+    raw.close()
+    assert res.completed, res.fault
+    return dt, res, raw.emulator
+
+
+def bench_watchdog() -> None:
+    """Issue 16: the machine-time watchdog's cost in line throughput and in status reports."""
+    prog = _short_segment_job(0.5, 6000.0, n_rings=2)
+    codes = [strip_comment(ln).replace(" ", "") for ln in prog.lines if strip_comment(ln)]
+    mean_len = float(np.mean([len(c) + 1 for c in codes]))
+    limit = BAUD / 10 / mean_len
+    print("\n### Throughput with the watchdog, cutting (emulator speed 20: the wire is the limit)")
+    print(f"{len(codes)} lines of 0.5 mm segments at 6000 mm/min, mean {mean_len:.1f} bytes "
+          f"per line; line limit {limit:.0f} lines/s. Best of 2, same run.")
+    print("| watchdog | lines/s | of the line limit | ratio to no watchdog | "
+          "status reports | reports per machine s |")
+    print("|---|---|---|---|---|---|")
+    rates = {}
+    for on in (False, True):
+        best, res, em = min((_stream_once(prog, 20.0, on) for _ in range(2)),
+                            key=lambda r: r[0])
+        rates[on] = len(codes) / best
+        reports = f"{res.status_reports} | {res.status_reports / em.sim_time:.0f}" if on \
+            else "- | -"
+        print(f"| {'on' if on else 'off (5 Hz polls)'} | {rates[on]:.0f} | "
+              f"{rates[on] / limit:.0%} | {rates[on] / rates[False]:.2f} | {reports} |")
+    print("\nPolling load on a real GRBL (speed 1), from the poll schedule: one report per "
+          "`watch_mm` = 1 mm of travel at the fastest cutting feed.")
+    print("| cutting feed mm/min | polls/s | report bytes/s (~52 B each) | of the 11520 B/s "
+          "receive line |")
+    print("|---|---|---|---|")
+    from gcode.watchdog import poll_interval
+
+    for feed in (1500.0, 3000.0, 6000.0):
+        hz = 1.0 / poll_interval(feed, 1.0, watch_mm=1.0)
+        print(f"| {feed:.0f} | {hz:.0f} | {hz * 52:.0f} | {hz * 52 / 11520:.0%} |")
+
+
 def main() -> None:
     bench_arcs()
     bench_throughput()
+    bench_watchdog()
     bench_planner()
 
 

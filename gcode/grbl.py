@@ -356,6 +356,11 @@ def check_settings(settings: dict[int, float], machine: Machine) -> list[str]:
         if get(n_rate) is not None and get(n_rate) + 1e-6 < machine.max_feed:
             faults.append(f"${n_rate} {axis} maximum rate {get(n_rate):g} mm/min is below the "
                           f"profile's max_feed {machine.max_feed:g}")
+        n_acc = n_rate + 10
+        if get(n_acc) is not None and get(n_acc) + 1e-6 < machine.acceleration:
+            faults.append(f"${n_acc} {axis} acceleration {get(n_acc):g} mm/s^2 is below the "
+                          f"profile's acceleration {machine.acceleration:g} (the feed watchdog "
+                          "expects the programmed feed within that acceleration time)")
         if get(n_travel) is not None and get(n_travel) + 1e-6 < extent:
             faults.append(f"${n_travel} {axis} maximum travel {get(n_travel):g} mm is shorter "
                           f"than the profile's work area ({extent:g} mm)")

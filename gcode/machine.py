@@ -6,6 +6,7 @@ of range are errors naming the file and the key, so a typo fails before anything
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
@@ -64,6 +65,7 @@ class Machine:
     laser_mode: bool = True
     park: tuple[float, float] = (0.0, 0.0)
     rx_buffer: int = 128
+    min_cut_feed: float = 300.0
     cut: CutParams = field(default_factory=CutParams)
     knife: KnifeParams = field(default_factory=KnifeParams)
     source: str = "<built-in>"
@@ -72,9 +74,57 @@ class Machine:
         """A copy with some cutting parameters changed (validated like the TOML)."""
         from dataclasses import replace
 
-        cut = replace(self.cut, **changes)
-        _check_cut(cut, self.source)
-        return replace(self, cut=cut)
+        m = replace(self, cut=replace(self.cut, **changes))
+        _check(m)  # the cut against the machine too: feed, power, min_cut_feed
+        return m
+
+
+#: Stated range of every number, by section and key: (low, high, low end included).
+#: WHY: a profile is the only thing between a typo and the machine: `inf` or 1e30 passes
+#: "> 0" but writes moves off the table, S words GRBL cannot hold, or buffer overruns.
+MAX_TABLE_MM = 10000.0  # no cutting table is 10 m long
+RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
+    ("machine", "work_area"): (-MAX_TABLE_MM, MAX_TABLE_MM, True),
+    ("machine", "park"): (-MAX_TABLE_MM, MAX_TABLE_MM, True),
+    ("machine", "max_feed"): (0.0, 60000.0, False),
+    ("machine", "rapid_feed"): (0.0, 60000.0, False),
+    ("machine", "acceleration"): (0.0, 50000.0, False),
+    ("machine", "max_s"): (0.0, 100000.0, False),  # GRBL's $30
+    ("machine", "rx_buffer"): (16, 128, True),  # GRBL 1.1's serial receive buffer is 128 bytes
+    ("machine", "min_cut_feed"): (0.0, 60000.0, False),
+    ("cut", "feed"): (0.0, 60000.0, False),
+    ("cut", "power"): (0.0, 100000.0, True),
+    ("cut", "passes"): (1, 20, True),
+    ("cut", "kerf"): (0.0, 5.0, True),
+    ("cut", "tolerance"): (0.0, 1.0, False),
+    ("cut", "lead_in"): (0.0, 50.0, True),
+    ("cut", "notch_depth"): (0.0, 50.0, False),
+    ("cut", "notch_width"): (0.0, 50.0, False),
+    ("cut", "mark_size"): (0.0, 20.0, False),
+    ("cut", "mark_power"): (0.0, 100000.0, True),
+    ("cut", "tabs"): (0, 100, True),
+    ("cut", "tab_width"): (0.0, 50.0, False),
+    ("knife", "z_up"): (-500.0, 500.0, True),
+    ("knife", "z_down"): (-500.0, 500.0, True),
+    ("knife", "plunge_feed"): (0.0, 60000.0, False),
+    ("knife", "corner_angle"): (0.0, 180.0, False),
+}
+
+
+def _check_range(section: str, key: str, value: Any, source: str) -> None:
+    """Refuse a non-finite or out-of-range number, naming file, section and key."""
+    rng = RANGES.get((section, key))
+    values = value if isinstance(value, tuple) else (value,)
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            continue
+        if not math.isfinite(v):
+            raise ValueError(f"{source}: [{section}] {key} = {value!r}: must be a finite number")
+        if rng is not None:
+            lo, hi, closed = rng
+            if not ((lo <= v if closed else lo < v) and v <= hi):
+                raise ValueError(f"{source}: [{section}] {key} = {value!r}: must be in "
+                                 f"{'[' if closed else '('}{lo:g}, {hi:g}]")
 
 
 def _coerce(cls: type, table: dict, section: str, source: str) -> dict:
@@ -110,10 +160,13 @@ def _coerce(cls: type, table: dict, section: str, source: str) -> dict:
                 out[key] = val
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{source}: [{section}] {key} = {val!r}: {exc}") from None
+        _check_range(section, key, out[key], source)
     return out
 
 
 def _check_cut(c: CutParams, source: str) -> None:
+    for f in fields(CutParams):
+        _check_range("cut", f.name, getattr(c, f.name), source)
     checks = [
         (c.feed > 0, "feed must be > 0"),
         (c.power >= 0, "power must be >= 0"),
@@ -145,6 +198,10 @@ def _check(m: Machine) -> None:
         (m.acceleration > 0, "[machine] acceleration must be > 0"),
         (m.max_s > 0, "[machine] max_s must be > 0"),
         (m.rx_buffer >= 16, "[machine] rx_buffer must be >= 16"),
+        (x1 - x0 <= MAX_TABLE_MM and y1 - y0 <= MAX_TABLE_MM,
+         f"[machine] work_area must be under {MAX_TABLE_MM / 1000:g} m on each side"),
+        (m.min_cut_feed <= m.cut.feed,
+         f"[cut] feed {m.cut.feed:g} is below min_cut_feed {m.min_cut_feed:g}"),
         (x0 <= m.park[0] <= x1 and y0 <= m.park[1] <= y1,
          "[machine] park must lie inside work_area"),
         (m.cut.feed <= m.max_feed, f"[cut] feed {m.cut.feed:g} exceeds max_feed {m.max_feed:g}"),

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ __all__ = [
     "build_program",
     "load_program",
     "parse_pieces",
+    "program_moves",
     "sanitize_comment",
     "strip_comment",
     "validate",
@@ -86,10 +87,32 @@ class Check:
     travel_length_mm: float = 0.0
     bounds: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of all motion
     path: np.ndarray | None = None  # (k,2) float, every XY motion sampled at most 1 mm apart
+    path_line: np.ndarray | None = None  # (k,) int, the program line of each path sample
+    line_power: np.ndarray | None = None  # (lines,) float, S of each beam-on move, else 0
+    line_motion: np.ndarray | None = None  # (lines,) int, 0-3 for G0-G3 moves, else -1
+    line_on: np.ndarray | None = None  # (lines,) bool, the beam or knife cuts along the move
+    cut_feeds: tuple[float, ...] = ()  # every feed (mm/min) a beam-on move asks for
+    cut_powers: tuple[float, ...] = ()  # every S a beam-on move asks for
 
     @property
     def estimated_seconds(self) -> float:
         return float(self.seconds.sum())
+
+    def moved(self, new_index: np.ndarray, n_lines: int) -> Check:
+        """This check for the program with lines inserted: old line k is now line
+        ``new_index[k]`` of ``n_lines``; inserted lines neither move nor take time."""
+        def spread(per_line: np.ndarray | None, fill) -> np.ndarray | None:
+            if per_line is None:
+                return None
+            out = np.full(n_lines, fill, dtype=per_line.dtype)
+            out[new_index] = per_line
+            return out
+
+        return replace(self, seconds=spread(self.seconds, 0.0),
+                       path_line=None if self.path_line is None else new_index[self.path_line],
+                       line_power=spread(self.line_power, 0.0),
+                       line_motion=spread(self.line_motion, -1),
+                       line_on=spread(self.line_on, False))
 
 
 @dataclass
@@ -343,16 +366,25 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     seconds = np.zeros(len(lines))
     cut = travel = 0.0
     samples: list[np.ndarray] = []
+    sample_lines: list[np.ndarray] = []
+    current = [0]  # the line being read (for the samples' line numbers)
+    cut_feeds: set[float] = set()
+    cut_powers: set[float] = set()
+    line_power = np.zeros(len(lines))
+    line_motion = np.full(len(lines), -1, np.int8)
+    line_on = np.zeros(len(lines), bool)
 
     def sample_line(a, b) -> None:
         k = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / path_step)))
         t = np.linspace(0.0, 1.0, k + 1)[:, None]
         samples.append(np.asarray(a[:2], float) * (1 - t) + np.asarray(b[:2], float) * t)
+        sample_lines.append(np.full(k + 1, current[0]))
 
     def sample_arc(a, c, r, sweep) -> None:
         k = max(2, int(math.ceil(abs(sweep) * r / path_step)))
         ang = math.atan2(a[1] - c[1], a[0] - c[0]) + sweep * np.linspace(0.0, 1.0, k + 1)
         samples.append(np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)])
+        sample_lines.append(np.full(k + 1, current[0]))
     bx = [math.inf, math.inf, -math.inf, -math.inf]
 
     def fail(i: int, msg: str):
@@ -366,6 +398,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         bx[2], bx[3] = max(bx[2], x), max(bx[3], y)
 
     for i, raw in enumerate(lines):
+        current[0] = i
         if len(raw.rstrip("\r\n")) > MAX_LINE:
             fail(i, f"line longer than GRBL's {MAX_LINE} characters")
         if any(ch in _FORBIDDEN for ch in raw.rstrip("\r\n")) and not _PIECE.match(raw.strip()):
@@ -461,6 +494,8 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
             inside(i, target[0], target[1])
         tool_on = beam_on if laser else (pos[2] is not None and target[2] is not None
                                          and max(pos[2], target[2]) <= machine.knife.z_down + eps)
+        line_motion[i] = motion
+        line_on[i] = motion != 0 and tool_on
         if motion == 0:
             if laser and beam_on:
                 fail(i, "laser on (M4 with S>0) during a rapid G0 move")
@@ -496,9 +531,35 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
                 sample_arc(pos, c, r, sweep)
             if tool_on:
                 cut += d
+                if laser and feed < machine.min_cut_feed - eps:
+                    fail(i, f"beam on at F{feed:g}, below the machine's min_cut_feed "
+                            f"{machine.min_cut_feed:g} (a slow beam burns through)")
+                cut_feeds.add(feed)
+                if laser:
+                    cut_powers.add(s_word)
+                    line_power[i] = s_word
             seconds[i] = _move_time(length, feed, machine.acceleration)
         pos = target
     bounds = None if math.isinf(bx[0]) else (bx[0], bx[1], bx[2], bx[3])
     path = np.vstack(samples) if samples else np.zeros((0, 2))
+    path_line = np.concatenate(sample_lines) if sample_lines else np.zeros(0, int)
     return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
-                 path=path)
+                 path=path, path_line=path_line, line_power=line_power,
+                 line_motion=line_motion, line_on=line_on,
+                 cut_feeds=tuple(sorted(cut_feeds)), cut_powers=tuple(sorted(cut_powers)))
+
+
+def program_moves(program: Program) -> list[tuple[int, bool, int, np.ndarray]]:
+    """Every move of a checked program as (line, cutting, piece number or 0, (k, 2) points),
+    read from what :func:`validate` interpreted (arcs sampled 1 mm apart): the one reading
+    of the G-code that the pictures and the crash recovery share with the checker."""
+    c = program.check
+    if c is None or c.path is None or c.path_line is None or c.line_on is None:
+        raise ProgramError("program_moves needs a validated program (Program.check)")
+    piece_at = np.zeros(len(program.lines), int)
+    for r in program.pieces:
+        piece_at[r.first_line:r.last_line + 1] = r.number
+    lines, starts = np.unique(c.path_line, return_index=True)
+    ends = np.r_[starts[1:], len(c.path_line)]
+    return [(int(k), bool(c.line_on[k]), int(piece_at[k]), c.path[a:b])
+            for k, a, b in zip(lines, starts, ends, strict=True) if k >= 0]

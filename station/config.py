@@ -81,10 +81,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0),
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1),
     },
+    # Every program the station cuts uses these (over the machine profile's [cut]); the
+    # profile's ranges apply (power up to max_s, feed from min_cut_feed to max_feed).
     "cut": {
         "kerf_mm": Key(float, 0.2, "cut width", minimum=0.0),
         "feed_mm_min": Key(float, 3000.0, "cutting feed", minimum=1.0),
-        "power": Key(float, 800.0, "laser power S", minimum=0.0),
+        "power": Key(float, 700.0, "laser power S", minimum=0.0),
         "passes": Key(int, 1, "passes per contour", minimum=1),
     },
 }

@@ -9,7 +9,7 @@ program for the pieces not yet cut and can never cut one twice.
 The cut step also settles the one piece the store cannot know about: the one the
 machine may have finished on its buffered moves after the daemon died. The program
 carries markers the controller stores in EEPROM around each piece's final move
-(`with_markers`), the geometry those markers refer to is saved before streaming
+(`gcode.recovery.with_markers`), the geometry those markers refer to is saved before streaming
 (`save_final_moves`), and on the next start the machine is asked (`wait_at_rest`,
 `read_params`, `StationPipeline.reconcile`) before anything moves or resets it.
 """
@@ -26,6 +26,17 @@ from typing import Any
 
 import numpy as np
 
+from gcode.recovery import (
+    FINAL_MOVES,
+    MARKER_SYSTEM,
+    distance_to_path,
+    final_moves,
+    load_final_moves,
+    read_params,
+    save_final_moves,
+    wait_at_rest,
+    with_markers,
+)
 from station.config import Config
 from station.daemon import JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
@@ -42,8 +53,8 @@ class StationPipeline:
         from gcode.machine import default_machine, load_machine
 
         profile = config["machine"]["profile"]
-        self.machine = (load_machine(config.resolve(profile)) if profile
-                        else default_machine())
+        machine = load_machine(config.resolve(profile)) if profile else default_machine()
+        self.machine = with_station_cut(machine, config)
 
     # ------------------------------------------------------------------ checks
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
@@ -253,7 +264,7 @@ class StationPipeline:
         self._write_report(workdir, report)
         control.checkpoint()
         start_step(control, "programming")
-        program = self.program_for(workdir / "layout.json", None)
+        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
         program.write(workdir / "job.nc")
         report["program"] = program.summary()
         credit = garment_credit(garment_path)
@@ -277,17 +288,25 @@ class StationPipeline:
         """report.json after every step, so a failed job still shows what it got to."""
         (workdir / "report.json").write_text(json.dumps(report, indent=2, default=float))
 
-    def program_for(self, layout_path: str | Path, only: set[str] | None):
-        from gcode.layout import load_layout
+    def program_for(self, layout: str | Path | dict, only: set[str] | None, *,
+                    job_dir: Path | None = None):
+        """The checked program for the pieces ``only`` (None: all) of a layout: the
+        nesting's own layout document while planning (no trip through the disk), the
+        job's LAYOUT.json when a stopped job resumes."""
+        from gcode.layout import layout_from_dict, load_layout
         from gcode.program import build_program
         from gcode.toolpath import build_toolpaths
 
-        layout = load_layout(layout_path)
+        if isinstance(layout, dict):
+            where = job_dir or Path(".")
+            layout = layout_from_dict(layout, str(where / "layout.json"))
+        else:
+            where = Path(layout).parent
+            layout = load_layout(layout)
         origin = self.config["machine"]["fabric_origin"]
         layout.origin = (float(origin[0]), float(origin[1]))
         toolpaths = build_toolpaths(layout, self.machine, only=only)
-        title = f"station {Path(layout_path).parent.name}"
-        return build_program(toolpaths, self.machine, title=title)
+        return build_program(toolpaths, self.machine, title=f"station {where.name}")
 
     # ------------------------------------------------------------------ cut
     @property
@@ -315,16 +334,20 @@ class StationPipeline:
         listening (see `with_markers` and `reconcile`): the piece in flight when the last
         daemon died may have finished on the machine's buffered moves.
         """
-        from gcode.stream import Streamer, StreamError
+        from gcode.stream import BEAM_OFF, Streamer, StreamError
 
         pieces = store.pieces(job.id)
         index = {p["name"]: p["piece"] for p in pieces}
         with self.open_port() as port:
             start_step(control, "connecting")
+            port.write(BEAM_OFF)  # before anything else: a lost link may have left M4 S700
             rest = wait_at_rest(port, stop=lambda: control.stop.is_set()
                                 or control.abort.is_set())
             control.checkpoint(hold_in_place=True)  # stopped or aborted while waiting
-            streamer = Streamer(port, on_piece=None, name=self.port_name)
+            streamer = Streamer(port, on_piece=None, name=self.port_name,
+                                rx_buffer=self.machine.rx_buffer,
+                                acceleration=self.machine.acceleration,
+                                rapid_feed=self.machine.rapid_feed)
             alarm = rest is not None and rest.state == "Alarm"
             try:
                 # at rest and silent already (or not answering): no need to wait long
@@ -431,7 +454,7 @@ class StationPipeline:
             g54 = params.get("G54", (0.0, 0.0, 0.0))
             here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
         at_end = here is not None and float(np.hypot(*(here - end))) < 0.02
-        on_move = here is not None and _distance_to_path(here, path) < 0.05
+        on_move = here is not None and distance_to_path(here, path) < 0.05
         if phase == 2:
             # Written only after the final move (GRBL syncs before an EEPROM write). The
             # one contradiction a trusted position can show is a head stopped on the final
@@ -476,6 +499,20 @@ class StationPipeline:
 
 
 # ---------------------------------------------------------------------- planning steps
+def with_station_cut(machine, config: Config):
+    """The profile with station.toml's [cut] (kerf, feed, power, passes) in force, checked
+    against the profile's ranges; a refusal names the file and the key."""
+    cut = config["cut"]
+    try:
+        return machine.with_cut(kerf=float(cut["kerf_mm"]), feed=float(cut["feed_mm_min"]),
+                                power=float(cut["power"]), passes=int(cut["passes"]))
+    except ValueError as exc:
+        where = config.path or "station.toml"
+        detail = str(exc).split(": ", 1)[-1]
+        raise ValueError(f"{where}: [cut] does not fit the machine profile "
+                         f"{machine.source}: {detail}") from None
+
+
 def keep_licence_note(garment: Path, workdir: Path) -> None:
     """Copy the garment library's README beside the job's copy of the pattern, so every
     picture drawn from the copy still carries the acknowledgement its licence asks for."""
@@ -583,203 +620,3 @@ def nest_placement(placement_path: Path, config: Config, progress=None):
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")
     return layout
-
-
-# ---------------------------------------------------------------------- sync-point markers
-#: The work coordinate system (G54 + n - 1) the station writes its piece markers into:
-#: programs run in G54 and never select G59, so its offsets are free for bookkeeping.
-MARKER_SYSTEM = 6
-
-_MOTION = ("G1", "G2", "G3")
-
-
-def _code(line: str) -> str:
-    from gcode.program import strip_comment
-
-    return strip_comment(line).upper().replace(" ", "")
-
-
-def _is_motion(code: str) -> bool:
-    return code.startswith(_MOTION) and not code.startswith(("G10", "G17", "G21", "G28",
-                                                             "G30", "G38"))
-
-
-def with_markers(program, job_id: int, index: dict[str, int]):
-    """The program with a persistent record of each piece's progress in the controller.
-
-    Why: when the daemon dies the machine goes on with the moves in its buffers (up to
-    128 bytes of lines and 15 planned blocks), so the piece in flight may finish after the
-    last answer anybody read. Around each piece's final move the program writes G59
-    (``G10 L2 P6 X<job> Y<piece + 1> Z<phase>``), which GRBL keeps in EEPROM across
-    resets and power cuts and writes only after every move before it has finished
-    (FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE). The streamer sends such a line alone, once
-    every line before it is answered, and nothing after it until it is answered. So:
-
-    * phase 1, before the final move: written only once every move but the final one
-      has run; while it stands, nothing but the final move can move the head;
-    * phase 2, after the final move: written only once the final move has run, and no
-      line of the next piece is sent before it is answered;
-    * cleared (zeros) before every stream, once the store holds what it said: a piece cut
-      again must not be judged by the marker of its interrupted earlier attempt (whose
-      head position at the contour's start would look like a finished final move).
-
-    On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
-    any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at
-    the final move's end with its position trusted (no alarm). The final move is taken
-    from the program that was streamed (saved by `save_final_moves` before streaming),
-    since where a contour starts and ends depends on which pieces were left to cut.
-    Only the 1-2 ms between the final move's answer and the phase-2 line going out, then
-    followed by a loss of position before the restart (power cut, or a board reset by
-    opening its port), leaves a finished piece unproven: it is cut again, and the
-    operator is told in the log. At most this one piece can
-    be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
-    answered and stored. A piece interrupted before its final move is cut again in full
-    (its open kerf is retraced; it is separated from the cloth exactly once).
-    """
-    from gcode.program import Check, Program, parse_pieces
-
-    lines: list[str] = []
-    seconds: list[float] = []
-    old_seconds = program.check.seconds if program.check is not None else None
-    final = {}
-    for r in program.pieces:
-        moves = [k for k in range(r.first_line, r.sync_line) if _is_motion(_code(
-            program.lines[k]))]
-        if moves:
-            final[moves[-1]] = (index[r.id], r)
-    for k, line in enumerate(program.lines):
-        marked = final.get(k)
-        if marked is not None:
-            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{marked[0] + 1} Z1")
-            seconds.append(0.0)
-        lines.append(line)
-        seconds.append(0.0 if old_seconds is None else float(old_seconds[k]))
-        if marked is not None:
-            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{marked[0] + 1} Z2")
-            seconds.append(0.0)
-    check = None
-    if program.check is not None:
-        c = program.check
-        check = Check(seconds=np.asarray(seconds), cut_length_mm=c.cut_length_mm,
-                      travel_length_mm=c.travel_length_mm, bounds=c.bounds, path=c.path)
-    return Program(lines, parse_pieces(lines), check=check, warnings=list(program.warnings))
-
-
-FINAL_MOVES = "final-moves.json"
-
-
-def final_moves(program, index: dict[str, int]) -> dict[int, np.ndarray]:
-    """Store piece index -> (k, 2) points of that piece's final move in ``program``."""
-    from station.render import program_paths
-
-    number_to_piece = {r.number: index[r.id] for r in program.pieces}
-    out: dict[int, np.ndarray] = {}
-    for on, number, pts in program_paths(program):
-        if on and number in number_to_piece:
-            out[number_to_piece[number]] = pts  # the last beam-on move of the piece wins
-    return out
-
-
-def save_final_moves(path: Path, job_id: int, moves: dict[int, np.ndarray]) -> None:
-    """Write the final moves durably (temporary file, fsync, rename) before streaming."""
-    import os
-
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "w") as f:
-        json.dump({"job": job_id, "moves": {str(k): np.round(v, 4).tolist()
-                                            for k, v in moves.items()}}, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
-def load_final_moves(path: Path, job_id: int) -> dict[int, np.ndarray]:
-    """What `save_final_moves` wrote for this job ({} if nothing)."""
-    try:
-        doc = json.loads(path.read_text())
-    except (FileNotFoundError, json.JSONDecodeError):
-        return {}
-    if doc.get("job") != job_id:
-        return {}
-    return {int(k): np.asarray(v, float) for k, v in doc.get("moves", {}).items()}
-
-
-def _distance_to_path(p: np.ndarray, path: np.ndarray) -> float:
-    """Distance from point ``p`` to the polyline ``path``."""
-    if len(path) == 0:
-        return float("inf")
-    if len(path) == 1:
-        return float(np.hypot(*(p - path[0])))
-    a, b = path[:-1], path[1:]
-    d = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, d) / np.maximum(np.einsum("ij,ij->i", d, d),
-                                                             1e-12), 0.0, 1.0)
-    return float(np.hypot(*(a + t[:, None] * d - p).T).min())
-
-
-def wait_at_rest(port, timeout: float = 120.0, stop=None):
-    """The controller's status once its buffered moves are over, before anyone resets it.
-
-    Only the real-time ``?`` is sent, which changes nothing; a machine still running the
-    moves a dead daemon left in its buffers is waited for. What the line still holds from
-    before (answers and reports nobody read, e.g. a report of the head resting between
-    two moves) is drained first, and the rest is believed only when two fresh reports
-    agree. None if the controller does not answer (or ``stop()`` turns true).
-    """
-    from gcode.grbl import parse_response
-
-    try:
-        port.reset_input_buffer()
-    except (AttributeError, OSError):
-        pass
-    quiet_until = time.monotonic() + 0.3
-    drain_end = time.monotonic() + 5.0
-    while time.monotonic() < min(quiet_until, drain_end):
-        if port.read(port.in_waiting or 1):
-            quiet_until = time.monotonic() + 0.3
-    buf = b""
-    seen = None
-    previous = None
-    end = time.monotonic() + timeout
-    silent_until = time.monotonic() + 1.5
-    while time.monotonic() < end:
-        if stop is not None and stop():
-            return None
-        port.write(b"?")
-        last = None
-        t = time.monotonic() + 0.15
-        while time.monotonic() < t:
-            buf += port.read(port.in_waiting or 1)
-            *lines, buf = buf.split(b"\n")
-            for raw in lines:
-                r = parse_response(raw.rstrip(b"\r").decode("ascii", "replace"))
-                if r.kind == "status" and r.status is not None:
-                    last = r.status
-        if last is None:
-            if seen is None and time.monotonic() > silent_until:
-                return None
-            continue
-        seen = last
-        resting = last.state in ("Idle", "Alarm", "Check", "Sleep") or (
-            last.state == "Hold" and last.substate == 0)
-        key = (last.state, last.position())
-        if resting and previous == key:
-            return last
-        previous = key if resting else None
-    return seen
-
-
-def read_params(streamer) -> dict[str, tuple[float, ...]]:
-    """``$#``: the controller's stored offsets by name (G54..G59, G28, G30, G92...)."""
-    r, pushed = streamer.command("$#")
-    out: dict[str, tuple[float, ...]] = {}
-    if r.kind != "ok":
-        return out
-    for p in pushed:
-        if p.kind == "param" and p.text:
-            key, _, body = p.text.partition(":")
-            try:
-                out[key] = tuple(float(v) for v in body.split(":")[0].split(","))
-            except ValueError:
-                continue
-    return out

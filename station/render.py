@@ -261,51 +261,11 @@ def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
 
 
 def program_paths(program) -> list[tuple[bool, int, np.ndarray]]:
-    """Every move of a G-code program as (beam/tool on, piece number or 0, (k, 2) points).
+    """Every move of a checked G-code program as (cutting, piece number or 0, (k, 2) points),
+    as the program checker read it (`gcode.program.program_moves`)."""
+    from gcode.program import program_moves
 
-    Arcs are sampled 1 mm apart; only the words the program checker accepts occur.
-    """
-    import re
-
-    from gcode.program import strip_comment
-
-    piece_at = {}
-    for r in program.pieces:
-        for k in range(r.first_line, r.last_line + 1):
-            piece_at[k] = r.number
-    pos: np.ndarray | None = None
-    on = False
-    out: list[tuple[bool, int, np.ndarray]] = []
-    for k, line in enumerate(program.lines):
-        code = strip_comment(line).upper().replace(" ", "")
-        if not code or code.startswith("G10"):
-            continue
-        w = {a: float(b) for a, b in re.findall(r"([A-Z])([-+]?[0-9.]+)", code)}
-        if code.startswith(("M3", "M4")):
-            on = w.get("S", 1.0) > 0
-        elif code.startswith("M5"):
-            on = False
-        motion = re.match(r"G0?([0-3])(?![0-9])", code)
-        if motion is None or ("X" not in w and "Y" not in w):
-            continue
-        here = pos if pos is not None else np.array([w.get("X", 0.0), w.get("Y", 0.0)])
-        target = np.array([w.get("X", here[0]), w.get("Y", here[1])])
-        g = int(motion.group(1))
-        if g in (2, 3):
-            c = here + [w.get("I", 0.0), w.get("J", 0.0)]
-            a0 = np.arctan2(*(here - c)[::-1])
-            a1 = np.arctan2(*(target - c)[::-1])
-            sweep = (a1 - a0) % (2 * np.pi) if g == 3 else -((a0 - a1) % (2 * np.pi))
-            if abs(sweep) < 1e-9:
-                sweep = 2 * np.pi if g == 3 else -2 * np.pi
-            r = float(np.hypot(*(here - c)))
-            a = a0 + sweep * np.linspace(0, 1, max(2, int(abs(sweep) * r) + 1))
-            pts = c + r * np.c_[np.cos(a), np.sin(a)]
-        else:
-            pts = np.array([here, target])
-        out.append((on and g != 0, piece_at.get(k, 0), pts))
-        pos = target
-    return out
+    return [(on, piece, pts) for _, on, piece, pts in program_moves(program)]
 
 
 def draw_toolpath(program, machine, path: str | Path, *, width_px: int = 1600,

@@ -59,7 +59,8 @@ class GrblEmulator:
 
     def __init__(self, *, speed: float = 1.0, faults: Faults | None = None,
                  force_origin: bool = False, name: str | None = None,
-                 settings: dict[int, float] | None = None, realtime: bool = True):
+                 settings: dict[int, float] | None = None, realtime: bool = True,
+                 paced: bool = True):
         if not speed > 0:
             raise ValueError(f"speed must be > 0, got {speed!r}")
         self.speed = float(speed)
@@ -90,6 +91,10 @@ class GrblEmulator:
         with self._cond:
             self._power_on()
         self._stopped = False
+        self.realtime = realtime
+        self.paced = paced  # see HOST_STEP
+        self._wall = time.monotonic()  # the wall instant simulated time was last brought to
+        self._host_wall = -1e9  # when the host last wrote
         if realtime:  # else the caller drives simulated time with advance(dt)
             self._thread = threading.Thread(target=self._run, daemon=True,
                                             name=f"grblsim-{name or id(self)}")
@@ -129,28 +134,39 @@ class GrblEmulator:
     def receive(self, data: bytes) -> None:
         """Bytes arriving on the controller's serial RX line."""
         with self._cond:
-            for byte in bytes(data):
-                self.bytes_received += 1
-                n = self.bytes_received
-                if n in self.faults.drop_byte_at:
-                    self.bytes_lost += 1
-                    continue
-                if n in self.faults.flip_byte_at:
-                    byte ^= 0x01
-                if self._realtime(byte):
-                    continue
-                if byte > 0x7F:
-                    continue  # unknown extended-ASCII bytes are thrown away
-                if len(self._rx) >= C.RX_BUFFER_SIZE:
-                    self._service()  # GRBL pulls a line out if it is free to
-                if len(self._rx) >= C.RX_BUFFER_SIZE:
-                    self.bytes_lost += 1  # "Write data to buffer unless it is full."
-                    continue
-                self._rx.append(byte)
-                if byte in (0x0A, 0x0D):
-                    self._service()  # GRBL parses a line as soon as its EOL arrives
-            self._service()
-            self._cond.notify_all()
+            self._host_wall = time.monotonic()
+            # a real GRBL moves continuously: answer `?` for this instant
+            self._catch_up(self.HOST_STEP / self.speed if self.paced else self.THREAD_STEP)
+            busy_from = time.monotonic()
+            self._receive(data)
+            # The emulator's own parsing is not the machine's time: GRBL parses a line in
+            # microseconds on its own CPU, while this Python parser takes the host's CPU
+            # for a millisecond, which at speed 50 would be 50 ms of unseen motion.
+            self._wall += time.monotonic() - busy_from
+
+    def _receive(self, data: bytes) -> None:
+        for byte in bytes(data):
+            self.bytes_received += 1
+            n = self.bytes_received
+            if n in self.faults.drop_byte_at:
+                self.bytes_lost += 1
+                continue
+            if n in self.faults.flip_byte_at:
+                byte ^= 0x01
+            if self._realtime(byte):
+                continue
+            if byte > 0x7F:
+                continue  # unknown extended-ASCII bytes are thrown away
+            if len(self._rx) >= C.RX_BUFFER_SIZE:
+                self._service()  # GRBL pulls a line out if it is free to
+            if len(self._rx) >= C.RX_BUFFER_SIZE:
+                self.bytes_lost += 1  # "Write data to buffer unless it is full."
+                continue
+            self._rx.append(byte)
+            if byte in (0x0A, 0x0D):
+                self._service()  # GRBL parses a line as soon as its EOL arrives
+        self._service()
+        self._cond.notify_all()
 
     def take_output(self, size: int | None = None) -> bytes:
         with self._cond:
@@ -326,6 +342,7 @@ class GrblEmulator:
             self._ovr_counter = 0
         elif byte == C.RT_SPINDLE_OVR_STOP:
             if self._state == "Hold":
+                self._split_trace()  # the beam changes here, mid-block
                 self._spindle_stop = not self._spindle_stop
         elif byte == C.RT_COOLANT_FLOOD_OVR_TOGGLE:
             if self._state in ("Idle", "Run", "Hold"):
@@ -662,10 +679,21 @@ class GrblEmulator:
             self._trace_block(b, b.start, self._pos.copy(), complete=False)
 
     def _trace_block(self, b: Block, p0: np.ndarray, p1: np.ndarray, complete: bool) -> None:
+        if b.traced_to is not None:  # the part before a mid-block power change is traced
+            p0 = b.traced_to
         feed = b.nominal(self._feed_ovr, self._rapid_ovr) * 60.0
+        power = 0.0 if self._spindle_stop else self._block_power(b)
         self.trace.append(Segment(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
-                                  feed, self._block_power(b), b.feed is None,
+                                  feed, power, b.feed is None,
                                   float(p0[2]), float(p1[2]), b.jog, complete))
+
+    def _split_trace(self) -> None:
+        """Trace the running block up to here: the power is about to change mid-block (the
+        spindle stop override during a feed hold turns the laser off while it brakes)."""
+        if self._planner and self._planner[0].done > 1e-9:
+            b = self._planner[0]
+            self._trace_block(b, b.start, self._pos.copy(), complete=False)
+            b.traced_to = self._pos.copy()
 
     def _block_power(self, b: Block) -> float:
         """Power applied along a block; for M4 (dynamic laser power) the mean over the block,
@@ -876,14 +904,39 @@ class GrblEmulator:
         self._run_startup_lines()
 
     # ------------------------------------------------------------------ simulated time
+    #: Clock steps: a host that keeps writing (at least every HOST_PACE wall seconds) moves
+    #: the clock itself, by at most HOST_STEP simulated seconds per write; otherwise the
+    #: clock thread does, by at most THREAD_STEP wall seconds per tick. WHY: at speed 50 a
+    #: Python host cannot keep a sub-millisecond schedule; pausing the machine between its
+    #: writes emulates a host as fast, relative to the machine, as a real one at speed 1
+    #: (a USB round trip takes 1-2 ms; 10 ms is 0.5 mm at 3000 mm/min). A stalled process
+    #: pauses its machine instead of jumping half a second of motion nobody saw. A host
+    #: that cannot know the speed (over a pty) gets an unpaced machine (``paced=False``).
+    HOST_PACE = 0.02
+    HOST_STEP = 0.01
+    THREAD_STEP = 0.005
+
     def _run(self) -> None:
-        last = time.monotonic()
         while not self._stopped:
             time.sleep(0.002)
-            now = time.monotonic()
             with self._cond:
-                self.advance((now - last) * self.speed)
-            last = now
+                if not self.paced or time.monotonic() - self._host_wall > self.HOST_PACE:
+                    self._catch_up(self.THREAD_STEP)
+
+    def _catch_up(self, max_wall: float) -> None:
+        """Bring simulated time to the present wall instant, at most ``max_wall`` of it
+        (realtime machines only; see HOST_STEP).
+
+        Called by the clock thread and on every write, so a status report is the machine's
+        state at the moment the ``?`` arrived, not at the clock thread's last tick (at speed
+        50 one 2 ms tick is 0.1 simulated seconds, 5 mm at 3000 mm/min).
+        """
+        if not self.realtime:
+            return
+        now = time.monotonic()
+        dt, self._wall = min(now - self._wall, max_wall), now
+        if dt > 0:
+            self.advance(dt * self.speed)
 
     def advance(self, dt: float) -> None:
         """Advance simulated time by dt seconds (called by the background thread)."""

@@ -51,6 +51,7 @@ class Block:
     line_number: int = 0
     done: float = 0.0
     elapsed: float = 0.0  # simulated seconds spent moving along it
+    traced_to: np.ndarray | None = None  # end of its part already in the trace
 
     @property
     def remaining(self) -> float:

@@ -71,8 +71,9 @@ def run(args: argparse.Namespace) -> int:
         power_cut_at=set(args.power_cut_at),
     )
     try:
+        # a sender on the pty cannot know the speed to pace its polls by: never paced
         emulator = GrblEmulator(speed=args.speed, faults=faults, force_origin=args.force_origin,
-                                settings=dict(args.setting))
+                                settings=dict(args.setting), paced=False)
     except ValueError as exc:
         raise ValueError(f"--setting: {exc}") from None
     bridge = PtyBridge(emulator, link=args.link)

@@ -34,6 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="send $X if the controller starts in alarm (make the machine safe first)")
     p.add_argument("--no-settings-check", action="store_true",
                    help="do not compare the controller's $$ settings with the profile")
+    p.add_argument("--trace", metavar="TRACE.csv",
+                   help="with the emulator (grblsim://): write its executed motion, one segment "
+                   "a line, x0,y0,x1,y1,feed,power,rapid in the program's work coordinates")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -88,9 +91,15 @@ def run(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine) if args.machine else default_machine()
     program = load_program(args.program, machine)
     port = open_port(args.port, args.baud)
+    emulator = getattr(port, "emulator", None)
+    if args.trace and emulator is None:
+        port.close()
+        raise UserError(f"{args.port}: --trace needs the emulator (a grblsim:// port): a real "
+                        "controller does not report its executed motion")
     bar = _Bar()
     try:
         streamer = Streamer(port, rx_buffer=machine.rx_buffer, on_progress=bar,
+                            acceleration=machine.acceleration, rapid_feed=machine.rapid_feed,
                             name=args.port)
         try:
             streamer.connect()
@@ -108,6 +117,11 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     finally:
         bar.done()
+        if args.trace and emulator is not None:
+            from simulators.grbl.trace import write_trace
+
+            emulator.wait_idle(5.0)  # a stopped job still brakes: trace all of it
+            write_trace(emulator, args.trace)
         try:
             port.close()
         except Exception:  # noqa: BLE001 - closing a vanished port must not mask the result

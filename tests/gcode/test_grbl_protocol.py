@@ -92,3 +92,8 @@ def test_settings_checked_against_the_profile():
     assert len(faults) == 4
     assert any("$32 laser mode is off" in f for f in faults)
     assert any("$131 Y maximum travel 200" in f for f in faults)
+    # the feed watchdog times acceleration with the profile's: a slower controller is refused
+    slow = check_settings({**s, 120: 10.0, 121: 1500.0}, default_machine())
+    assert slow == ["$120 X acceleration 10 mm/s^2 is below the profile's acceleration 1500 "
+                    "(the feed watchdog expects the programmed feed within that acceleration "
+                    "time)"]

@@ -31,7 +31,7 @@ def test_default_profile_is_the_laser_table():
     ("[cut]\nfeed = 20000\n", "feed 20000 exceeds max_feed"),
     ("[cut]\npower = 2000\n", "power 2000 exceeds max_s"),
     ("[cut]\nnotch = \"round\"\n", "notch must be"),
-    ("[cut]\npasses = 0\n", "passes must be >= 1"),
+    ("[cut]\npasses = 0\n", "\\[cut\\] passes = 0: must be in \\[1, 20\\]"),
     ("[laser]\n", "unknown section"),
     ("[machine\n", "not valid TOML"),
     ("[knife]\nz_up = -5\n", "z_up must be above z_down"),
@@ -42,6 +42,43 @@ def test_bad_profiles_name_file_and_key(tmp_path, text, match):
     with pytest.raises(ValueError, match=match) as exc:
         load_machine(p)
     assert str(exc.value).startswith(str(p))
+
+
+@pytest.mark.parametrize("section,key,value", [
+    ("machine", "work_area", "[0, 0, inf, inf]"),
+    ("machine", "work_area", "[0, 0, 12000, 1000]"),
+    ("machine", "work_area", "[0, nan, 100, 100]"),
+    ("machine", "max_s", "inf"),
+    ("machine", "max_s", "1e30"),
+    ("machine", "max_feed", "nan"),
+    ("machine", "rapid_feed", "-1"),
+    ("machine", "acceleration", "0"),
+    ("machine", "rx_buffer", "100000"),
+    ("machine", "rx_buffer", "8"),
+    ("machine", "min_cut_feed", "0"),
+    ("machine", "min_cut_feed", "5000"),  # above the cutting feed
+    ("machine", "park", "[inf, 0]"),
+    ("cut", "feed", "inf"),
+    ("cut", "power", "-inf"),
+    ("cut", "passes", "1000"),
+    ("cut", "kerf", "50"),
+    ("cut", "lead_in", "1e9"),
+    ("cut", "tolerance", "0"),
+    ("cut", "tabs", "-1"),
+    ("cut", "notch_depth", "nan"),
+    ("knife", "z_down", "-inf"),
+    ("knife", "plunge_feed", "1e12"),
+])
+def test_every_bad_number_is_refused_by_file_and_key(tmp_path, section, key, value):
+    """Finite numbers in stated ranges only (issue 16): inf passed "> 0" and wrote moves
+    off the table, S words of 32 digits and a buffer bigger than GRBL's."""
+    p = tmp_path / "m.toml"
+    p.write_text(f"[{section}]\n{key} = {value}\n")
+    with pytest.raises(ValueError) as exc:
+        load_machine(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}: ") and "\n" not in msg
+    assert key in msg, msg
 
 
 def test_profile_file_overrides(tmp_path):

@@ -288,3 +288,21 @@ def test_no_lead_in_without_a_gap():
         # not 2 mm further out
         d = polys[pr.id].exterior.distance(shapely.Point(x, y))
         assert machine.cut.kerf / 2 - 0.01 <= d <= machine.cut.kerf / 2 * 2 ** 0.5 + 0.01
+
+
+@pytest.mark.parametrize("feed,ok", [(100, False), (299, False), (300, True), (3000, True)])
+def test_beam_on_moves_below_min_cut_feed_are_refused(feed, ok):
+    """Issue 16: `F1` with the beam on passed the checker; a slow beam burns through."""
+    lines = ["G21 G90 G94 G17", "M5", "G0 X10 Y10", "M4 S700", f"G1 X50 Y10 F{feed}", "M5",
+             f"G1 X60 Y10 F{min(feed, 10)}"]  # beam off: any feed is fine
+    m = default_machine()
+    assert m.min_cut_feed == 300
+    if ok:
+        chk = validate(lines, m)
+        assert chk.cut_feeds == (float(feed),) and chk.cut_powers == (700.0,)
+        assert chk.line_power.tolist() == [0, 0, 0, 0, 700, 0, 0]
+        assert chk.line_motion.tolist() == [-1, -1, 0, -1, 1, -1, 1]
+    else:
+        with pytest.raises(ProgramError, match=r":5: beam on at F\d+, below the machine's "
+                                               "min_cut_feed 300"):
+            validate(lines, m)

@@ -18,7 +18,7 @@ import simulators.grbl  # noqa: F401  (registers grblsim://)
 from gcode.layout import layout_from_dict
 from gcode.machine import default_machine
 from gcode.program import Program, build_program, strip_comment
-from gcode.stream import Streamer, StreamError
+from gcode.stream import BEAM_OFF, Streamer, StreamError
 
 sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
 from gcode_helpers import make_layout  # noqa: E402
@@ -39,10 +39,14 @@ def open_emulator(extra: str = "", speed: float = SPEED):
     return serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}{extra}", timeout=0.02)
 
 
+#: Lines every connection sends before the program (M5, M9: see gcode.stream.BEAM_OFF).
+CONNECT_LINES = BEAM_OFF.count(b"\n")
+
+
 def stream_pos(prog: Program) -> dict[int, int]:
     """program line index -> 1-based number of that line as the controller counts it."""
     idx = [i for i, ln in enumerate(prog.lines) if strip_comment(ln)]
-    return {i: k + 1 for k, i in enumerate(idx)}
+    return {i: k + 1 + CONNECT_LINES for k, i in enumerate(idx)}
 
 
 def last_cut_point(prog: Program, piece) -> tuple[float, float]:
@@ -74,7 +78,8 @@ def test_whole_job_cuts_every_piece(job):
     em = port.emulator
     assert res.completed and res.reason == "done"
     assert res.pieces_cut == len(job.pieces) == 3
-    assert res.lines_sent == res.lines_acked == res.lines_total == em.lines_executed
+    # plus the M5 and M9 every connection starts with
+    assert res.lines_sent == res.lines_acked == res.lines_total == em.lines_executed - 2
     # each piece went pending -> cutting -> cut, in order, one change at a time
     assert changes == [(n, s) for n in (1, 2, 3) for s in ("cutting", "cut")] or \
         sorted(changes) == sorted((n, s) for n in (1, 2, 3) for s in ("cutting", "cut"))
@@ -121,7 +126,7 @@ def test_fault_in_piece_two_stops_safely(job, fault):
     sent = [strip_comment(ln).replace(" ", "") for ln in job.lines if strip_comment(ln)]
     if ":" in fault and "=" not in fault:  # a byte fault, placed exactly in line n
         port = open_emulator()
-        line = sent[n - 1]
+        line = sent[n - 1 - CONNECT_LINES]
         k = {"newline": len(line), "X": line.index("X"), "hundreds": line.index("X") + 1}
         port = _ByteFault(port, (line + "\n").encode(), fault.split(":")[0], k[fault[5:]])
     else:
@@ -190,8 +195,13 @@ def test_corrupted_coordinate_is_caught_off_path():
     st, res, _ = run_job(port, prog)
     assert res.reason == "off_path", res.fault
     assert res.pieces[0].state != "cut"
-    assert any(abs(s.x1 - 40.0) < 1e-6 or abs(s.x0 - 40) < 1e-6 for s in em.trace) or \
-        em.mpos[0] < 137  # the machine really went astray before the stop
+    def off(x: float, y: float) -> float:  # distance to the square's edges y=100, x=140
+        return min(abs(y - 100) if 100 <= x <= 140 else 1e9, abs(x - 140) if 100 <= y <= 140
+                   else 1e9)
+
+    assert off(*em.mpos[:2]) > 0.3  # the machine really went astray before the stop ...
+    burnt = [s for s in em.trace if s.power > 0]  # ... and burnt no more than 2 mm off
+    assert max(off(s.x1, s.y1) for s in burnt) <= 2.0
     assert em.parser_state.spindle == "M5"
     port.close()
 

@@ -49,3 +49,46 @@ def test_relative_paths_resolve_beside_the_file(tmp_path):
     path.write_text('[store]\npath = "db/jobs.db"\n')
     cfg = load_config(path)
     assert cfg.resolve(cfg["store"]["path"]) == tmp_path / "db" / "jobs.db"
+
+
+def _program_for(tmp_path, toml: str):
+    """The program the station would cut for a one-square layout under ``toml``."""
+    import json
+
+    from station.pipeline import StationPipeline
+
+    cfg = tmp_path / "station.toml"
+    cfg.write_text(toml)
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps({"version": 1, "units": "mm", "pieces": [
+        {"id": "sq", "outline": [[10, 10], [60, 10], [60, 60], [10, 60]]}]}))
+    return StationPipeline(load_config(cfg)).program_for(layout, None)
+
+
+def test_cut_section_reaches_the_program(tmp_path):
+    """Issue 16: `power = 123` used to be checked and then cut at S700."""
+    prog = _program_for(tmp_path, "[cut]\npower = 123\nfeed_mm_min = 1500\npasses = 2\n"
+                                  "kerf_mm = 0.0\n")
+    text = prog.text()
+    assert "M4 S123" in text and "S700" not in text
+    assert "F1500" in text and "F3000" not in text
+    assert text.count("M4 S123") == 2  # two passes
+    assert prog.check.cut_powers == (123.0,) and prog.check.cut_feeds == (1500.0,)
+    xs = [float(w[1:]) for ln in prog.lines if ln.startswith("G1") for w in ln.split()
+          if w.startswith("X")]
+    assert min(xs) == 10 and max(xs) == 60  # no kerf offset
+
+
+@pytest.mark.parametrize("toml,key", [
+    ("[cut]\npower = 5000\n", "power"),  # above the profile's max_s
+    ("[cut]\nfeed_mm_min = 20000\n", "feed"),  # above max_feed
+    ("[cut]\nfeed_mm_min = 10\n", "min_cut_feed"),  # a slow beam burns through
+    ("[cut]\npasses = 50\n", "passes"),
+    ("[cut]\nkerf_mm = 9\n", "kerf"),
+    ("[cut]\npower = inf\n", "power"),
+])
+def test_cut_section_is_refused_by_file_and_key(tmp_path, toml, key):
+    with pytest.raises(ValueError) as exc:
+        _program_for(tmp_path, toml)
+    msg = str(exc.value)
+    assert msg.startswith(str(tmp_path / "station.toml")) and key in msg, msg

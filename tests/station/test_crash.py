@@ -306,7 +306,7 @@ def test_sigterm_then_sigkill_at_twenty_random_moments_cuts_every_piece_once(sta
 @pytest.fixture
 def recovery(tmp_path):
     """A store with one planned job of three pieces and the final moves of its stream."""
-    from station.pipeline import FINAL_MOVES, save_final_moves
+    from gcode.recovery import FINAL_MOVES, save_final_moves
 
     store = JobStore(tmp_path / "jobs.db")
     job = store.submit("shirt.obj", "fabric.json", {})
@@ -362,8 +362,8 @@ def test_recovery_ignores_markers_of_other_jobs_cleared_markers_and_cut_pieces(r
 def test_markers_bracket_each_pieces_final_move(tmp_path):
     """Every piece: G59 phase 1 just before its last beam-on move and phase 2 just after,
     both lines the streamer sends alone; nothing else in the program changes."""
+    from gcode.recovery import final_moves, with_markers
     from gcode.stream import is_sync_command
-    from station.pipeline import final_moves, with_markers
 
     sys.path.insert(0, str(ROOT / "tests" / "gcode"))  # gcode_helpers (importlib mode)
     from gcode_helpers import make_layout  # a disc with a hole, notch and mark, ...

@@ -1,0 +1,198 @@
+"""Knowing what the machine did while nobody listened: piece markers, final moves, rest.
+
+When the daemon dies the machine goes on with the moves in its buffers, so the piece in
+flight may finish after the last answer anybody read. The program carries markers the
+controller stores in EEPROM around each piece's final move (`with_markers`), the geometry
+those markers refer to is saved before streaming (`save_final_moves`), and on the next start
+the machine is asked (`wait_at_rest`, `read_params`) before anything moves or resets it;
+`station.pipeline.StationPipeline.reconcile` decides from that.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gcode.grbl import Response, Status
+from gcode.program import Program, ProgramError, parse_pieces, program_moves
+from gcode.session import ResponseReader
+from gcode.stream import Streamer
+
+__all__ = ["FINAL_MOVES", "MARKER_SYSTEM", "distance_to_path", "final_moves",
+           "load_final_moves", "read_params", "save_final_moves", "wait_at_rest",
+           "with_markers"]
+
+#: The work coordinate system (G54 + n - 1) the station writes its piece markers into:
+#: programs run in G54 and never select G59, so its offsets are free for bookkeeping.
+MARKER_SYSTEM = 6
+
+def with_markers(program: Program, job_id: int, index: dict[str, int]) -> Program:
+    """The program with a persistent record of each piece's progress in the controller.
+
+    Why: when the daemon dies the machine goes on with the moves in its buffers (up to
+    128 bytes of lines and 15 planned blocks), so the piece in flight may finish after the
+    last answer anybody read. Around each piece's final move the program writes G59
+    (``G10 L2 P6 X<job> Y<piece + 1> Z<phase>``), which GRBL keeps in EEPROM across
+    resets and power cuts and writes only after every move before it has finished
+    (FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE). The streamer sends such a line alone, once
+    every line before it is answered, and nothing after it until it is answered. So:
+
+    * phase 1, before the final move: written only once every move but the final one
+      has run; while it stands, nothing but the final move can move the head;
+    * phase 2, after the final move: written only once the final move has run, and no
+      line of the next piece is sent before it is answered;
+    * cleared (zeros) before every stream, once the store holds what it said: a piece cut
+      again must not be judged by the marker of its interrupted earlier attempt (whose
+      head position at the contour's start would look like a finished final move).
+
+    On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
+    any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at
+    the final move's end with its position trusted (no alarm). The final move is taken
+    from the program that was streamed (saved by `save_final_moves` before streaming),
+    since where a contour starts and ends depends on which pieces were left to cut.
+    Only the 1-2 ms between the final move's answer and the phase-2 line going out, then
+    followed by a loss of position before the restart (power cut, or a board reset by
+    opening its port), leaves a finished piece unproven: it is cut again, and the
+    operator is told in the log. At most this one piece can
+    be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
+    answered and stored. A piece interrupted before its final move is cut again in full
+    (its open kerf is retraced; it is separated from the cloth exactly once).
+    """
+    lines: list[str] = []
+    new_index = np.zeros(len(program.lines), int)  # old line -> its line in the new program
+    c = program.check
+    if c is None or c.line_motion is None:
+        raise ProgramError("with_markers needs a validated program (Program.check)")
+    final = {}
+    for r in program.pieces:
+        moves = [k for k in range(r.first_line, r.sync_line) if c.line_motion[k] in (1, 2, 3)]
+        if moves:
+            final[moves[-1]] = index[r.id]
+    for k, line in enumerate(program.lines):
+        piece = final.get(k)
+        if piece is not None:
+            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{piece + 1} Z1")
+        new_index[k] = len(lines)
+        lines.append(line)
+        if piece is not None:
+            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{piece + 1} Z2")
+    return Program(lines, parse_pieces(lines), check=c.moved(new_index, len(lines)),
+                   warnings=list(program.warnings))
+
+
+FINAL_MOVES = "final-moves.json"
+
+
+def final_moves(program: Program, index: dict[str, int]) -> dict[int, np.ndarray]:
+    """Store piece index -> (k, 2) points of that piece's final cutting move in ``program``."""
+    number_to_piece = {r.number: index[r.id] for r in program.pieces}
+    out: dict[int, np.ndarray] = {}
+    for _, on, number, pts in program_moves(program):
+        if on and number in number_to_piece:
+            out[number_to_piece[number]] = pts  # the last cutting move of the piece wins
+    return out
+
+
+def save_final_moves(path: Path, job_id: int, moves: dict[int, np.ndarray]) -> None:
+    """Write the final moves durably (temporary file, fsync, rename) before streaming."""
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w") as f:
+        json.dump({"job": job_id, "moves": {str(k): np.round(v, 4).tolist()
+                                            for k, v in moves.items()}}, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_final_moves(path: Path, job_id: int) -> dict[int, np.ndarray]:
+    """What `save_final_moves` wrote for this job ({} if nothing)."""
+    try:
+        doc = json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return {}
+    if doc.get("job") != job_id:
+        return {}
+    return {int(k): np.asarray(v, float) for k, v in doc.get("moves", {}).items()}
+
+
+def distance_to_path(p: np.ndarray, path: np.ndarray) -> float:
+    """Distance from point ``p`` to the polyline ``path``."""
+    if len(path) == 0:
+        return float("inf")
+    if len(path) == 1:
+        return float(np.hypot(*(p - path[0])))
+    a, b = path[:-1], path[1:]
+    d = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, d) / np.maximum(np.einsum("ij,ij->i", d, d),
+                                                             1e-12), 0.0, 1.0)
+    return float(np.hypot(*(a + t[:, None] * d - p).T).min())
+
+
+def wait_at_rest(port, timeout: float = 120.0, stop=None) -> Status | None:
+    """The controller's status once its buffered moves are over, before anyone resets it.
+
+    Only the real-time ``?`` is sent, which changes nothing; a machine still running the
+    moves a dead daemon left in its buffers is waited for. What the line still holds from
+    before (answers and reports nobody read, e.g. a report of the head resting between
+    two moves) is drained first, and the rest is believed only when two fresh reports
+    agree. None if the controller does not answer (or ``stop()`` turns true).
+    """
+    try:
+        port.reset_input_buffer()
+    except (AttributeError, OSError):
+        pass
+    quiet_until = time.monotonic() + 0.3
+    drain_end = time.monotonic() + 5.0
+    while time.monotonic() < min(quiet_until, drain_end):
+        if port.read(port.in_waiting or 1):
+            quiet_until = time.monotonic() + 0.3
+    seen = None
+    previous = None
+    end = time.monotonic() + timeout
+    silent_until = time.monotonic() + 1.5
+    last: Status | None = None
+
+    def on_status(r: Response) -> None:
+        nonlocal last
+        last = r.status
+
+    reader = ResponseReader(port)  # only reports matter here; everything else is dropped
+    reader.register_response("status", on_status)
+    while time.monotonic() < end:
+        if stop is not None and stop():
+            return None
+        port.write(b"?")
+        last = None
+        reader.wait(lambda: False, 0.15)  # the newest report of the next 0.15 s
+        if last is None:
+            if seen is None and time.monotonic() > silent_until:
+                return None
+            continue
+        seen = last
+        resting = last.state in ("Idle", "Alarm", "Check", "Sleep") or (
+            last.state == "Hold" and last.substate == 0)
+        key = (last.state, last.position())
+        if resting and previous == key:
+            return last
+        previous = key if resting else None
+    return seen
+
+
+def read_params(streamer: Streamer) -> dict[str, tuple[float, ...]]:
+    """``$#``: the controller's stored offsets by name (G54..G59, G28, G30, G92...)."""
+    r, pushed = streamer.command("$#")
+    out: dict[str, tuple[float, ...]] = {}
+    if r.kind != "ok":
+        return out
+    for p in pushed:
+        if p.kind == "param" and p.text:
+            key, _, body = p.text.partition(":")
+            try:
+                out[key] = tuple(float(v) for v in body.split(":")[0].split(","))
+            except ValueError:
+                continue
+    return out

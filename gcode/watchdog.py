@@ -1,0 +1,259 @@
+"""Watchdogs on what the machine does while it cuts, judged in machine time.
+
+GRBL has no checksum: one flipped bit on the wire turns ``G1X173.9Y67.1`` into the valid
+``F1X173.9Y67.1`` (feed 1 mm/min with the beam on) and ``Y829`` into ``Y929``. What was
+sent proves nothing, so every status report is held against the program:
+
+* the head stays within ``deviation_mm`` of the program's path (any motion);
+* while the beam is on, the reported laser value (``FS:`` second field) is one the program
+  asks for (times the spindle override);
+* the head is followed along the path in program order: in the middle of a move that
+  cuts, the beam is on; in the middle of a travel move, it is off;
+* while the beam is on, the reported feed reaches the programmed cutting feed within the
+  time the profile's acceleration ($120/$121) needs (unless the planner runs dry: then the
+  machine slows with M4 power following the speed; a corrupted ``F1`` keeps it full), and
+  never exceeds it.
+
+Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest programmed
+cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
+GRBL, the emulator's ``speed`` on ``grblsim://``). A deviation is therefore seen within
+``deviation_mm + watch_mm`` of travel at any emulator speed, as long as the host keeps up
+with its own schedule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from gcode.grbl import Status
+
+__all__ = ["Breach", "StopReason", "Watchdog", "poll_interval"]
+
+PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
+_LEG = -2  # path_line of the leg from where the head stood to the program's first move
+
+
+class StopReason(str, Enum):
+    """Why a stream ended (a ``str`` so that results compare and serialise as text)."""
+
+    DONE = "done"
+    CHECKED = "checked"
+    ERROR = "error"
+    ALARM = "alarm"
+    RESET = "reset"
+    GARBLED = "garbled"
+    UNMATCHED = "unmatched"
+    OFF_PATH = "off_path"
+    FEED = "feed"
+    POWER = "power"
+    TIMEOUT = "timeout"
+    DISCONNECT = "disconnect"
+    STOPPED = "stopped"
+    INTERRUPTED = "interrupted"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True)
+class Breach:
+    """A watchdog's finding: why to stop, in one sentence, and the program line (0-based,
+    or None) nearest to where the head was."""
+
+    reason: StopReason
+    detail: str
+    line: int | None
+
+
+def poll_interval(fastest_feed: float, time_scale: float, *, watch_mm: float = 0.5,
+                  shortest: float = 2e-4, longest: float = 0.2) -> float:
+    """Wall seconds between status polls so that the head moves at most ``watch_mm``
+    between two reports at ``fastest_feed`` (mm/min), on a machine whose time runs
+    ``time_scale`` times the wall clock."""
+    if fastest_feed <= 0 or not math.isfinite(fastest_feed):
+        return longest
+    wall = watch_mm / (fastest_feed / 60.0 * max(time_scale, 1e-9))
+    return float(min(max(wall, shortest), longest))
+
+
+class Watchdog:
+    """Judges each status report against the program; ``check`` returns a Breach or None.
+
+    ``path`` is the program's motion sampled at most ``step`` mm apart, ``path_line`` the
+    program line of each sample and ``line_power`` the S each line cuts with (0: beam
+    off); ``feeds`` and ``powers`` are what beam-on moves ask for (all empty for a knife:
+    then only the path is watched). The head is followed along the path in program order,
+    so where the path crosses itself the report is matched to the move being run, and
+    what the beam must be doing there is known.
+    """
+
+    def __init__(self, path: np.ndarray, path_line: np.ndarray, line_power: np.ndarray,
+                 feeds: tuple[float, ...], powers: tuple[float, ...], acceleration: float,
+                 fastest: float, *, time_scale: float = 1.0, deviation_mm: float = 0.3,
+                 watch_mm: float = 0.5, step: float = 1.0):
+        self.path = np.asarray(path, float).reshape(-1, 2)
+        self.path_line = np.asarray(path_line, int)
+        self.line_power = np.asarray(line_power, float)
+        self.feeds = tuple(feeds)
+        self.powers = np.asarray(powers, float)
+        self.time_scale = float(time_scale)
+        self.deviation = float(deviation_mm)
+        self.step = float(step)
+        self.fastest = float(fastest) / 60.0  # mm/s, the bound on how far the head can go
+        self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
+                                      watch_mm=watch_mm)
+        slow = min(self.feeds, default=0.0) / 60.0
+        latency = 2.0 * self.interval * self.time_scale  # two polls, in machine time
+        # a corner's braking and re-acceleration plus the polls' latency, in machine time
+        self.feed_allowance = 3.0 * slow / max(acceleration, 1e-9) + 0.1 + latency
+        # M4 power comes with its block: only the polls' latency before the beam is on
+        self.dark_allowance = 0.02 + latency
+        self._along = np.zeros(0)
+        self._leg_end = 0
+        self._reindex()
+        self._at = 0.0  # how far along the path the head is (mm)
+        self._last_asked: float | None = None
+        self._slow_since: float | None = None
+        self._dark_since: float | None = None
+        self._overrides = (100, 100, 100)
+        self.last_line: int | None = None
+        self.reports = 0
+
+    @classmethod
+    def for_program(cls, check, acceleration: float, fastest: float, **kw) -> Watchdog:
+        """The watchdog over a validated program's ``Check``."""
+        return cls(check.path, check.path_line, check.line_power, check.cut_feeds,
+                   check.cut_powers, acceleration, fastest, **kw)
+
+    def _reindex(self) -> None:
+        """Distance along the path of every sample, and where each line's samples begin
+        and end along it."""
+        d = np.hypot(*np.diff(self.path, axis=0).T) if len(self.path) > 1 else np.zeros(0)
+        self._along = np.concatenate([[0.0], np.cumsum(d)])
+        n = int(self.path_line.max()) + 1 if len(self.path_line) else 0
+        self._line_from = np.full(n, np.inf)
+        self._line_to = np.full(n, -np.inf)
+        ok = self.path_line >= 0
+        np.minimum.at(self._line_from, self.path_line[ok], self._along[ok])
+        np.maximum.at(self._line_to, self.path_line[ok], self._along[ok])
+
+    def start_from(self, here: np.ndarray | None) -> None:
+        """The first rapid starts wherever the head is: add that leg to the path."""
+        if here is None or not len(self.path):
+            return
+        k = max(1, int(math.ceil(float(np.hypot(*(self.path[0] - here))) / self.step)))
+        leg = here + (self.path[0] - here) * np.linspace(0.0, 1.0, k + 1)[:, None]
+        self.path = np.vstack([leg, self.path])
+        # the leg belongs to the program's first rapid, which has no samples of its own
+        self.path_line = np.concatenate([np.full(len(leg), _LEG), self.path_line])
+        self._leg_end = len(leg) - 1
+        self._reindex()
+
+    def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
+        """Match ``xy`` to the path from where the head was: within ``reach`` mm further
+        if it is there, else anywhere ahead. Returns (distance, segment index, position
+        along the segment 0..1) of the earliest segment within the deviation (progress is
+        minimal where the path crosses itself), else of the nearest one."""
+        if len(self.path) < 2:
+            return math.inf, -1, 0.0
+        lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
+        hi = int(np.searchsorted(self._along, self._at + reach, "right"))
+        found = self._nearest(xy, lo, min(max(hi, lo + 1), len(self.path) - 1))
+        if found[0] > self.deviation:  # not where the clock says: look further ahead
+            found = self._nearest(xy, lo, len(self.path) - 1)
+        return found
+
+    def _nearest(self, xy: np.ndarray, lo: int, hi: int) -> tuple[float, int, float]:
+        idx = np.arange(lo, max(hi, lo + 1))
+        a, b = self.path[idx], self.path[idx + 1]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", xy - a, ab)
+                    / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+        d = np.hypot(*(a + t[:, None] * ab - xy).T)
+        near = np.flatnonzero(d <= self.deviation)
+        j = int(near[0]) if len(near) else int(np.argmin(d))
+        return float(d[j]), int(idx[j]), float(t[j])
+
+    def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float,
+              starved: bool = False) -> Breach | None:
+        """Judge one report asked for at machine time ``asked`` and read at ``received``
+        (seconds): the machine was in that state somewhere in between. ``starved``: the
+        sender has nothing in flight (the planner may be running dry)."""
+        self.reports += 1
+        if st.overrides is not None:
+            self._overrides = st.overrides
+        now = asked
+        # at most this much machine time since the previous report (an upper bound)
+        dt = 0.5 if self._last_asked is None else received - self._last_asked
+        # timers run only over reports close enough together to see every slow-down end
+        close = dt <= self.feed_allowance / 3.0
+        if not close:
+            self._slow_since = self._dark_since = None
+        self._last_asked = asked
+        inside = None  # the line whose interior the head is on, if any
+        if xy is not None and st.state in ("Run", "Hold", "Jog"):
+            d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation)
+            if d > self.deviation:
+                return Breach(StopReason.OFF_PATH, f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is "
+                              f"{d:.2f} mm off the program's path (corrupted line?)",
+                              self.last_line)
+            self._at = self._along[k] + t * (self._along[k + 1] - self._along[k])
+            line = int(self.path_line[k])
+            self.last_line = line if line >= 0 else None
+            if line >= 0 and self._line_from[line] + 0.5 < self._at < self._line_to[line] - 0.5:
+                inside = line
+            elif line == _LEG and self._at < self._along[self._leg_end] - 0.5:
+                inside = _LEG
+        if st.state != "Run" or not len(self.powers):
+            self._slow_since = self._dark_since = None
+            return None
+        feed_ovr, _, spindle_ovr = (v / 100.0 for v in self._overrides)
+        if not (st.speed or 0.0) > 0:
+            self._slow_since = None
+            return self._check_dark(inside, now)
+        self._dark_since = None
+        power = float(st.speed or 0.0)
+        if inside == _LEG or (inside is not None and self.line_power[inside] <= 0):
+            return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
+                          "(the cut starts off its path: a corrupted or rejected line?)", inside)
+        if np.min(np.abs(self.powers * spindle_ovr - power)) > 0.5:
+            allowed = ", ".join(f"S{p:g}" for p in self.powers)
+            return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
+                          f"{allowed} (corrupted S word?)", self.last_line)
+        feed = float(st.feed or 0.0)
+        if st.planner_free is not None:  # Bf: reported ($10 has 2)
+            starved = st.planner_free >= PLANNER_BLOCKS - 2
+        if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
+            self._slow_since = None
+        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
+        if feed > high * 1.02 + 1.0:
+            return Breach(StopReason.FEED, f"beam on at F{feed:g}, above the program's "
+                          f"cutting feed F{high:g} (corrupted line?)", self.last_line)
+        if feed >= 0.9 * low or starved:
+            self._slow_since = None
+        elif self._slow_since is None:
+            self._slow_since = now
+        elif now - self._slow_since > self.feed_allowance:
+            return Breach(StopReason.FEED, f"beam on at F{feed:g} for "
+                          f"{now - self._slow_since:.2f} s of machine time: the programmed "
+                          f"F{low:g} is reached within {self.feed_allowance:.2f} s "
+                          "(corrupted F word?)", self.last_line)
+        return None
+
+    def _check_dark(self, inside: int | None, now: float) -> Breach | None:
+        """The beam off in the middle of a move that cuts: a lost ``M4`` (flipped to
+        ``M5``) would trace the piece without cutting it, and it would count as cut."""
+        if inside is None or inside == _LEG or self.line_power[inside] <= 0:
+            self._dark_since = None
+            return None
+        if self._dark_since is None:
+            self._dark_since = now
+        elif now - self._dark_since > self.dark_allowance:
+            return Breach(StopReason.POWER, f"beam off for {now - self._dark_since:.2f} s "
+                          f"of machine time on a move that cuts at "
+                          f"S{self.line_power[inside]:g} (a lost M4?)", inside)
+        return None

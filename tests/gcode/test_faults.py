@@ -1,0 +1,297 @@
+"""Injected line faults against the emulator's executed motion (issue 16).
+
+Every run is judged by what the machine did (the emulator's trace), read against the
+program by the tests' own G-code reader (gcode_helpers.trace, no code shared with gcode/):
+either the job completed with every beam-on segment within 0.5 mm of the program's cut
+path, or it stopped safely: beam off at the end, no beam-on segment more than 2 mm off
+the cut path, and every piece reported cut completely traced by the beam.
+
+The tests sweep a strided sample of byte positions plus named ones; `pytest -m slow`
+sweeps every byte position at speed 50.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import serial
+
+import simulators.grbl  # noqa: F401  (registers grblsim://)
+from gcode.layout import layout_from_dict
+from gcode.machine import default_machine
+from gcode.program import Program, build_program, strip_comment
+from gcode.stream import BEAM_OFF, Streamer
+from gcode.toolpath import build_toolpaths
+
+sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
+from gcode_helpers import trace  # noqa: E402
+
+SETTINGS = "settings=32:1,130:1600,131:1000,110:12000,111:12000,120:1500,121:1500"
+
+
+def _square(x: float, y: float, side: float) -> list[list[float]]:
+    return [[x, y], [x + side, y], [x + side, y + side], [x, y + side]]
+
+
+@pytest.fixture(scope="module")
+def tiny() -> Program:
+    """Two 6 mm squares: about 200 bytes on the wire, half a second of cutting."""
+    data = {"version": 1, "units": "mm",
+            "pieces": [{"id": "a", "outline": _square(20, 20, 6)},
+                       {"id": "b", "outline": _square(40, 20, 6)}]}
+    machine = default_machine()
+    return build_program(build_toolpaths(layout_from_dict(data, "tiny"), machine), machine)
+
+
+def wire_lines(prog: Program) -> list[bytes]:
+    return [strip_comment(ln).replace(" ", "").encode() + b"\n" for ln in prog.lines
+            if strip_comment(ln)]
+
+
+class LineFault:
+    """Arms the emulator's byte fault at byte ``offset`` of the ``line``-th program line
+    written (the emulator counts every byte, polls included, so the position is only known
+    when that line goes out)."""
+
+    def __init__(self, port, lines: list[bytes], kind: str, line: int, offset: int):
+        self.__dict__.update(port=port, lines=lines, kind=kind, line=line, offset=offset,
+                             next=0)
+
+    def __getattr__(self, name):
+        return getattr(self.port, name)
+
+    def __setattr__(self, name, value):
+        setattr(self.port, name, value)
+
+    def write(self, data):
+        j = self.next
+        if j < len(self.lines) and data == self.lines[j]:
+            if j == self.line:
+                em = self.port.emulator
+                getattr(em.faults, f"{self.kind}_byte_at").add(em.bytes_received
+                                                               + self.offset + 1)
+            self.__dict__["next"] = j + 1
+        return self.port.write(data)
+
+
+def _cut_segments(prog: Program, lines: range | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(a, b) endpoints of the program's beam-on path, optionally only within ``lines``."""
+    a, b = [], []
+    for mv in trace(prog.lines, step=0.2):
+        if mv["on"] and len(mv["pts"]) > 1 and (lines is None or mv["line"] in lines):
+            a.append(mv["pts"][:-1])
+            b.append(mv["pts"][1:])
+    return np.vstack(a), np.vstack(b)
+
+
+def _distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of every point to the nearest of the segments a[i]-b[i]."""
+    ab = b - a
+    ap = points[:, None, :] - a[None]
+    t = np.clip(np.einsum("nmk,mk->nm", ap, ab) / np.maximum((ab * ab).sum(1), 1e-12), 0, 1)
+    return np.hypot(*(ap - t[..., None] * ab[None]).transpose(2, 0, 1)).min(axis=1)
+
+
+def _sample(segs: list, step: float = 0.1) -> np.ndarray:
+    pts = [np.linspace((s.x0, s.y0), (s.x1, s.y1),
+                       max(2, int(np.hypot(s.x1 - s.x0, s.y1 - s.y0) / step) + 1)) for s in segs]
+    return np.vstack(pts) if pts else np.zeros((0, 2))
+
+
+def judge(prog: Program, em, res) -> None:
+    """The issue's criterion, on the machine's executed motion."""
+    a, b = _cut_segments(prog)
+    burnt = [s for s in em.trace if s.power > 0 and not s.rapid]
+    off = _distance(_sample(burnt), a, b).max() if burnt else 0.0
+    if res.completed:
+        assert res.pieces_cut == len(prog.pieces)
+        assert off <= 0.5, f"completed with the beam {off:.2f} mm off the path"
+    else:
+        _stopped_safely(em, res, off)
+    # every piece reported cut was cut: its whole path lies within 0.5 mm of the burnt path
+    full = [s for s in burnt if s.complete]
+    for piece, rec in zip(prog.pieces, res.pieces, strict=True):
+        if rec.state == "cut":
+            pa, pb = _cut_segments(prog, range(piece.first_line, piece.sync_line))
+            need = np.vstack([pa, pb[-1:]])
+            ta = np.array([(s.x0, s.y0) for s in full])
+            tb = np.array([(s.x1, s.y1) for s in full])
+            assert _distance(need, ta, tb).max() <= 0.5, f"piece {piece.id} not fully cut"
+
+
+def _stopped_safely(em, res, off: float) -> None:
+    assert off <= 2.0, f"stopped ({res.reason}) after burning {off:.2f} mm off the path"
+    deadline = time.monotonic() + 2.0
+    while em.state.startswith(("Run", "Hold:1")) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert em.state == "Alarm" or em.parser_state.spindle == "M5", "beam left on"
+    assert not em.state.startswith("Run")
+
+
+def run_with(prog: Program, speed: float, kind: str | None = None, line: int = 0,
+             offset: int = 0, url_extra: str = ""):
+    port = serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}{url_extra}",
+                                 timeout=0.02)
+    em = port.emulator
+    if kind is not None:
+        port = LineFault(port, wire_lines(prog), kind, line, offset)
+    st = Streamer(port, response_timeout=2.0, stall_timeout=1.0)
+    st.connect(quiet=0.02)
+    res = st.run(prog)
+    judge(prog, em, res)
+    port.close()
+    return res
+
+
+def positions(prog: Program) -> list[tuple[int, int]]:
+    """(line, offset) of every byte of the program on the wire."""
+    return [(i, k) for i, ln in enumerate(wire_lines(prog)) for k in range(len(ln))]
+
+
+def test_tiny_job_runs_clean(tiny):
+    res = run_with(tiny, 50)
+    assert res.completed and res.pieces_cut == 2
+
+
+def test_g_to_f_flip_is_stopped_by_the_feed_watchdog(tiny):
+    """`G1X..Y..` -> `F1X..Y..`: valid GRBL, feed 1 mm/min with M4 S700 on (issue 16)."""
+    lines = wire_lines(tiny)
+    k = next(i for i, ln in enumerate(lines) if ln.startswith(b"G1") and b"F" not in ln)
+    for speed in (1, 50):
+        res = run_with(tiny, speed, "flip", k, 0)
+        assert res.reason == "feed" and not res.completed, res.fault
+        assert res.fault["line"] is not None
+        assert res.pieces[0].state != "cut" or k > tiny.pieces[0].sync_line
+
+
+@pytest.mark.parametrize("what", ["s_digit", "m4_to_m5", "g90_to_g91", "x_digit"])
+def test_named_flips_at_speed_1(tiny, what):
+    lines = wire_lines(tiny)
+
+    def find(pred, sub: bytes) -> tuple[int, int]:
+        i = next(i for i, ln in enumerate(lines) if pred(ln))
+        return i, lines[i].index(sub)
+
+    line, offset = {
+        "s_digit": find(lambda ln: ln.startswith(b"M4S"), b"7"),  # S700 -> S600
+        "m4_to_m5": find(lambda ln: ln.startswith(b"M4S"), b"4"),  # beam never comes on
+        "g90_to_g91": find(lambda ln: b"G90" in ln, b"0G94"),  # incremental moves
+        "x_digit": find(lambda ln: ln.startswith(b"G1X2"), b"2"),  # X26 -> X36
+    }[what]
+    res = run_with(tiny, 1, "flip", line, offset)
+    assert not res.completed
+    assert res.reason in ("power", "off_path", "feed", "error", "alarm"), res.fault
+
+
+@pytest.mark.parametrize("kind,stride", [("flip", 7), ("drop", 11)])
+def test_byte_faults_sampled_at_speed_50(tiny, kind, stride):
+    for line, offset in positions(tiny)[::stride]:
+        run_with(tiny, 50, kind, line, offset)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["flip", "drop"])
+def test_byte_faults_at_every_position_speed_50(tiny, kind):
+    for line, offset in positions(tiny):
+        run_with(tiny, 50, kind, line, offset)
+
+
+@pytest.mark.parametrize("fault", ["error_at=12:20", "alarm_at=14:1", "reset_at=13",
+                                   "power_cut_at=15", "flip_byte_at=150", "drop_byte_at=170"])
+def test_other_faults_stop_safely(tiny, fault):
+    """Faults placed by the emulator's own counters (polls included)."""
+    run_with(tiny, 50, url_extra="&" + fault)
+
+
+def test_reconnect_sends_beam_off_first(tiny):
+    """After a disconnect the controller may still be modal M4 S700: the next connection's
+    first bytes are M5 and M9, before any query or reset."""
+    n = len(BEAM_OFF.split(b"\n")) + 8  # a line inside the first piece's cut
+    url = f"grblsim://?speed=50&name=reconnect&{SETTINGS}"
+    port = serial.serial_for_url(f"{url}&disconnect_at={n}", timeout=0.02)
+    em = port.emulator
+    st = Streamer(port, response_timeout=1.0, stall_timeout=1.0)
+    st.connect(quiet=0.02)
+    res = st.run(tiny)
+    assert res.reason == "disconnect" and res.pieces_cut == 0
+    port.close()
+    assert em.wait_idle(10.0)  # the machine ran out the moves it held
+    written: list[bytes] = []
+    again = serial.serial_for_url(url, timeout=0.02)
+    assert again.emulator is em
+    real_write = again.write
+    again.write = lambda data: (written.append(bytes(data)), real_write(data))[1]
+    Streamer(again).connect(quiet=0.02)
+    assert written[0] == BEAM_OFF == b"M5\nM9\n"
+    assert em.parser_state.spindle == "M5" and not em.parser_state.flood
+    again.close()
+
+
+def test_stream_command_writes_the_executed_trace_in_work_coordinates(tiny, tmp_path):
+    """`station stream --trace`: the machine's own motion, in the program's coordinates even
+    when the work origin is far from the machine's."""
+    from station.cli import main
+
+    nc, csv = tmp_path / "tiny.nc", tmp_path / "trace.csv"
+    tiny.write(nc)
+    url = f"grblsim://?speed=50&name=traced&{SETTINGS}"
+    setup = serial.serial_for_url(url, timeout=0.02)
+    Streamer(setup).connect(quiet=0.02)
+    setup.write(b"G10L2P1X100Y50\n")  # the work origin at machine X100 Y50
+    assert setup.emulator.wait_idle(2.0)
+    rc = main(["stream", str(nc), "--port", url, "--trace", str(csv), "--json",
+               "--no-settings-check"])
+    assert rc == 0
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "x0,y0,x1,y1,feed,power,rapid"
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+    assert len(rows) == len(setup.emulator.trace) >= 10
+    cut = rows[(rows[:, 5] > 0) & (rows[:, 6] == 0)]
+    a, b = _cut_segments(tiny)
+    ends = np.vstack([cut[:, 0:2], cut[:, 2:4]])
+    assert _distance(ends, a, b).max() < 0.01  # work coordinates: on the program's path
+    assert np.allclose(cut[:, 4], 3000) and (cut[:, 5] > 0).all()
+    assert _distance(np.vstack([a, b[-1:]]), cut[:, 0:2], cut[:, 2:4]).max() < 0.01
+    machine = np.array([(s.x0, s.y0) for s in setup.emulator.trace])
+    assert np.allclose(machine - rows[:, 0:2], [100, 50])
+    setup.close()
+
+
+def test_trace_needs_the_emulator(tiny, tmp_path):
+    import argparse
+
+    from station.commands.stream import run as stream_run
+
+    nc = tmp_path / "tiny.nc"
+    tiny.write(nc)
+    with pytest.raises(Exception, match="--trace needs the emulator"):
+        stream_run(argparse.Namespace(program=str(nc), port="loop://", baud=115200,
+                                      machine=None, check=False, unlock=False,
+                                      no_settings_check=True, trace=str(tmp_path / "t.csv"),
+                                      json=False))
+
+
+def test_stream_states_and_stop_reason(tiny):
+    """The run is a small state machine: clean runs drain and finish, faults stop safely."""
+    from gcode.stream import StopReason, StreamState
+
+    lines = wire_lines(tiny)
+    k = next(i for i, ln in enumerate(lines) if ln.startswith(b"G1") and b"F" not in ln)
+    for fault, expected in ((None, [StreamState.STREAMING, StreamState.DRAINING,
+                                    StreamState.DONE]),
+                            (k, [StreamState.STREAMING, StreamState.STOPPING,
+                                 StreamState.STOPPED])):
+        raw = serial.serial_for_url(f"grblsim://?speed=50&{SETTINGS}", timeout=0.02)
+        port = raw if fault is None else LineFault(raw, lines, "flip", fault, 0)
+        states: list[StreamState] = []
+        st = Streamer(port, on_state=states.append)
+        st.connect(quiet=0.02)
+        res = st.run(tiny)
+        assert states == expected and st.state is expected[-1]
+        assert isinstance(res.reason, StopReason)
+        assert res.reason is (StopReason.DONE if fault is None else StopReason.FEED)
+        raw.close()
