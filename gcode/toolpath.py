@@ -56,10 +56,6 @@ class PieceToolpath:
 
 # ---------------------------------------------------------------- ordering
 
-def _path_cost(order: np.ndarray, d: np.ndarray, d0: np.ndarray) -> float:
-    return float(d0[order[0]] + d[order[:-1], order[1:]].sum())
-
-
 def two_opt(order: np.ndarray, d: np.ndarray, d0: np.ndarray, max_rounds: int = 50) -> np.ndarray:
     """Improve an open path that starts at a fixed depot (distances ``d0``) by 2-opt moves.
 

@@ -83,11 +83,6 @@ class Placement:
         r = rotation_matrices(self.angles[piece])
         return np.einsum("nji,nj->ni", r, points - self.translations[piece])
 
-    def to_pattern(self, points: np.ndarray, piece: np.ndarray) -> np.ndarray:
-        """Wallpaper points (N, 2) seen on pieces ``piece`` (N,) -> pattern space."""
-        r = rotation_matrices(self.angles[piece])
-        return np.einsum("nij,nj->ni", r, points) + self.translations[piece]
-
     # ------------------------------------------------------------------ files
     def to_dict(self) -> dict[str, Any]:
         names = self.piece_names or [f"piece{i}" for i in range(self.n_pieces)]

@@ -160,12 +160,16 @@ def _build_group(name: str) -> GroupInfo:
 GROUPS: dict[str, GroupInfo] = {name: _build_group(name) for name in GROUP_NAMES}
 
 
-def gauss_reduce(w1: np.ndarray, w2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def gauss_reduce(w1: np.ndarray, w2: np.ndarray, *,
+                 obtuse: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lagrange-Gauss reduction of a 2D lattice basis.
 
     Returns ``(u1, u2, U)`` with ``[u1 u2] = [w1 w2] U``, ``U`` unimodular, ``|u1| <= |u2|``
     and ``|u1 . u2| <= |u1|^2 / 2``. With such a basis the lattice vector closest to any
     point lies among the 3x3 neighbours of its rounded fractional coordinates.
+    ``obtuse`` also makes ``u1 . u2 <= 0`` (angle 90-120 degrees; ``u2 - u1`` where it is as
+    short as ``u2``), so equal lattices give equal bases up to a common sign, as lattice
+    detection compares them.
     """
     b = np.column_stack([w1, w2]).astype(float)
     u = np.eye(2, dtype=np.int64)
@@ -178,7 +182,33 @@ def gauss_reduce(w1: np.ndarray, w2: np.ndarray) -> tuple[np.ndarray, np.ndarray
             break
         b[:, 1] -= mu * b[:, 0]
         u[:, 1] -= mu * u[:, 0]
+    if obtuse and b[:, 0] @ b[:, 1] > 0:
+        diff = b[:, 1] - b[:, 0]
+        if diff @ diff <= b[:, 1] @ b[:, 1] + 1e-9:
+            b[:, 1], u[:, 1] = diff, u[:, 1] - u[:, 0]
+        if b[:, 0] @ b[:, 1] > 0:
+            b[:, 1], u[:, 1] = -b[:, 1], -u[:, 1]
     return b[:, 0].copy(), b[:, 1].copy(), u
+
+
+def covering_radius(basis: np.ndarray) -> float:
+    """Largest distance from a point of the plane to its nearest lattice point (mm).
+
+    ``basis`` (2, 2) holds a lattice basis as columns. It is the circumradius of the acute
+    triangle of the reduced basis (half the diagonal of a square cell, a/sqrt(3) for a
+    hexagonal one).
+    """
+    b = np.asarray(basis, float)
+    r1, r2, _ = gauss_reduce(b[:, 0], b[:, 1])
+    if r1 @ r2 < 0:
+        r2 = -r2
+    area2 = abs(r1[0] * r2[1] - r1[1] * r2[0])
+    return float(np.linalg.norm(r1) * np.linalg.norm(r2) * np.linalg.norm(r1 - r2)
+                 / (2.0 * area2))
+
+
+_IDENTITY_LIN = np.eye(2)[None]
+_IDENTITY_SHIFT = np.zeros((1, 2))
 
 
 def _lattice_fault(lattice: str, w1: np.ndarray, w2: np.ndarray, tol: float) -> str | None:
@@ -265,6 +295,12 @@ class Wallpaper:
         self._reduced = np.column_stack([r1, r2])
         self._reduced_inv = np.linalg.inv(self._reduced)
         self._ops_cart = self._cartesian_ops()
+        self._lin = np.ascontiguousarray(self._ops_cart[:, :2, :2])
+        self._shift = np.ascontiguousarray(self._ops_cart[:, :2, 2])
+        # the same operations in the reduced basis' fractional coordinates (the kernel's)
+        self._flin = np.ascontiguousarray(
+            np.einsum("ij,njk,kl->nil", self._reduced_inv, self._lin, self._reduced))
+        self._fshift = np.ascontiguousarray(self._shift @ self._reduced_inv.T)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -367,55 +403,70 @@ class Wallpaper:
         ops = self._ops_cart
         return np.einsum("nij,pj->pni", ops[:, :2, :2], p) + ops[None, :, :2, 2]
 
-    def lattice_residual(self, d) -> np.ndarray:
-        """Shortest representative of each vector ``d`` (N, 2) modulo the lattice.
+    def closest(self, p, q) -> tuple[np.ndarray, np.ndarray]:
+        """The closest-equivalent-point query, for whole batches of pairs.
 
-        Exact: with a Gauss-reduced basis the closest lattice vector is among the 3x3
-        neighbours of the rounded fractional coordinates.
+        ``p, q`` (..., 2) broadcast together -> ``d`` (..., 2), the vector from each ``p``
+        to the closest point equivalent to its ``q`` (the image of q under any operation
+        and any lattice translation), and ``op`` (...,) the index into `cartesian_ops` of
+        that operation. Every user (E_fit, alignment, reshaping, nesting, vision) goes
+        through this one compiled kernel (:mod:`solver._closest`).
         """
-        d = np.asarray(d, float)
-        f = d @ self._reduced_inv.T
-        base = d - np.round(f) @ self._reduced.T
-        steps = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)], float)
-        cand = base[..., None, :] - steps @ self._reduced.T  # (..., 9, 2)
-        best = np.argmin(np.einsum("...ki,...ki->...k", cand, cand), axis=-1)
-        return np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
+        return self._run_kernel(p, q, self._flin, self._fshift)
+
+    @property
+    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(flin, fshift, reduced, reduced_inv)`` as the compiled kernel
+        (:func:`solver._closest.closest_pair`) takes them: the operations' linear parts
+        (n, 2, 2) and shifts (n, 2) in the fractional coordinates of the reduced basis, that
+        basis as columns (mm) and its inverse."""
+        return self._flin, self._fshift, self._reduced, self._reduced_inv
+
+    @property
+    def cartesian_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lin, shift)``: the operations' linear parts (n, 2, 2) and shifts (n, 2) in mm,
+        contiguous (`cartesian_ops` without the homogeneous row)."""
+        return self._lin, self._shift
+
+    def _run_kernel(self, p, q, lin: np.ndarray, shift: np.ndarray):
+        # numba costs ~0.35 s to import: loaded on the first query, not with the CLI
+        from solver._closest import closest_equivalent
+
+        p, q = np.broadcast_arrays(np.asarray(p, float), np.asarray(q, float))
+        shape = p.shape[:-1]
+        p2 = np.ascontiguousarray(p.reshape(-1, 2))
+        q2 = np.ascontiguousarray(q.reshape(-1, 2))
+        d = np.empty_like(p2)
+        op = np.empty(len(p2), np.int64)
+        closest_equivalent(p2, q2, lin, shift, self._reduced, self._reduced_inv, d, op)
+        return d.reshape(*shape, 2), op.reshape(shape)
+
+    def lattice_residual(self, d) -> np.ndarray:
+        """Shortest representative of each vector ``d`` (..., 2) modulo the lattice."""
+        return self._run_kernel(np.zeros(2), d, _IDENTITY_LIN, _IDENTITY_SHIFT)[0]
 
     @property
     def covering_radius(self) -> float:
         """Largest distance from any point to its nearest lattice point (mm), hence a
-        bound on every `mismatch`: the circumradius of the acute triangle of a reduced
-        basis (half the diagonal of a square cell, a/sqrt(3) for a hexagonal one)."""
-        r1, r2 = self._reduced[:, 0], self._reduced[:, 1]
-        if r1 @ r2 < 0:
-            r2 = -r2
-        area2 = abs(r1[0] * r2[1] - r1[1] * r2[0])
-        return float(np.linalg.norm(r1) * np.linalg.norm(r2) * np.linalg.norm(r1 - r2)
-                     / (2.0 * area2))
-
-    def _closest(self, p, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per pair: offsets (N, n, 2) to every operation's closest lattice image of q,
-        their lattice reductions (N, n, 2) and the best operation (N,)."""
-        p = np.asarray(p, float).reshape(-1, 2)
-        offset = self.equivalent_points(q) - p[:, None, :]  # (N, n, 2)
-        d = self.lattice_residual(offset)
-        return offset, d, np.argmin(np.einsum("pni,pni->pn", d, d), axis=1)
+        bound on every `mismatch` (see :func:`covering_radius`)."""
+        return covering_radius(self._reduced)
 
     def mismatch(self, p, q) -> np.ndarray:
         """(N, 2) vector from each ``p`` to the closest point equivalent to ``q``.
 
         Equivalent = the image of q under any operation and any lattice translation.
         """
-        _, d, best = self._closest(p, q)
-        return d[np.arange(len(best)), best]
+        return self.closest(np.reshape(p, (-1, 2)), np.reshape(q, (-1, 2)))[0]
 
     def closest_symmetry(self, p, q) -> tuple[np.ndarray, np.ndarray]:
         """The symmetry taking each ``q`` closest to its ``p``: operation index (N,)
         into `cartesian_ops` and whole lattice vector (N, 2) added after it, so that
         ``ops[k] q + lattice - p == mismatch(p, q)``."""
-        offset, d, best = self._closest(p, q)
-        rows = np.arange(len(best))
-        return best, d[rows, best] - offset[rows, best]
+        p, q = np.reshape(p, (-1, 2)), np.reshape(q, (-1, 2))
+        d, op = self.closest(p, q)
+        g = self._ops_cart[op]
+        image = np.einsum("nij,nj->ni", g[:, :2, :2], q) + g[:, :2, 2]
+        return op, d - (image - p)
 
     def mismatch_distance(self, p, q) -> np.ndarray:
         return np.hypot(*self.mismatch(p, q).T)

@@ -43,6 +43,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                       "GStreamer pipeline"),
         "calibration": Key(str, "", "calibration JSON (empty: the simulated camera's truth)"),
         "frames": Key(int, 4, "frames averaged per capture", minimum=1),
+        "confirm_below": Key(float, 0.9, "detected print confidence below which the job "
+                             "waits at 'confirm fabric' for `station confirm`", minimum=0.0),
+        "min_repeat_mm": Key(float, 3.0, "shortest repeat of a print; a finer one is the "
+                             "weave and the cloth is plain", minimum=0.0),
     },
     "machine": {
         "profile": Key(str, "", "machine profile TOML (empty: the built-in 1600 x 1000 laser)"),

@@ -25,6 +25,7 @@ full. tests/station/test_crash.py checks all of it against the emulator's motion
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import signal
@@ -40,6 +41,10 @@ from station.control import ControlError, ControlServer
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
 
 log = logging.getLogger("station.daemon")
+
+
+#: Reason of a job paused until the operator confirms the detected print.
+CONFIRM_FABRIC = "confirm fabric"
 
 
 class JobInterrupted(Exception):
@@ -314,6 +319,29 @@ class Daemon:
         self.store.transition(job.id, "submitted", "retried by the operator")
         self._wake.set()
         return {"job": job.id, "message": "queued again; pieces already cut stay cut"}
+
+    def cmd_confirm(self, req: dict[str, Any]) -> dict[str, Any]:
+        """Accept (or, with ``group``, correct) the print of a job waiting at "confirm
+        fabric"; the job goes on to planning with the confirmed FABRIC.json."""
+        if req.get("job") is None:
+            raise ControlError("confirm needs a job number")
+        job = self.store.job(int(req["job"]))
+        if job.state != "paused" or not job.reason.startswith(CONFIRM_FABRIC):
+            raise ControlError(f"job {job.id} is {job.state}, not waiting at "
+                               f"'{CONFIRM_FABRIC}'")
+        from vision.pipeline import confirm_fabric
+
+        path = self.work_dir / f"job-{job.id}" / "fabric.json"
+        try:
+            doc = confirm_fabric(json.loads(path.read_text()), req.get("group"))
+        except (OSError, ValueError) as exc:
+            raise ControlError(f"{path}: {exc}") from None
+        path.write_text(json.dumps(doc, indent=2))
+        self.store.set_plan(job.id, {"fabric": str(path)})
+        self.store.transition(job.id, "planning", f"fabric confirmed as {doc['group']}")
+        self._wake.set()
+        return {"job": job.id, "group": doc["group"],
+                "message": f"fabric confirmed as {doc['group']}; planning"}
 
     def cmd_plan(self, req: dict[str, Any]) -> dict[str, Any]:
         """The files a job's planning wrote (for `station preview`); read-only."""

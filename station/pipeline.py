@@ -38,7 +38,7 @@ from gcode.recovery import (
     with_markers,
 )
 from station.config import Config
-from station.daemon import JobControl, JobInterrupted
+from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
 
 log = logging.getLogger("station.pipeline")
@@ -107,16 +107,24 @@ class StationPipeline:
             fabric = {**truth.wallpaper.to_dict(),
                       "source": "simulator truth: vision unavailable"}
         else:
-            detection = detect_fabric(rectified, mm_per_px=mm_per_px)
+            detection = detect_fabric(rectified, mm_per_px=mm_per_px,
+                                      min_repeat_mm=self.config["camera"]["min_repeat_mm"])
             cv2.imwrite(str(workdir / "detection.png"), draw_overlay(rectified, detection))
             fabric = {**detection.fabric_json(), "source": "detected"}
             camera["detection"] = detection.summary()
-            if fabric["group"] is None:
+            if fabric["group"] is None and fabric.get("kind") != "plain":
                 raise ValueError("no periodic print found on the table "
                                  f"({detection.lattice.message or detection.lattice.kind}): "
                                  "give the job a FABRIC.json")
         (workdir / "camera.json").write_text(json.dumps(camera, indent=2, default=float))
         target.write_text(json.dumps(fabric, indent=2, default=float))
+        below = float(self.config["camera"]["confirm_below"])
+        if (fabric.get("source") == "detected" and fabric["group"] is not None
+                and fabric["confidence"] < below):
+            raise JobInterrupted("paused", f"{CONFIRM_FABRIC}: {fabric['group']} at "
+                                 f"confidence {fabric['confidence']:.2f} (below {below:g}); "
+                                 f"see detection.png, then `station confirm {job.id} "
+                                 "[--group G]`")
         return str(target)
 
     def _photograph(self):
@@ -171,6 +179,8 @@ class StationPipeline:
         from solver.wallpaper import Wallpaper
         from station.render import draw_fit, draw_marker, draw_toolpath, garment_credit
 
+        if json.loads(Path(fabric).read_text()).get("kind") == "plain":
+            return self.plan_plain(job, fabric, workdir, control)
         garment = load_garment(job.garment, units=job.options.get("units"))
         wallpaper = Wallpaper.load(fabric)
         # The job's own copy of the pattern, in mm: later steps need no units.
@@ -277,6 +287,56 @@ class StationPipeline:
                     photo=photo, photo_mm_per_px=mm_per_px, credit=credit)
         lap("program")
         self._write_report(workdir, report)
+        return {"fabric": fabric, "garment": str(garment_path),
+                "placement": str(workdir / "placement.json"),
+                "layout": str(workdir / "layout.json"), "program": str(workdir / "job.nc"),
+                "report": str(workdir / "report.json"),
+                "pieces": [p.id for p in layout.pieces]}
+
+    def plan_plain(self, job: Job, fabric: str, workdir: Path, control: JobControl
+                   ) -> dict[str, Any]:
+        """Plain cloth (the camera found only the weave): nothing to align, so the pieces
+        are nested freely as drawn, then programmed; same files as :meth:`plan`."""
+        from solver.garment import load_garment, save_obj
+        from solver.placement import Placement
+        from solver.wallpaper import Wallpaper
+        from station.render import draw_marker, draw_toolpath, garment_credit
+
+        garment = load_garment(job.garment, units=job.options.get("units"))
+        garment_path = workdir / "garment.obj"
+        save_obj(garment, garment_path)
+        keep_licence_note(Path(job.garment), workdir)
+        # Each piece turned so that its grain runs along the cloth's (the roll, unless the
+        # station says otherwise); the placement's print is a stand-in that nest_placement
+        # drops (plain nesting). The grain rule goes with it, so nesting keeps the grain.
+        garment = grained(garment, self.config, job.options)
+        a = self.config["align"]
+        grain_deg = np.array([g.deg for g in garment.grains()])
+        placement = Placement(np.radians(grain_deg - a["fabric_grain_deg"]),
+                              np.zeros((garment.n_pieces, 2)), Wallpaper("p1", (1, 0), (0, 1)),
+                              piece_names=list(garment.piece_names),
+                              grains=[g.to_dict() for g in garment.grains()],
+                              grain_rule={"tolerance_deg": a["grain_tolerance_deg"]
+                                          if a["grain_tolerance_deg"] >= 0 else None,
+                                          "nap": a["nap"],
+                                          "fabric_grain_deg": a["fabric_grain_deg"]})
+        placement.garment = str(garment_path)
+        placement.save(workdir / "placement.json")
+        start_step(control, "nesting", 0.0)
+        layout = nest_placement(workdir / "placement.json", self.config, plain=True)
+        layout.save(workdir / "layout.json")
+        control.checkpoint()
+        start_step(control, "programming")
+        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
+        program.write(workdir / "job.nc")
+        credit = garment_credit(garment_path)
+        draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
+        draw_marker(layout.to_dict(), workdir / "marker.png", credit=credit)
+        self._write_report(workdir, {
+            "job": job.id, "garment": job.garment, "fabric": {"kind": "plain"},
+            "nest": {"length_mm": layout.length, "width_mm": layout.width,
+                     "density": layout.density, "pieces": len(layout.pieces)},
+            "program": program.summary()})
         return {"fabric": fabric, "garment": str(garment_path),
                 "placement": str(workdir / "placement.json"),
                 "layout": str(workdir / "layout.json"), "program": str(workdir / "job.nc"),
@@ -606,8 +666,10 @@ def grained(garment, config: Config, options: dict[str, Any]):
                               up=None if up == "auto" else up)
 
 
-def nest_placement(placement_path: Path, config: Config, progress=None):
-    """Nest the aligned pieces on the fabric in view, each kept on its print position."""
+def nest_placement(placement_path: Path, config: Config, progress=None, *,
+                   plain: bool = False):
+    """Nest the aligned pieces on the fabric in view, each kept on its print position
+    (``plain``: on plain cloth, free of any print)."""
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import load_problem
@@ -615,6 +677,8 @@ def nest_placement(placement_path: Path, config: Config, progress=None):
     n = config["nest"]
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
                            gap=n["gap_mm"])
+    if plain:
+        problem.fabric = None
     layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:

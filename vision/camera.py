@@ -166,18 +166,16 @@ class SimulatedCamera(Camera):
 def open_camera(source: int | str | None = None, *, simulate: bool = False,
                 sim_factory: Callable[[], Any] | None = None, **kw: Any) -> Camera:
     """The station's camera: ``VideoCaptureCamera(source)`` or, with ``simulate``, the
-    synthetic camera built by ``sim_factory`` (default: a random print straight below).
+    synthetic camera built by ``sim_factory`` (the caller's: vision never imports the
+    simulators).
 
     A ``source`` string of digits is a device index (as typed on a command line).
     """
     average = int(kw.pop("average", 1))
     if simulate:
         if sim_factory is None:
-            from simulators.camera import Sheet, SyntheticCamera
-            from simulators.fabric import random_print
-
-            def sim_factory() -> Any:
-                return SyntheticCamera(Sheet(random_print("p4m", 40.0, seed=1)), **kw)
+            raise ValueError("a simulated camera needs sim_factory (e.g. "
+                             "station.pipeline.simulated_camera)")
         return SimulatedCamera(sim_factory(), average=average)
     if source is None:
         raise ValueError("no camera source given (device index, video file or GStreamer "

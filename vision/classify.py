@@ -20,6 +20,14 @@ Method (own code, after the cited work):
    every other isometry of the lattice (rotations, mirrors, glides) low. Scores are
    divided by the motif's split-half reliability, so the thresholds do not move with
    noise or the number of repeats. ``confidence`` is the posterior of the winner.
+5. Real cloth: the whitening rolls off above ``BAND`` harmonics per repeat (yarn and
+   twill lines do not share the print's symmetry), and the isometries tested are those
+   of the lattice *up to a stretch or shear of ~16 %* (``HOLOHEDRY_TOL``): the motif is
+   sampled in lattice coordinates, so a square check pulled rectangular still maps onto
+   itself under the integer quarter turn. Each group's answer must snap to its lattice
+   (``Wallpaper.snapped``), and a prior on the strain it needs (``STRAIN_SIGMA``) asks
+   more evidence of more distortion. The answer is the group the print was designed
+   with; the strain is reported.
 
 References
 ----------
@@ -45,6 +53,7 @@ from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
 from vision.lattice import LatticeResult, prepare_image
+from vision.subgroups import is_subgroup
 
 __all__ = ["Classification", "classify", "mean_cell", "symmetry_elements"]
 
@@ -61,18 +70,91 @@ KAPPA = 0.05
 #: symmetry shows, so it is weighted up (isotropically, which keeps every symmetry).
 WHITEN = 1.0
 
+#: Harmonics per repeat length at which the whitening rolls off (Gaussian). Finer detail
+#: is thread-scale texture (twill lines, yarn, knit loops, the camera's resampling) that
+#: real cloth does not carry with the print's symmetry; chosen across sources (synthetic
+#: renders, textile classics, photographs of four origins), see ``bench/vision.py``.
+BAND = 12.0
 
-def _whiten(motif: np.ndarray, basis: np.ndarray, alpha: float) -> np.ndarray:
-    n = motif.shape[0]
+#: Temperature of the posterior over groups (log-likelihoods divided by it), as fitted
+#: across sources by ``bench.vision.fit_temperature`` (BENCHMARKS.md).
+TEMPERATURE = 1.0
+
+
+#: Relative metric tolerance of the lattice isometries tested: wide enough for a square
+#: or hexagonal print on fabric stretched or sheared by up to about 16 % (each group's
+#: answer must still snap to its lattice, see :meth:`Wallpaper.snapped`).
+HOLOHEDRY_TOL = 0.45
+
+#: Width of the prior on the strain a group needs to explain the measured lattice: a
+#: higher symmetry on a distorted lattice needs correspondingly stronger evidence.
+STRAIN_SIGMA = 0.1
+
+
+def _symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
+    """The lattice metric averaged over the tested isometries: the metric of the
+    undistorted print, under which every tested isometry is exact."""
+    g = basis.T @ basis
+    return sum((a.T @ g @ a for a in holo), g) / (len(holo) + 1)
+
+
+def _whiten(motif: np.ndarray, metric: np.ndarray, alpha: float,
+            band: float = float("inf")) -> np.ndarray:
+    """The cell(s) (..., n, n) with |frequency|^alpha weighting, rolled off at ``band``."""
+    out = np.fft.ifft2(np.fft.fft2(motif) * _whitening(motif.shape[-1], metric, alpha,
+                                                       band)).real
+    return out - out.mean(axis=(-2, -1), keepdims=True)
+
+
+def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndarray:
     k = np.fft.fftfreq(n) * n
     ka, kb = np.meshgrid(k, k, indexing="ij")
-    # Cartesian frequency of harmonic (ka, kb) of the cell: B^-T k (isometries keep it).
-    binv_t = np.linalg.inv(basis).T
-    fx = binv_t[0, 0] * ka + binv_t[0, 1] * kb
-    fy = binv_t[1, 0] * ka + binv_t[1, 1] * kb
-    f = np.hypot(fx, fy)
-    out = np.fft.ifft2(np.fft.fft2(motif) * f**alpha).real
-    return out - out.mean()
+    # Cartesian |frequency| of harmonic (ka, kb) of the cell: k^T G^-1 k (isometries of
+    # the metric G keep it, so the weighting keeps every symmetry).
+    gi = np.linalg.inv(metric)
+    f = np.sqrt(np.maximum(gi[0, 0] * ka**2 + 2 * gi[0, 1] * ka * kb + gi[1, 1] * kb**2,
+                           0.0))
+    # f in cycles per repeat length (sqrt of the cell area): the fine end is thread-scale
+    # texture (twill lines, yarn) that need not share the print's symmetry.
+    f = f * math.sqrt(math.sqrt(max(np.linalg.det(metric), 1e-12)))
+    return f**alpha * np.exp(-0.5 * (f / band) ** 2)
+
+
+#: An operation the mean cell shows must also hold on the single repeats, at least this
+#: well relative to how well one repeat matches the next; else it is an artefact of
+#: averaging (blur from misregistered, distorted repeats makes any cell symmetric).
+REPEAT_SUPPORT = 0.5
+
+#: Confidence ceiling of an answer drawn from fewer than three whole repeats.
+FEW_REPEATS_CONFIDENCE = 0.5
+
+
+def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
+                   ) -> np.ndarray:
+    """Per operation (A, s): the median over repeats of corr(c_r, c_r(A f + s)) divided
+    by the median of corr(c_r, c_r+1) (whole-cell correlations of single repeats, so
+    noise lowers both alike). About 1 for a symmetry of the print, near 0 otherwise."""
+    n = cells.shape[-1]
+    norm = np.sqrt((cells**2).sum(axis=(1, 2)))
+    nxt = np.roll(cells, -1, axis=0)
+    pair = (cells * nxt).sum(axis=(1, 2)) / np.maximum(norm * np.roll(norm, -1), 1e-12)
+    base = max(float(np.median(pair)), 1e-3)
+    g = np.arange(n)
+    fa, fb = np.meshgrid(g, g, indexing="ij")
+    out = np.empty(len(ops))
+    for k, (a, sh) in enumerate(ops):
+        ia = (a[0, 0] * fa + a[0, 1] * fb + sh[0]) % n
+        ib = (a[1, 0] * fa + a[1, 1] * fb + sh[1]) % n
+        sym = (cells * cells[:, ia, ib]).sum(axis=(1, 2)) / np.maximum(norm**2, 1e-12)
+        out[k] = float(np.median(sym)) / base
+    return out
+
+
+def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
+    """Largest principal strain of the affine map taking ``ideal`` (2,2) onto
+    ``measured`` (columns w1, w2): 0.1 is a 10 % stretch."""
+    f = measured @ np.linalg.inv(ideal)
+    return float(np.abs(np.linalg.svd(f, compute_uv=False) - 1.0).max())
 
 
 @dataclass
@@ -88,6 +170,18 @@ class Classification:
     n_repeats: int = 0
     motif: np.ndarray | None = None
     message: str = ""
+    temperature: float = 1.0
+    strain: float = 0.0  # stretch/shear of the measured lattice against the group's
+
+    @property
+    def posterior(self) -> dict[str, float]:
+        """Calibrated probability of each group that fits the lattice (sums to 1)."""
+        if not self.scores:
+            return {}
+        names = list(self.scores)
+        ll = np.array([self.scores[k] for k in names]) / self.temperature
+        p = np.exp(ll - ll.max())
+        return dict(zip(names, (p / p.sum()).tolist(), strict=True))
 
     def to_dict(self) -> dict:
         out = {"group": self.group, "confidence": round(float(self.confidence), 4),
@@ -136,8 +230,8 @@ def _cell_maps(anchor: np.ndarray, basis: np.ndarray, n: int, shape: tuple[int, 
 def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int = CELL_N,
               max_repeats: int = 400, register: bool = True):
     """Mean unit cell (n, n) over the repeats, the means of its two halves (even and odd
-    repeats), the number of repeats, their (i, j) indices and their registration shifts
-    (R, 2) in cell units.
+    repeats), the number of repeats, their (i, j) indices, their registration shifts
+    (R, 2) in cell units and the registered cells themselves (R, n, n).
 
     Registration: each repeat's cell is circularly cross-correlated with the mean of
     the others (all FFTs at once), shifted by the peak (Fourier shift theorem, exact for
@@ -194,14 +288,19 @@ def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int
     cells = sfft.ifft2(spec, workers=-1).real.astype(np.float64)
     motif = cells.mean(axis=0)
     halves = (cells[0::2].mean(0), cells[1::2].mean(0) if r >= 2 else cells[0])
-    return motif, halves, r, ij, shifts
+    return motif, halves, r, ij, shifts, cells
 
 
 def split_half_reliability(a: np.ndarray, b: np.ndarray) -> float:
     """Reliability of the mean of two half-means: their correlation, stepped up by the
     Spearman-Brown formula. A symmetric print's operations cannot score above it."""
     a, b = a.ravel(), b.ravel()
-    if a.std() <= 0 or b.std() <= 0 or np.array_equal(a, b):
+    if np.array_equal(a, b):
+        # One repeat only: no second copy to measure the noise by. Taking the cell as
+        # exact lets only operations that hold on it closely count (the safe side: a
+        # single smooth cell looks nearly symmetric under many operations).
+        return 1.0
+    if a.std() <= 0 or b.std() <= 0:
         return 0.5
     rho = max(float(np.corrcoef(a, b)[0, 1]), 1e-3)
     return 2 * rho / (1 + rho)
@@ -308,7 +407,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              max_repeats: int = 400, tau: float = TAU, kappa: float = KAPPA,
              work_side: int = 1024, flat: np.ndarray | None = None,
              scale: float | None = None, whiten: float = WHITEN,
-             prefilter: float = 1.0) -> Classification:
+             prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
+             strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
+             temperature: float = TEMPERATURE) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -322,6 +423,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     tau, kappa : float
         Score (relative to the motif's reliability) at which an operation is as likely
         present as absent, and the width of that transition.
+    holohedry_tol, strain_sigma : float
+        How far the measured lattice may be from each group's lattice (the print may
+        be stretched or sheared by the cloth or the camera) and the prior width of
+        that strain: the answer is the group the print was designed with.
+    band : float
+        Harmonics per repeat where the whitened motif rolls off (thread-scale texture
+        above it does not share the print's symmetry).
 
     Returns
     -------
@@ -349,19 +457,22 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     if spacing > 1.0:
         flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
     try:
-        motif, halves, nrep, _, _ = mean_cell(flat, basis, anchor, n=cell_n,
-                                              max_repeats=max_repeats)
+        motif, halves, nrep, _, _, cells = mean_cell(flat, basis, anchor, n=cell_n,
+                                                     max_repeats=max_repeats)
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
+    holo = holohedry(basis, tol=holohedry_tol)
     if whiten:
-        motif = _whiten(motif, basis, whiten)
-        halves = tuple(_whiten(hv, basis, whiten) for hv in halves)
+        metric = _symmetric_metric(basis, holo)
+        motif = _whiten(motif, metric, whiten, band)
+        halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
+        cells = _whiten(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten,
+                        band)
     rel = split_half_reliability(*halves)
     if motif.std() < 1e-6:
         return Classification(None, None, 0.0, message="the mean cell is flat")
     n = cell_n
-    holo = holohedry(basis)
     corr = {_key(a): _corr_all_shifts(motif, a) for a in holo}
     ceiling = max(rel, 0.3)
 
@@ -407,13 +518,21 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             if sig in seen:
                 continue
             seen.add(sig)
+            conv = basis @ u  # the group's conventional basis, working px
+            try:
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1]).basis
+            except ValueError:
+                continue  # too distorted for this group's lattice
+            prior = -0.5 * (lattice_strain(conv, ideal) / strain_sigma) ** 2
             total = np.zeros((n, n))
             present = set()
+            shifts = []
             for a, b in ops:
                 ia = (b[0] + (1 - a[0, 0]) * oa - a[0, 1] * ob) % n
                 ib = (b[1] - a[1, 0] * oa + (1 - a[1, 1]) * ob) % n
                 x = corr[_key(a)][ia, ib] / ceiling
                 total += _log_sig((x - tau) / kappa)
+                shifts.append((ia, ib))
                 if round(np.linalg.det(a)) == 1:
                     present.add((_key(a), "rot"))
                 else:
@@ -423,19 +542,21 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             ka, kb = divmod(k, n)
             absent = sum(float(_log_sig((tau - v) / kappa)) for key, v in forb.items()
                          if key not in present)
-            score = float(total[ka, kb]) + absent
+            score = float(total[ka, kb]) + absent + prior
             o = _refine_origin(total, ka, kb) / n
             if name not in best or score > best[name][0]:
-                best[name] = (score, u, o)
+                at = [(a, np.array([ia[ka, kb], ib[ka, kb]]))
+                      for (a, _), (ia, ib) in zip(ops, shifts, strict=True)]
+                best[name] = (score, u, o, at)
 
     if not best:
         return Classification(None, None, 0.0, message="no group fits the lattice")
     names = list(best)
     ll = np.array([best[k][0] for k in names])
-    post = np.exp(ll - ll.max())
+    post = np.exp((ll - ll.max()) / temperature)
     post /= post.sum()
-    win = names[int(np.argmax(ll))]
-    _, u, o = best[win]
+    win = _supported_winner(names, ll, best, cells)
+    _, u, o, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ u
     origin_w = anchor + basis @ o
@@ -443,12 +564,37 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     w1 = new_basis_px[:, 0] / scale * mm
     w2 = new_basis_px[:, 1] / scale * mm
     wp = Wallpaper.snapped(win, w1, w2, origin_in * mm, motif=motif)
+    strain = lattice_strain(np.column_stack([w1, w2]), wp.basis)
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
-    return Classification(wp, win, float(post.max()),
+    confidence = float(post[names.index(win)])
+    if nrep < 3:
+        # Too few repeats for the per-repeat check: never sure enough to skip the operator.
+        confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
+    return Classification(wp, win, confidence,
                           scores={k: float(v) for k, v in zip(names, ll, strict=True)},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
-                          motif=motif)
+                          motif=motif, temperature=temperature,
+                          strain=strain)
+
+
+def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray
+                      ) -> str:
+    """The likeliest group whose operations the single repeats support: when the mean
+    cell's winner has an operation the repeats do not show (:func:`repeat_support`),
+    the answer falls back to its likeliest subgroup that holds on them (the safe side).
+    Needs three repeats; with fewer the mean cell decides alone."""
+    order = [names[k] for k in np.argsort(-ll)]
+    if len(cells) < 3:
+        return order[0]
+    top = order[0]
+    for name in order:
+        if not is_subgroup(name, top):
+            continue
+        ops = best[name][3]
+        if not ops or repeat_support(cells, ops).min() >= REPEAT_SUPPORT:
+            return name
+    return order[0]
 
 
 def _refine_origin(total: np.ndarray, ka: int, kb: int) -> np.ndarray:

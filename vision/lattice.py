@@ -10,7 +10,10 @@ the position error of any single peak.
 
 Stripes (1-D repeats, a frieze across the cloth) show as a ridge of high autocorrelation
 along the stripes; they are reported with their period and direction, never as a
-2-D lattice. Plain cloth and noise have no off-origin peaks and are reported as such.
+2-D lattice. Plain cloth has no off-origin peaks, or only weak ones (shading bands), or
+repeats finer than the smallest print repeat (``min_repeat_mm``: the weave, the yarn, a
+rib knit's wales), or a coarser "lattice" that holds less well than the weave's own
+repeat (a moire of the yarn with the pixels); it is reported as ``"plain"``.
 
 References
 ----------
@@ -35,7 +38,9 @@ from scipy import fft as sfft
 from scipy import ndimage
 from skimage.feature import peak_local_max
 
-__all__ = ["LatticeResult", "detect_lattice", "gauss_reduce", "prepare_image"]
+from solver.wallpaper import gauss_reduce
+
+__all__ = ["LatticeResult", "detect_lattice", "prepare_image"]
 
 #: Largest side of the working image: the lattice is fitted on many peaks, so a
 #: moderate resolution keeps sub-pixel precision while the FFT stays fast.
@@ -47,8 +52,9 @@ class LatticeResult:
     """Outcome of :func:`detect_lattice`.
 
     ``kind`` is ``"lattice"`` (w1, w2 set), ``"stripes"`` (period and direction set) or
-    ``"none"`` (no periodic print). Vectors are in millimetres of the input image frame
-    (x right, y down, scaled by ``mm_per_px``); ``*_px`` give the same in input pixels.
+    ``"plain"`` (no print: plain cloth, whose only repeat is the weave). Vectors are in
+    millimetres of the input image frame (x right, y down, scaled by ``mm_per_px``);
+    ``*_px`` give the same in input pixels.
     Unavailable numbers are NaN so callers never branch on the shape of the answer.
     """
 
@@ -87,29 +93,6 @@ class LatticeResult:
         if self.kind == "stripes":
             out.update(period=self.period, direction_deg=self.direction_deg)
         return out
-
-
-def gauss_reduce(b1: np.ndarray, b2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lagrange/Gauss reduction: the two shortest vectors spanning the same lattice.
-
-    Returned with ``|w1| <= |w2|`` and ``w1 . w2 <= 0`` (angle 90..120 degrees), so
-    equal lattices give equal bases up to a common sign.
-    """
-    u = np.asarray(b1, float).copy()
-    v = np.asarray(b2, float).copy()
-    if u @ u > v @ v:
-        u, v = v, u
-    for _ in range(64):
-        m = np.round((u @ v) / (u @ u))
-        v = v - m * u
-        if v @ v >= u @ u - 1e-12:
-            break
-        u, v = v, u
-    if u @ v > 0:
-        v = v - u if (v - u) @ (v - u) <= v @ v + 1e-9 else -v
-        if u @ v > 0:
-            v = -v
-    return u, v
 
 
 def _gray(image: np.ndarray) -> np.ndarray:
@@ -304,7 +287,8 @@ def detect_lattice(
     *,
     mm_per_px: float = 1.0,
     min_period_px: float = 6.0,
-    min_strength: float = 0.2,
+    min_strength: float = 0.35,
+    min_repeat_mm: float = 3.0,
     stripe_threshold: float = 0.45,
     max_ripple: float = 0.04,
     work_side: int = WORK_SIDE,
@@ -321,7 +305,11 @@ def detect_lattice(
     min_period_px : float
         Shortest repeat considered, in working-image pixels (finer texture is weave).
     min_strength : float
-        Normalised autocorrelation a repeat must reach to count as a print.
+        Normalised autocorrelation a repeat must reach to count as a print (plain
+        cloth's shading bands and yarn irregularity reach about 0.25, prints 0.6-1).
+    min_repeat_mm : float
+        Shortest repeat of a print in mm; a finer lattice or stripe is the weave, and
+        the cloth is reported as plain.
     stripe_threshold : float
         Autocorrelation kept along one direction at all lags above which the print is
         1-D stripes, provided it does not dip periodically by more than ``max_ripple``.
@@ -332,7 +320,7 @@ def detect_lattice(
     -------
     LatticeResult
         ``kind`` "lattice" with reduced w1, w2 (|w1| <= |w2|, 90..120 degrees apart) and
-        their standard errors, "stripes" with period (mm) and direction, or "none".
+        their standard errors, "stripes" with period (mm) and direction, or "plain".
     """
     if mm_per_px <= 0 or not np.isfinite(mm_per_px):
         raise ValueError(f"mm_per_px must be a positive number, got {mm_per_px}")
@@ -349,15 +337,20 @@ def detect_lattice(
                             num_peaks=400)
     d = _subpixel(acf, coords) - center if len(coords) else np.zeros((0, 2))
     vals = acf[coords[:, 0], coords[:, 1]] if len(coords) else np.zeros(0)
-    keep = np.hypot(d[:, 0], d[:, 1]) >= min_period_px
+    lag = np.hypot(d[:, 0], d[:, 1])
+    # The weave's own repeat: the strongest peak at a lag finer than any print.
+    weave = (lag >= 2.0) & (lag < min_repeat_mm / px_mm)
+    weave_peak = float(vals[weave].max()) if weave.any() else 0.0
+    keep = lag >= min_period_px
     keep &= (d[:, 0] > 1e-9) | ((np.abs(d[:, 0]) <= 1e-9) & (d[:, 1] > 0))
     d, vals = d[keep], vals[keep]
 
     ridge_dir, ridge_score, ripple = _ridge_test(acf, min_period_px)
     if ridge_score >= stripe_threshold and ripple < max_ripple:
-        return _stripes(acf, center, ridge_dir, px_mm, ridge_score, min_period_px, mm_per_px)
+        return _weave_check(_stripes(acf, center, ridge_dir, px_mm, ridge_score,
+                                     min_period_px, mm_per_px), min_repeat_mm)
     if len(vals) < 2 or vals.max() < min_strength:
-        return LatticeResult("none", mm_per_px=mm_per_px,
+        return LatticeResult("plain", mm_per_px=mm_per_px,
                              strength=float(vals.max()) if len(vals) else 0.0,
                              message="no periodic print: no repeat in the autocorrelation")
 
@@ -370,18 +363,35 @@ def detect_lattice(
         inner = np.ones(len(d), bool)
     basis, support = _choose_basis(acf, core, d[inner], vals[inner], min_strength)
     if basis is None:
-        return LatticeResult("none", mm_per_px=mm_per_px, strength=float(vals.max()),
+        return LatticeResult("plain", mm_per_px=mm_per_px, strength=float(vals.max()),
                              message="no 2-D lattice explains the autocorrelation peaks")
     basis, sig, n_used = _refine(acf, valid, basis)
-    b1, b2 = gauss_reduce(basis[:, 0], basis[:, 1])
+    b1, b2, _ = gauss_reduce(basis[:, 0], basis[:, 1], obtuse=True)
+    if weave_peak > support:
+        # Cloth whose yarn repeats more strongly than the coarser lattice does over its
+        # points: that "lattice" is a beat of the weave with the pixels (moire).
+        return LatticeResult("plain", mm_per_px=mm_per_px, strength=weave_peak,
+                             message=f"plain cloth: the weave (autocorrelation "
+                                     f"{weave_peak:.2f}) repeats more strongly than any "
+                                     f"print ({support:.2f})")
     # Map the (row, col) working-pixel vectors into (x, y) mm of the input image.
     w1 = b1[::-1] * px_mm
     w2 = b2[::-1] * px_mm
     # Uncertainty: the fit's standard errors follow the vectors through the reduction.
     s = float(np.hypot(*sig)) * px_mm
-    return LatticeResult("lattice", w1=w1, w2=w2, sigma_w1=np.full(2, s),
-                         sigma_w2=np.full(2, s), mm_per_px=mm_per_px, strength=support,
-                         n_peaks=n_used)
+    return _weave_check(LatticeResult("lattice", w1=w1, w2=w2, sigma_w1=np.full(2, s),
+                                      sigma_w2=np.full(2, s), mm_per_px=mm_per_px,
+                                      strength=support, n_peaks=n_used), min_repeat_mm)
+
+
+def _weave_check(res: LatticeResult, min_repeat_mm: float) -> LatticeResult:
+    """Plain cloth when the repeat found is finer than any print: the weave or yarn."""
+    repeat = res.period if res.kind == "stripes" else float(np.hypot(*res.w1))
+    if res.kind not in ("lattice", "stripes") or not repeat < min_repeat_mm:
+        return res
+    return LatticeResult("plain", mm_per_px=res.mm_per_px, strength=res.strength,
+                         message=f"plain cloth: its repeat of {repeat:.3g} mm is the weave "
+                                 f"(finer than the {min_repeat_mm:g} mm a print needs)")
 
 
 def _support(smooth, center, basis, radius):
@@ -425,7 +435,7 @@ def _choose_basis(acf, valid, d, vals, min_strength, accept: float = 0.95):
             cross = abs(u[0] * v[1] - u[1] * v[0])
             if cross < 0.2 * np.hypot(*u) * np.hypot(*v):
                 continue
-            r1, r2 = gauss_reduce(u, v)
+            r1, r2, _ = gauss_reduce(u, v, obtuse=True)
             if r1[0] < 0 or (r1[0] == 0 and r1[1] < 0):
                 r1, r2 = -r1, -r2
             key = tuple(np.round(np.concatenate([r1, r2]) / 1.5).astype(int))
@@ -551,8 +561,8 @@ def _stripes(acf, center, ridge_dir, px_mm, score, min_period_px, mm_per_px) -> 
     pk = np.flatnonzero((prof[1:-1] > prof[:-2]) & (prof[1:-1] >= prof[2:])) + 1
     pk = pk[pk >= start]
     if len(pk) == 0:
-        return LatticeResult("none", strength=score, mm_per_px=mm_per_px,
-                             message="1-D stripes without a measurable period")
+        return LatticeResult("plain", strength=score, mm_per_px=mm_per_px,
+                             message="1-D texture without a measurable period")
     # Use the best-aligned multiple of the first strong peak for precision.
     first = pk[np.argmax(prof[pk] > 0.5 * prof[pk].max())]
     p1 = t[first]

@@ -18,7 +18,11 @@ from vision.classify import Classification, classify, symmetry_elements
 from vision.distortion import Distortion, measure_distortion
 from vision.lattice import LatticeResult, detect_lattice, prepare_image
 
-__all__ = ["FabricDetection", "detect_fabric", "draw_overlay"]
+__all__ = ["CONFIRM_BELOW", "FabricDetection", "confirm_fabric", "detect_fabric",
+           "draw_overlay"]
+
+#: Below this confidence a detected group goes to the operator ("confirm fabric").
+CONFIRM_BELOW = 0.9
 
 _IDEAL_ANGLE = {"rectangular": 90.0, "square": 90.0, "hexagonal": 120.0}
 
@@ -47,6 +51,7 @@ class FabricDetection:
         out: dict = {"group": None, "units": "mm"}
         if wp is not None:
             out.update(wp.to_dict())
+            out["kind"] = "lattice"
         else:
             out["kind"] = self.lattice.kind
             out["message"] = self.lattice.message
@@ -54,7 +59,12 @@ class FabricDetection:
                 out["period"] = self.lattice.period
                 out["direction_deg"] = self.lattice.direction_deg
         out["confidence"] = round(float(self.classification.confidence), 4)
+        out["group_confidence"] = {k: round(v, 4) for k, v in
+                                   self.classification.posterior.items() if v >= 1e-4}
         out["distortion"] = self.distortion.to_dict()
+        # The measured lattice's departure from the group's (snapped) one: a square
+        # check stretched 5 % by the cloth or the camera reads 0.05.
+        out["distortion"]["lattice_strain"] = round(float(self.classification.strain), 4)
         if self.lattice.found:
             out["lattice_sigma_mm"] = float(self.lattice.sigma_w1[0])
         return out
@@ -87,11 +97,16 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
 
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
-                  distortion: bool = True) -> FabricDetection:
-    """Lattice, group with origin, and distortion of the print in ``image``."""
+                  distortion: bool = True, min_repeat_mm: float = 3.0,
+                  stretch_tol: float = 0.03) -> FabricDetection:
+    """Lattice, group with origin, and distortion of the print in ``image``; a repeat
+    finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
+    stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
+    tolerances are named in ``distortion.warning``."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
-    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale))
+    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
+                         min_repeat_mm=min_repeat_mm)
     cls = classify(image, lat, flat=flat, scale=scale)
     dist = Distortion()
     if distortion and lat.found and cls.group is not None:
@@ -99,8 +114,35 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                                   bow_tol_mm=bow_tol_mm,
                                   ideal_angle=_ideal_angle(cls.group, lat),
                                   prepared=(flat, scale))
+        if cls.strain > stretch_tol:
+            # The print was designed on the group's lattice; the cloth (or the camera)
+            # stretches it: pieces cut now come out of the print by this much.
+            fault = (f"stretched {100 * cls.strain:.1f} % off the {cls.group} lattice "
+                     f"(tolerance {100 * stretch_tol:g} %)")
+            dist.warning = (f"{dist.warning}; {fault}" if dist.warning
+                            else f"fabric lies distorted: {fault} (straighten the cloth)")
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0)
+
+
+def confirm_fabric(doc: dict, group: str | None = None) -> dict:
+    """FABRIC.json ``doc`` as the operator confirmed it: the detected group accepted, or
+    replaced by ``group`` on the same measured lattice and origin (snapped to the new
+    group's lattice; raises ValueError when that lattice cannot carry it)."""
+    if doc.get("group") is None:
+        raise ValueError(f"no lattice was detected ({doc.get('kind', 'no print')}): "
+                         "there is no group to confirm; give the job a FABRIC.json")
+    out = dict(doc)
+    if group is not None and group != doc["group"]:
+        if group not in GROUPS:
+            raise ValueError(f"unknown wallpaper group {group!r}; expected one of "
+                             f"{', '.join(GROUPS)}")
+        wp = Wallpaper.snapped(group, doc["w1"], doc["w2"], doc.get("origin", (0.0, 0.0)))
+        out.update(wp.to_dict())
+        out["detected_group"] = doc["group"]
+    out["confirmed"] = True
+    out["confidence"] = 1.0
+    return out
 
 
 def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
@@ -152,7 +194,9 @@ def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
         for v in (a, b):
             cv2.arrowedLine(out, px(c), px(c + v), (0, 220, 255), 2, cv2.LINE_AA,
                             tipLength=0.15)
-    label = f"{wp.group} ({det.classification.confidence:.2f})"
+    # The runners-up, so the operator confirming the print sees what else it may be.
+    post = sorted(det.classification.posterior.items(), key=lambda kv: -kv[1])
+    label = ", ".join(f"{g} {p:.2f}" for g, p in post[:3] if p >= 0.01)
     if d.warning:
         label += " - " + d.warning
     cv2.putText(out, label, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)

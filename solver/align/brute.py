@@ -4,21 +4,23 @@ best grid points.
 
 E_fit is a sum over seam edges, and each edge involves at most two pieces, so the
 energy of every grid combination is a sum of per-piece and per-pair tables; the
-combinations are summed in chunks, never edge by edge. Used by the tests and the
-benchmark to measure how far the optimisers are from the global optimum.
+combinations are summed by one compiled branch-and-bound loop, never edge by edge. Used by
+the global method (few pieces), and by the tests and the benchmark to measure how far
+the optimisers are from the global optimum.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from solver.align.kernels import grid_pair_sum, grid_step_offsets, joint_grid_best
 from solver.align.problem import AlignProblem, apply_rt
 from solver.align.refine import bfgs_refine, irls_translations
 
 GRID = {1: 48, 2: 20, 3: 12, 4: 8}  # points per cell axis for 1..4 movable pieces
 
 
-def _grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
+def cell_grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
     """(k*k,2) translations of piece c that shift its print by a k x k grid over a cell."""
     f = np.arange(k) / k
     cell = np.stack(np.meshgrid(f, f, indexing="ij"), -1).reshape(-1, 2) @ problem.wp.basis.T
@@ -26,26 +28,24 @@ def _grid(problem: AlignProblem, angles, t_ref, c: int, k: int) -> np.ndarray:
     return t_ref[c] - cell @ np.array([[c_, -s_], [s_, c_]]).T
 
 
-def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
-                grid: int | None = None, top: int = 8):
-    """(translations (P,2), E_fit) of the best grid point after refinement."""
+def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
+                movable: np.ndarray, k: int, pairs: set[tuple[int, int]] | None = None):
+    """E_fit over the k x k cell grids of the ``movable`` pieces (the others at ``t_ref``)
+    as ``unary`` (m, k*k) per piece and ``pair[(i, j)]`` (k*k, k*k), i < j indices into
+    ``movable``: E_fit(x) = sum_i unary[i, x_i] + sum_(i,j) pair[i, j][x_i, x_j].
+    ``pairs`` (index pairs i < j) limits the pair tables built (the others' seams are
+    left out); the candidates (m, k*k, 2) are returned as the third value."""
     fr = problem.frames
-    movable = np.flatnonzero(~problem.fix_trans)
-    m = len(movable)
-    if m == 0:
-        return t_ref.copy(), float(problem.energy(angles[None], t_ref[None])[0])
-    if m > 4:
-        raise ValueError(f"brute force needs at most 4 movable pieces, got {m}")
-    k = grid or GRID[m]
     slot = {int(c): i for i, c in enumerate(movable)}
-    cands = [_grid(problem, angles, t_ref, int(c), k) for c in movable]
+    cands = [cell_grid(problem, angles, t_ref, int(c), k) for c in movable]
     kk = k * k
     rec = np.arange(fr.n_edges)
     w = problem.weight * fr.length[rec]
     rec, w = rec[w > 0], w[w > 0]
     a, b = fr.piece[rec], fr.other[rec]
-    unary = [np.zeros(kk) for _ in movable]
+    unary = np.zeros((len(movable), kk))
     pair: dict[tuple[int, int], np.ndarray] = {}
+    frac_lin = np.rint(problem.wp.info.ops[:, :, :2]).astype(np.int64)
 
     def q(piece, mids, tt):  # wallpaper points for translations tt (K,2) -> (K,n,2)
         return apply_rt(angles[piece], mids[None, :, :] - tt[:, None, :])
@@ -63,47 +63,42 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
             d, _ = problem.mismatch(*np.broadcast_arrays(q(pa, ma, ta), q(pb, mb, tb)))
             unary[i] += np.hypot(d[..., 0], d[..., 1]) @ ws
             continue
-        qa_all, qb_all = q(pa, ma, cands[ia]), q(pb, mb, cands[ib])
-        table = np.empty((kk, kk))
-        rows = max(1, 200_000 // (kk * len(ws)))  # bound the memory of one chunk
-        for r0 in range(0, kk, rows):
-            qa = np.broadcast_to(qa_all[r0:r0 + rows, None], (len(qa_all[r0:r0 + rows]), kk,
-                                                               len(ws), 2))
-            qb = np.broadcast_to(qb_all[None, :], qa.shape)
-            d, _ = problem.mismatch(qa, qb)
-            table[r0:r0 + rows] = np.hypot(d[..., 0], d[..., 1]) @ ws
         key = (min(ia, ib), max(ia, ib))
+        if pairs is not None and key not in pairs:
+            continue
+        # grid offsets enter the wallpaper points as + W f (see cell_grid)
+        offsets = np.empty((len(ws), len(frac_lin), kk, 2))
+        grid_step_offsets(q(pa, ma, t_ref[pa][None])[0], q(pb, mb, t_ref[pb][None])[0],
+                          *problem.wp.cartesian_tables, problem.wp.basis, k, offsets)
+        reduced = problem.wp.lattice_residual(offsets)
+        table = np.empty((kk, kk))
+        grid_pair_sum(np.hypot(reduced[..., 0], reduced[..., 1]), ws, frac_lin, k, table)
         table = table if ia < ib else table.T
         pair[key] = pair.get(key, 0.0) + table
-    # sum over all combinations, chunked over the first movable piece
-    shape = (kk,) * m
+    return unary, pair, cands
 
-    def expand(arr, axes):
-        sh = [1] * m
-        for ax, n in zip(axes, arr.shape):
-            sh[ax] = n
-        return arr.reshape(sh)
 
-    best_vals, best_idx = np.zeros(0), np.zeros((0, m), int)
-    for i0 in range(kk):
-        total = np.zeros(shape[1:]) if m > 1 else np.zeros(())
-        total = total + unary[0][i0]
-        for i in range(1, m):
-            total = total + expand(unary[i], [i])[0]
-        for (i, j), table in pair.items():
-            if i == 0:
-                total = total + expand(table[i0], [j])[0]
-            else:
-                total = total + expand(table, [i, j])[0]
-        flat = np.ravel(total)
-        n_keep = min(top, flat.size)
-        part = np.argpartition(flat, n_keep - 1)[:n_keep]
-        idx = np.column_stack([np.full(n_keep, i0), *np.unravel_index(part, shape[1:])]) \
-            if m > 1 else np.full((n_keep, 1), i0)
-        best_vals = np.concatenate([best_vals, flat[part]])
-        best_idx = np.concatenate([best_idx, idx])
-        keep = np.argsort(best_vals, kind="stable")[:top]
-        best_vals, best_idx = best_vals[keep], best_idx[keep]
+def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
+                grid: int | None = None, top: int = 8):
+    """(translations (P,2), E_fit) of the best grid point after refinement."""
+    movable = np.flatnonzero(~problem.fix_trans)
+    m = len(movable)
+    if m == 0:
+        return t_ref.copy(), float(problem.energy(angles[None], t_ref[None])[0])
+    if m > 4:
+        raise ValueError(f"brute force needs at most 4 movable pieces, got {m}")
+    k = grid or GRID[m]
+    kk = k * k
+    unary, pair, cands = grid_tables(problem, angles, t_ref, movable, k)
+    # every combination, summed and bounded in one compiled loop (dummy pieces pad to 4)
+    sizes = np.array([kk] * m + [1] * (4 - m), np.int64)
+    u4 = np.zeros((4, kk))
+    u4[:m] = unary
+    p4 = np.zeros((4, 4, kk, kk if m > 1 else 1))
+    for (i, j), table in pair.items():
+        p4[i, j] = table
+    vals, best_idx = joint_grid_best(u4, p4, sizes, top)
+    best_idx = best_idx[np.isfinite(vals), :m]
     starts = np.repeat(t_ref[None], len(best_idx), axis=0)
     for i, c in enumerate(movable):
         starts[:, c] = cands[i][best_idx[:, i]]

@@ -13,6 +13,7 @@ from solver.align.problem import AlignProblem
 from solver.align.restarts import align_paper
 from solver.fit import fit_report
 from solver.placement import Placement
+from solver.units import MM_PER_UNIT
 from solver.wallpaper import Wallpaper
 
 METHODS = ("paper", "global")
@@ -145,7 +146,5 @@ def grain_report(garment, angles: np.ndarray, *, nap: bool = False,
 
 def _named_units(garment) -> str | None:
     """The garment file's units when they have a name (they go into PLACEMENT.json)."""
-    from solver.units import MM_PER_UNIT
-
     units = getattr(garment, "units_in_file", None)
     return units if units in MM_PER_UNIT else None

@@ -11,7 +11,9 @@ restarts find the best basin only by luck once there are more than a few pieces.
    exhaustive search over candidates that contains (a) for every sampled seam edge and
    every symmetry operation of the print the offset that makes that edge match exactly,
    and (b) a regular grid over the primitive cell, scored against *all* pieces placed
-   so far (so seams closing cycles count too);
+   so far (so seams closing cycles count too); and, as further starts, the exact grid
+   optimum over that tree's seams (``solver.align.tree_dp``), which no greedy order can
+   miss;
 3. refine every tree placement with Eq. (9) to convergence and IRLS on E_fit itself,
    then run block-coordinate *exhaustive* sweeps: each piece in turn jumps to the best
    of the same candidates scored against all its neighbours (a move the local Eq. (9)
@@ -20,9 +22,10 @@ restarts find the best basin only by luck once there are more than a few pieces.
    own translational solve, keeping improvements (the r-RoSy field fixes angles, not
    the positions that E_fit measures);
 5. with at most four movable pieces, also search the joint grid over all their
-   translations (``solver.align.brute``), which is then affordable;
+   translations (``solver.align.brute``, compiled), at three interleaving grid sizes;
 6. polish the best with BFGS over angles and translations and keep the lowest E_fit
-   of all of these and of the paper's result.
+   of all of these and of the paper's result; with few pieces, alternate joint grid and
+   polish while the grid still finds a better basin at the polished angles.
 """
 
 from __future__ import annotations
@@ -36,9 +39,13 @@ from solver.align.problem import AlignProblem, rot
 from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
+from solver.align.tree_dp import tree_dp_placement
 
-#: joint-grid points per cell axis inside the global method, by number of movable pieces
-GLOBAL_GRID = {1: 24, 2: 12, 3: 12, 4: 10}
+#: joint-grid points per cell axis inside the global method, by number of movable pieces:
+#: every size searches the best candidate; after polishing, the sizes in turn search again
+#: (at most ``ALTERNATE_ROUNDS``) while they find a better basin
+GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12, 10), 4: (16, 12, 10)}
+ALTERNATE_ROUNDS = 3
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -72,13 +79,9 @@ def _tree_order(problem: AlignProblem, w: np.ndarray):
 
 def _cost(problem: AlignProblem, angles, t, c: int, cand: np.ndarray, rec: np.ndarray):
     """(K,) E_fit over records ``rec`` (own piece c) for candidate translations (K,2)."""
-    fr = problem.frames
-    o = fr.other[rec]
-    rc = rot(angles[c])
-    q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[rec] - t[o])
-    q_c = (fr.mid[rec][None, :, :] - cand[:, None, :]) @ rc  # R^T x for rows x
-    qo = np.broadcast_to(q_o, q_c.shape)
-    d, _ = problem.mismatch(q_c, qo)
+    tt = np.repeat(t[None], len(cand), axis=0)
+    tt[:, c] = cand
+    d, _ = problem.seam_mismatch(np.broadcast_to(angles, (len(cand), len(angles))), tt, rec)
     return np.hypot(d[..., 0], d[..., 1]) @ problem.record_weight[rec]
 
 
@@ -216,10 +219,11 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         t_b = irls_translations(problem, ang_b, t_b, iterations=8)
         keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
         ang, t0 = ang_b[keep], t_b[keep]
-    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
-    ts = optimise_translations(problem, ang, trees)
+    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
+                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
+    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
     cand_t = np.concatenate([ts.t, t0])
-    cand_a = np.concatenate([ang, ang])
+    cand_a = np.concatenate([ang, ang, ang])
     cand_t = irls_translations(problem, cand_a, cand_t)
     zero = 1e-9 * float(paper.random_energies.mean())  # nothing below this matters
     for _ in range(sweeps if problem.energy(cand_a, cand_t).min() > zero else 0):
@@ -239,13 +243,15 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     perfect = float(e.min()) <= zero
     small = int((~problem.fix_trans).sum()) <= 4 and not perfect
     if small:
-        # few movable pieces: the joint grid over all their translations is affordable
+        # few movable pieces: the joint grid over all their translations is affordable;
+        # grids of several sizes, as their sample points interleave and a basin narrower
+        # than one grid step ranks among the best grid points of one size, not another
         i = int(np.argmin(e))
-        tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=GLOBAL_GRID[
-            int((~problem.fix_trans).sum())])
-        cand_a = np.concatenate([cand_a, cand_a[i][None]])
-        cand_t = np.concatenate([cand_t, tb[None]])
-        e = np.append(e, eb)
+        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())]:
+            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid)
+            cand_a = np.concatenate([cand_a, cand_a[i][None]])
+            cand_t = np.concatenate([cand_t, tb[None]])
+            e = np.append(e, eb)
     top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
     for i in top:
         a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
@@ -256,11 +262,13 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
             e[i] = float(problem.energy(a[None], tt[None])[0])
     i = int(np.argmin(e))
     if small:
-        # alternate: the polished angles may open a better joint-grid basin
+        # alternate: the polished angles may open a better joint-grid basin; repeat while
+        # the grid finds one, so the answer is grid-optimal for its own final angles
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
-        tb, eb = brute_force(problem, a_i, t_i,
-                             grid=GLOBAL_GRID[int((~problem.fix_trans).sum())])
-        if eb < e_i:
+        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())][:ALTERNATE_ROUNDS]:
+            tb, eb = brute_force(problem, a_i, t_i, grid=grid)
+            if eb >= e_i * (1 - 1e-9):
+                break
             a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
             a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
         cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i

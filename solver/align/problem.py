@@ -13,67 +13,14 @@ import numpy as np
 
 from solver.align.frames import SeamFrames, seam_frames
 from solver.align.grain import GrainRule
-from solver.wallpaper import Wallpaper, gauss_reduce
+from solver.align.kernels import seam_points
+from solver.wallpaper import Wallpaper
 
 
 def rot(angles: np.ndarray) -> np.ndarray:
     """(..., ) angles -> (..., 2, 2) rotation matrices."""
     c, s = np.cos(angles), np.sin(angles)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
-
-
-class Mismatcher:
-    """``Wallpaper.mismatch`` for the optimiser's inner loops, also returning the op.
-
-    Same query (all operations, then the closest lattice translation), written with
-    plain array arithmetic over whole batches: the alignment calls it thousands of
-    times, so its constant factor is the speed of the whole method. With a
-    Gauss-reduced basis (``|u1.u2| <= |u1|^2/2``, ``|u1| <= |u2|``) the cell spanned by
-    u1, u2 splits along its shorter diagonal into two non-obtuse Delaunay triangles,
-    so the lattice point closest to any point is a corner of the cell that holds it:
-    4 candidates instead of the 3x3 block. Tested against ``Wallpaper.mismatch``.
-    """
-
-    def __init__(self, wp: Wallpaper) -> None:
-        ops = wp.cartesian_ops()
-        self.n = len(ops)
-        self.lin = ops[:, :2, :2]
-        self.shift = ops[:, :2, 2]
-        r1, r2, _ = gauss_reduce(wp.w1, wp.w2)
-        self.red = np.column_stack([r1, r2])
-        self.red_inv_t = np.linalg.inv(self.red).T
-        self.corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float) @ self.red.T
-
-    def __call__(self, p: np.ndarray, q: np.ndarray):
-        """p, q (..., 2) -> d (..., 2) from p to the closest equivalent of q, op (...,).
-
-        Written with elementwise products (no BLAS calls on 2-wide matrices, which
-        are slow and thread-hungry on a busy machine).
-        """
-        shape = p.shape[:-1]
-        px, py = p.reshape(-1, 1, 2)[..., 0], p.reshape(-1, 1, 2)[..., 1]
-        qx, qy = q.reshape(-1, 1, 2)[..., 0], q.reshape(-1, 1, 2)[..., 1]
-        lin, sh = self.lin, self.shift
-        dx = qx * lin[:, 0, 0] + qy * lin[:, 0, 1] + sh[:, 0] - px  # (N,n)
-        dy = qx * lin[:, 1, 0] + qy * lin[:, 1, 1] + sh[:, 1] - py
-        ri, r = self.red_inv_t, self.red
-        f1 = np.floor(dx * ri[0, 0] + dy * ri[1, 0])
-        f2 = np.floor(dx * ri[0, 1] + dy * ri[1, 1])
-        bx = dx - f1 * r[0, 0] - f2 * r[0, 1]
-        by = dy - f1 * r[1, 0] - f2 * r[1, 1]
-        cx = bx[..., None] - self.corners[:, 0]  # (N,n,4)
-        cy = by[..., None] - self.corners[:, 1]
-        n = len(px)
-        sq = (cx * cx + cy * cy).reshape(n, -1)
-        k = np.argmin(sq, axis=1)
-        rows = np.arange(n)
-        best = np.stack([cx.reshape(n, -1)[rows, k], cy.reshape(n, -1)[rows, k]], -1)
-        return best.reshape(*shape, 2), (k // 4).reshape(shape)
-
-
-def mismatch_with_op(wp: Wallpaper, p: np.ndarray, q: np.ndarray):
-    """``Wallpaper.mismatch`` that also returns the index of the closest operation."""
-    return Mismatcher(wp)(p, q)
 
 
 def apply_rt(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -127,11 +74,11 @@ class AlignProblem:
     reflect: bool
     colours: list[np.ndarray]  # colour classes of the pieces
     rosy: int  # r of the r-RoSy
-    mismatch: Mismatcher | None = None
 
-    def __post_init__(self) -> None:
-        if self.mismatch is None:
-            self.mismatch = Mismatcher(self.wp)
+    def mismatch(self, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """p, q (..., 2) in wallpaper space -> d (..., 2) from p to the closest
+        equivalent of q, and the operation's index (...,): ``Wallpaper.closest``."""
+        return self.wp.closest(p, q)
 
     # -------------------------------------------------------------- construction
     @classmethod
@@ -218,11 +165,25 @@ class AlignProblem:
         return (apply_rt(angles[:, c], fr.mid[rec] - trans[:, c]),
                 apply_rt(angles[:, o], fr.mid_other[rec] - trans[:, o]))
 
+    def seam_mismatch(self, angles: np.ndarray, trans: np.ndarray,
+                      rec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Records ``rec`` under placements (B,P), (B,P,2): d (B,n,2) from each record's
+        own point to the closest equivalent of its twin's point in wallpaper space, and
+        the operation (B,n); `wallpaper_points` and `mismatch` in one compiled pass."""
+        fr = self.frames
+        angles = np.asarray(angles, float)
+        trans = np.ascontiguousarray(trans, float)
+        rec = np.ascontiguousarray(rec, np.int64)
+        q_c = np.empty((len(trans), len(rec), 2))
+        q_o = np.empty_like(q_c)
+        seam_points(np.cos(angles), np.sin(angles), trans, rec, fr.piece, fr.other, fr.mid,
+                    fr.mid_other, q_c, q_o)
+        return self.wp.closest(q_c, q_o)
+
     def energy(self, angles: np.ndarray, trans: np.ndarray,
                weight: np.ndarray | None = None) -> np.ndarray:
         """(B,) E_fit of Eq. (1) for a batch of placements (as solver.fit computes it)."""
         rec = np.arange(self.frames.n_edges)  # side a: one record per twin pair
         w = (self.weight if weight is None else weight) * self.frames.length[rec]
-        q_c, q_o = self.wallpaper_points(angles, trans, rec)
-        d, _ = self.mismatch(q_c, q_o)
+        d, _ = self.seam_mismatch(angles, trans, rec)
         return np.hypot(d[..., 0], d[..., 1]) @ w

@@ -26,8 +26,7 @@ def irls_translations(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
     best_t, best_e = t.copy(), problem.energy(angles, t)
     cur = t.copy()
     for _ in range(iterations):
-        q_c, q_o = problem.wallpaper_points(angles, cur, rec)
-        d, _ = problem.mismatch(q_c, q_o)
+        d, _ = problem.seam_mismatch(angles, cur, rec)
         dist = np.hypot(d[..., 0], d[..., 1])
         floor = 1e-9 * max(float(np.abs(problem.wp.basis).max()), 1.0)
         w = problem.record_weight[rec][None, :] / np.maximum(dist, floor)
@@ -47,9 +46,8 @@ def _energy_grad(problem: AlignProblem, angles, t, rec, w):
     a, b = fr.piece[rec], fr.other[rec]
     ra, rb = rot(angles[a]), rot(angles[b])
     xa, xb = fr.mid[rec] - t[a], fr.mid_other[rec] - t[b]
-    q_c = np.einsum("nji,nj->ni", ra, xa)
-    q_o = np.einsum("nji,nj->ni", rb, xb)
-    d, op = problem.mismatch(q_c, q_o)
+    d, op = problem.seam_mismatch(angles[None], t[None], rec)
+    d, op = d[0], op[0]
     m = problem.wp.cartesian_ops()[:, :2, :2][op]
     dist = np.hypot(d[:, 0], d[:, 1])
     e = float(np.sum(w * dist))

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from solver.align.kernels import rotation_class_update
 from solver.align.problem import AlignProblem
 
 EPS_ROT = 1e-7
@@ -79,21 +80,15 @@ def rotation_step(problem: AlignProblem, state: RotationState, eps: float = EPS_
         return True
     r = state.r[active]
     before = r.copy()
-    for pieces, rec, scatter in state.plan:
-        u = _mat_vec(fr.A[rec], r[:, fr.piece[rec]])
-        v = _mat_vec(fr.C[rec], r[:, fr.other[rec]])
-        target = _closest_turn(u, v, rosy)
-        if problem.reflect:
-            target = target + _closest_turn(u, v * np.array([1.0, -1.0]), rosy)
-        back = _mat_vec(fr.A_inv[rec], target)
-        new = r[:, pieces] + scatter @ back
-        norm = np.linalg.norm(new, axis=-1, keepdims=True)
-        new = np.where(norm > 1e-300, new / np.where(norm > 0, norm, 1.0), r[:, pieces])
+    w = problem.record_weight
+    for pieces, rec, _ in state.plan:
+        rotation_class_update(r, pieces, rec, fr.piece, fr.other, fr.A, fr.C, fr.A_inv, w,
+                              rosy, problem.reflect)
         if problem.grain is not None:
+            new = r[:, pieces]
             ang = np.arctan2(new[..., 1], new[..., 0])
             ang = problem.grain.project_subset(ang, pieces, rosy)
-            new = np.stack([np.cos(ang), np.sin(ang)], -1)
-        r[:, pieces] = new
+            r[:, pieces] = np.stack([np.cos(ang), np.sin(ang)], -1)
     change = np.sum((r - before) ** 2, axis=(1, 2))
     if not problem.fix_rot.any():
         # modulo one common rotation: with a drape, mapping back with F_e^-1 (not an
@@ -111,27 +106,6 @@ def rotation_step(problem: AlignProblem, state: RotationState, eps: float = EPS_
     done[active] = (change < eps) | stalled
     state.converged |= done
     return bool(state.converged.all())
-
-
-def _mat_vec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """(n,2,2) matrices times (B,n,2) vectors, written out (faster than einsum here)."""
-    return np.stack([m[:, 0, 0] * x[..., 0] + m[:, 0, 1] * x[..., 1],
-                     m[:, 1, 0] * x[..., 0] + m[:, 1, 1] * x[..., 1]], -1)
-
-
-def _closest_turn(u: np.ndarray, v: np.ndarray, rosy: int) -> np.ndarray:
-    """rot(2 pi k / r) v with the smallest angle to u, Eq. (6), batched (B,n,2).
-
-    The search over k = 0..r-1 is done on the angle phi from u to v: turning v by
-    2 pi k / r changes it to phi + 2 pi k / r, and the k with the smallest |angle| wins.
-    """
-    phi = np.arctan2(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
-                     u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1])
-    turns = 2 * np.pi * np.arange(rosy) / rosy
-    off = np.abs((phi[..., None] + turns + np.pi) % (2 * np.pi) - np.pi)
-    k = np.argmin(off, axis=-1)
-    c, s = np.cos(turns[k]), np.sin(turns[k])
-    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], -1)
 
 
 def optimise_rotations(problem: AlignProblem, angles: np.ndarray, *,

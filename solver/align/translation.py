@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.align.problem import AlignProblem, apply_r, rot
+from solver.align.kernels import translation_normal_equations
+from solver.align.problem import AlignProblem, apply_r
 
 EPS_TRANS = 1e-4  # mm^2; the polish then jumps to the exact limit
 
@@ -60,8 +61,7 @@ def translation_step(problem: AlignProblem, state: TranslationState,
     ang, t = state.angles[active], state.t[active]
     before = t.copy()
     for pieces, rec, mean in state.plan:
-        q_c, q_o = problem.wallpaper_points(ang, t, rec)
-        d, _ = problem.mismatch(q_c, q_o)
+        d, _ = problem.seam_mismatch(ang, t, rec)
         step = mean @ d  # (B,k,2) mean mismatch of each piece, wallpaper space
         t[:, pieces] -= apply_r(ang[:, pieces], step)
     change = np.sum((t - before) ** 2, axis=(1, 2))
@@ -77,8 +77,7 @@ def energy2(problem: AlignProblem, angles: np.ndarray, t: np.ndarray) -> np.ndar
     """(B,) E2 = sum over live twin pairs of w_S l_e |d_e|^2, the quantity Eq. (9) lowers."""
     rec = problem.live_records()
     rec = rec[rec < problem.frames.n_edges]
-    q_c, q_o = problem.wallpaper_points(angles, t, rec)
-    d, _ = problem.mismatch(q_c, q_o)
+    d, _ = problem.seam_mismatch(angles, t, rec)
     return (d[..., 0] ** 2 + d[..., 1] ** 2) @ problem.record_weight[rec]
 
 
@@ -94,26 +93,13 @@ def polish(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
     rec = rec[rec < fr.n_edges]
     if len(rec) == 0:
         return t.copy()
-    q_c, q_o = problem.wallpaper_points(angles, t, rec)
-    d, op = problem.mismatch(q_c, q_o)
-    m = problem.wp.cartesian_ops()[:, :2, :2][op]  # (B,n,2,2)
-    a, b = fr.piece[rec], fr.other[rec]
-    ja = np.swapaxes(rot(angles[:, a]), -1, -2)  # d(d)/d(t_a) = R_a^T
-    jb = -m @ np.swapaxes(rot(angles[:, b]), -1, -2)  # d(d)/d(t_b) = -M R_b^T
-    w = problem.record_weight[rec][None, :] if weight is None else weight
-    nb, n = len(t), len(rec)
-    jat, jbt = np.swapaxes(ja, -1, -2), np.swapaxes(jb, -1, -2)
-    wv = w[..., None, None] * np.ones((nb, n, 1, 1))
-    # blocks (B,n,2,2) scattered into the (P,P) block matrix by one sparse-like product
-    blocks = np.stack([wv * (jat @ ja), wv * (jbt @ jb), wv * (jat @ jb), wv * (jbt @ ja)])
-    slot = np.concatenate([a * p + a, b * p + b, a * p + b, b * p + a])
-    flat = np.moveaxis(blocks, 0, 1).reshape(nb, 4 * n, 4)
-    h = _scatter_sum(flat, slot, p * p).reshape(nb, p, p, 2, 2)  # (B,P,P,2,2)
-    h = h.transpose(0, 1, 3, 2, 4).reshape(nb, 2 * p, 2 * p)
-    ga = wv[..., 0] * np.einsum("bnji,bnj->bni", ja, d)
-    gb = wv[..., 0] * np.einsum("bnji,bnj->bni", jb, d)
-    g = _scatter_sum(np.concatenate([ga, gb], axis=1), np.concatenate([a, b]), p)
-    g = g.reshape(nb, 2 * p)
+    d, op = problem.seam_mismatch(angles, t, rec)
+    w = np.broadcast_to(problem.record_weight[rec][None, :] if weight is None else weight,
+                        (len(t), len(rec)))
+    h = np.zeros((len(t), 2 * p, 2 * p))
+    g = np.zeros((len(t), 2 * p))
+    translation_normal_equations(np.cos(angles), np.sin(angles), rec, fr.piece, fr.other, d,
+                                 op, problem.wp.cartesian_tables[0], np.ascontiguousarray(w), h, g)
     fixed = np.repeat(problem.fix_trans, 2)
     scale = float(np.mean(np.abs(np.diagonal(h, axis1=1, axis2=2)))) or 1.0
     h = h + 1e-10 * scale * np.eye(2 * p)  # the pattern may slide freely (p1): pick the
@@ -123,15 +109,6 @@ def polish(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
     g[:, fixed] = 0.0
     step = np.linalg.solve(h, -g[..., None])[..., 0]
     return t + step.reshape(len(t), p, 2)
-
-
-def _scatter_sum(values: np.ndarray, slot: np.ndarray, n_slots: int) -> np.ndarray:
-    """(B,k,c) values summed into (B,n_slots,c) by ``slot`` (k,), with bincount."""
-    nb, k, c = values.shape
-    idx = (np.arange(nb)[:, None] * n_slots + slot[None, :]).ravel()
-    out = np.stack([np.bincount(idx, weights=values[..., j].ravel(), minlength=nb * n_slots)
-                    for j in range(c)], -1)
-    return out.reshape(nb, n_slots, c)
 
 
 def optimise_translations(problem: AlignProblem, angles: np.ndarray, t0: np.ndarray, *,

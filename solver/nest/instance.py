@@ -21,6 +21,7 @@ import numpy as np
 import shapely
 
 from solver.jsonfile import read_json
+from solver.wallpaper import gauss_reduce
 
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 MIRROR_X = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # reflection about the grain (x) axis
@@ -146,8 +147,6 @@ class NestProblem:
         """(2, 2) reduced lattice basis (columns) of the print, or None on plain fabric."""
         if self.fabric is None:
             return None
-        from solver.wallpaper import gauss_reduce
-
         u1, u2, _ = gauss_reduce(self.fabric.w1, self.fabric.w2)  # same lattice, short basis
         return np.column_stack([u1, u2])
 

@@ -35,6 +35,7 @@ import shapely
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress
+from solver.wallpaper import covering_radius
 
 # weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
 # single value wins everywhere (1 suits many small pieces, 0 a few large ones)
@@ -455,7 +456,6 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
-    from solver.nest.naive import covering_radius
     from solver.nest.regions import repair_snapped
 
     items = problem.items()

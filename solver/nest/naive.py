@@ -9,25 +9,11 @@ piece, which is what the lattice-aware search (:mod:`solver.nest.lattice`) wins 
 
 from __future__ import annotations
 
-import numpy as np
-
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress, plain_moves
 from solver.nest.regions import snap_to_lattice
-
-
-def covering_radius(basis: np.ndarray) -> float:
-    """Largest distance from a point of the plane to its nearest lattice point.
-
-    For a reduced basis it is the circumradius of the acute triangle (0, w1, ±w2).
-    """
-    w1, w2 = np.asarray(basis, float)[:, 0], np.asarray(basis, float)[:, 1]
-    if w1 @ w2 < 0:
-        w2 = -w2
-    a, b, c = np.linalg.norm(w1), np.linalg.norm(w2), np.linalg.norm(w1 - w2)
-    area2 = abs(w1[0] * w2[1] - w1[1] * w2[0])
-    return float(a * b * c / (2 * area2))
+from solver.wallpaper import covering_radius
 
 
 def nest_naive(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,

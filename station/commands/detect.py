@@ -32,6 +32,9 @@ def register(sub) -> None:
                    help="warn when the cloth is skewed more than this (default 1 degree)")
     p.add_argument("--bow-tol", type=float, default=3.0, metavar="MM",
                    help="warn when the cloth bows more than this (default 3 mm)")
+    p.add_argument("--min-repeat", type=float, default=3.0, metavar="MM",
+                   help="shortest repeat of a print; finer ones are the weave and the "
+                   "cloth is reported as plain (default 3 mm)")
     p.set_defaults(func=run)
 
 
@@ -60,8 +63,11 @@ def run(args) -> int:
         mm_per_px = args.mm_per_px
         if not mm_per_px or mm_per_px <= 0:
             raise UserError(f"--mm-per-px must be positive, got {args.mm_per_px}")
+    if not args.min_repeat >= 0:
+        raise UserError(f"--min-repeat must not be negative, got {args.min_repeat}")
     det = detect_fabric(image, mm_per_px=mm_per_px, offset=offset,
-                        skew_tol_deg=args.skew_tol, bow_tol_mm=args.bow_tol)
+                        skew_tol_deg=args.skew_tol, bow_tol_mm=args.bow_tol,
+                        min_repeat_mm=args.min_repeat)
     if det.distortion.warning:
         print(f"station detect: warning: {det.distortion.warning}", file=sys.stderr)
     if det.wallpaper is None:

@@ -15,7 +15,7 @@ from garments_synthetic import cut_sheet  # noqa: E402
 from solver.align import align, align_global, align_paper  # noqa: E402
 from solver.align.brute import brute_force  # noqa: E402
 from solver.align.frames import seam_frames  # noqa: E402
-from solver.align.problem import AlignProblem, Mismatcher  # noqa: E402
+from solver.align.problem import AlignProblem  # noqa: E402
 from solver.fit import fit_report  # noqa: E402
 from solver.garment import load_garment  # noqa: E402
 from solver.placement import Placement  # noqa: E402
@@ -61,21 +61,6 @@ def pants():
 
 
 # ---------------------------------------------------------------- building blocks
-@pytest.mark.parametrize("group", GROUP_NAMES)
-def test_fast_mismatch_agrees_with_wallpaper(group):
-    rng = np.random.default_rng(7)
-    wp = print_for(group, a=rng.uniform(20, 60))
-    p, q = rng.normal(0, 300, (3000, 2)), rng.normal(0, 300, (3000, 2))
-    d, op = Mismatcher(wp)(p, q)
-    ref = wp.mismatch(p, q)
-    np.testing.assert_allclose(np.hypot(*d.T), np.hypot(*ref.T), atol=1e-9)
-    # the returned operation (plus a lattice vector) really produces p + d
-    g = wp.cartesian_ops()[op]
-    image = np.einsum("nij,nj->ni", g[:, :2, :2], q) + g[:, :2, 2]
-    res = wp.to_fractional(p + d) - wp.to_fractional(image)
-    np.testing.assert_allclose(res, np.round(res), atol=1e-9)
-
-
 @pytest.mark.parametrize("drape", [True, False])
 def test_frames_lay_each_twin_edge_onto_the_other(drape):
     """On a sheet cut in pieces, A^-1 C is the rotation between the two pieces' cuts."""

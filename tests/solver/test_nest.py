@@ -11,9 +11,9 @@ import shapely
 from solver.nest import Layout, NestProblem, Piece, load_esicup, nest_plain, verify_layout
 from solver.nest.instance import affine, compose, invert
 from solver.nest.lattice import nest_lattice
-from solver.nest.naive import covering_radius, nest_naive
+from solver.nest.naive import nest_naive
 from solver.nest.solve import nest
-from solver.wallpaper import Wallpaper
+from solver.wallpaper import Wallpaper, covering_radius
 
 
 @pytest.fixture(scope="module")

@@ -137,6 +137,25 @@ def test_mismatch_properties_and_brute_force(group, non_reduced):
 
 
 @pytest.mark.parametrize("group", GROUP_NAMES)
+def test_batched_closest_broadcasts_and_names_the_operation(group):
+    """`closest` on (B, n, 2) batches, with far points and a turned lattice: the distance
+    equals brute force and the returned operation plus a lattice vector gives p + d."""
+    rng = np.random.default_rng(7)
+    wp = make(group, 4, False).moved(0.3, (5.0, -2.0))
+    p = rng.normal(0, 300, (3, 200, 2))
+    q = rng.normal(0, 300, (200, 2))  # broadcast against every row of p
+    d, op = wp.closest(p, q)
+    assert d.shape == (3, 200, 2) and op.shape == (3, 200)
+    bf = brute_force_mismatch(wp, p.reshape(-1, 2), np.tile(q, (3, 1)), 6)
+    np.testing.assert_allclose(np.hypot(*d.reshape(-1, 2).T), np.hypot(*bf.T), atol=1e-9)
+    g = wp.cartesian_ops()[op]
+    image = np.einsum("bnij,nj->bni", g[..., :2, :2], q) + g[..., :2, 2]
+    res = wp.to_fractional(p + d) - wp.to_fractional(image)
+    np.testing.assert_allclose(res, np.round(res), atol=1e-9)
+    assert op.max() < wp.n_equivalent and (wp.n_equivalent == 1 or op.max() > 0)
+
+
+@pytest.mark.parametrize("group", GROUP_NAMES)
 def test_mismatch_is_zero_exactly_for_equivalent_points(group):
     wp = make(group, 6)
     rng = np.random.default_rng(7)

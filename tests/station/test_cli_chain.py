@@ -39,7 +39,7 @@ def _area(ring: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize("heavy", ["scipy", "shapely", "serial", "skimage", "spyrrow",
-                                   "ezdxf", "triangle"])
+                                   "ezdxf", "triangle", "numba"])
 def test_station_starts_without_the_heavy_libraries(heavy):
     """Every `station` call builds the whole parser; commands import their stack when run."""
     code = ("import sys, station.cli; station.cli.build_parser(); "

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import ast
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
 
+import vision
+from simulators.camera import Sheet, SyntheticCamera
+from simulators.fabric import random_print
 from vision.camera import CameraError, SimulatedCamera, VideoCaptureCamera, open_camera
 
 
@@ -63,9 +69,24 @@ def test_missing_source_is_a_clear_error(tmp_path):
 
 
 def test_synthetic_camera_behind_the_same_interface():
-    with open_camera(simulate=True, resolution=(320, 240), average=2) as cam:
+    def factory():
+        return SyntheticCamera(Sheet(random_print("p4m", 40.0, seed=1)), resolution=(320, 240))
+
+    with pytest.raises(ValueError, match="sim_factory"):
+        open_camera(simulate=True)
+    with open_camera(simulate=True, sim_factory=factory, average=2) as cam:
         assert isinstance(cam, SimulatedCamera)
         assert cam.resolution == (320, 240)
         frame = cam.read()
         assert frame.shape == (240, 320, 3)
         assert cam.truth.wallpaper is not None and cam.truth.wallpaper.group == "p4m"
+
+
+def test_vision_never_imports_the_simulators():
+    """The design's arrows run one way: the station hands vision its simulated camera.
+    Checked on the source, so an import inside a function counts too."""
+    for path in Path(vision.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not any(n.split(".")[0] == "simulators" for n in names), path.name

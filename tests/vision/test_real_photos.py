@@ -1,0 +1,49 @@
+"""The hand-labelled real photographs of ../shared/data/fabric_photos (read in place,
+never copied: their rights are unclear). Each gets its group or the labelled
+alternative, or a safe subgroup with a confidence that sends it to the operator; never
+a supergroup; plain cloth and stripes never a 2-D lattice; labelled lattices are found.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from bench.vision import PHOTOS, evaluate, photos
+from vision.pipeline import CONFIRM_BELOW
+
+pytestmark = pytest.mark.skipif(not (PHOTOS / "labels.csv").is_file(),
+                                reason=f"the labelled photographs are not here ({PHOTOS}): "
+                                       "they live outside the project, in ../shared")
+
+
+@pytest.fixture(scope="module")
+def results():
+    return [(s, evaluate(s, with_baseline=False)) for s in photos()]
+
+
+def test_every_labelled_photo_is_read(results):
+    assert len(results) >= 10
+
+
+def test_groups_are_right_or_safe_and_then_go_to_the_operator(results):
+    for s, f in results:
+        if s.truth in ("plain", "stripes"):
+            continue
+        assert f["outcome"] in ("right", "subgroup"), (s.name, f)
+        if f["outcome"] == "subgroup":  # a safe error must not pass unconfirmed
+            assert f["conf"] < CONFIRM_BELOW, (s.name, f)
+    right = sum(f["outcome"] == "right" for s, f in results)
+    assert right >= len(results) - 1
+
+
+def test_no_supergroup_and_no_lattice_on_plain_cloth_or_stripes(results):
+    for s, f in results:
+        assert f["outcome"] not in ("supergroup", "false lattice", "other"), (s.name, f)
+        if s.truth in ("plain", "stripes"):
+            assert f["kind"] == s.truth or f["kind"] == s.alt, (s.name, f)
+
+
+def test_labelled_lattices_are_found(results):
+    for s, f in results:
+        if f["lattice_ok"] is not None:
+            assert f["lattice_ok"], (s.name, f)
