@@ -6,11 +6,12 @@ Outlines in LAYOUT.json are already in fabric millimetres (x along the roll, y a
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+import untrusted
 
 __all__ = ["Layout", "LayoutPiece", "Notch", "load_layout", "layout_from_dict"]
 
@@ -49,83 +50,80 @@ class Layout:
     source: str = "<layout>"
 
 
-def _points(value, where: str, *, min_len: int = 1) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: expected a list of [x, y] points") from None
-    if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) < min_len:
-        raise ValueError(f"{where}: expected at least {min_len} [x, y] points, "
-                         f"got shape {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{where}: non-finite coordinate")
-    return arr
+def _points(value, source: str, where: str, *, min_len: int = 1) -> np.ndarray:
+    return untrusted.points(value, source, where, min_len=min_len)
 
 
-def _ring(value, where: str) -> np.ndarray:
-    ring = _points(value, where, min_len=3)
+def _listed(piece: dict, key: str, source: str, where: str) -> list:
+    """``piece[key]`` as a list (absent or null: empty); a number or text there is a fault."""
+    value = piece.get(key)
+    if value is None:
+        return []
+    return untrusted.sequence(value, source, f"{where}.{key}",
+                              max_len=untrusted.limits.MAX_PANEL_POINTS)
+
+
+def _ring(value, source: str, where: str) -> np.ndarray:
+    ring = _points(value, source, where, min_len=3)
     if np.allclose(ring[0], ring[-1]) and len(ring) > 3:
         ring = ring[:-1]  # tolerate a repeated closing point
     return ring
 
 
+def _notch(value, source: str, where: str, off: np.ndarray) -> Notch:
+    n = untrusted.mapping(value, source, where)
+    at = untrusted.vector(n.get("at"), source, f"{where}.at") + off
+    d = untrusted.vector(n.get("direction", [0.0, 0.0]), source, f"{where}.direction")
+    nd = float(np.hypot(*d))
+    return Notch(at, d / nd if nd > 0 else d)
+
+
 def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
     """Check a LAYOUT.json dict and return it in machine coordinates (fabric + origin)."""
-    if not isinstance(data, dict):
-        raise ValueError(f"{source}: expected a JSON object")
+    lim = untrusted.limits
+    data = untrusted.mapping(data, source)
     if data.get("version", 1) != 1:
-        raise ValueError(f"{source}: unsupported layout version {data.get('version')!r}")
+        raise untrusted.InputError(source, f"unsupported layout version {data.get('version')!r}")
     if data.get("units", "mm") != "mm":
-        raise ValueError(f"{source}: units must be \"mm\", got {data.get('units')!r}")
-    pieces_in = data.get("pieces")
-    if not isinstance(pieces_in, list):
-        raise ValueError(f"{source}: missing \"pieces\" list")
-    origin = data.get("origin") or [0.0, 0.0]
-    off = _points([origin], f"{source}: origin")[0]
+        raise untrusted.InputError(source, f"units must be \"mm\", got {data.get('units')!r}")
+    if not isinstance(data.get("pieces"), list):
+        raise untrusted.InputError(source, "missing \"pieces\" list")
+    pieces_in = untrusted.sequence(data["pieces"], source, "pieces", max_len=lim.MAX_PIECES)
+    off = untrusted.vector(data.get("origin") or [0.0, 0.0], source, "origin")
     pieces: list[LayoutPiece] = []
     seen: set[str] = set()
     for i, p in enumerate(pieces_in):
-        where = f"{source}: pieces[{i}]"
+        where = f"pieces[{i}]"
         if not isinstance(p, dict) or "outline" not in p:
-            raise ValueError(f"{where}: expected an object with an \"outline\"")
+            raise untrusted.InputError(source, f"{where}: expected an object with an "
+                                       "\"outline\"")
         pid = str(p.get("id", f"piece{i}"))
         if pid in seen:
-            raise ValueError(f"{where}: duplicate id {pid!r}")
+            raise untrusted.InputError(source, f"{where}: duplicate id {pid!r}")
         seen.add(pid)
-        outline = _ring(p["outline"], f"{where}.outline") + off
-        holes = [_ring(h, f"{where}.holes[{k}]") + off for k, h in enumerate(p.get("holes") or [])]
-        notches = []
-        for k, n in enumerate(p.get("notches") or []):
-            try:
-                at = np.asarray(n["at"], float).reshape(2) + off
-                d = np.asarray(n.get("direction", [0.0, 0.0]), float).reshape(2)
-            except (KeyError, TypeError, ValueError):
-                raise ValueError(f"{where}.notches[{k}]: expected {{\"at\": [x, y], "
-                                 "\"direction\": [dx, dy]}") from None
-            nd = float(np.hypot(*d))
-            notches.append(Notch(at, d / nd if nd > 0 else d))
-        marks_in = p.get("marks") or []
-        marks = (_points(marks_in, f"{where}.marks") + off) if len(marks_in) else np.zeros((0, 2))
+        outline = _ring(p["outline"], source, f"{where}.outline") + off
+        holes = [_ring(h, source, f"{where}.holes[{k}]") + off
+                 for k, h in enumerate(_listed(p, "holes", source, where))]
+        notches = [_notch(n, source, f"{where}.notches[{k}]", off)
+                   for k, n in enumerate(_listed(p, "notches", source, where))]
+        marks_in = _listed(p, "marks", source, where)
+        marks = (_points(marks_in, source, f"{where}.marks") + off) if marks_in \
+            else np.zeros((0, 2))
         grain = p.get("grainline")
-        grain_arr = _points(grain, f"{where}.grainline", min_len=2) + off if grain else None
+        grain_arr = _points(grain, source, f"{where}.grainline", min_len=2) + off \
+            if grain else None
         tr = p.get("transform")
         pieces.append(LayoutPiece(
             id=pid, name=str(p.get("name", pid)), outline=outline, holes=holes, notches=notches,
             marks=marks, grainline=grain_arr,
-            transform=np.asarray(tr, float) if tr is not None else None))
-    return Layout(pieces=pieces, width=float(data.get("width", 0.0) or 0.0),
-                  length=float(data.get("length", 0.0) or 0.0),
-                  gap=float(data.get("gap", 0.0) or 0.0),
+            transform=None if tr is None else untrusted.matrix(tr, source, f"{where}.transform",
+                                                               (2, 3))))
+    size = {k: untrusted.number(data.get(k, 0.0) or 0.0, source, k, lo=0.0,
+                                hi=lim.MAX_COORD_MM) for k in ("width", "length", "gap")}
+    return Layout(pieces=pieces, width=size["width"], length=size["length"], gap=size["gap"],
                   origin=(float(off[0]), float(off[1])), source=source)
 
 
 def load_layout(path: str | Path) -> Layout:
     """Read LAYOUT.json; every fault is a one-line ValueError naming the file."""
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{p}: layout not found") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{p}: not valid JSON: {exc}") from None
-    return layout_from_dict(data, str(p))
+    return layout_from_dict(untrusted.read_json(path, what="layout"), str(path))

@@ -12,6 +12,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import untrusted
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10 (pyproject pulls in tomli there)
@@ -170,7 +172,8 @@ def _check_cut(c: CutParams, source: str) -> None:
     checks = [
         (c.feed > 0, "feed must be > 0"),
         (c.power >= 0, "power must be >= 0"),
-        (c.passes >= 1, "passes must be >= 1"),
+        (1 <= c.passes <= untrusted.limits.MAX_PASSES,
+         f"passes must be >= 1 and <= {untrusted.limits.MAX_PASSES}"),
         (c.kerf >= 0, "kerf must be >= 0"),
         (c.tolerance > 0, "tolerance must be > 0"),
         (c.lead_in >= 0, "lead_in must be >= 0"),
@@ -243,14 +246,7 @@ def machine_from_dict(data: dict, source: str = "<dict>") -> Machine:
 
 def load_machine(path: str | Path) -> Machine:
     """Read and check a machine profile TOML file."""
-    p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{p}: machine profile not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{p}: not valid TOML: {exc}") from None
-    return machine_from_dict(data, str(p))
+    return machine_from_dict(untrusted.read_toml(path, what="machine profile"), str(path))
 
 
 def default_machine() -> Machine:

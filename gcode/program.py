@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+import untrusted
 from gcode.arcs import CW, LINE, FittedPath
 from gcode.machine import Machine
 from gcode.toolpath import PieceToolpath
@@ -294,15 +295,14 @@ def parse_pieces(lines: list[str], source: str = "<program>") -> list[PieceRange
 def load_program(path: str | Path, machine: Machine) -> Program:
     """Read a .nc file, recover its pieces and validate it against ``machine``."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{p}: program not found") from None
+    raw = untrusted.read_bytes(p, what="program", max_bytes=untrusted.limits.MAX_GCODE_BYTES)
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError as exc:
         raise ProgramError(f"{p}: non-ASCII byte at offset {exc.start}") from None
     lines = text.splitlines()
+    if not any(strip_comment(line).strip() for line in lines):
+        raise ProgramError(f"{p}: no G-code in the program (empty file?)")
     prog = Program(lines, parse_pieces(lines, str(p)))
     prog.check = validate(lines, machine, str(p))
     return prog
@@ -401,7 +401,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         current[0] = i
         if len(raw.rstrip("\r\n")) > MAX_LINE:
             fail(i, f"line longer than GRBL's {MAX_LINE} characters")
-        if any(ch in _FORBIDDEN for ch in raw.rstrip("\r\n")) and not _PIECE.match(raw.strip()):
+        if any(ch in _FORBIDDEN for ch in raw.rstrip("\r\n")):
             bad = sorted({ch for ch in raw if ch in _FORBIDDEN})
             fail(i, f"forbidden character(s) {bad!r} (system commands and real-time bytes "
                     "are never part of a program)")
@@ -511,6 +511,8 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
         else:
             if feed is None:
                 fail(i, "feed move before any F word")
+            if pos[0] is None or pos[1] is None:
+                fail(i, "feed move before the head's X and Y are known (start with G0 X Y)")
             if motion == 1:
                 d = math.hypot(target[0] - pos[0], target[1] - pos[1])
                 dz = abs((target[2] or 0) - (pos[2] or 0))

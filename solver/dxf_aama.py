@@ -24,6 +24,7 @@ import ezdxf
 import numpy as np
 import shapely
 
+import untrusted
 from solver.nest.instance import Piece, affine, rotation
 
 __all__ = ["dxf_sizes", "read_dxf_aama", "write_dxf_aama"]
@@ -171,20 +172,21 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
 
 
 def _blocks(path: str | Path):
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such file")
+    path = untrusted.check_file(path, what="DXF file", max_bytes=untrusted.limits.MAX_DXF_BYTES)
+    out = []
     try:
         doc = ezdxf.readfile(path)
+        for ins in doc.modelspace().query("INSERT"):
+            ents = list(ins.virtual_entities())  # applies the INSERT's placement
+            if any(str(e.dxf.layer) in ("1", "84") for e in ents):
+                out.append((ins.dxf.name, ents))
     except OSError as exc:
         raise ValueError(f"{path}: not a readable DXF file ({exc})") from None
-    except ezdxf.DXFStructureError as exc:
-        raise ValueError(f"{path}: not a valid DXF file ({exc})") from None
-    out = []
-    for ins in doc.modelspace().query("INSERT"):
-        ents = list(ins.virtual_entities())  # applies the INSERT's placement
-        if any(str(e.dxf.layer) in ("1", "84") for e in ents):
-            out.append((ins.dxf.name, ents))
+    except (ezdxf.DXFError, ValueError, TypeError, IndexError, KeyError, AttributeError,
+            OverflowError) as exc:
+        # ezdxf meets malformed bytes with assorted errors: all mean "not a valid DXF"
+        raise ValueError(f"{path}: not a valid DXF file ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:200]})") from None
     return doc, path, out
 
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+import untrusted
 from solver.jsonfile import read_json
 from solver.wallpaper import Wallpaper
 
@@ -110,7 +111,7 @@ class Placement:
             return cls(
                 angles=np.radians([p["angle_deg"] for p in pieces]),
                 translations=[p["translation_mm"] for p in pieces],
-                fabric=Wallpaper.from_dict(d["fabric"]),
+                fabric=Wallpaper.from_dict(d["fabric"], "fabric"),
                 garment=d.get("garment"),
                 garment_units=d.get("garment_units"),
                 piece_names=[p.get("name", f"piece{p['index']}") for p in pieces],
@@ -128,8 +129,34 @@ class Placement:
 
     @classmethod
     def load(cls, path: str | Path) -> Placement:
-        data = read_json(path)
+        data = check_placement(read_json(path), str(path))
         try:
             return cls.from_dict(data)
         except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
+            raise untrusted.InputError(path, str(exc)) from None
+
+
+def check_placement(d: Any, source: str) -> dict[str, Any]:
+    """``d`` if it is a well-formed PLACEMENT.json: pieces indexed 0..P-1 once each, finite
+    angles, translations within the table's range, text where text belongs."""
+    lim = untrusted.limits
+    d = untrusted.mapping(d, source)
+    pieces = untrusted.sequence(d.get("pieces"), source, "pieces", min_len=1,
+                                max_len=lim.MAX_PIECES)
+    index = []
+    for i, p in enumerate(pieces):
+        where = f"pieces[{i}]"
+        untrusted.mapping(p, source, where)
+        index.append(untrusted.integer(p.get("index"), source, f"{where}.index", lo=0,
+                                       hi=len(pieces) - 1))
+        untrusted.number(p.get("angle_deg"), source, f"{where}.angle_deg", lo=-1e6, hi=1e6)
+        untrusted.vector(p.get("translation_mm"), source, f"{where}.translation_mm")
+        untrusted.text(p.get("name", ""), source, f"{where}.name")
+    if len(set(index)) != len(index):
+        raise untrusted.InputError(source, "pieces: each index 0..P-1 must appear exactly once")
+    untrusted.mapping(d.get("fabric"), source, "fabric")
+    for key in ("garment", "garment_units"):
+        if d.get(key) is not None:
+            untrusted.text(d[key], source, key, max_len=4096)
+    untrusted.mapping(d.get("report", {}), source, "report")
+    return d

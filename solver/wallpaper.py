@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+import untrusted
 from solver.jsonfile import read_json
 from solver.units import mm_per_unit
 
@@ -332,24 +333,37 @@ class Wallpaper:
                    l2 * np.array([math.cos(a2), math.sin(a2)]), origin, **kw)
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Wallpaper:
-        """FABRIC.json content -> Wallpaper, converting ``units`` to millimetres."""
-        scale = mm_per_unit(d.get("units", "mm"))
+    def from_dict(cls, d: dict[str, Any], source: str = "fabric description") -> Wallpaper:
+        """FABRIC.json content -> Wallpaper, converting ``units`` to millimetres.
+
+        Each lattice vector must be 1 mm .. 2 m long (the field's repeats), so a bad file
+        cannot make later steps tile a table with billions of cells.
+        """
+        d = untrusted.mapping(d, source)
         missing = [k for k in ("group", "w1", "w2") if k not in d]
         if missing:
-            raise ValueError(f"fabric description lacks {', '.join(missing)}")
-        return cls(d["group"], np.asarray(d["w1"], float) * scale,
-                   np.asarray(d["w2"], float) * scale,
-                   np.asarray(d.get("origin", (0.0, 0.0)), float) * scale)
+            raise untrusted.InputError(source, f"fabric description lacks {', '.join(missing)}")
+        units = untrusted.text(d.get("units", "mm"), source, "units", max_len=8)
+        try:
+            scale = mm_per_unit(units)
+        except ValueError as exc:
+            raise untrusted.InputError(source, str(exc)) from None
+        group = untrusted.text(d["group"], source, "group", max_len=8)
+        lo, hi = untrusted.limits.MIN_REPEAT_MM, untrusted.limits.MAX_REPEAT_MM
+        w = [untrusted.vector(d[k], source, k, max_abs=math.inf) * scale for k in ("w1", "w2")]
+        for k, vec in zip(("w1", "w2"), w):
+            if not lo <= float(np.hypot(*vec)) <= hi:
+                raise untrusted.InputError(source, f"{k} is {float(np.hypot(*vec)):g} mm long; "
+                                           f"a print repeats every {lo:g} to {hi:g} mm")
+        origin = untrusted.vector(d.get("origin", [0.0, 0.0]), source, "origin") * scale
+        try:
+            return cls(group, w[0], w[1], origin)
+        except ValueError as exc:
+            raise untrusted.InputError(source, str(exc)) from None
 
     @classmethod
     def load(cls, path: str | Path) -> Wallpaper:
-        path = Path(path)
-        d = read_json(path)
-        try:
-            return cls.from_dict(d)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"{path}: {exc}") from None
+        return cls.from_dict(read_json(path), str(path))
 
     def to_dict(self) -> dict[str, Any]:
         return {"group": self.group, "w1": self.w1.tolist(), "w2": self.w2.tolist(),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -24,20 +25,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(exc: BaseException) -> str:
+    """The exception's text on one line, at most 500 characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 500 else text[:497] + "..."
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except (UserError, ValueError, FileNotFoundError) as exc:
-        print(f"station {args.command}: error: {exc}", file=sys.stderr)
+        print(f"station {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"station {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # `station ... | head` closed the pipe: not a fault
         sys.stdout = None  # nothing more can be written; silence the flush at exit
         return 0
+    except OSError as exc:  # a folder, a device or a permission where a file was expected
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"station {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except (RecursionError, MemoryError, OverflowError) as exc:  # input beyond any checker
+        print(f"station {args.command}: error: input too large or too deep "
+              f"({type(exc).__name__}: {one_line(exc)})", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug, not the operator's fault: still one line, exit 70
+        if os.environ.get("STATION_TRACEBACK"):
+            raise
+        print(f"station {args.command}: internal error: {type(exc).__name__}: {one_line(exc)} "
+              "(STATION_TRACEBACK=1 shows where)", file=sys.stderr)
+        return 70
+    except KeyboardInterrupt:
+        print(f"station {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

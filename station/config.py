@@ -8,15 +8,15 @@ what is expected.
 
 from __future__ import annotations
 
-import sys
+import grp
+import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+import untrusted
+from untrusted.limits import MAX_PASSES, MAX_SOCKET_PATH_BYTES
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,7 @@ class Key:
     default: Any
     help: str
     minimum: float | None = None
+    maximum: float | None = None
     choices: tuple[str, ...] | None = None
 
 
@@ -36,17 +37,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "130:1600,131:1000,20:1,22:1,23:3,110:12000,111:12000,120:1500,121:1500",
                     "serial device, pty or pyserial URL (default: the GRBL emulator set up "
                     "as the default machine, laser mode, soft limits and homing on)"),
-        "baud": Key(int, 115200, "baud rate", minimum=1200),
+        "baud": Key(int, 115200, "baud rate", minimum=1200, maximum=4_000_000),
     },
     "camera": {
         "source": Key(str, "simulated", '"simulated", a device index, a video file or a '
                       "GStreamer pipeline"),
         "calibration": Key(str, "", "calibration JSON (empty: the simulated camera's truth)"),
-        "frames": Key(int, 4, "frames averaged per capture", minimum=1),
+        "frames": Key(int, 4, "frames averaged per capture", minimum=1, maximum=100),
         "confirm_below": Key(float, 0.9, "detected print confidence below which the job "
-                             "waits at 'confirm fabric' for `station confirm`", minimum=0.0),
+                             "waits at 'confirm fabric' for `station confirm`", minimum=0.0,
+                             maximum=1.0),
         "min_repeat_mm": Key(float, 3.0, "shortest repeat of a print; a finer one is the "
-                             "weave and the cloth is plain", minimum=0.0),
+                             "weave and the cloth is plain", minimum=0.0, maximum=2000.0),
     },
     "machine": {
         "profile": Key(str, "", "machine profile TOML (empty: the built-in 1600 x 1000 laser)"),
@@ -56,42 +58,55 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "store": {
         "path": Key(str, "station-data/jobs.db", "SQLite job store"),
         "work_dir": Key(str, "station-data/jobs", "per-job files (frames, plans, G-code)"),
+        "umask": Key(int, 0o027, "the daemon's umask (0o027: job files 0640, folders 0750)",
+                     minimum=0, maximum=0o777),
     },
     "control": {
         "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),
         "group": Key(str, "", "group allowed to use the socket besides the station's user"),
+        "submit_folders": Key(list, [], "folders submissions may come from (empty: any "
+                              "folder the station's user can read)"),
+        "check_seconds": Key(float, 120.0, "time allowed to read and check one submission",
+                             minimum=1.0, maximum=3600.0),
+        "check_memory_mb": Key(int, 4096, "memory allowed to read and check one submission",
+                               minimum=64, maximum=1 << 20),
     },
     "align": {
         "method": Key(str, "global", "alignment method", choices=("paper", "global")),
-        "restarts": Key(int, 15, "random restarts", minimum=1),
-        "seed": Key(int, 0, "random seed"),
+        "restarts": Key(int, 15, "random restarts", minimum=1, maximum=10_000),
+        "seed": Key(int, 0, "random seed", minimum=0, maximum=2**32 - 1),
         "reflect": Key(bool, False, "allow mirror-symmetric fits across seams"),
         "grain_tolerance_deg": Key(float, 1.0, "keep each piece's grain within this many "
-                                   "degrees of the fabric's grain (negative: turn freely)"),
+                                   "degrees of the fabric's grain (negative: turn freely)",
+                                   minimum=-1.0, maximum=180.0),
         "nap": Key(bool, False, "one-way print or napped fabric: every grain at 0 degrees"),
         "fabric_grain_deg": Key(float, 0.0, "the fabric's grain in fabric space (0: along "
-                                "the roll); a fabric's FABRIC.json grain_deg wins"),
+                                "the roll); a fabric's FABRIC.json grain_deg wins",
+                                minimum=-360.0, maximum=360.0),
         "up": Key(str, "auto", "the drapes' up axis", choices=("auto", "x", "y", "z", "-x",
                                                                "-y", "-z")),
     },
     "reshape": {
         "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
         "max_move_mm": Key(float, 10.0, "largest move of any pattern vertex when reshaping",
-                           minimum=0.1),
+                           minimum=0.1, maximum=1000.0),
     },
     "nest": {
-        "width_mm": Key(float, 1000.0, "usable fabric width across the table", minimum=1.0),
-        "length_mm": Key(float, 1600.0, "usable fabric length along the table", minimum=1.0),
-        "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0),
-        "seconds": Key(float, 10.0, "time for nesting", minimum=0.1),
+        "width_mm": Key(float, 1000.0, "usable fabric width across the table", minimum=1.0,
+                        maximum=100_000.0),
+        "length_mm": Key(float, 1600.0, "usable fabric length along the table", minimum=1.0,
+                         maximum=100_000.0),
+        "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0,
+                      maximum=1000.0),
+        "seconds": Key(float, 10.0, "time for nesting", minimum=0.1, maximum=3600.0),
     },
     # Every program the station cuts uses these (over the machine profile's [cut]); the
     # profile's ranges apply (power up to max_s, feed from min_cut_feed to max_feed).
     "cut": {
-        "kerf_mm": Key(float, 0.2, "cut width", minimum=0.0),
-        "feed_mm_min": Key(float, 3000.0, "cutting feed", minimum=1.0),
-        "power": Key(float, 700.0, "laser power S", minimum=0.0),
-        "passes": Key(int, 1, "passes per contour", minimum=1),
+        "kerf_mm": Key(float, 0.2, "cut width", minimum=0.0, maximum=20.0),
+        "feed_mm_min": Key(float, 3000.0, "cutting feed", minimum=1.0, maximum=200_000.0),
+        "power": Key(float, 700.0, "laser power S", minimum=0.0, maximum=100_000.0),
+        "passes": Key(int, 1, "passes per contour", minimum=1, maximum=MAX_PASSES),
     },
 }
 
@@ -132,11 +147,11 @@ def load_config(path: str | Path | None, overrides: dict[str, dict[str, Any]] | 
         path = Path(path)
         where = str(path)
         try:
-            raw = tomllib.loads(path.read_text())
-        except FileNotFoundError:
+            raw = untrusted.read_toml(path, what="configuration file")
+        except untrusted.MissingInput:
             raise ConfigError(f"{path}: no such configuration file") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+        except untrusted.InputError as exc:
+            raise ConfigError(str(exc)) from None
     for section, keys in (overrides or {}).items():
         raw.setdefault(section, {}).update(keys)
     values: dict[str, dict[str, Any]] = {}
@@ -154,7 +169,33 @@ def load_config(path: str | Path | None, overrides: dict[str, dict[str, Any]] | 
                               f"takes {', '.join(keys)}")
         values[section] = {name: _check(where, section, name, key, given.get(name, key.default))
                            for name, key in keys.items()}
-    return Config(path, values)
+    config = Config(path, values)
+    _check_control(config, where)
+    return config
+
+
+def _check_control(config: Config, where: str) -> None:
+    """The socket path must fit a Unix socket address and the group must exist, so that
+    ``station serve`` fails at startup with the key named, not deep inside bind()."""
+    sock = os.fsencode(config.resolve(config["control"]["socket"]).absolute())
+    if len(sock) > MAX_SOCKET_PATH_BYTES:
+        raise ConfigError(f"{where}: control.socket resolves to a path of {len(sock)} bytes; "
+                          f"a Unix socket path holds at most {MAX_SOCKET_PATH_BYTES}")
+    group = config["control"]["group"]
+    if group:
+        try:
+            grp.getgrnam(group)
+        except KeyError:
+            raise ConfigError(f"{where}: control.group {group!r} is not a group on this "
+                              "machine") from None
+    folders = config["control"]["submit_folders"]
+    if not all(isinstance(f, str) and f and len(f) <= 4096 for f in folders) or \
+            len(folders) > 100:
+        raise ConfigError(f"{where}: control.submit_folders must be a list of folder paths")
+    origin = config["machine"]["fabric_origin"]
+    if len(origin) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   and abs(v) <= 1e6 for v in origin):
+        raise ConfigError(f"{where}: machine.fabric_origin must be [x, y] in mm, got {origin!r}")
 
 
 def _check(where: str, section: str, name: str, key: Key, value: Any) -> Any:
@@ -164,8 +205,14 @@ def _check(where: str, section: str, name: str, key: Key, value: Any) -> Any:
     if key.kind is not bool and isinstance(value, bool) or not isinstance(value, key.kind):
         raise ConfigError(f"{label} must be {key.kind.__name__} ({key.help}), "
                           f"got {value!r}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f"{label} must be a finite number, got {value!r}")
     if key.minimum is not None and value < key.minimum:
         raise ConfigError(f"{label} must be at least {key.minimum:g}, got {value!r}")
+    if key.maximum is not None and value > key.maximum:
+        raise ConfigError(f"{label} must be at most {key.maximum:g}, got {value!r}")
+    if isinstance(value, str) and len(value) > 4096:
+        raise ConfigError(f"{label} is longer than 4096 characters")
     if key.choices is not None and value not in key.choices:
         raise ConfigError(f"{label} must be one of {', '.join(key.choices)}, got {value!r}")
     return value
@@ -178,7 +225,8 @@ def example_toml() -> str:
         lines.append(f"[{section}]")
         for name, key in keys.items():
             value = key.default
-            text = (str(value).lower() if isinstance(value, bool)
+            text = (f"0o{value:03o}" if name == "umask" else str(value).lower()
+                    if isinstance(value, bool)
                     else f'"{value}"' if isinstance(value, str) else repr(value))
             lines.append(f"{name} = {text}  # {key.help}")
         lines.append("")

@@ -38,6 +38,8 @@ from typing import Any, Protocol
 
 from station.config import Config
 from station.control import ControlError, ControlServer
+from station.daemon_lock import DaemonLock, lock_path
+from station.intake import Intake
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
 
 log = logging.getLogger("station.daemon")
@@ -107,6 +109,8 @@ class Daemon:
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
+        # first of all: a second daemon on this store must leave everything untouched
+        self.lock = DaemonLock(lock_path(config)).acquire()
         self.store = JobStore(config.resolve(config["store"]["path"]))
         self.work_dir = config.resolve(config["store"]["work_dir"])
         self.control = ControlServer(config.resolve(config["control"]["socket"]),
@@ -115,19 +119,26 @@ class Daemon:
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._lock = threading.Lock()
+        self.intake = Intake(self.work_dir / "inputs", getattr(pipeline, "check", None),
+                             seconds=config["control"]["check_seconds"],
+                             memory_bytes=config["control"]["check_memory_mb"] << 20,
+                             allowed=[config.resolve(f)
+                                      for f in config["control"]["submit_folders"]])
 
     # ------------------------------------------------------------------ lifecycle
     def serve(self, once: bool = False) -> int:
         """Run until SIGTERM/SIGINT (or, with ``once``, until no job is left)."""
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, self._on_signal)
-        self.recover()
-        self.control.start()
-        log.info("serving on %s, job store %s", self.control.path, self.store.path)
         try:
+            self.recover()
+            self.control.start()
+            log.info("serving on %s, job store %s", self.control.path, self.store.path)
             self.run_loop(once)
         finally:
+            self.intake.stop()
             self.control.stop()
+            self.lock.release()
             log.info("stopped")
         return 0
 
@@ -141,7 +152,22 @@ class Daemon:
                 self._wake.wait(0.5)
                 self._wake.clear()
                 continue
-            self.run_job(job)
+            try:
+                self.run_job(job)
+            except Exception:  # the loop outlives any one job, even a broken failure path
+                log.exception("job %d: the job loop caught an error; the job is set aside",
+                              job.id)
+                self._set_aside(job.id)
+
+    def _set_aside(self, job_id: int) -> None:
+        """Fail a job whose own failure handling broke, so next_job() moves on."""
+        try:
+            if self.store.job(job_id).state not in FINAL:
+                self.store.transition(job_id, "failed", "internal error while handling a "
+                                      "failure (see the daemon's log)")
+        except Exception:
+            log.exception("job %d could not be set aside; stopping the job loop", job_id)
+            self.shutdown()
 
     def shutdown(self) -> None:
         """Ask the loop to stop safely, as SIGTERM does."""
@@ -198,11 +224,23 @@ class Daemon:
             self._interrupt(job.id, exc.state, exc.reason)
         except Exception as exc:
             log.exception("job %d failed", job.id)
-            self.store.reset_unfinished_pieces(job.id)
-            self.store.transition(job.id, "failed", f"{type(exc).__name__}: {exc}")
+            self._fail(job.id, f"{type(exc).__name__}: {exc}")
         finally:
             with self._lock:
                 self.running = None
+
+    def _fail(self, job_id: int, reason: str) -> None:
+        """Record a failure; a fault while recording it (say the job is already failed) is
+        logged, never allowed out of the job loop."""
+        try:
+            self.store.reset_unfinished_pieces(job_id)
+            current = self.store.job(job_id).state
+            if "failed" in TRANSITIONS[current]:
+                self.store.transition(job_id, "failed", reason)
+            else:
+                log.error("job %d is %s; not marked failed (%s)", job_id, current, reason)
+        except Exception:
+            log.exception("job %d: recording its failure failed", job_id)
 
     def _interrupt(self, job_id: int, state: str, reason: str) -> None:
         self.store.reset_unfinished_pieces(job_id)
@@ -226,29 +264,15 @@ class Daemon:
         return {"pid": os.getpid(), "running": self.running.job_id if self.running else None}
 
     def cmd_submit(self, req: dict[str, Any]) -> dict[str, Any]:
-        garment = req.get("garment")
-        if not isinstance(garment, str) or not Path(garment).is_file():
-            raise ControlError(f"{garment}: no such garment file")
-        fabric = req.get("fabric")
-        if fabric is not None and not Path(fabric).is_file():
-            raise ControlError(f"{fabric}: no such fabric file")
-        options = req.get("options") or {}
-        if not isinstance(options, dict):
-            raise ControlError("options must be a JSON object")
-        self.pipeline_check(garment, fabric, options)
-        job = self.store.submit(str(Path(garment).resolve()),
-                                str(Path(fabric).resolve()) if fabric else None, options)
+        """Copy the inputs, check them in a bounded child process, then queue the job.
+
+        This connection's thread only waits for the child; other requests are answered
+        meanwhile. The job runs from the copies, so a file changed later changes nothing.
+        """
+        garment, fabric, options = self.intake.admit(req)
+        job = self.store.submit(garment, fabric, options)
         self._wake.set()
         return {"job": job.to_dict()}
-
-    def pipeline_check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
-        """Refuse a job the pipeline could never run, before it enters the queue."""
-        check = getattr(self.pipeline, "check", None)
-        if check is not None:
-            try:
-                check(garment, fabric, options)
-            except ValueError as exc:
-                raise ControlError(str(exc)) from None
 
     def cmd_jobs(self, _req: dict[str, Any]) -> dict[str, Any]:
         return {"jobs": [self._summary(j) for j in self.store.jobs()]}

@@ -23,6 +23,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+import untrusted
+
 __all__ = ["BoardSpec", "Calibration", "calibrate_intrinsics", "detect_board",
            "table_homography"]
 
@@ -209,18 +211,24 @@ class Calibration:
 
     @classmethod
     def load(cls, path: str | Path) -> Calibration:
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise FileNotFoundError(f"{path}: calibration file not found") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") \
-                from None
+        src = str(path)
+        d = untrusted.mapping(untrusted.read_json(path, what="calibration file"), src)
+        for key in ("camera_matrix", "homography_undistorted_px_to_mm"):
+            if key in d:
+                untrusted.matrix(d[key], src, key, (3, 3), max_abs=1e12)
+        if "dist_coeffs" in d:  # OpenCV's models have at most 14 coefficients
+            dist = untrusted.sequence(d["dist_coeffs"], src, "dist_coeffs", max_len=14)
+            if len(dist) == 1 and isinstance(dist[0], list):  # OpenCV's (1, n) row
+                dist = untrusted.sequence(dist[0], src, "dist_coeffs", max_len=14)
+            untrusted.points([[v] for v in dist] or [[0.0]], src, "dist_coeffs", dim=1)
+        if "resolution" in d:
+            res = untrusted.sequence(d["resolution"], src, "resolution", min_len=2, max_len=2)
+            for v in res:
+                untrusted.integer(v, src, "resolution", lo=1, hi=100_000)
         try:
             return cls.from_dict(d)
         except (ValueError, TypeError) as exc:
-            raise ValueError(f"{path}: {exc}") from None
+            raise untrusted.InputError(src, str(exc)) from None
 
     # ------------------------------------------------------------ building
     @classmethod

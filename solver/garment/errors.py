@@ -8,11 +8,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from untrusted import InputError
 
-class GarmentError(ValueError):
-    """Bad garment input: one line naming the file and the fault."""
+
+class GarmentError(InputError):
+    """Bad garment input: one line naming the file and the fault (the reading layer's
+    :class:`untrusted.InputError`, so every reader's faults are caught alike)."""
 
     def __init__(self, path: str | Path | None, fault: str) -> None:
+        super().__init__("<garment>" if path is None else path, fault)
         self.path = None if path is None else str(path)
-        self.fault = fault
-        super().__init__(fault if path is None else f"{path}: {fault}")
+        if path is None:
+            self.args = (self.fault,)

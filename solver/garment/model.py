@@ -21,6 +21,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.grain import PieceGrain, piece_grains
 
@@ -288,6 +289,20 @@ def _polygon_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
+def _check_extent(source: str | Path, points: np.ndarray, what: str) -> None:
+    """A garment spans at most :data:`untrusted.limits.MAX_GARMENT_MM` in every axis: larger
+    (or non-finite) coordinates mean wrong units or a corrupt file, and would overflow later."""
+    limit = untrusted.limits.MAX_GARMENT_MM
+    if len(points) == 0:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = np.ptp(points, axis=0)
+    if not np.all(np.isfinite(points)) or not bool(np.all(span <= limit)):
+        raise GarmentError(source, f"the {what} spans {float(np.max(span)):.3g} mm (or holds a "
+                           f"non-finite number); a garment is at most {limit:g} mm across "
+                           "(wrong --units?)")
+
+
 def build_garment(
     uv: np.ndarray,
     faces: np.ndarray,
@@ -317,6 +332,9 @@ def build_garment(
     n = uv.shape[0]
     if faces.size == 0:
         raise GarmentError(source, "no faces")
+    _check_extent(source, uv, "sewing pattern")
+    if xyz is not None:
+        _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
 
     # degenerate slivers: repeated corner or (numerically) zero pattern area
     area = triangle_areas(uv, faces)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, build_garment, unique_rows
 from solver.units import mm_per_unit
@@ -88,7 +89,10 @@ def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # partial parse: counted below
-        numbers = np.fromstring(" ".join(lines).replace("/", " "), dtype=np.int64, sep=" ")
+        try:
+            numbers = np.fromstring(" ".join(lines).replace("/", " "), dtype=np.int64, sep=" ")
+        except ValueError:  # unparsable: the slow path below names the line
+            numbers = np.zeros(0, np.int64)
     try:
         if triangles and len(numbers) == 3 * per * len(lines):
             arr = numbers.reshape(len(lines), 3, per)
@@ -163,7 +167,10 @@ def _fast_blocks(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
     def numbers(chunk: np.ndarray, dtype: type) -> np.ndarray:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # partial parse: counted
-            return np.fromstring(chunk.tobytes().decode("latin-1"), dtype=dtype, sep=" ")
+            try:
+                return np.fromstring(chunk.tobytes().decode("latin-1"), dtype=dtype, sep=" ")
+            except ValueError:  # NumPy 2 refuses unparsable text: the line reader says where
+                return np.zeros(0, dtype)
 
     v_chunk, v_tok = block(is_v, 2)
     if not (v_tok == 3).all():
@@ -198,13 +205,15 @@ def read_obj(path: str | Path) -> ObjData:
     """Read v, vt and faces of an OBJ file; ARCSim extras (vv, t, ...) are ignored."""
     path = Path(path)
     try:
-        data = path.read_bytes()
-    except FileNotFoundError:
+        data = untrusted.read_bytes(path, what="garment file",
+                                    max_bytes=untrusted.limits.MAX_OBJ_BYTES)
+    except untrusted.MissingInput:
         raise FileNotFoundError(f"{path}: no such garment file") from None
-    except OSError as exc:
-        raise GarmentError(path, f"cannot read ({exc.strerror})") from None
+    except untrusted.InputError as exc:
+        raise GarmentError(path, exc.fault) from None
     if not data.strip():
         raise GarmentError(path, "empty file")
+    _check_complete(path, data)
     head = data[:16384].decode("utf-8", errors="replace").splitlines()[:50]
     comments = [ln[1:].strip() for ln in head if ln.startswith("#")]
     fast = _fast_blocks(data)
@@ -228,15 +237,33 @@ def read_obj(path: str | Path) -> ObjData:
     return ObjData(v, vt, f_v, f_vt, comments)
 
 
+def _check_complete(path: Path, data: bytes) -> None:
+    """Err on a file cut short, or one with more faces than a garment has.
+
+    A writer ends every line with a newline; a data line without one was cut while being
+    written or copied, and its last number may be a valid but wrong index.
+    """
+    tail = data.rstrip(b" \t\r")
+    last = tail[tail.rfind(b"\n") + 1 :]
+    if not data.endswith(b"\n") and last[:2] in (b"v ", b"vt", b"f ", b"vn"):
+        raise GarmentError(path, "the last line has no line end: the file is truncated")
+    faces = data.count(b"\nf ") + data.startswith(b"f ")
+    if faces > untrusted.limits.MAX_FACES:
+        raise GarmentError(path, f"{faces:,} faces; a garment has at most "
+                           f"{untrusted.limits.MAX_FACES:,}")
+
+
 def _resolve(path: Path, idx: np.ndarray, count: int, what: str) -> np.ndarray:
     """1-based (or negative, relative-to-end) OBJ indices -> 0-based, range-checked."""
     out = np.where(idx < 0, idx + count, idx - 1)
     bad = (out < 0) | (out >= count)
     if bad.any():
         f = int(np.argmax(bad.any(axis=1)))
+        index = int(idx[f][bad[f]][0])
+        # NumPy saturates numbers beyond int64: say "too large" rather than print 2**63 - 1
+        shown = str(index) if abs(index) < 2**62 else "beyond the 64-bit range"
         raise GarmentError(
-            path,
-            f"face {f + 1} points at missing {what} {int(idx[f][bad[f]][0])} (file has {count})",
+            path, f"face {f + 1} points at missing {what} {shown} (file has {count})",
         )
     return out
 

@@ -34,6 +34,7 @@ import numpy as np
 import shapely
 import triangle
 
+import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, _boundary_half_edges, _components, build_garment
 from solver.units import mm_per_unit, units_from_meter_fraction
@@ -135,20 +136,88 @@ def _length(poly: np.ndarray) -> float:
 
 def _read_json(path: Path) -> dict:
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise GarmentError(path, "not a text (UTF-8) file") from None
-    if not text.strip():
-        raise GarmentError(path, "empty file")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise GarmentError(
-            path, f"not valid JSON (truncated?): {exc.msg} at line {exc.lineno}"
-        ) from None
+        data = untrusted.read_json(path, what="pattern specification")
+    except untrusted.MissingInput:
+        raise
+    except untrusted.InputError as exc:
+        raise GarmentError(path, exc.fault) from None
     if not isinstance(data, dict) or not isinstance(data.get("pattern"), dict):
         raise GarmentError(path, "no 'pattern' object: not a sewing-pattern specification")
+    try:
+        _check_structure(path, data)
+    except untrusted.InputError as exc:
+        raise GarmentError(path, exc.fault) from None
     return data
+
+
+def _check_structure(path: Path, data: dict) -> None:
+    """Types and sizes of everything the importer reads, before any geometry is built."""
+    lim = untrusted.limits
+    pattern = data["pattern"]
+    if data.get("properties") is not None:
+        untrusted.mapping(data["properties"], path, "properties")
+    panels = pattern.get("panels")
+    if isinstance(panels, dict):
+        untrusted.count(panels, path, "pattern.panels", limit=lim.MAX_PIECES)
+        for name, panel in panels.items():
+            where = f"panel {name!r}"
+            panel = untrusted.mapping(panel, path, where)
+            untrusted.points(panel.get("vertices"), path, f"{where} vertices", min_len=3,
+                             max_abs=math.inf)
+            edges = untrusted.sequence(panel.get("edges"), path, f"{where} edges", min_len=2,
+                                       max_len=lim.MAX_PANEL_POINTS)
+            for k, e in enumerate(edges):
+                e = untrusted.mapping(e, path, f"{where} edge {k}")
+                ends = untrusted.sequence(e.get("endpoints"), path, f"{where} edge {k} "
+                                          "endpoints", min_len=2, max_len=2)
+                for v in ends:
+                    untrusted.integer(v, path, f"{where} edge {k} endpoint", lo=0,
+                                      hi=lim.MAX_PANEL_POINTS)
+                curvature = e.get("curvature")
+                if isinstance(curvature, list):
+                    untrusted.vector(curvature, path, f"{where} edge {k} curvature",
+                                     max_abs=1e6)
+                elif isinstance(curvature, dict):
+                    params = curvature.get("params")
+                    if not isinstance(params, list) or len(params) > 3 or not all(
+                            isinstance(x, (int, float, list)) for x in params):
+                        raise untrusted.InputError(path, f"{where} edge {k} curvature params "
+                                                   "must be a short list of numbers or points")
+                    for x in params:
+                        if isinstance(x, list):
+                            untrusted.vector(x, path, f"{where} edge {k} curvature", max_abs=1e6)
+                        else:
+                            untrusted.number(x, path, f"{where} edge {k} curvature", lo=-1e9,
+                                             hi=1e9)
+    order = pattern.get("panel_order", [])
+    if not isinstance(order, list) or not all(isinstance(n, str) for n in order):
+        raise untrusted.InputError(path, "pattern.panel_order must be a list of panel names")
+    stitches = untrusted.sequence(pattern.get("stitches", []), path, "pattern.stitches",
+                                  max_len=lim.MAX_PANEL_POINTS)
+    for s, st in enumerate(stitches):
+        sides = st if isinstance(st, list) else []
+        for side in sides[:2]:
+            if isinstance(side, dict) and not isinstance(side.get("panel"), str):
+                raise untrusted.InputError(path, f"stitch {s} panel must be a panel name")
+
+
+def _check_size(path: Path, verts_mm: list[np.ndarray], res: float) -> None:
+    """Err before meshing if the pattern is wider than a garment can be or its mesh would
+    exceed the face limit (about 2.3 faces per res x res square of panel area)."""
+    lim = untrusted.limits
+    for v in verts_mm:
+        span = float(np.ptp(v, axis=0).max())
+        if not span <= lim.MAX_GARMENT_MM:
+            raise GarmentError(path, f"a panel spans {span:.3g} mm; a garment is at most "
+                               f"{lim.MAX_GARMENT_MM:g} mm across (wrong units_in_meter?)")
+    x = [v[:, 0] for v in verts_mm]
+    y = [v[:, 1] for v in verts_mm]
+    area = sum(abs(float(np.dot(a, np.roll(b, -1)) - np.dot(np.roll(a, -1), b))) / 2
+               for a, b in zip(x, y))
+    faces = 2.3 * area / res**2
+    if faces > lim.MAX_FACES:
+        raise GarmentError(path, f"meshing at {res:g} mm would make about {faces:.3g} faces, "
+                           f"beyond the limit of {lim.MAX_FACES:,}")
 
 
 def _panel_geometry(path: Path, name: str, panel: Any) -> tuple[np.ndarray, list[dict]]:
@@ -274,6 +343,7 @@ def load_spec(
         verts, edges = _panel_geometry(path, name, panels[name])
         meshes.append(_panel_mesh(path, name, panels[name], verts, edges))
         verts = verts * k
+        _check_size(path, [verts], res)
         polys = []
         for ei, e in enumerate(edges):
             i, j = (int(x) for x in e["endpoints"])
@@ -285,6 +355,8 @@ def load_spec(
                 raise GarmentError(path, f"panel {exc}") from None
         geom.append((verts, edges))
         dense.append(polys)
+
+    _check_size(path, [v for v, _ in geom], res)
 
     # stitches: validate and give both edges the same sample count; a meshed panel's
     # edges are one segment each, and so are the edges sewn to them

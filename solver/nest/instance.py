@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+import untrusted
 from solver.jsonfile import read_json
 from solver.wallpaper import gauss_reduce
 
@@ -200,21 +201,41 @@ def candidate_maps(piece: Piece, mirrored: bool, fabric) -> list[np.ndarray]:
 def load_esicup(path: str | Path) -> NestProblem:
     """An ESICUP/jagua-rs strip-packing instance (``strip_height`` is the fabric width)."""
     path = Path(path)
-    d = read_json(path)
+    src = str(path)
+    lim = untrusted.limits
+    d = untrusted.mapping(read_json(path), src)
     if "strip_height" not in d or "items" not in d:
-        raise ValueError(f"{path}: not a strip-packing instance (needs strip_height and items)")
-    pieces = []
-    for it in d["items"]:
-        shape = it.get("shape", {})
+        raise untrusted.InputError(src, "not a strip-packing instance (needs strip_height and "
+                                   "items)")
+    width = untrusted.number(d["strip_height"], src, "strip_height", lo=0.0,
+                             hi=lim.MAX_COORD_MM, lo_open=True)
+    items = untrusted.sequence(d["items"], src, "items", min_len=1, max_len=lim.MAX_PIECES)
+    pieces, total = [], 0
+    for i, it in enumerate(items):
+        where = f"items[{i}]"
+        it = untrusted.mapping(it, src, where)
+        shape = untrusted.mapping(it.get("shape", {}), src, f"{where}.shape")
         if "data" not in shape or "id" not in it:
-            raise ValueError(f"{path}: item {it.get('id', '?')} lacks an id or shape data")
+            raise untrusted.InputError(src, f"item {it.get('id', i)} lacks an id or shape data")
         if shape.get("type", "simple_polygon") != "simple_polygon":
-            raise ValueError(f"{path}: item {it.get('id')}: only simple_polygon shapes are read")
+            raise untrusted.InputError(src, f"{where}: only simple_polygon shapes are read")
+        outline = untrusted.points(shape["data"], src, f"{where}.shape.data", min_len=3)
+        demand = untrusted.integer(it.get("demand", 1), src, f"{where}.demand", lo=1,
+                                   hi=lim.MAX_DEMAND)
+        total += demand
         orient = it.get("allowed_orientations")
+        if orient is not None:
+            untrusted.sequence(orient, src, f"{where}.allowed_orientations", min_len=1,
+                               max_len=360)
+            orient = tuple(untrusted.number(a, src, f"{where}.allowed_orientations", lo=-360,
+                                            hi=360) for a in orient)
         try:
-            pieces.append(Piece(str(it["id"]), np.asarray(shape["data"], float),
-                                quantity=int(it.get("demand", 1)),
-                                orientations=None if orient is None else tuple(orient)))
+            pieces.append(Piece(str(it["id"])[:200], outline, quantity=demand,
+                                orientations=orient))
         except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
-    return NestProblem(pieces, float(d["strip_height"]), name=d.get("name", path.stem))
+            raise untrusted.InputError(src, str(exc)) from None
+    if total > lim.MAX_DEMAND:
+        raise untrusted.InputError(src, f"the items' demands add up to {total:,}; at most "
+                                   f"{lim.MAX_DEMAND:,} copies are nested at once")
+    name = d.get("name", path.stem)
+    return NestProblem(pieces, width, name=name if isinstance(name, str) else path.stem)

@@ -39,6 +39,14 @@ def inflate(ring: np.ndarray, d: float) -> np.ndarray:
     return np.asarray(poly.exterior.coords)[:-1]
 
 
+def narrowest(ring: np.ndarray, orientations) -> float:
+    """The smallest extent across the strip (y) of ``ring`` over the allowed rotations
+    (every whole degree when rotation is free)."""
+    angles = np.radians(np.arange(360.0) if orientations is None else np.asarray(orientations))
+    y = np.sin(angles)[:, None] * ring[None, :, 0] + np.cos(angles)[:, None] * ring[None, :, 1]
+    return float((y.max(axis=1) - y.min(axis=1)).min())
+
+
 def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | None,
                  workers: int = 1, progress: Progress | None = None,
                  label: str = "spyrrow") -> tuple[dict, float]:
@@ -58,7 +66,10 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | 
     result: dict = {}
 
     def work() -> None:
-        result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+        try:
+            result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+        except BaseException as exc:  # a panic in sparrow surfaces here, not as a lost thread
+            result["error"] = exc
 
     thread = threading.Thread(target=work, daemon=True)
     t0 = time.monotonic()
@@ -73,6 +84,8 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | 
                 progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
                          f"density {sol.density:.1%}")
                 last = time.monotonic()
+    if "sol" not in result:
+        raise ValueError(f"the strip packer failed: {result.get('error')!r}")
     sol = result["sol"]
     keys = {str(k): k for k in shapes}
     out: dict = {k: [] for k in shapes}
@@ -101,6 +114,11 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
             shapes[it.key] = [inflate(ring, grow), 0, orient]
         shapes[it.key][1] += 1
     shapes = {k: tuple(v) for k, v in shapes.items()}
+    for (index, _), (ring, _, orient) in shapes.items():
+        if narrowest(ring, orient) > (problem.width - g) * (1 + 1e-9):
+            raise ValueError(f"piece {problem.pieces[index].name!r} is wider than the "
+                             f"{problem.width:g} mm fabric (less the gaps) in every allowed "
+                             "orientation: it cannot be nested")
     # buffered shapes lie in [0, L] x [0, W - g]; true outlines keep ``grow`` inside that,
     # so shifting by g/2 leaves g + extra to every fabric edge and g + 2 extra between pieces
     placed, length = spyrrow_pack(shapes, problem.width - g, time_limit=time_limit, seed=seed,

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+import untrusted
 from solver.jsonfile import read_json
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
 from solver.nest.plain import Progress, plain_moves
@@ -22,15 +23,17 @@ from solver.nest.plain import Progress, plain_moves
 
 def load_keepouts(path: str | Path) -> list[np.ndarray]:
     """Keep-out polygons (fabric mm) from JSON: ``{"keepouts": [[[x, y], ...], ...]}`` or a list."""
-    path = Path(path)
+    src = str(path)
     d = read_json(path)
     rings = d.get("keepouts") if isinstance(d, dict) else d
-    if not isinstance(rings, list):
-        raise ValueError(f"{path}: expected a list of keep-out polygons under 'keepouts'")
-    try:
-        return [ccw_ring(r) for r in rings]
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{path}: bad keep-out polygon ({exc})") from None
+    rings = untrusted.sequence(rings, src, "keepouts", max_len=untrusted.limits.MAX_PIECES)
+    out = []
+    for i, r in enumerate(rings):
+        ring = ccw_ring(untrusted.points(r, src, f"keepouts[{i}]", min_len=3))
+        if not shapely.Polygon(ring).is_valid:
+            raise untrusted.InputError(src, f"keepouts[{i}] crosses itself")
+        out.append(ring)
+    return out
 
 
 def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ import numpy as np
 
 from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, load_esicup
+from untrusted import limits
 
 
 def kind_of(path: str | Path) -> str:
@@ -110,6 +111,10 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     for p in pieces:
         p.quantity *= quantity
         p.mirrored_pair = p.mirrored_pair or pairs
+    copies = sum(p.quantity * (2 if p.mirrored_pair else 1) for p in pieces)
+    if copies > limits.MAX_DEMAND:
+        raise ValueError(f"{', '.join(map(str, paths))}: {copies:,} copies to nest; at most "
+                         f"{limits.MAX_DEMAND:,} are nested at once")
     names = [p.name for p in pieces]
     for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
         if names.count(p.name) > 1:

@@ -94,8 +94,8 @@ def run(args: argparse.Namespace) -> int:
     from solver.align import align
     from solver.placement import Placement
 
-    if args.restarts < 1:
-        raise ValueError(f"--restarts must be at least 1, got {args.restarts}")
+    if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
+        raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     tol = grain_tolerance(args.grain)
     garment = garment_with_grain(load_garment_arg(args), args)
     fabric = load_fabric(args.fabric)

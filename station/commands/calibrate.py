@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-import cv2
+from untrusted import read_image
 
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 
@@ -41,6 +41,9 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+MAX_VIEWS = 200  # OpenCV's calibration gains nothing beyond a few dozen views
+
+
 def _folder_views(folder: Path, table: str | None):
     from station.cli import UserError
 
@@ -54,16 +57,8 @@ def _folder_views(folder: Path, table: str | None):
         table_path = files.pop()
     else:
         raise UserError(f"{folder}: no images")
-    views = []
-    for f in files:
-        im = cv2.imread(str(f), cv2.IMREAD_COLOR)
-        if im is None:
-            raise UserError(f"{f}: not an image OpenCV can read")
-        views.append(im)
-    tv = cv2.imread(str(table_path), cv2.IMREAD_COLOR)
-    if tv is None:
-        raise UserError(f"{table_path}: not an image OpenCV can read")
-    return views, tv
+    views = [read_image(f) for f in files]
+    return views, read_image(table_path)
 
 
 def _simulated_views(board_spec, n: int):
@@ -87,21 +82,26 @@ def run(args) -> int:
         spec = BoardSpec(tuple(args.squares), args.square_mm, args.marker_mm, args.dictionary)
     except ValueError as exc:
         raise UserError(str(exc)) from None
+    if not 2 <= args.views <= MAX_VIEWS:
+        raise UserError(f"--views must be 2 to {MAX_VIEWS}")
     if args.images:
         views, table = _folder_views(Path(args.images), args.table)
     elif args.simulate:
         print(f"rendering {args.views} synthetic board views", file=sys.stderr)
         views, table = _simulated_views(spec, args.views)
     else:
-        from vision.camera import open_camera
+        from vision.camera import CameraError, open_camera
 
         views = []
-        with open_camera(args.camera, average=2) as cam:
-            for k in range(args.views):
-                input(f"view {k + 1}/{args.views}: hold the board in a new pose, Enter ")
-                views.append(cam.read())
-            input("lay the board flat on the table at its set position, Enter ")
-            table = cam.read()
+        try:
+            with open_camera(args.camera, average=2) as cam:
+                for k in range(args.views):
+                    input(f"view {k + 1}/{args.views}: hold the board in a new pose, Enter ")
+                    views.append(cam.read())
+                input("lay the board flat on the table at its set position, Enter ")
+                table = cam.read()
+        except CameraError as exc:  # the device, not the program: one line, exit 2
+            raise UserError(str(exc)) from None
     print(f"calibrating from {len(views)} views", file=sys.stderr)
     cal = Calibration.from_views(views, table, spec, board_origin=tuple(args.board_origin),
                                  board_rotation=args.board_rotation)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
                    help="a piece's grain direction (pattern space, degrees); repeatable")
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
+    p.add_argument("--wait", type=float, default=600.0, metavar="SECONDS",
+                   help="how long to wait while the daemon checks the garment (default 600)")
     _common(p, run_submit)
 
     for name, text in (("jobs", "list every job"), ("status", "state, pieces and progress")):
@@ -73,10 +76,26 @@ def _ask(args: argparse.Namespace, cmd: str, **fields: Any) -> dict[str, Any]:
         raise UserError(str(exc)) from None
 
 
+class _Patience:
+    """Tells the operator, once and then every 10 s, that the daemon is still checking."""
+
+    def __init__(self, garment: str) -> None:
+        self.garment = garment
+        self.next = 1.0
+
+    def __call__(self, elapsed: float) -> None:
+        if elapsed >= self.next:
+            print(f"station submit: the daemon is checking {self.garment} "
+                  f"({elapsed:.0f} s)...", file=sys.stderr, flush=True)
+            self.next = elapsed + 10.0
+
+
 def run_submit(args: argparse.Namespace) -> int:
     options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
                                  ("method", args.method), ("restarts", args.restarts))
                if v is not None}
+    if not args.wait > 0:
+        raise UserError("--wait must be positive")
     if args.grain_line:
         from solver.garment.grain import parse_grain_lines
 
@@ -85,7 +104,7 @@ def run_submit(args: argparse.Namespace) -> int:
         options["bias"] = list(args.bias)
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
-                  options=options)
+                  options=options, timeout=args.wait, on_wait=_Patience(args.garment))
     if args.json:
         print(json.dumps(answer))
     else:

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import cv2
 
+from untrusted import read_image
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -45,11 +47,7 @@ def run(args) -> int:
     from vision.rectify import rectify
 
     path = Path(args.image)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: image not found")
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise UserError(f"{path}: not an image OpenCV can read")
+    image = read_image(path)
     offset = (0.0, 0.0)
     if args.calibration:
         cal = Calibration.load(args.calibration)

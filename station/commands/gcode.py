@@ -49,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
         changes["passes"] = args.passes
     if args.lead_in is not None:
         changes["lead_in"] = args.lead_in
+    for name, value, most in (("--kerf", args.kerf, 20.0), ("--lead-in", args.lead_in, 1000.0)):
+        if value is not None and not 0 <= value <= most:  # also refuses NaN
+            raise ValueError(f"{name} must be 0 to {most:g} mm, got {value}")
     if changes:
         machine = machine.with_cut(**changes)
     layout = load_layout(args.layout)

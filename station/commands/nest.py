@@ -56,8 +56,8 @@ def run(args) -> int:
     from solver.wallpaper import Wallpaper
     from station.cli import UserError
 
-    if args.time <= 0:
-        raise UserError("--time must be positive")
+    if not 0 < args.time <= 3600:  # also refuses NaN; sparrow cannot take more than an hour
+        raise UserError("--time must be above 0 and at most 3600 seconds")
     if args.gap < 0:
         raise UserError("--gap must not be negative")
     fabric = Wallpaper.load(args.fabric) if args.fabric else None
@@ -72,8 +72,11 @@ def run(args) -> int:
             piece.orientations = turns
     progress = stderr_progress
     t0 = time.monotonic()
-    layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
-                  method=args.method)
+    try:
+        layout = nest(problem, time_limit=args.time, seed=args.seed, progress=progress,
+                      method=args.method)
+    except ValueError as exc:  # e.g. a piece wider than the fabric: name the input
+        raise UserError(f"{', '.join(map(str, args.inputs))}: {exc}") from None
     seconds = time.monotonic() - t0
     faults = verify_layout(layout, problem)
     if faults:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 
 from station.cliargs import add_config_argument, load_config_arg
 
@@ -32,5 +33,6 @@ def run(args: argparse.Namespace) -> int:
             not config["serial"]["port"].startswith("/dev/pts"):
         raise ValueError(f"--simulate needs a simulated port (grblsim://...), the configuration "
                          f"names {config['serial']['port']}")
+    os.umask(config["store"]["umask"])  # before any file: job files 0640, folders 0750
     daemon = Daemon(config, StationPipeline(config, simulate=args.simulate))
     return daemon.serve(once=args.once)

@@ -85,6 +85,11 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--views is for --charuco calibration sessions")
     if not 0 <= args.jpeg <= 100:
         raise UserError(f"--jpeg must be 0..100, got {args.jpeg}")
+    if not 1 <= args.hfov <= 170:  # also refuses NaN
+        raise UserError(f"--hfov must be 1..170 degrees, got {args.hfov}")
+    if not (0 <= args.noise <= 255 and 0 <= args.blur <= 50):
+        raise UserError(f"--noise must be 0..255 and --blur 0..50, got {args.noise} and "
+                        f"{args.blur}")
     try:
         camera = CameraModel.default(tuple(args.resolution), hfov_deg=args.hfov)
     except ValueError as exc:

@@ -19,6 +19,7 @@ from simulators.classics import CLASSIC_GROUPS, CLASSICS, classic_print
 from simulators.fabric import Print, random_print, render_print
 from solver.wallpaper import GROUP_NAMES
 from station.cli import UserError
+from untrusted.limits import MAX_REPEAT_MM, MIN_REPEAT_MM
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -57,8 +58,9 @@ def add_print_arguments(p: argparse.ArgumentParser) -> None:
 
 def make_print(args: argparse.Namespace, *, rotation: float = 0.0,
                origin: tuple[float, float] | None = None) -> Print:
-    if args.repeat <= 0:
-        raise UserError(f"--repeat must be positive, got {args.repeat}")
+    if not MIN_REPEAT_MM <= args.repeat <= MAX_REPEAT_MM:  # the field's repeats; refuses NaN
+        raise UserError(f"--repeat must be {MIN_REPEAT_MM:g} to {MAX_REPEAT_MM:g} mm, "
+                        f"got {args.repeat}")
     if args.classic:
         return classic_print(args.classic, args.repeat, rotation=rotation,
                              origin=origin if origin is not None else (0.0, 0.0))

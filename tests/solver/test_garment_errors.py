@@ -149,7 +149,7 @@ def test_json_nan(tmp_path: Path, spec: dict) -> None:
     name = next(iter(spec["pattern"]["panels"]))
     spec["pattern"]["panels"][name]["vertices"][1][0] = float("nan")
     (tmp_path / "nan.json").write_text(json.dumps(spec))  # json writes NaN literally
-    expect_error(tmp_path / "nan.json", f"panel '{name}' has a non-finite vertex")
+    expect_error(tmp_path / "nan.json", f"panels.{name}.vertices.1..0. = nan: only finite")
 
 
 def test_json_bad_units(tmp_path: Path, spec: dict) -> None:

@@ -1,0 +1,145 @@
+"""Taking in a submission: bounded request fields, inputs copied at submit time, and the
+pipeline's check run in a child process with limits (see :mod:`station.sandbox`).
+
+Only one check runs at a time; further submissions wait their turn in their own connection
+thread, so a burst of huge submissions costs one bounded child, never the daemon's memory.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import secrets
+import shutil
+import signal
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import untrusted
+from station.control import ControlError
+from station.sandbox import SandboxError, run_limited
+
+#: files that travel with a garment: a Berkeley -m/-w partner is found by name, and the
+#: licence README must stay beside the copy (see station.render.garment_credit)
+_COMPANIONS = ("README.txt", "BERKELEY-README.txt")
+MAX_OPTIONS = 16
+#: integer job options and their ranges (10^9 alignment restarts allocated 23 GB)
+INT_OPTIONS = {"restarts": (1, 10_000), "seed": (0, 2**32 - 1)}
+
+Check = Callable[[str, "str | None", dict[str, Any]], None]
+
+
+class Intake:
+    """Admits submissions into ``folder`` (one sub-folder per submission)."""
+
+    def __init__(self, folder: Path, check: Check | None, *, seconds: float,
+                 memory_bytes: int, allowed: list[Path] | None = None) -> None:
+        self.folder = folder
+        self.check = check
+        self.allowed = [p.resolve() for p in allowed or []]
+        self.seconds = seconds
+        self.memory_bytes = memory_bytes
+        self._turn = threading.Semaphore(1)
+        self._child: int | None = None
+
+    def stop(self) -> None:
+        """Kill a check in progress (the daemon is stopping; its submitter gets an error)."""
+        pid = self._child
+        if pid is not None:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def _track(self, pid: int | None) -> None:
+        self._child = pid
+
+    def admit(self, req: dict[str, Any]) -> tuple[str, str | None, dict[str, Any]]:
+        """(garment copy, fabric copy or None, options) of an accepted submission."""
+        garment = self._source(req.get("garment"), "garment", untrusted.limits.MAX_OBJ_BYTES)
+        fabric = req.get("fabric")
+        if fabric is not None:
+            fabric = self._source(fabric, "fabric", untrusted.limits.MAX_JSON_BYTES)
+        for path in (garment, fabric):
+            if path is not None and self.allowed and \
+                    not any(path.is_relative_to(folder) for folder in self.allowed):
+                raise ControlError(f"{path}: submissions are accepted only from "
+                                   f"{', '.join(map(str, self.allowed))}")
+        options = _options(req.get("options"))
+        target = self.folder / secrets.token_hex(6)
+        g_copy: Path | None = None
+        f_copy: Path | None = None
+        try:
+            target.mkdir(parents=True)
+            g_copy = _copy_garment(garment, target)
+            if fabric is not None:
+                (target / "fabric").mkdir()
+                f_copy = target / "fabric" / fabric.name
+                shutil.copyfile(fabric, f_copy)
+            if self.check is not None:
+                with self._turn:
+                    run_limited(self.check, str(g_copy), None if f_copy is None else str(f_copy),
+                                options, seconds=self.seconds, memory_bytes=self.memory_bytes,
+                                on_child=self._track)
+        except (SandboxError, OSError) as exc:
+            shutil.rmtree(target, ignore_errors=True)
+            raise ControlError(_named(str(exc), garment, g_copy, fabric, f_copy)) from None
+        return str(g_copy), None if f_copy is None else str(f_copy), options
+
+    @staticmethod
+    def _source(value: Any, what: str, max_bytes: int) -> Path:
+        if not isinstance(value, str) or not value or len(value) > 4096 or "\0" in value:
+            raise ControlError(f"{what} must be a file path")
+        path = Path(value)
+        if not path.is_file():
+            raise ControlError(f"{value}: no such {what} file")
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise ControlError(f"{value}: {what} file of {size:,} bytes exceeds the limit of "
+                               f"{max_bytes:,}")
+        return path.resolve()
+
+
+def _options(value: Any) -> dict[str, Any]:
+    """Job options: a small flat object of short scalars."""
+    options = value or {}
+    if not isinstance(options, dict) or len(options) > MAX_OPTIONS:
+        raise ControlError(f"options must be a JSON object of at most {MAX_OPTIONS} keys")
+    for key, v in options.items():
+        ok = (v is None or isinstance(v, bool) or (isinstance(v, str) and len(v) <= 100)
+              or (isinstance(v, int) and abs(v) < 2**53)
+              or (isinstance(v, float) and math.isfinite(v)))
+        if not ok or len(key) > 100:
+            raise ControlError(f"option {key[:100]!r} must be a short number, text or "
+                               "true/false")
+        if key in INT_OPTIONS and v is not None:
+            lo, hi = INT_OPTIONS[key]
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ControlError(f"option {key} must be an integer {lo:,} to {hi:,}, "
+                                   f"got {v!r}")
+    return dict(options)
+
+
+def _copy_garment(garment: Path, target: Path) -> Path:
+    """Copy the garment (with its pair partner and licence note) into ``target``."""
+    from solver.garment.obj import pair_partner
+
+    copy = target / garment.name
+    shutil.copyfile(garment, copy)
+    partner = pair_partner(garment) if garment.suffix.lower() == ".obj" else None
+    for extra in [partner] + [garment.parent / n for n in _COMPANIONS]:
+        if extra is not None and extra.is_file() and \
+                extra.stat().st_size <= untrusted.limits.MAX_OBJ_BYTES:
+            shutil.copyfile(extra, target / extra.name)
+    return copy
+
+
+def _named(message: str, garment: Path, g_copy: Path | None, fabric: Path | None,
+           f_copy: Path | None) -> str:
+    """The check's message with the copies' paths replaced by the files the operator sent."""
+    for copy, original in ((g_copy, garment), (f_copy, fabric)):
+        if copy is not None and original is not None:
+            message = message.replace(str(copy), str(original))
+    return message
