@@ -22,6 +22,7 @@ class Notch:
 
     at: np.ndarray  # (2,) float, machine mm
     direction: np.ndarray  # (2,) float, unit
+    depth: float | None = None  # the most the piece allows (half its seam allowance), mm
 
 
 @dataclass
@@ -74,8 +75,10 @@ def _notch(value, source: str, where: str, off: np.ndarray) -> Notch:
     n = untrusted.mapping(value, source, where)
     at = untrusted.vector(n.get("at"), source, f"{where}.at") + off
     d = untrusted.vector(n.get("direction", [0.0, 0.0]), source, f"{where}.direction")
+    depth = None if n.get("depth") is None else untrusted.number(
+        n["depth"], source, f"{where}.depth", lo=0.0, hi=1000.0, lo_open=True)
     nd = float(np.hypot(*d))
-    return Notch(at, d / nd if nd > 0 else d)
+    return Notch(at, d / nd if nd > 0 else d, depth)
 
 
 def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:

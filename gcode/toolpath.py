@@ -17,7 +17,8 @@ from gcode.arcs import FittedPath, fit_arcs
 from gcode.layout import Layout, LayoutPiece
 from gcode.machine import Machine
 
-__all__ = ["Contour", "PieceToolpath", "build_toolpaths", "order_pieces", "two_opt"]
+__all__ = ["Contour", "PieceToolpath", "build_toolpaths", "fabric_box", "order_pieces",
+           "two_opt"]
 
 
 @dataclass
@@ -239,11 +240,13 @@ def _piece_features(piece: LayoutPiece, poly: Polygon, machine: Machine, gap: fl
     for n in piece.notches:
         inward = _inward(poly, n.at, n.direction)
         edge = n.at - inward * half
+        # the layout's depth keeps the slit inside the seam allowance, clear of the sew line
+        depth = c.notch_depth if n.depth is None else min(c.notch_depth, n.depth)
         if c.notch == "slit":
-            notches.append(np.vstack([n.at + inward * c.notch_depth, edge]))
+            notches.append(np.vstack([n.at + inward * depth, edge]))
         else:
             t = np.array([-inward[1], inward[0]]) * c.notch_width / 2
-            notches.append(np.vstack([edge + t, n.at + inward * c.notch_depth, edge - t]))
+            notches.append(np.vstack([edge + t, n.at + inward * depth, edge - t]))
     del source, gap
     return marks, holes, notches, outer, warnings
 
@@ -291,9 +294,47 @@ def _lead_in(closed: np.ndarray, length: float, waste: Polygon | None) -> np.nda
     return closed
 
 
+def fabric_box(layout: Layout) -> Polygon | None:
+    """The cloth on the table (machine mm): its two selvedges and its start; the roll runs
+    on past the marker's end (x = length), so that is no edge. None: no width given."""
+    if layout.width <= 0:
+        return None
+    x0, y0 = layout.origin
+    return shapely.box(x0, y0, x0 + 2 * max(layout.length, 0.0) + 1e6, y0 + layout.width)
+
+
+def _on_fabric(runs: list[np.ndarray], fabric: Polygon | None) -> list[np.ndarray]:
+    """The parts of the cut runs that lie over the fabric.
+
+    A piece may touch the fabric's edge (no gap): its kerf-offset outline then runs half a
+    kerf beyond the edge, where there is no cloth to cut, and on a fabric laid at the
+    table's corner, beyond the machine's travel. The nester cannot fix this (the kerf is
+    the machine's, not the marker's), so the toolpath leaves those runs out: the fabric's
+    own edge is the piece's edge there, within half a kerf of its cut line.
+    """
+    if fabric is None:
+        return runs
+    grown = fabric.buffer(1e-9, join_style="mitre")
+    out = []
+    for run in runs:
+        line = shapely.LineString(run)
+        if grown.covers(line):
+            out.append(run)
+            continue
+        part = shapely.line_merge(shapely.intersection(line, fabric))
+        out += [np.asarray(g.coords)[:, :2] for g in getattr(part, "geoms", [part])
+                if g.geom_type == "LineString" and g.length > 1e-6]
+    return out
+
+
 def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarray,
-                gap: float = 0.0, source: str = "<layout>") -> PieceToolpath:
-    """The toolpath of one piece, entered from head position ``pos``."""
+                gap: float = 0.0, source: str = "<layout>",
+                fabric: Polygon | None = None) -> PieceToolpath:
+    """The toolpath of one piece, entered from head position ``pos``.
+
+    ``fabric`` (machine mm) trims the outline's cut to the cloth (see :func:`_on_fabric`),
+    less the chordal tolerance an arc fit may stray by.
+    """
     c = machine.cut
     poly = _polygon(piece, source)
     marks, holes, notches, outer, warnings = _piece_features(piece, poly, machine, gap, source)
@@ -319,11 +360,23 @@ def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarra
         hole_poly = Polygon(ring)
         closed = _lead_in(ring, c.lead_in, hole_poly)
         tp.contours.append(_contour("hole", True, closed, machine))
+    if fabric is not None:  # arcs may stray by the tolerance: keep that much inside
+        fabric = fabric.buffer(-c.tolerance, join_style="mitre")
+    notches = _on_fabric(notches, fabric)  # a notch's start half a kerf out, off the cloth
     ordered_notches, pos = _order_open(notches, pos, reversible=True)
     for p in ordered_notches:
         tp.contours.append(_contour("notch", False, p, machine))
     ring = _rotate_to(outer, pos)
-    if knife and c.tabs > 0:
+    over_edge = fabric is not None and not fabric.buffer(1e-9, join_style="mitre").covers(
+        shapely.LineString(ring))
+    if over_edge:
+        runs = _on_fabric(_tab_strokes(ring, c.tabs, c.tab_width) if knife else [ring], fabric)
+        strokes = []
+        for run in runs:
+            strokes.extend(_fit(s, machine) for s in (
+                _corner_split(run, machine.knife.corner_angle) if knife else [run]))
+        tp.contours.append(Contour("outline", False, strokes, ring))
+    elif knife and c.tabs > 0:
         runs = _tab_strokes(ring, c.tabs, c.tab_width)
         strokes = []
         for run in runs:
@@ -366,7 +419,8 @@ def build_toolpaths(layout: Layout, machine: Machine, *, only: set[str] | None =
     out = []
     for k in order:
         i, p = pieces[int(k)]
-        tp = build_piece(p, i, machine, pos, gap=layout.gap, source=layout.source)
+        tp = build_piece(p, i, machine, pos, gap=layout.gap, source=layout.source,
+                         fabric=fabric_box(layout))
         out.append(tp)
         pos = tp.exit
     return out

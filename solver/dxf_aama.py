@@ -6,7 +6,8 @@ entity is its layer number (AAMA/ASTM D6673):
 
     1 boundary (cut line; often split in several open POLYLINEs), 4 notches,
     6 mirror line (the block holds half the piece), 7 grain line, 8 internal lines,
-    11 internal cut-outs, 13 drill holes, 84 ASTM boundary curve (duplicate of 1)
+    11 internal cut-outs, 13 drill holes, 14 sew line (stitch line),
+    84 ASTM boundary curve (duplicate of 1)
 
 and TEXT entities in the block say ``Piece Name:``, ``Size:``, ``Quantity:``; the
 modelspace says ``Units: ENGLISH`` (inches) or ``METRIC`` (mm). ezdxf does the file
@@ -98,8 +99,20 @@ def _reflect(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return a + 2 * np.outer(v @ d, d) - v
 
 
+def _sew_inward(outline: np.ndarray, allowance_mm: float | None) -> np.ndarray | None:
+    """The sew line a file without layer 14 implies: the cut line moved in by the allowance."""
+    if not allowance_mm:
+        return None
+    inner = shapely.Polygon(outline).buffer(-allowance_mm, join_style="mitre", mitre_limit=2.0)
+    if inner.is_empty:
+        return None
+    if inner.geom_type != "Polygon":
+        inner = max(inner.geoms, key=lambda q: q.area)
+    return np.asarray(shapely.geometry.polygon.orient(inner, 1.0).exterior.coords)[:-1]
+
+
 def _piece_from_block(entities: list, name_default: str, scale: float, unfold: bool,
-                      where: str) -> Piece:
+                      where: str, allowance_mm: float | None = None) -> Piece:
     by_layer = defaultdict(list)
     for e in entities:
         by_layer[str(e.dxf.layer)].append(e)
@@ -127,6 +140,8 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
     if not rings:
         raise ValueError(f"{where}: piece {name!r}: the boundary on layer 1 is not a closed line")
     outline = max(rings, key=lambda r: abs(shapely.Polygon(r).area))
+    sew_rings = _chain(polylines("14"), 1e-6 * span + 1e-6)
+    sew_line = max(sew_rings, key=lambda r: abs(shapely.Polygon(r).area)) if sew_rings else None
     holes = [r for r in _chain(polylines("11"), 1e-6 * span + 1e-6)]
     grain = polylines("7")
     grainline = grain[0][[0, -1]] if grain else None
@@ -153,6 +168,13 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
         if whole.geom_type == "MultiPolygon":
             whole = max(whole.geoms, key=lambda g: g.area)
         outline = shapely.simplify(whole, tol).exterior.coords[:-1]
+        if sew_line is not None:
+            sew = shapely.union(shapely.Polygon(sew_line),
+                                shapely.Polygon(_reflect(sew_line, line)).buffer(0))
+            sew = sew.buffer(tol, join_style="mitre").buffer(-tol, join_style="mitre")
+            if sew.geom_type == "MultiPolygon":
+                sew = max(sew.geoms, key=lambda g: g.area)
+            sew_line = np.asarray(shapely.simplify(sew, tol).exterior.coords[:-1])
         notches += [(_reflect(a[None], line)[0], _reflect(a[None] + d[None], line)[0]
                      - _reflect(a[None], line)[0]) for a, d in notches]
         if len(marks):
@@ -161,9 +183,17 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
         quantity = int(float(text.get("quantity", "1") or 1))
     except ValueError:
         quantity = 1
-    piece = Piece(name, np.asarray(outline, float), quantity=max(quantity, 1), holes=holes,
+    outline = np.asarray(outline, float)
+    if sew_line is None:
+        sew_line = _sew_inward(outline, allowance_mm)
+    elif shapely.Polygon(sew_line).area < 0:
+        sew_line = sew_line[::-1]
+    if sew_line is not None:
+        sew_line = np.asarray(shapely.geometry.polygon.orient(
+            shapely.Polygon(sew_line), 1.0).exterior.coords)[:-1]
+    piece = Piece(name, outline, quantity=max(quantity, 1), holes=holes,
                   grainline=grainline, notches=notches, marks=marks,
-                  size=text.get("size") or None)
+                  size=text.get("size") or None, sew_line=sew_line)
     if grainline is not None:  # reference frame: the grain along the roll (+x)
         d = grainline[1] - grainline[0]
         if np.linalg.norm(d) > 0:
@@ -202,8 +232,12 @@ def dxf_sizes(path: str | Path) -> list[str]:
 
 
 def read_dxf_aama(path: str | Path, *, size: str | list[str] | None = None,
-                  units: str | None = None, unfold: bool = True) -> list[Piece]:
-    """Pieces (mm) of a DXF-AAMA/ASTM file.
+                  units: str | None = None, unfold: bool = True,
+                  allowance_mm: float | None = None) -> list[Piece]:
+    """Pieces (mm) of a DXF-AAMA/ASTM file: outline = the cut line (layer 1).
+
+    The sew line is layer 14 where the piece has one, else the cut line moved inward by
+    ``allowance_mm`` (None or 0: the piece has no sew line).
 
     ``size`` picks the size(s) to cut when the file is graded (several sizes); by default
     a graded file gives its sample size (``Sample Size:``) or else its first size.
@@ -229,7 +263,7 @@ def read_dxf_aama(path: str | Path, *, size: str | list[str] | None = None,
         s = _texts(ents).get("size")
         if wanted is not None and sizes and s not in wanted:
             continue
-        p = _piece_from_block(ents, name, scale, unfold, str(path))
+        p = _piece_from_block(ents, name, scale, unfold, str(path), allowance_mm)
         if wanted is not None and len(wanted) > 1 and s:
             p.name = f"{p.name} {s}"
         pieces.append(p)
@@ -239,7 +273,8 @@ def read_dxf_aama(path: str | Path, *, size: str | list[str] | None = None,
 def write_dxf_aama(pieces: list[Piece], path: str | Path, *, style: str = "station") -> None:
     """Write pieces (mm, input coordinates) as DXF-AAMA R12: one BLOCK + INSERT per piece.
 
-    Each block holds the outline (layer 1, closed), cut-outs (11), the grain line (7),
+    Each block holds the outline = cut line (layer 1, closed), the sew line (14, closed,
+    where the piece has one), cut-outs (11), the grain line (7),
     notches as POINTs with their direction angle (4), drill holes (13) and the TEXTs
     ``Piece Name``, ``Size``, ``Quantity``; it round-trips through :func:`read_dxf_aama`.
     """
@@ -256,13 +291,16 @@ def write_dxf_aama(pieces: list[Piece], path: str | Path, *, style: str = "stati
         blk = doc.blocks.new(name=bname)
         blk.add_polyline2d([tuple(map(float, q)) for q in p.outline], close=True,
                            dxfattribs={"layer": "1"})
+        if p.sew_line is not None:
+            blk.add_polyline2d([tuple(map(float, q)) for q in p.sew_line], close=True,
+                               dxfattribs={"layer": "14"})
         for h in p.holes:
             blk.add_polyline2d([tuple(map(float, q)) for q in h], close=True,
                                dxfattribs={"layer": "11"})
         if p.grainline is not None:
             blk.add_line(tuple(map(float, p.grainline[0])), tuple(map(float, p.grainline[1])),
                          dxfattribs={"layer": "7"})
-        for at, d in p.notches:
+        for at, d, _ in p.notches:
             blk.add_point(tuple(map(float, at)), dxfattribs={
                 "layer": "4", "angle": math.degrees(math.atan2(d[1], d[0])) % 360.0})
         for m in np.asarray(p.marks, float).reshape(-1, 2):
@@ -284,5 +322,7 @@ def transformed(piece: Piece, m: np.ndarray) -> Piece:
     return Piece(piece.name, affine(m, piece.outline), piece.quantity, piece.orientations,
                  piece.mirrored_pair, holes=[affine(m, h) for h in piece.holes],
                  grainline=None if piece.grainline is None else affine(m, piece.grainline),
-                 notches=[(affine(m, a)[0], lin @ d) for a, d in piece.notches],
-                 marks=affine(m, piece.marks), size=piece.size)
+                 notches=[(affine(m, a)[0], lin @ d, h) for a, d, h in piece.notches],
+                 marks=affine(m, piece.marks), size=piece.size,
+                 sew_line=None if piece.sew_line is None else affine(m, piece.sew_line),
+                 allowance=piece.allowance)

@@ -70,7 +70,7 @@ def load_config_arg(args: argparse.Namespace, overrides=None):
 
     from station.config import load_config
 
-    path = args.config or os.environ.get("STATION_CONFIG")
+    path = getattr(args, "config", None) or os.environ.get("STATION_CONFIG")
     if path is None and Path("station.toml").is_file():
         path = "station.toml"
     return load_config(path, overrides)
@@ -134,3 +134,43 @@ def fabric_grain_deg(path: str | Path) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
         raise ValueError(f"{path}: grain_deg must be a number of degrees")
     return float(value)
+
+
+def read_name_map(path: str | Path, what: str) -> dict[int | str, float]:
+    """A JSON object {"seam line name or index": number} (weights, allowances) from a file.
+
+    Keys that are digits become indices, as ``--weights`` and ``--allowance`` take them.
+    """
+    from solver.jsonfile import read_json
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such {what} file")
+    data = read_json(p)
+    if not isinstance(data, dict):
+        raise ValueError(f'{p}: expected an object {{"seam line": {what}}}')
+    out: dict[int | str, float] = {}
+    for key, value in data.items():
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise ValueError(f"{p}: {what} of {key!r} is not a number")
+        out[int(key) if key.isdigit() else key] = float(value)
+    return out
+
+
+def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seam-allowance", type=float, metavar="MM",
+                        help="seam allowance on every sewn edge (default: station.toml "
+                        "[allowance] seam_mm, 10)")
+    parser.add_argument("--allowance", metavar="A.json",
+                        help='allowances per seam line or opening: {"front~back": 15, '
+                        '"3": 12, "hem": 30, "opening": 8, "open#2": 25, "PIECE/open": 0}')
+
+
+def allowance_rules(args: argparse.Namespace, config=None):
+    """The job's allowance rules: station.toml [allowance], then the command line."""
+    from station.allowance import rules_for
+
+    if args.seam_allowance is not None and args.seam_allowance < 0:
+        raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
+    more = read_name_map(args.allowance, "allowance") if args.allowance else None
+    return rules_for(config or load_config_arg(args), args.seam_allowance, more)

@@ -100,6 +100,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
                       maximum=1000.0),
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1, maximum=3600.0),
     },
+    "allowance": {
+        "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0),
+        "hem_mm": Key(float, 20.0, "allowance on hems: bottom, sleeve and leg ends (mm)",
+                      minimum=0.0),
+        "opening_mm": Key(float, 10.0, "allowance on other open edges: necklines, waists, "
+                          "finished with a facing or band (mm)", minimum=0.0),
+        "notch_depth_mm": Key(float, 3.0, "notch slit depth (mm; never over half the "
+                              "allowance)", minimum=0.0),
+        "notch_spacing_mm": Key(float, 100.0, "balance notches along a seam at most this "
+                                "far apart (mm; 0: only at seam ends)", minimum=0.0),
+    },
     # Every program the station cuts uses these (over the machine profile's [cut]); the
     # profile's ranges apply (power up to max_s, feed from min_cut_feed to max_feed).
     "cut": {

@@ -66,7 +66,7 @@ class StationPipeline:
         if fabric is not None:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
-                                  "grain_lines", "bias"}
+                                  "grain_lines", "bias", "seam_allowance", "allowance"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
         lines, bias = options.get("grain_lines", {}), options.get("bias", [])
@@ -78,6 +78,10 @@ class StationPipeline:
         with warnings.catch_warnings():  # a guessed grain is reported when the job runs
             warnings.simplefilter("ignore")
             grained(loaded, self.config, options)  # names every piece that does not exist
+        from solver.garment.allowance import edge_allowances
+        from station.allowance import rules_for_job
+
+        edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
@@ -220,8 +224,15 @@ class StationPipeline:
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
         final_fit = aligned
+        from solver.garment.notches import cut_ready
+        from station.allowance import rules_for_job
+
+        rules = rules_for_job(self.config, job.options)
+        report["allowance"] = rules.to_dict()
+        cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, aligned, workdir / "fit-aligned.png",
-                 title=f"aligned on {wallpaper.group}", colour_of=colour_of)
+                 title=f"aligned on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                 notches=notches)
         lap("align")
         self._write_report(workdir, report)
         control.checkpoint()
@@ -237,9 +248,10 @@ class StationPipeline:
             placement.garment = str(garment_path)
             report["reshape"] = reshaped.to_dict()
             final_fit = fit_report(garment, placement)
+            cuts, notches = cut_ready(garment, rules, placement)  # follows the sew
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
-                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of,
-                     original=aligned_garment)
+                     title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
+                     notches=notches, original=aligned_garment)
             lap("reshape")
             self._write_report(workdir, report)
             control.checkpoint()
@@ -253,7 +265,8 @@ class StationPipeline:
                 1.0, (time.monotonic() - t_nest) / seconds))
 
         try:
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         except ValueError as exc:
             if garment is aligned_garment:
                 raise
@@ -266,7 +279,8 @@ class StationPipeline:
             placement.garment = str(garment_path)
             placement.save(workdir / "placement.json")
             t_nest = time.monotonic()
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest)
+            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
+                                    job.options)
         layout.save(workdir / "layout.json")
         report["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                           "density": layout.density, "pieces": len(layout.pieces)}
@@ -323,7 +337,8 @@ class StationPipeline:
         placement.garment = str(garment_path)
         placement.save(workdir / "placement.json")
         start_step(control, "nesting", 0.0)
-        layout = nest_placement(workdir / "placement.json", self.config, plain=True)
+        layout = nest_placement(workdir / "placement.json", self.config, None, job.options,
+                                plain=True)
         layout.save(workdir / "layout.json")
         control.checkpoint()
         start_step(control, "programming")
@@ -666,19 +681,20 @@ def grained(garment, config: Config, options: dict[str, Any]):
                               up=None if up == "auto" else up)
 
 
-def nest_placement(placement_path: Path, config: Config, progress=None, *,
+def nest_placement(placement_path: Path, config: Config, progress=None, options=None, *,
                    plain: bool = False):
-    """Nest the aligned pieces on the fabric in view, each kept on its print position
-    (``plain``: on plain cloth, free of any print)."""
+    """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
+    position (``plain``: on plain cloth, free of any print); ``options`` are the job's
+    (its seam allowances)."""
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import load_problem
+    from station.allowance import rules_for_job
 
     n = config["nest"]
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
-                           gap=n["gap_mm"])
-    if plain:
-        problem.fabric = None
+                           gap=n["gap_mm"], allowance=rules_for_job(config, options or {}),
+                           plain=plain)
     layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:

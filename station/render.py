@@ -60,17 +60,46 @@ def garment_credit(source: str | Path) -> str | None:
     return None
 
 
+def dashed(image: np.ndarray, ring_px: np.ndarray, colour, thickness: int = 1,
+           dash_px: float = 6.0) -> None:
+    """A closed polyline (cv2 fixed point, 4 fractional bits) drawn dashed: the sew line."""
+    ring = np.vstack([ring_px, ring_px[:1]]).astype(float) / 16
+    seg = np.hypot(*np.diff(ring, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] <= 0:
+        return
+    marks = np.arange(0.0, s[-1], dash_px)
+    pts = np.column_stack([np.interp(marks, s, ring[:, 0]), np.interp(marks, s, ring[:, 1])])
+    pairs = list(np.round(pts[: len(pts) // 2 * 2].reshape(-1, 2, 2) * 16).astype(np.int32))
+    # a light halo under the dark dash: readable on pale cloth and on a dark plaid alike
+    cv2.polylines(image, pairs, False, (245, 245, 245), thickness + 2, cv2.LINE_AA, shift=4)
+    cv2.polylines(image, pairs, False, colour, thickness, cv2.LINE_AA, shift=4)
+
+
+def notch_ticks(image: np.ndarray, notches, to_px, min_mm: float) -> None:
+    """Each notch as a red slit from the cut line inward (at least ``min_mm`` long)."""
+    for at, d, depth in notches:
+        at, d = np.asarray(at, float), np.asarray(d, float)
+        a, b = to_px(np.stack([at, at + max(depth or 0.0, min_mm) * d]))
+        cv2.line(image, tuple(map(int, a)), tuple(map(int, b)), (0, 0, 200), 2, cv2.LINE_AA,
+                 shift=4)
+
+
 def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path, *,
              width_px: int = 1600, red_mm: float = 20.0,
              colour_of: ColourOf | None = None, title: str | None = None,
-             original=None) -> np.ndarray:
+             cuts=None, notches=None, original=None) -> np.ndarray:
     """Draw the pieces (pattern space) over the print and save a PNG; returns the image.
 
-    Each piece shows its grain line as an arrow; ``original`` (the garment before
-    reshaping) is overlaid as a thin grey outline so that the change can be seen.
+    With ``cuts`` (per piece :class:`solver.garment.allowance.CutLine`) the seam allowance
+    shows as a lighter band of the print, the cut line solid and the sew line dashed;
+    ``notches`` (per piece, :class:`solver.garment.notches.Notch`) as red slits. Each piece
+    shows its grain line as an arrow; ``original`` (the garment before reshaping) is
+    overlaid as a thin grey outline so that the change can be seen.
     """
     uv = garment.uv
-    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    extent = uv if not cuts else np.vstack([uv] + [c.outline for c in cuts])
+    lo, hi = extent.min(axis=0), extent.max(axis=0)
     margin = 0.04 * float(np.max(hi - lo))
     lo, hi = lo - margin, hi + margin
     scale = width_px / float(hi[0] - lo[0])
@@ -87,6 +116,10 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
 
     # Which piece covers each pixel: rasterise every piece's triangles with its id.
     label = np.zeros((height_px + banner, width_px), np.int32)
+    for piece, cut in enumerate(cuts or []):  # the allowance band: the print, lighter
+        cv2.fillPoly(label, [to_px(cut.outline)], -(piece + 1), lineType=cv2.LINE_8, shift=4)
+        for hole in cut.holes:
+            cv2.fillPoly(label, [to_px(hole)], 0, lineType=cv2.LINE_8, shift=4)
     tri = to_px(uv)[garment.faces]
     for piece in range(garment.n_pieces):
         mask = garment.piece_of_face() == piece
@@ -95,12 +128,24 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     ys, xs = np.nonzero(label)
     if len(xs):
         pts = np.column_stack([xs / scale + lo[0], hi[1] - (ys - banner) / scale])
-        piece = label[ys, xs] - 1
-        image[ys, xs] = colour_of(placement.to_wallpaper(pts, piece))
+        piece = np.abs(label[ys, xs]) - 1
+        colours = colour_of(placement.to_wallpaper(pts, piece)).astype(float)
+        band = label[ys, xs] < 0
+        colours[band] = 0.5 * colours[band] + 0.5 * 245
+        image[ys, xs] = colours.astype(np.uint8)
     for piece in range(garment.n_pieces):
         for loop in garment.piece_loops(piece):
             ring = to_px(uv[loop])
-            cv2.polylines(image, [ring], True, (60, 60, 60), 1, cv2.LINE_AA, shift=4)
+            if cuts:
+                dashed(image, ring, (60, 60, 60), 1)
+            else:
+                cv2.polylines(image, [ring], True, (60, 60, 60), 1, cv2.LINE_AA, shift=4)
+    for cut in cuts or []:
+        cv2.polylines(image, [to_px(r) for r in [cut.outline, *cut.holes]], True,
+                      (30, 30, 30), 2, cv2.LINE_AA, shift=4)
+    for per_piece in notches or []:
+        notch_ticks(image, [(q.at, q.direction, q.depth) for q in per_piece], to_px,
+                    4.0 / scale)
     if original is not None:
         for piece in range(original.n_pieces):
             for loop in original.piece_loops(piece):
@@ -196,7 +241,10 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
     full = np.full_like(image, 245)
     full[banner:] = cloth
     image[mask > 0] = full[mask > 0]
-    cv2.polylines(image, rings, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+    cv2.polylines(image, rings, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)  # cut lines
+    for piece in layout["pieces"]:
+        if piece.get("sew_line") is not None:
+            dashed(image, to_px(piece["sew_line"]), (40, 40, 40), 1)
     _draw_marker_details(image, layout, to_px, scale)
     if garment is not None and report is not None:
         _draw_marker_seams(image, layout, garment, report, to_px, red_mm)
@@ -217,7 +265,8 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
 
 
 def _draw_marker_details(image, layout, to_px, scale: float) -> None:
-    """Keep-outs (red), holes, notches (red ticks) and grain lines (green arrows)."""
+    """Keep-outs (red), holes, notches (red slits), marks (red crosses) and grain lines
+    (green arrows)."""
     keepouts = [to_px(k) for k in layout.get("keepouts", [])]
     if keepouts:
         shade = image.copy()
@@ -225,12 +274,15 @@ def _draw_marker_details(image, layout, to_px, scale: float) -> None:
         cv2.addWeighted(shade, 0.5, image, 0.5, 0, dst=image)
     holes = [to_px(h) for piece in layout["pieces"] for h in piece.get("holes", [])]
     cv2.polylines(image, holes, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
-    tick = max(4.0 / scale, 0.01 * float(layout["width"]))  # at least 4 px long
+    arm = 3.0 / scale  # marks (drill holes, dart points) as small crosses, 3 px each way
     for piece in layout["pieces"]:
-        for notch in piece.get("notches", []):
-            at, d = np.asarray(notch["at"], float), np.asarray(notch["direction"], float)
-            a, b = to_px(np.stack([at, at + tick * d]))
-            cv2.line(image, tuple(a), tuple(b), (0, 0, 200), 2, cv2.LINE_AA, shift=4)
+        notch_ticks(image, [(n["at"], n["direction"], n.get("depth"))
+                            for n in piece.get("notches", [])], to_px, 4.0 / scale)
+        for m in np.asarray(piece.get("marks") or [], float).reshape(-1, 2):
+            for d in ((arm, arm), (arm, -arm)):
+                a, b = to_px(np.stack([m - d, m + d]))
+                cv2.line(image, tuple(map(int, a)), tuple(map(int, b)), (0, 0, 200), 1,
+                         cv2.LINE_AA, shift=4)
         if piece.get("grainline") is not None:
             a, b = to_px(piece["grainline"])
             cv2.arrowedLine(image, tuple(a), tuple(b), (0, 130, 0), 1, cv2.LINE_AA, shift=4)

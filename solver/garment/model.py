@@ -68,6 +68,9 @@ class Garment:
     grain : tuple of PieceGrain
         Each piece's grain direction and its source (`solver.garment.grain`); empty until
         :meth:`grains` infers it or :meth:`with_grain` sets it.
+    panel_frames : dict
+        Per piece a (3,3) float array ``F``: a specification places its panel around the
+        body, and the pattern point (u, v) sits at ``F @ (u, v, 1)`` (mm, world, +y up).
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -92,6 +95,7 @@ class Garment:
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     grain: tuple[PieceGrain, ...] = ()
+    panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -172,6 +176,7 @@ class Garment:
             seam_lines=list(self.seam_lines),
             grainlines=dict(self.grainlines),
             notches={k: list(v) for k, v in self.notches.items()},
+            panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
             _loops=None,
         )
 
@@ -317,6 +322,7 @@ def build_garment(
     grainlines: dict | None = None,
     notches: dict | None = None,
     twins: np.ndarray | None = None,
+    panel_frames: dict | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
@@ -406,6 +412,7 @@ def build_garment(
     seam_edges = seam_edges[so]
 
     names = list(piece_names) if piece_names is not None else []
+    panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
     if len(names) != n_pieces:
         if piece_names is not None:
             warnings.warn(
@@ -429,6 +436,7 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
+        panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),

@@ -386,6 +386,7 @@ def load_spec(
     grainlines: dict[int, tuple[tuple[float, float], tuple[float, float]]] = {}
     notches: dict[int, list[tuple[float, float]]] = {}
     boxes: list[np.ndarray] = []
+    frames: dict[int, np.ndarray | None] = {}
     absolute = props.get("pattern_layout") == "absolute"
     zero_edges = 0
     for p, polys in enumerate(dense):
@@ -413,6 +414,7 @@ def load_spec(
             verts = verts + np.array([shift, 0.0])
             box = box + np.array([shift, 0.0, shift, 0.0])
         boxes.append(box)
+        frames[p] = _panel_frame(panels[order[p]], k, shift)
         marks = _panel_marks(path, order[p], panels[order[p]], k, np.array([shift, 0.0]))
         if marks[0] is not None:
             grainlines[p] = marks[0]
@@ -452,7 +454,28 @@ def load_spec(
         grainlines=grainlines,
         notches=notches,
         twins=all_twins,
+        panel_frames={p: f for p, f in frames.items() if f is not None},
     )
+
+
+def _panel_frame(panel: dict, k: float, shift: float) -> np.ndarray | None:
+    """Where the specification places a panel around the body: ``F`` (3,3) with world =
+    ``F @ (u, v, 1)`` mm for the pattern point (u, v) (``rotation``: intrinsic XYZ Euler
+    degrees, as GarmentCode builds it; ``translation`` in file units). None when the panel
+    is not placed (all zero is what :func:`save_spec` writes)."""
+    rot, trans = panel.get("rotation"), panel.get("translation")
+    try:
+        rot = np.asarray(rot, float).reshape(3)
+        trans = np.asarray(trans, float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    if not (np.isfinite(rot).all() and np.isfinite(trans).all()) or not (
+            rot.any() or trans.any()):
+        return None
+    from scipy.spatial.transform import Rotation
+
+    r = Rotation.from_euler("XYZ", rot, degrees=True).as_matrix()
+    return np.column_stack([r[:, 0], r[:, 1], trans * k - r[:, 0] * shift])
 
 
 def _panel_marks(

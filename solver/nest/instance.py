@@ -87,9 +87,13 @@ class Piece:
     base: np.ndarray = field(default_factory=lambda: IDENTITY.copy())
     holes: list[np.ndarray] = field(default_factory=list)
     grainline: np.ndarray | None = None  # (2, 2) input coordinates
-    notches: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (at, direction)
+    # (at, direction, depth): depth None lets the cutter choose; given, it is the most the
+    # seam allowance takes
+    notches: list[tuple] = field(default_factory=list)
     marks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     size: str | None = None
+    sew_line: np.ndarray | None = None  # (k, 2) the sew line inside the cut line ``outline``
+    allowance: np.ndarray | None = None  # (k,) mm per sew-line edge sew_line[j] -> [j + 1]
 
     def __post_init__(self) -> None:
         try:
@@ -101,6 +105,11 @@ class Piece:
         if int(self.quantity) < 1:
             raise ValueError(f"piece {self.name!r}: quantity must be at least 1")
         self.quantity = int(self.quantity)
+        self.notches = [(np.asarray(n[0], float), np.asarray(n[1], float),
+                         None if len(n) < 3 or n[2] is None else float(n[2]))
+                        for n in self.notches]
+        if self.sew_line is not None:
+            self.sew_line = np.asarray(self.sew_line, float).reshape(-1, 2)
         if self.orientations is not None:
             self.orientations = tuple(float(a) % 360.0 for a in self.orientations) or (0.0,)
         self.base = np.asarray(self.base, float).reshape(2, 3)
@@ -121,6 +130,7 @@ class NestProblem:
     fabric: object | None = None  # solver.wallpaper.Wallpaper
     keepouts: list[np.ndarray] = field(default_factory=list)
     name: str = ""
+    allowance: dict | None = None  # the rules garments' cut lines were made with (reported)
 
     def __post_init__(self) -> None:
         if not self.pieces:

@@ -469,8 +469,14 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
             r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
         elif strategy in ("resnap", "resnap-margin", "repair"):
             extra = 0.5 * covering_radius(problem.lattice) if strategy == "resnap-margin" else 0.0
-            r = repair_snapped(problem, items, time_limit=share, seed=seed, progress=progress,
-                               everything=strategy != "repair", extra=extra)
+            try:
+                r = repair_snapped(problem, items, time_limit=share, seed=seed,
+                                   progress=progress, everything=strategy != "repair",
+                                   extra=extra)
+            except ValueError as exc:  # sparrow gave up; the other strategies may not
+                if progress:
+                    progress(f"{strategy}: {exc}")
+                r = None
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:

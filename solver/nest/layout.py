@@ -39,9 +39,11 @@ class Placed:
     mirrored: bool
     outline: np.ndarray
     holes: list[np.ndarray] = field(default_factory=list)
-    notches: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    notches: list[tuple] = field(default_factory=list)  # (at, direction, depth or None)
     marks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     grainline: np.ndarray | None = None
+    sew_line: np.ndarray | None = None  # (k, 2) inside the cut line ``outline``
+    allowance: np.ndarray | None = None  # (k,) mm per sew-line edge
 
     @property
     def angle_deg(self) -> float:
@@ -55,19 +57,26 @@ class Placed:
         return {"id": self.id, "name": self.name, "transform": r(self.transform),
                 "angle_deg": round(self.angle_deg, 9), "mirrored": self.mirrored,
                 "outline": r(self.outline), "holes": [r(h) for h in self.holes],
-                "notches": [{"at": r(a), "direction": r(d)} for a, d in self.notches],
+                "notches": [{"at": r(a), "direction": r(d)} | ({} if h is None else
+                                                              {"depth": round(h, 9)})
+                            for a, d, h in self.notches],
                 "marks": r(self.marks),
-                "grainline": None if self.grainline is None else r(self.grainline)}
+                "grainline": None if self.grainline is None else r(self.grainline),
+                **({} if self.sew_line is None else {"sew_line": r(self.sew_line)}),
+                **({} if self.allowance is None else {"allowance": r(self.allowance)})}
 
     @classmethod
     def from_dict(cls, d: dict) -> Placed:
         return cls(d["id"], d.get("name", d["id"]), np.asarray(d["transform"], float),
                    bool(d.get("mirrored", False)), np.asarray(d["outline"], float),
                    [np.asarray(h, float) for h in d.get("holes", [])],
-                   [(np.asarray(n["at"], float), np.asarray(n["direction"], float))
+                   [(np.asarray(n["at"], float), np.asarray(n["direction"], float),
+                     None if n.get("depth") is None else float(n["depth"]))
                     for n in d.get("notches", [])],
                    np.asarray(d.get("marks", []), float).reshape(-1, 2),
-                   None if d.get("grainline") is None else np.asarray(d["grainline"], float))
+                   None if d.get("grainline") is None else np.asarray(d["grainline"], float),
+                   None if d.get("sew_line") is None else np.asarray(d["sew_line"], float),
+                   None if d.get("allowance") is None else np.asarray(d["allowance"], float))
 
 
 @dataclass
@@ -78,6 +87,7 @@ class Layout:
     pieces: list[Placed]
     fabric: dict | None = None
     keepouts: list[np.ndarray] = field(default_factory=list)
+    allowance: dict | None = None  # the allowance rules the cut lines were made with
 
     @property
     def density(self) -> float:
@@ -88,6 +98,8 @@ class Layout:
         d = {"version": 1, "units": "mm", "width": self.width, "length": self.length,
              "gap": self.gap, "origin": [0, 0], "density": round(self.density, 6),
              "fabric": self.fabric, "pieces": [p.to_dict() for p in self.pieces]}
+        if self.allowance is not None:
+            d["allowance"] = self.allowance
         if self.keepouts:
             d["keepouts"] = [np.asarray(k, float).tolist() for k in self.keepouts]
         return d
@@ -98,7 +110,7 @@ class Layout:
             raise ValueError("not a version-1 LAYOUT in mm")
         return cls(float(d["width"]), float(d["length"]), float(d.get("gap", 0.0)),
                    [Placed.from_dict(p) for p in d["pieces"]], d.get("fabric"),
-                   [np.asarray(k, float) for k in d.get("keepouts", [])])
+                   [np.asarray(k, float) for k in d.get("keepouts", [])], d.get("allowance"))
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=1) + "\n")
@@ -122,22 +134,25 @@ def build_layout(problem: NestProblem, items: list[Item], moves: list[np.ndarray
         placed.append(Placed(
             item.id, item.name, t, item.mirrored, affine(t, piece.outline),
             [affine(t, h) for h in piece.holes],
-            [(affine(t, a)[0], t[:, :2] @ np.asarray(d, float)) for a, d in piece.notches],
+            [(affine(t, a)[0], t[:, :2] @ np.asarray(d, float), h) for a, d, h in piece.notches],
             affine(t, piece.marks),
-            None if piece.grainline is None else affine(t, piece.grainline)))
+            None if piece.grainline is None else affine(t, piece.grainline),
+            None if piece.sew_line is None else affine(t, piece.sew_line),
+            piece.allowance))
     if length is None:
         xmax = max(float(p.outline[:, 0].max()) for p in placed)
         length = xmax + problem.gap
     fabric = None if problem.fabric is None else problem.fabric.to_dict()
     return Layout(float(problem.width), float(length), float(problem.gap), placed, fabric,
-                  list(problem.keepouts))
+                  list(problem.keepouts), problem.allowance)
 
 
 def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
                   symmetry_samples: int = 16) -> list[str]:
     """Every fault of a layout as a one-line message (empty list: safe to cut).
 
-    Checks: outlines pairwise overlap by at most 1e-6 of the smaller area and keep at
+    Outlines are cut lines (allowances included). Checks: each sew line lies inside its
+    cut line; outlines pairwise overlap by at most 1e-6 of the smaller area and keep at
     least the gap apart; each outline lies in the fabric shrunk by the gap and away from
     the keep-outs; with ``problem``: the right copies are all there, each transform
     carries the piece's input outline onto the placed outline, its rotation relative to
@@ -150,6 +165,9 @@ def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
     for p, poly in zip(layout.pieces, polys):
         if not poly.is_valid:
             faults.append(f"{p.id}: outline is not a valid polygon")
+        elif p.sew_line is not None and not shapely.Polygon(p.outline).buffer(1e-6).contains(
+                shapely.Polygon(p.sew_line)):
+            faults.append(f"{p.id}: the sew line leaves the cut line")
     inner = shapely.box(g - EDGE_TOL, g - EDGE_TOL, layout.length - g + EDGE_TOL,
                         layout.width - g + EDGE_TOL)
     for p, poly in zip(layout.pieces, polys):

@@ -31,11 +31,17 @@ def stderr_progress(msg: str) -> None:
 
 
 def inflate(ring: np.ndarray, d: float) -> np.ndarray:
-    """Outline grown by ``d`` with mitred corners (never smaller than the true offset)."""
+    """Outline grown by ``d`` with mitred corners, never inside the true (round) offset.
+
+    A mitre limited by GEOS is cut square beyond the round offset, so it still contains
+    it. No simplification afterwards: dropping the tiny square cut of a sharp corner
+    (what a Douglas-Peucker pass with a tolerance does) put it inside the offset, and two
+    such pieces ended closer than the gap (``nest fu.json --gap 1`` failed verification).
+    """
     if d <= 0:
         return ring
     poly = shapely.Polygon(ring).buffer(d, join_style="mitre", mitre_limit=2.0)
-    poly = shapely.simplify(poly, d * 0.05)  # drops collinear points only, well under the gap
+    poly = shapely.simplify(poly, 0.0)  # exactly collinear points only
     return np.asarray(poly.exterior.coords)[:-1]
 
 

@@ -20,6 +20,7 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
     """
     if method not in METHODS:
         raise ValueError(f"unknown nesting method {method!r}; expected one of {METHODS}")
+    _check_widths(problem)
     if problem.fabric is not None:
         if method == "naive":
             from solver.nest.naive import nest_naive
@@ -49,6 +50,26 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
     if problem.length is not None and layout.length > problem.length + 1e-9:
         raise ValueError(_no_fit(problem) + f" (needs {layout.length:.1f} mm)")
     return layout
+
+
+def _check_widths(problem: NestProblem) -> None:
+    """Refuse, naming the piece, one that is wider than the fabric at every allowed angle
+    (the searches would only give up, sparrow with a panic)."""
+    from solver.nest.instance import affine
+
+    room = problem.width - 2 * problem.gap
+    seen = set()
+    for item in problem.items():
+        free = problem.fabric is None and problem.pieces[item.piece].orientations is None
+        if item.key in seen or free:  # free rotation: sparrow may find an angle between
+            continue
+        seen.add(item.key)
+        across = min(float(np.ptp(affine(c, item.ref)[:, 1])) for c in item.candidates)
+        if across > room + 1e-9:
+            raise ValueError(f"piece {item.name!r} cannot be nested: it is {across:.1f} mm "
+                             "across the roll at its narrowest allowed angle; the fabric "
+                             f"leaves {room:g} mm "
+                             "(wider fabric, --width, or a smaller allowance)")
 
 
 def _no_fit(problem: NestProblem) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, load_esicup
@@ -27,15 +28,56 @@ def kind_of(path: str | Path) -> str:
     raise ValueError(f"{path}: not a DXF-AAMA file, a strip-packing instance or a PLACEMENT.json")
 
 
+def garment_pieces(garment, rules=None, names: list[str] | None = None,
+                   placement=None) -> list[Piece]:
+    """One nesting piece per garment piece: cut line, sew line, allowances, notches, grain.
+
+    The outline to place and cut is the cut line (the sew line plus its allowance, see
+    :mod:`solver.garment.allowance`); the sew line travels along for pictures and DXF.
+    Notches: the seam notches (with ``placement``, on the print's lattice lines), plus any
+    the file gives (moved out to the cut line); marks: a drill mark near each dart's point.
+    """
+    from solver.garment.allowance import AllowanceRules
+    from solver.garment.notches import cut_ready, dart_marks
+
+    rules = rules or AllowanceRules()
+    cuts, notches = cut_ready(garment, rules, placement)
+    names = names or list(garment.piece_names)
+    grains = getattr(garment, "grainlines", None) or {}
+    pieces = []
+    for i, cut in enumerate(cuts):
+        slits = [(q.at, q.direction, q.depth) for q in notches[i]]
+        for at in garment.notches.get(i, []):  # the file's notches sit on the sew line
+            at = np.asarray(at, float)
+            ring = cut.cut.exterior
+            edge = np.asarray(ring.interpolate(ring.project(shapely.Point(at))).coords[0])
+            d = at - edge
+            dist = float(np.linalg.norm(d))
+            if dist > 1e-9:
+                depth = min(rules.notch_depth_mm, dist / 2)
+                slits.append((edge, d / dist, depth))
+        grain = grains.get(i)
+        pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=slits,
+                            grainline=None if grain is None else np.asarray(grain, float),
+                            marks=dart_marks(garment, i), sew_line=cut.sew,
+                            allowance=cut.allowance))
+    return pieces
+
+
 def pieces_from_placement(path: str | Path, *, orientations=None,
-                          units: str | None = None):
+                          units: str | None = None, allowance=None, fabric=None,
+                          plain: bool = False):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
-    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``. ``units`` are the garment
-    file's (Berkeley OBJ files are in metres and do not say so). The turns allowed on the
-    fabric follow the placement's grain rule: 0 and 180 degrees (keeps the grain), 0 only
-    with a nap, any with the grain off; ``orientations`` overrides it.
+    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``: the same rigid map carries
+    the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
+    ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
+    ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
+    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
+    balance notches follow (``plain``: no print, notches by spacing alone). The turns
+    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
+    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -51,35 +93,28 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
-    names = placement.piece_names or list(garment.piece_names)
     if orientations is None:
         rule = placement.grain_rule
         orientations = ((0.0,) if rule.get("nap") else
                         None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
                         else (0.0, 180.0))
-    grains = dict(getattr(garment, "grainlines", None) or {})
+    if fabric is not None:
+        placement.fabric = fabric
+    pieces = garment_pieces(garment, allowance, placement.piece_names or None,
+                            None if plain else placement)
+    for i, piece in enumerate(pieces):
+        a = placement.angles[i]
+        r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        piece.base = np.column_stack([r.T, -r.T @ placement.translations[i]])
+        piece.orientations = (None if orientations is None
+                              else tuple(float(o) % 360.0 for o in orientations))
     if placement.grains:  # the grain the alignment kept, drawn where the file has none
         from solver.garment.grain import grain_lines
 
         lines = grain_lines(garment, [g["grain_deg"] for g in placement.grains])
-        grains = {i: grains.get(i, lines[i]) for i in range(garment.n_pieces)}
-    notch_pts = getattr(garment, "notches", None) or {}
-    pieces = []
-    for i in range(garment.n_pieces):
-        a = placement.angles[i]
-        r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-        base = np.column_stack([r.T, -r.T @ placement.translations[i]])
-        outline = garment.piece_outline(i)
-        grain = grains.get(i)
-        centre = outline.mean(0)
-        notches = []
-        for at in notch_pts.get(i, []):  # the garment gives positions: point them inwards
-            at = np.asarray(at, float)
-            d = centre - at
-            notches.append((at, d / max(float(np.linalg.norm(d)), 1e-12)))
-        pieces.append(Piece(str(names[i]), outline, orientations=orientations, base=base,
-                            holes=list(garment.piece_holes(i)), notches=notches,
-                            grainline=None if grain is None else np.asarray(grain, float)))
+        for i, piece in enumerate(pieces):
+            if piece.grainline is None:
+                piece.grainline = lines[i]
     return pieces, placement.fabric
 
 
@@ -87,10 +122,14 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
                  length: float | None = None, gap: float = 0.0, fabric=None,
                  sizes: list[str] | None = None, units: str | None = None,
                  quantity: int = 1, pairs: bool = False,
-                 keepouts: list[np.ndarray] | None = None) -> NestProblem:
+                 keepouts: list[np.ndarray] | None = None, allowance=None,
+                 default_width: float | None = None, plain: bool = False) -> NestProblem:
     """Several inputs (garments, sizes) in one marker; ``fabric`` overrides any given print.
 
-    ``units`` are those of a DXF or garment file that does not state them.
+    ``units`` are those of a DXF or garment file that does not state them; ``allowance``
+    (AllowanceRules) makes garments' cut lines, and a DXF's sew line where it has none.
+    The width is ``width``, else the input's, else ``default_width`` (the station's roll).
+    ``plain``: nest on plain cloth whatever print the inputs name.
     """
     pieces: list[Piece] = []
     found_width, found_fabric = None, None
@@ -103,9 +142,11 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         elif kind == "dxf":
             from solver.dxf_aama import read_dxf_aama
 
-            pieces += read_dxf_aama(path, size=sizes, units=units)
+            seam = None if allowance is None else allowance.seam_mm
+            pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
         else:
-            got, wp = pieces_from_placement(path, units=units)
+            got, wp = pieces_from_placement(path, units=units, allowance=allowance,
+                                            fabric=fabric, plain=plain)
             pieces += got
             found_fabric = found_fabric or wp
     for p in pieces:
@@ -119,8 +160,14 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
         if names.count(p.name) > 1:
             p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
-    width = width if width is not None else found_width
+    width = width if width is not None else found_width or default_width
     if width is None:
         raise ValueError("give the fabric width with --width (the input does not say it)")
-    return NestProblem(pieces, float(width), length, gap, fabric or found_fabric,
-                       list(keepouts or []))
+    rules = None  # reported where this run made cut lines (garments), not a DXF's own
+    if any(kind_of(p) == "placement" for p in paths):
+        from solver.garment.allowance import AllowanceRules
+
+        rules = (allowance or AllowanceRules()).to_dict()
+    return NestProblem(pieces, float(width), length, gap,
+                       None if plain else fabric or found_fabric, list(keepouts or []),
+                       allowance=rules)

@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from solver.jsonfile import read_json
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
@@ -68,18 +66,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load_weights(path: str) -> dict:
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: no such weights file")
-    data = read_json(p)
-    if not isinstance(data, dict):
-        raise ValueError(f'{p}: expected an object {{"seam line": weight}}')
-    out = {}
-    for key, value in data.items():
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise ValueError(f"{p}: weight of {key!r} is not a number")
-        out[int(key) if key.isdigit() else key] = float(value)
-    return out
+    from station.cliargs import read_name_map
+
+    return read_name_map(path, "weight")
 
 
 def _mirror_pairs(args: argparse.Namespace, garment) -> list:

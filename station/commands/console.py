@@ -33,6 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
                    help="a piece's grain direction (pattern space, degrees); repeatable")
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
+    p.add_argument("--seam-allowance", type=float, metavar="MM",
+                   help="seam allowance for this job (default: station.toml)")
+    p.add_argument("--allowance", metavar="A.json",
+                   help="allowances per seam line or opening for this job (sent by value)")
     p.add_argument("--wait", type=float, default=600.0, metavar="SECONDS",
                    help="how long to wait while the daemon checks the garment (default 600)")
     _common(p, run_submit)
@@ -92,8 +96,14 @@ class _Patience:
 
 def run_submit(args: argparse.Namespace) -> int:
     options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
-                                 ("method", args.method), ("restarts", args.restarts))
+                                 ("method", args.method), ("restarts", args.restarts),
+                                 ("seam_allowance", args.seam_allowance))
                if v is not None}
+    if args.allowance:
+        from station.cliargs import read_name_map
+
+        options["allowance"] = {str(k): v for k, v in
+                                read_name_map(args.allowance, "allowance").items()}
     if not args.wait > 0:
         raise UserError("--wait must be positive")
     if args.grain_line:

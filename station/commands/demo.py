@@ -171,11 +171,23 @@ def summarise(status: dict[str, Any], plan: dict[str, Any], camera: dict[str, An
         "reshape_max_move_mm": reshape.get("max_displacement_mm"),
         "reshape_area_change_max_pct": reshape.get("area_change_max_pct"),
         "nest_density": (plan.get("nest") or {}).get("density"),
+        "allowance": plan.get("allowance"),
         "pieces_cut": pieces.get("cut", 0),
         "pieces_total": sum(pieces.values()) if pieces else 0,
         "step_seconds": plan.get("seconds"),
         "seconds": round(seconds, 1),
     }
+
+
+def cut_ready_parts(s: dict[str, Any]) -> list[str]:
+    """The parts of the demo's one "cut-ready" line, one per concern: the seam allowance
+    here; grain and the largest reshape move add their own part to the same list."""
+    parts = []
+    a = s.get("allowance")
+    if a:
+        parts.append(f"seam allowance {a['seam_mm']:g} mm (hems {a['hem_mm']:g}, openings "
+                     f"{a['opening_mm']:g})")
+    return parts
 
 
 def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
@@ -197,12 +209,13 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     if s.get("reshape_rejected"):
         lines.append(f"  !!! reshaped pattern {s['reshape_rejected']}; the aligned one was cut")
     tol = s.get("grain_tol_deg")
-    lines.append(
-        f"  cut-ready     grain: largest off-grain {num(s.get('off_grain_max_deg'), '.2f')} deg "
+    parts = cut_ready_parts(s) + [
+        f"grain: largest off-grain {num(s.get('off_grain_max_deg'), '.2f')} deg "
         f"({'free rotation' if tol is None else f'tolerance {tol:g} deg'}"
-        f"{', guessed for ' + ', '.join(s['grain_guessed']) if s.get('grain_guessed') else ''})"
-        f"; reshape: largest move {num(s.get('reshape_max_move_mm'), '.1f')} mm, area "
-        f"{num(s.get('reshape_area_change_max_pct'), '.2f')} %")
+        f"{', guessed for ' + ', '.join(s['grain_guessed']) if s.get('grain_guessed') else ''})",
+        f"reshape: largest move {num(s.get('reshape_max_move_mm'), '.1f')} mm, area "
+        f"{num(s.get('reshape_area_change_max_pct'), '.2f')} %"]
+    lines.append(f"  cut-ready     {'; '.join(parts)}")
     lines += [
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
         f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",

@@ -9,9 +9,12 @@ import time
 from solver.fit import fit_report
 from solver.placement import Placement
 from station.cliargs import (
+    add_allowance_arguments,
+    add_config_argument,
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
+    allowance_rules,
     garment_with_grain,
     load_fabric,
     load_garment_arg,
@@ -32,9 +35,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_grain_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
-                   help="draw the pieces over the print, seams coloured by mismatch")
+                   help="draw the pieces over the print, seams coloured by mismatch, with "
+                   "the cut line (solid), the sew line (dashed) and the notches")
     p.add_argument("--front-view", metavar="OUT.png",
                    help="draw left/right pairs side by side as worn, grain up, print on")
+    add_allowance_arguments(p)
+    add_config_argument(p)
     p.set_defaults(func=run)
 
 
@@ -61,9 +67,11 @@ def run(args: argparse.Namespace) -> int:
         "seconds": time.perf_counter() - start,
     }
     if args.png:
+        from solver.garment.notches import cut_ready
         from station.render import draw_fit
 
-        draw_fit(garment, placement, report, args.png)
+        cuts, notches = cut_ready(garment, allowance_rules(args), placement)
+        draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.front_view:
         from solver.garment.symmetry import mirror_pairs

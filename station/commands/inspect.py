@@ -73,6 +73,7 @@ def garment_summary(g, pairs=None) -> dict:
         for k, s in enumerate(g.seam_lines)
     ]
     return {
+        "opening_list": openings(g),
         "garment": g.source,
         "kind": g.kind,
         "units_in_file": g.units_in_file,
@@ -94,6 +95,19 @@ def garment_summary(g, pairs=None) -> dict:
         "mirror_pair_fits": [p.to_dict() for p in pairs],
         "centre_seams": centre_seams(g, pairs),
     }
+
+
+def openings(g) -> list[dict]:
+    """The garment's openings (open edges chained through the seams), named as
+    ``--allowance`` takes them, with their kind (hem or opening) and length."""
+    from solver.garment.allowance import open_edges
+
+    edges, opening, is_hem = open_edges(g)
+    length = np.bincount(opening, weights=np.linalg.norm(
+        g.uv[edges[:, 1]] - g.uv[edges[:, 0]], axis=1), minlength=len(is_hem))
+    return [{"name": f"open#{k}", "kind": "hem" if is_hem[k] else "opening",
+             "pieces": sorted({int(p) for p in g.piece_of_vertex[edges[opening == k, 0]]}),
+             "length_mm": round(float(length[k]), 3)} for k in range(len(is_hem))]
 
 
 def _print_text(s: dict, out) -> None:
@@ -121,6 +135,11 @@ def _print_text(s: dict, out) -> None:
         print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
               f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}",
               file=out)
+    print("  openings (edges sewn to nothing; allowance by kind):", file=out)
+    for op in s["opening_list"]:
+        pieces = ",".join(map(str, op["pieces"]))
+        print(f"    {op['name']:<8s} {op['kind']:<8s} pieces {pieces:<12s} "
+              f"{op['length_mm']:8.1f} mm", file=out)
     if s["mirror_pair_fits"]:
         print("  mirror pairs (left/right):", file=out)
         for p in s["mirror_pair_fits"]:

@@ -5,6 +5,13 @@ from __future__ import annotations
 import json
 import time
 
+from station.cliargs import (
+    add_allowance_arguments,
+    add_config_argument,
+    allowance_rules,
+    load_config_arg,
+)
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -18,7 +25,8 @@ def register(sub) -> None:
                    help="PLACEMENT.json, DXF or instance JSON (several: one marker)")
     p.add_argument("-o", "--output", required=True, metavar="LAYOUT.json")
     p.add_argument("--fabric", metavar="FABRIC.json", help="the print under the pieces")
-    p.add_argument("--width", type=float, help="fabric width in mm (across the roll)")
+    p.add_argument("--width", type=float, help="fabric width in mm (across the roll; default: "
+                   "the input's, else station.toml [nest] width_mm)")
     p.add_argument("--length", type=float, help="usable length in mm (the table window)")
     p.add_argument("--gap", type=float, default=0.0, help="minimum gap between pieces and "
                    "to the fabric edge, mm (default 0)")
@@ -42,6 +50,8 @@ def register(sub) -> None:
     p.add_argument("--grain", choices=("on", "off"),
                    help="on: turn pieces only by 0 or 180 degrees, off: turn freely "
                    "(default: what each input says; a placement keeps its grain rule)")
+    add_allowance_arguments(p)
+    add_config_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.add_argument("--png", metavar="OUT.png", help="draw the marker")
     p.set_defaults(func=run)
@@ -61,11 +71,13 @@ def run(args) -> int:
     if args.gap < 0:
         raise UserError("--gap must not be negative")
     fabric = Wallpaper.load(args.fabric) if args.fabric else None
+    config = load_config_arg(args)
     problem = load_problem(
         args.inputs, width=args.width, length=args.length, gap=args.gap, fabric=fabric,
         sizes=args.size.split(",") if args.size else None, units=args.units,
         quantity=args.quantity, pairs=args.pairs,
-        keepouts=load_keepouts(args.keepout) if args.keepout else None)
+        keepouts=load_keepouts(args.keepout) if args.keepout else None,
+        allowance=allowance_rules(args, config), default_width=config["nest"]["width_mm"])
     if args.nap or args.grain:
         turns = (0.0,) if args.nap else None if args.grain == "off" else (0.0, 180.0)
         for piece in problem.pieces:
@@ -90,10 +102,13 @@ def run(args) -> int:
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),
                "seconds": round(seconds, 3), "printed": problem.fabric is not None,
-               "output": str(args.output)}
+               "output": str(args.output), "allowance": layout.allowance}
     if args.json:
         print(json.dumps(summary))
     else:
+        a = layout.allowance
+        cut = (f", cut lines with {a['seam_mm']:g} mm seams, {a['hem_mm']:g} mm hems"
+               if a else "")
         print(f"{summary['pieces']} pieces, length {layout.length:.1f} mm, "
-              f"density {layout.density:.1%}, {seconds:.1f} s -> {args.output}")
+              f"density {layout.density:.1%}{cut}, {seconds:.1f} s -> {args.output}")
     return 0

@@ -10,9 +10,11 @@ from pathlib import Path
 from solver.placement import Placement
 from station.cli import UserError
 from station.cliargs import (
+    add_allowance_arguments,
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
+    allowance_rules,
     garment_with_grain,
     load_fabric,
     load_garment_arg,
@@ -45,6 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-symmetry", action="store_true",
                    help="reshape every piece on its own (default: the placement's left/right "
                    "pairs move as mirror images)")
+    add_allowance_arguments(p)  # a DXF output carries the cut lines
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the reshaped pieces over the print, seams coloured by mismatch")
@@ -66,25 +69,9 @@ def _fixed_mask(garment, names: list[str]):
     return mask
 
 
-def garment_pieces(garment) -> list:
-    """One DXF-AAMA piece per pattern piece: outline, holes, grain line and notches."""
-    import numpy as np
-
-    from solver.nest.instance import Piece
-
-    pieces = []
-    for i, name in enumerate(garment.piece_names):
-        grain = garment.grainlines.get(i)
-        notches = [(np.asarray(at, float), np.zeros(2)) for at in garment.notches.get(i, [])]
-        pieces.append(Piece(name=name, outline=garment.piece_outline(i),
-                            holes=garment.piece_holes(i),
-                            grainline=None if grain is None else np.asarray(grain, float),
-                            notches=notches))
-    return pieces
-
-
-def write_garment(garment, path: Path) -> None:
-    """Write the reshaped garment in the format its suffix names."""
+def write_garment(garment, path: Path, rules=None) -> None:
+    """Write the reshaped garment in the format its suffix names (``rules``: the seam
+    allowances a DXF's cut lines get; default the built-in ones)."""
     suffix = path.suffix.lower()
     if suffix == ".obj":
         from solver.garment import save_obj
@@ -99,8 +86,10 @@ def write_garment(garment, path: Path) -> None:
         save_spec(garment, path)
     elif suffix == ".dxf":
         from solver.dxf_aama import write_dxf_aama
+        from solver.nest.sources import garment_pieces
 
-        write_dxf_aama(garment_pieces(garment), path)
+        # layer 1 the cut line (it follows the reshaped sew line), layer 14 the sew line
+        write_dxf_aama(garment_pieces(garment, rules), path)
     else:
         raise UserError(f"{path}: unknown output format {suffix!r} "
                         f"(expected one of {', '.join(FORMATS)})")
@@ -143,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "
               f"covering radius: the mesh was subdivided {report.subdivisions}x "
               f"({report.faces} faces), and {out} has the finer mesh", file=sys.stderr)
-    write_garment(new, out)
+    write_garment(new, out, allowance_rules(args) if out.suffix.lower() == ".dxf" else None)
     result = {"garment": str(args.garment), "output": str(out), "group": fabric.group,
               **report.to_dict()}
     if args.png:

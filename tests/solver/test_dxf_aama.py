@@ -34,7 +34,7 @@ def test_round_trip_keeps_outline_grain_notches_marks(tmp_path):
     assert shapely.Polygon(p.outline).area == pytest.approx(src.area, rel=1e-9)
     assert np.allclose(p.grainline, src.grainline)
     assert len(p.holes) == 1 and shapely.Polygon(p.holes[0]).area == pytest.approx(400)
-    (at, d), = p.notches
+    (at, d, _), = p.notches
     assert np.allclose(at, [200, 150]) and np.allclose(d, [-1, 0], atol=1e-9)
     assert np.allclose(p.marks, [[100, 150]])
     # the reference frame turns the grain along the roll (+x)
@@ -91,7 +91,7 @@ def test_bad_files_give_one_line_errors(tmp_path):
         read_dxf_aama(junk)
 
 
-def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
+def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys, monkeypatch):
     path = tmp_path / "marker.dxf"
     write_dxf_aama([bodice("M"), Piece("sleeve", [[0, 0], [250, 0], [200, 120], [50, 120]],
                                        grainline=np.array([[0.0, 60.0], [250.0, 60.0]]))], path)
@@ -114,8 +114,14 @@ def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys):
     for p in layout.pieces:
         d = p.grainline[1] - p.grainline[0]
         assert abs(d[1]) < 1e-6 * np.linalg.norm(d)
-    assert main(["nest", str(path), "-o", str(out), "--time", "1"]) == 2  # no width
-    assert "--width" in capsys.readouterr().err
+    # no --width and the DXF does not say it: the station's roll (station.toml, 1000 mm)
+    monkeypatch.delenv("STATION_CONFIG", raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert main(["nest", str(path), "-o", str(out), "--time", "1", "--json"]) == 0
+    assert json.loads(out.read_text())["width"] == 1000.0
+    (tmp_path / "station.toml").write_text("[nest]\nwidth_mm = 700.0\n")
+    assert main(["nest", str(path), "-o", str(out), "--time", "1", "--json"]) == 0
+    assert json.loads(out.read_text())["width"] == 700.0
 
 
 def test_shared_industry_files_import(shared_data):
@@ -129,3 +135,34 @@ def test_shared_industry_files_import(shared_data):
             assert shapely.Polygon(p.outline).is_valid, (f.name, p.name)
             assert p.area > 100.0 and p.grainline is not None
         assert len(dxf_sizes(f)) >= 1
+
+
+@pytest.mark.parametrize("garment", ["berkeley/skirt-coarse.obj",
+                                     "garmentcode/pants_specification.json"])
+def test_cut_and_sew_lines_round_trip_on_layers_1_and_14(tmp_path, data_dir, garment):
+    from solver.garment import load_garment
+    from solver.nest.sources import garment_pieces
+
+    g = load_garment(data_dir / "garments" / garment,
+                     units="m" if garment.startswith("berkeley") else None)
+    pieces = garment_pieces(g)
+    write_dxf_aama(pieces, tmp_path / "p.dxf")
+    doc = ezdxf.readfile(tmp_path / "p.dxf")
+    layers = {str(e.dxf.layer) for b in doc.blocks for e in b if e.dxftype() == "POLYLINE"}
+    assert {"1", "14"} <= layers
+    back = read_dxf_aama(tmp_path / "p.dxf")
+    assert [p.name for p in back] == [p.name for p in pieces]
+    for p, q in zip(pieces, back):
+        np.testing.assert_allclose(q.outline, p.outline, atol=1e-6)  # layer 1: the cut line
+        np.testing.assert_allclose(q.sew_line, p.sew_line, atol=1e-6)  # layer 14
+        assert shapely.Polygon(q.outline).contains(shapely.Polygon(q.sew_line))
+
+
+def test_without_layer_14_the_sew_line_is_the_stated_allowance_inside(tmp_path):
+    write_dxf_aama([bodice("M")], tmp_path / "net.dxf")
+    (piece,) = read_dxf_aama(tmp_path / "net.dxf", allowance_mm=10.0)
+    cut, sew = shapely.Polygon(piece.outline), shapely.Polygon(piece.sew_line)
+    assert cut.contains(sew)
+    d = cut.exterior.distance(shapely.points(np.asarray(piece.sew_line)))
+    assert d.min() == pytest.approx(10.0, abs=1e-6)
+    assert read_dxf_aama(tmp_path / "net.dxf")[0].sew_line is None  # nothing stated

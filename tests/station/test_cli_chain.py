@@ -28,9 +28,11 @@ def test_align_then_nest_keeps_the_garment_units(tmp_path, data_dir, capsys):
     capsys.readouterr()
     pieces = json.loads(layout.read_text())["pieces"]
     g = load_garment(garment, units="m")
-    nested = sorted(abs(_area(np.asarray(p["outline"]))) for p in pieces)
+    nested = sorted(abs(_area(np.asarray(p["sew_line"]))) for p in pieces)
     np.testing.assert_allclose(nested, sorted(g.piece_areas()), rtol=1e-6)
     assert min(nested) > 1e4  # square millimetres of a real trouser leg, not of a stamp
+    cut = sorted(abs(_area(np.asarray(p["outline"]))) for p in pieces)
+    assert all(c > s for c, s in zip(cut, nested))  # the cut lines carry the allowances
 
 
 def _area(ring: np.ndarray) -> float:

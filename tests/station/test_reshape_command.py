@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+import shapely
 
 from solver.garment import load_garment
 from solver.placement import Placement
@@ -129,10 +130,11 @@ def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
     pieces = read_dxf_aama(out)
     assert [p.name for p in pieces] == new.piece_names
     for i, p in enumerate(pieces):
-        ours = new.piece_outline(i)
-        assert len(p.outline) == len(ours)
-        d = np.linalg.norm(ours[:, None] - p.outline[None], axis=-1).min(axis=1)
+        ours = new.piece_outline(i)  # the sew line (layer 14); layer 1 is the cut line
+        assert len(p.sew_line) == len(ours)
+        d = np.linalg.norm(ours[:, None] - p.sew_line[None], axis=-1).min(axis=1)
         assert d.max() < 1e-6
+        assert shapely.Polygon(p.outline).contains(shapely.Polygon(ours).buffer(9.5))
 
 
 def test_dxf_carries_grain_lines_and_notches_with_the_reshaped_outline(tmp_path, inputs):
@@ -153,8 +155,12 @@ def test_dxf_carries_grain_lines_and_notches_with_the_reshaped_outline(tmp_path,
     piece = read_dxf_aama(out)[0]
     assert piece.grainline is not None
     np.testing.assert_allclose(piece.grainline, np.asarray(new.grainlines[0]), atol=1e-6)
-    assert len(piece.notches) == 1
-    np.testing.assert_allclose(piece.notches[0][0], moved, atol=1e-6)
+    # the file's notch, moved out to the cut line, still points at its sew-line corner
+    aim = [d[0] * (moved - at)[1] - d[1] * (moved - at)[0] for at, d, _ in piece.notches]
+    k = int(np.argmin(np.abs(aim)))
+    at, d, _ = piece.notches[k]
+    assert abs(aim[k]) < 1e-6 and np.dot(moved - at, d) > 0
+    assert shapely.Polygon(piece.outline).exterior.distance(shapely.Point(at)) < 1e-6
 
 
 def test_a_coarse_garment_is_subdivided_and_says_so(tmp_path, data_dir, capsys):

@@ -1,0 +1,405 @@
+"""Seam allowance: each piece's cut line, the sew line offset outward edge by edge.
+
+The mesh outline is the sew line (seams meet there, so E_fit, alignment and reshaping stay
+on it). A cutter needs the cut line: every boundary edge pushed outward by its own allowance,
+the seam allowance on sewn edges, the hem or opening allowance on edges sewn to nothing.
+
+Geometry, as a pattern maker draws it: each edge contributes the strip between itself and
+its offset line (a quadrilateral); at a convex corner the two offset lines are extended to
+meet (a mitre), and where that point lies farther than ``cap`` times the larger allowance
+from the corner the mitre is cut square at that distance. The cut line is the outline of
+the union of the piece with all strips and corner fills (shapely, one vectorised union):
+a union of polygons is always a simple polygon, so darts and self-seams (whose strips
+overlap) give a clean outline that never crosses itself, concave corners come out mitred
+by the overlap itself, and no point lies farther than ``cap`` x allowance from the sew
+line. Holes stay holes: their allowance eats into them, and one too small for it is cut on
+its sew line; pockets the union closes off between overlapping strips are filled.
+
+Which open edges are hems: open edges chain (through shared 3D points) into the garment's
+openings. An opening that reaches the garment's top (neckline, waist, armhole) is finished
+with a facing or band (``opening_mm``); every other opening (bottom, sleeve and leg ends)
+is a hem (``hem_mm``), and so is an upright loop alone on its pieces (the cuff of a
+sleeve held out level, which reaches the shoulder's height). Heights are along the drape's
+up direction (:func:`drape_up`, or given) when the garment has a drape, else world y where
+a specification places its panels around the body, else pattern y within each piece (flat
+patterns are drawn upright).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+
+from solver.garment.model import Garment, _components
+
+__all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "drape_up",
+           "edge_allowances", "offset_outline", "open_edges"]
+
+TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
+LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
+
+
+@dataclass(frozen=True)
+class AllowanceRules:
+    """Allowances in mm: class defaults, then per-name overrides.
+
+    ``overrides`` keys: a seam-line index or name (as ``--weights`` takes them), ``"seam"``,
+    ``"hem"``, ``"opening"`` (the class defaults), ``"open#K"`` (one opening, numbered as
+    :func:`open_edges` numbers them) or ``"PIECE/open"`` (every open edge of a piece).
+    Notches (:mod:`solver.garment.notches`) are ``notch_depth_mm`` deep (at most half the
+    allowance) and at most ``notch_spacing_mm`` apart along a seam.
+    """
+
+    seam_mm: float = 10.0
+    hem_mm: float = 20.0
+    opening_mm: float = 10.0
+    cap: float = 2.0
+    overrides: Mapping[int | str, float] = field(default_factory=dict)
+    notch_depth_mm: float = 3.0
+    notch_spacing_mm: float = 100.0
+
+    def __post_init__(self) -> None:
+        for name in ("seam_mm", "hem_mm", "opening_mm"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"allowance {name} must be finite and >= 0, got {v!r}")
+        for key, v in self.overrides.items():
+            _check_mm(key, v)
+        if not self.cap >= 1.0:
+            raise ValueError(f"allowance cap must be >= 1, got {self.cap!r}")
+
+    def with_overrides(self, more: Mapping[int | str, float]) -> AllowanceRules:
+        """Copy with ``more`` overrides on top; ``seam``/``hem``/``opening`` set defaults."""
+        merged = {**self.overrides, **more}
+        base = {k: _check_mm(k, merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
+        return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
+                              base.get("opening", self.opening_mm), self.cap, merged,
+                              self.notch_depth_mm, self.notch_spacing_mm)
+
+    def to_dict(self) -> dict:
+        return {"seam_mm": self.seam_mm, "hem_mm": self.hem_mm,
+                "opening_mm": self.opening_mm, "cap": self.cap,
+                "overrides": {str(k): float(v) for k, v in self.overrides.items()},
+                "notch_depth_mm": self.notch_depth_mm,
+                "notch_spacing_mm": self.notch_spacing_mm}
+
+
+def _check_mm(key, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or value < 0:
+        raise ValueError(f"allowance for {key!r} must be a number >= 0, got {value!r}")
+    return float(value)
+
+
+@dataclass
+class CutLine:
+    """One piece: sew line (outer CCW + holes), per-edge allowance, and the cut polygon."""
+
+    sew: np.ndarray  # (n,2) outer sew line, CCW
+    sew_holes: list[np.ndarray]
+    allowance: np.ndarray  # (n,) mm, edge k runs sew[k] -> sew[k+1]
+    hole_allowance: list[np.ndarray]
+    cut: shapely.Polygon  # exterior CCW
+
+    @property
+    def outline(self) -> np.ndarray:
+        """(m,2) cut line, CCW, first point not repeated."""
+        return np.asarray(self.cut.exterior.coords)[:-1, :2]
+
+    @property
+    def holes(self) -> list[np.ndarray]:
+        return [np.asarray(r.coords)[:-1, :2] for r in self.cut.interiors]
+
+
+def _edge_key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+
+
+def open_edges(garment: Garment, up: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Open boundary edges (sewn to nothing), the opening each belongs to, and whether hem.
+
+    Returns ``edges`` (k,2) vertex pairs as in their face, ``opening`` (k,) int and
+    ``is_hem`` (n_openings,) bool. Openings are numbered by their first edge. ``up`` is
+    the drape's up direction (default: :func:`drape_up`).
+    """
+    g, n = garment, garment.n_vertices
+    bhe = g.boundary_half_edges()
+    seam = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
+                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n)])
+    edges = bhe[~np.isin(_edge_key(bhe[:, 0], bhe[:, 1], n), seam)]
+    if len(edges) == 0:
+        return edges, np.zeros(0, np.int64), np.zeros(0, bool)
+    pts = g.point_of_vertex[edges]
+    _, label = _components(int(g.point_of_vertex.max()) + 1, pts)
+    _, first, inv = np.unique(label[pts[:, 0]], return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    opening = rank[inv.ravel()]
+    flat = g.xyz is None or float(np.ptp(g.xyz, axis=0).min()) <= 1e-9 * max(
+        float(np.ptp(g.xyz, axis=0).max()), 1e-9)  # a drape with no depth says nothing
+    if not flat:
+        pos = g.xyz
+        up = drape_up(pos, edges, opening) if up is None else np.asarray(up, float)
+    elif len(g.panel_frames) == g.n_pieces:  # a specification places its panels: y up
+        frames = np.stack([g.panel_frames[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
+        pos = np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
+        up = np.array([0.0, 1.0, 0.0]) if up is None else np.asarray(up, float)
+    else:  # flat pattern: heights relative to each piece's own box
+        box = g.piece_bboxes()
+        piece = g.piece_of_vertex
+        rel = (g.uv[:, 1] - box[piece, 1]) / np.maximum(box[piece, 3] - box[piece, 1], 1e-9)
+        reach = np.full(len(first), -np.inf)
+        np.maximum.at(reach, opening, rel[edges].max(axis=1))
+        return edges, opening, reach < 1.0 - TOP_FRACTION
+    up = up / np.linalg.norm(up)
+    h = pos @ up
+    top, span = float(h.max()), float(np.ptp(h)) or 1.0
+    reach = np.full(len(first), -np.inf)
+    np.maximum.at(reach, opening, h[edges].max(axis=1))
+    _, normal, _ = _opening_planes(pos, edges, opening)
+    level = np.abs(normal @ up) > LEVEL
+    # a limb's end: an upright loop (a T-pose sleeve's cuff reaches the shoulder's height)
+    # on pieces that have no other opening; an armhole's pieces also carry the neckline
+    pieces = g.piece_of_vertex[edges[:, 0]]
+    touches = np.zeros((len(first), g.n_pieces), bool)
+    touches[opening, pieces] = True
+    others = touches.sum(0)[None, :] - touches  # other openings on each piece
+    alone = ~np.any(touches & (others > 0), axis=1)
+    return edges, opening, (reach < top - TOP_FRACTION * span) | (~level & alone)
+
+
+def _opening_planes(pos: np.ndarray, edges: np.ndarray, opening: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per opening its centre (k,3), unit plane normal (k,3) and length (k,) in 3D."""
+    k = int(opening.max()) + 1
+    length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
+    total = np.bincount(opening, weights=length, minlength=k)
+    mid = 0.5 * (pos[edges[:, 0]] + pos[edges[:, 1]])
+    centre = np.stack([np.bincount(opening, weights=mid[:, j] * length, minlength=k)
+                       for j in range(3)], 1) / np.maximum(total, 1e-12)[:, None]
+    normal = np.zeros((k, 3))
+    for o in range(k):  # one small SVD per opening (a handful per garment)
+        p = mid[opening == o] - centre[o]
+        if len(p) >= 3:
+            normal[o] = np.linalg.svd(p, full_matrices=False)[2][-1]
+    return centre, normal, total
+
+
+def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
+    """The drape's up direction, from its openings (the files disagree: Berkeley is z-up,
+    GarmentCode y-up).
+
+    Hems, necklines and waists are horizontal loops, so the coordinate axis their planes'
+    normals favour (weighted by length) is vertical; sleeve ends in a T-pose vote for the
+    arm. A garment hangs from its smaller end: the neckline or waist is shorter than the
+    hems below it, so up is the side of the mid-height with less length of horizontal
+    openings.
+    """
+    centre, normal, total = _opening_planes(xyz, edges, opening)
+    normal = np.abs(normal)
+    axis = int(np.argmax(total @ normal))
+    level = normal[:, axis] > LEVEL  # horizontal loops only: armholes, sleeves do not vote
+    h = centre[:, axis]
+    middle = 0.5 * (xyz[:, axis].min() + xyz[:, axis].max())
+    above = total[level & (h > middle)].sum()
+    below = total[level & (h <= middle)].sum()
+    up = np.zeros(3)
+    up[axis] = 1.0 if above <= below else -1.0
+    return up
+
+
+def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.ndarray]]:
+    """Per piece, per loop of :meth:`Garment.piece_loops`, the (k,) allowance of each edge.
+
+    Edge k of a loop runs from ``loop[k]`` to ``loop[k + 1]``. Unknown override keys are
+    errors that list what exists.
+    """
+    g, n = garment, garment.n_vertices
+    rules = rules.with_overrides({})  # "seam", "hem", "opening" keys become the defaults
+    ov = dict(rules.overrides)
+    names = {s.name: i for i, s in enumerate(g.seam_lines)}
+    seam_mm = np.full(len(g.seam_lines), rules.seam_mm)
+    edges, opening, is_hem = open_edges(g)
+    open_mm = np.where(is_hem, rules.hem_mm, rules.opening_mm)
+    piece_open: dict[int, float] = {}
+    for key, value in ov.items():
+        if isinstance(key, int) or (isinstance(key, str) and key in names):
+            idx = names.get(key) if isinstance(key, str) else key
+            if not 0 <= idx < len(seam_mm):
+                raise ValueError(f"no seam line {key!r} (there are {len(seam_mm)})")
+            seam_mm[idx] = value
+        elif key.startswith("open#") and key[5:].isdigit():
+            k = int(key[5:])
+            if not 0 <= k < len(open_mm):
+                raise ValueError(f"no opening {key!r} (there are {len(open_mm)}: open#0...)")
+            open_mm[k] = value
+        elif key.endswith("/open") and key[:-5] in g.piece_names:
+            piece_open[g.piece_names.index(key[:-5])] = float(value)
+        else:
+            raise ValueError(f"no seam line, opening or piece {key!r}; seam lines are "
+                             f"{', '.join(names) or 'none'}, openings open#0..open#"
+                             f"{len(open_mm) - 1}, pieces take PIECE/open")
+    keys = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
+                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n),
+                           _edge_key(edges[:, 0], edges[:, 1], n)])
+    values = np.concatenate([seam_mm[g.seam_line_of_edge], seam_mm[g.seam_line_of_edge],
+                             open_mm[opening]])
+    order = np.argsort(keys, kind="stable")
+    keys, values = keys[order], values[order]
+    is_open = np.zeros(len(keys), bool)
+    is_open[np.flatnonzero(order >= 2 * len(g.seam_edges))] = True
+    out = []
+    for i in range(g.n_pieces):
+        per_loop = []
+        for loop in g.piece_loops(i):
+            k = _edge_key(loop, np.roll(loop, -1), n)
+            pos = np.clip(np.searchsorted(keys, k), 0, max(len(keys) - 1, 0))
+            a = values[pos].copy() if len(keys) else np.full(len(loop), rules.opening_mm)
+            if i in piece_open:
+                a[is_open[pos]] = piece_open[i]
+            per_loop.append(a)
+        out.append(per_loop)
+    return out
+
+
+def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
+                   cap: float = 2.0, extra: list | None = None) -> shapely.Polygon:
+    """The cut polygon of a piece from its sew loops (outer CCW, holes CW) and allowances.
+
+    Parameters
+    ----------
+    loops : list of (k,2) float arrays
+        The piece lies on the left of every edge ``loop[k] -> loop[k + 1]``.
+    allowances : list of (k,) float arrays
+        Outward offset of each edge in mm (0: cut on the sew line).
+    cap : float
+        No point of a corner lies farther than ``cap`` x the larger allowance from it.
+    extra : list of shapely polygons, optional
+        More cloth to keep (the folded-in wedge of a dart, :func:`dart_fills`).
+    """
+    base = shapely.Polygon(loops[0], loops[1:])
+    if not base.is_valid:
+        base = shapely.make_valid(base)
+    p = np.vstack(loops)
+    a = np.concatenate(allowances).astype(float)
+    nxt = np.concatenate([np.roll(np.arange(len(lp)), -1) + s for lp, s in
+                          zip(loops, np.cumsum([0] + [len(lp) for lp in loops[:-1]]))])
+    prv = np.empty_like(nxt)
+    prv[nxt] = np.arange(len(nxt))
+    d = p[nxt] - p
+    length = np.hypot(d[:, 0], d[:, 1])
+    t = d / np.maximum(length, 1e-12)[:, None]
+    nrm = np.column_stack([t[:, 1], -t[:, 0]])  # right of the edge = away from the piece
+    o0, o1 = p + a[:, None] * nrm, p[nxt] + a[:, None] * nrm
+    ok = (a > 0) & (length > 1e-9)
+    strips = shapely.polygons(np.stack([p, p[nxt], o1, o0, p], axis=1)[ok])
+    # corner at vertex v between edge prv[v] and edge v: convex when the outline turns left
+    ap, tp = a[prv], t[prv]
+    cross = tp[:, 0] * t[:, 1] - tp[:, 1] * t[:, 0]
+    e1, e2 = p + ap[:, None] * nrm[prv], o0  # end of the previous offset, start of this one
+    convex = (cross > 1e-9) & (np.maximum(ap, a) > 0)
+    rel = e2 - e1
+    s = (rel[:, 0] * t[:, 1] - rel[:, 1] * t[:, 0]) / np.where(convex, cross, 1.0)
+    mitre = e1 + s[:, None] * tp
+    reach = cap * np.maximum(ap, a)
+    over = np.hypot(*(mitre - p).T) > reach
+    c1 = np.where(over[:, None], e1 + np.sqrt(np.maximum(reach**2 - ap**2, 0))[:, None] * tp,
+                  mitre)
+    c2 = np.where(over[:, None], e2 - np.sqrt(np.maximum(reach**2 - a**2, 0))[:, None] * t,
+                  mitre)
+    fills = shapely.convex_hull(shapely.multipoints(np.stack([p, e1, c1, c2, e2], 1)[convex]))
+    whole = shapely.union_all(np.concatenate([[base], strips, fills,
+                                              np.asarray(extra or [], dtype=object)]))
+    if whole.geom_type != "Polygon":  # cannot happen for a connected piece; be safe
+        whole = max(getattr(whole, "geoms", [whole]), key=lambda q: q.area)
+    sew_holes = [shapely.Polygon(h) for h in loops[1:]]
+    holes = [shapely.Polygon(r) for r in whole.interiors]
+    kept = [r for r in holes if any(h.intersects(r) for h in sew_holes)]
+    # a hole too small for its allowance stays a hole: it is cut on its sew line
+    lost = [h for h in sew_holes if not any(h.intersects(r) for r in kept)]
+    cut = shapely.Polygon(whole.exterior, [r.exterior for r in kept])
+    if lost:
+        cut = cut.difference(shapely.union_all(lost))
+    cut = _clean(cut)
+    return shapely.geometry.polygon.orient(cut, 1.0)
+
+
+def _clean(poly: shapely.Polygon, eps: float = 0.01) -> shapely.Polygon:
+    """Drop the hair-thin spikes a union of many touching pieces can leave (a vertex that
+    goes out and comes back along the same line: valid in floating point, invalid once
+    moved and rounded), and the collinear points; changes nothing wider than ``eps`` mm."""
+    poly = shapely.set_precision(poly, 1e-6)  # near-zero sides make GEOS's mitre divide by 0
+    opened = poly.buffer(-eps, join_style="mitre", mitre_limit=10.0).buffer(
+        eps, join_style="mitre", mitre_limit=10.0)
+    if opened.geom_type != "Polygon":
+        opened = max(getattr(opened, "geoms", [poly]), key=lambda q: q.area)
+    return shapely.simplify(shapely.set_precision(opened, 1e-6), 1e-4)
+
+
+def dart_runs(garment: Garment, piece: int) -> list[tuple[int, np.ndarray]]:
+    """The darts of ``piece``: (seam line, loop vertices from one leg's mouth end, through
+    the tip, to the other's). A dart is a self-seam whose two legs follow each other along
+    the outline."""
+    g = garment
+    loop = g.piece_loops(piece)[0]
+    pos = {int(v): k for k, v in enumerate(loop.tolist())}
+    out = []
+    for line, sl in enumerate(g.seam_lines):
+        if sl.piece_a != piece or sl.piece_b != piece:
+            continue
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        ks = sorted(pos[int(v)] for v in np.unique(rows) if int(v) in pos)
+        if len(ks) < 3:
+            continue
+        # the two legs are one run of the loop: the largest gap is the rest of the outline
+        gaps = np.diff(np.concatenate([ks, [ks[0] + len(loop)]]))
+        if len(loop) - int(gaps.max()) + 1 != len(ks):
+            continue  # not one run: a self-seam that is no dart
+        start = ks[(int(np.argmax(gaps)) + 1) % len(ks)]
+        out.append((line, np.roll(loop, -start)[: len(ks)]))
+    return out
+
+
+def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) -> list:
+    """The cloth a pattern maker keeps over each dart of ``piece``.
+
+    A dart's two legs are sewn to each other; the wedge between them folds under, so the
+    cut line runs across its mouth as if the dart were closed: keep the wedge and the strip
+    over the mouth (the larger allowance of the edges beside it), clipped to ``cap`` x
+    that allowance from the sew line so the bound of the corners holds here too.
+    """
+    g = garment
+    loop = g.piece_loops(piece)[0]
+    pos = {int(v): k for k, v in enumerate(loop.tolist())}
+    sew = shapely.Polygon(g.uv[loop])
+    out = []
+    for _, run in dart_runs(g, piece):
+        wedge = shapely.make_valid(shapely.Polygon(g.uv[run]))
+        a, b = g.uv[run[0]], g.uv[run[-1]]
+        mouth = b - a
+        if np.hypot(*mouth) < 1e-9:
+            continue
+        nrm = np.array([mouth[1], -mouth[0]]) / np.hypot(*mouth)
+        if np.dot(g.uv[run].mean(0) - a, nrm) > 0:  # the strip goes away from the dart's tip
+            nrm = -nrm
+        w = float(max(allowance[pos[int(run[0])] - 1], allowance[pos[int(run[-1])]]))
+        strip = shapely.Polygon([a, b, b + w * nrm, a + w * nrm])
+        out.append(shapely.union(wedge, strip).intersection(sew.buffer(cap * w)))  # round
+    return out
+
+
+def cut_lines(garment: Garment, rules: AllowanceRules | None = None) -> list[CutLine]:
+    """Every piece's sew line, per-edge allowances and cut line (pattern mm)."""
+    rules = rules or AllowanceRules()
+    per_piece = edge_allowances(garment, rules)
+    out = []
+    for i in range(garment.n_pieces):
+        loops = [garment.uv[lp] for lp in garment.piece_loops(i)]
+        darts = dart_fills(garment, i, per_piece[i][0], rules.cap)
+        cut = offset_outline(loops, per_piece[i], cap=rules.cap, extra=darts)
+        out.append(CutLine(loops[0], loops[1:], per_piece[i][0], per_piece[i][1:], cut))
+    return out

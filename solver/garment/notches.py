@@ -1,0 +1,262 @@
+"""Notches: short slits from the cut line into the seam allowance where sewers match pieces.
+
+A seam line gets a notch near both of its ends and balance notches between them, at most
+``spacing_mm`` apart (10 cm is the cutting-room habit on long seams: a sewer eases the
+seam between two marks and the print meets again at each mark). Stations are placed on
+one side of the seam by arc length and carried to the twin side through the seam's own
+edge pairing (edge a->b is sewn to a2->b2, a~a2 and b~b2 the same 3D points): the same
+parameter on twin edges is the same 3D point, so twin notches always match, even where
+the two sew lines differ in length. An end notch sits one allowance in from the seam's
+end (at the corner itself a slit would run along the neighbouring edge).
+
+Each notch starts on the cut line, where the sew line's outward normal at the station
+meets it, and runs back along that normal (perpendicular to the sew line) at most half
+the allowance deep, so it never reaches the sew line. Notches whose slit would come
+closer to the sew line than a quarter of the allowance (crowded concave corners) are
+dropped together with their twin.
+
+A dart (a self-seam whose legs follow each other along the outline) is sewn shut, so it
+gets no notches along its legs: one at each end of its mouth (they meet when it is sewn)
+and a drill mark just before its point (:func:`dart_marks`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from solver.garment.allowance import CutLine, dart_runs
+from solver.garment.model import Garment
+
+__all__ = ["Notch", "cut_ready", "dart_marks", "placement_lattice", "print_stations",
+           "seam_notches"]
+
+
+LatticeCoords = Callable[[int, np.ndarray], np.ndarray]  # (piece, (k,2) uv) -> (k,2) frac
+
+
+@dataclass
+class Notch:
+    """A slit from ``at`` (on the cut line) along ``direction`` (into the piece)."""
+
+    piece: int
+    at: np.ndarray  # (2,) pattern mm, on the cut line
+    direction: np.ndarray  # (2,) unit, inward, perpendicular to the sew line
+    depth: float  # mm, at most half the allowance
+    sew_point: np.ndarray  # (2,) the sew-line point it marks
+    seam_line: int
+    station: int  # twin notches share (seam_line, station)
+    edge: tuple[int, int] = (0, 0)  # the pattern edge (vertices) the sew point lies on
+    t: float = 0.0  # ... at this fraction from edge[0] to edge[1]
+
+
+def _chain(rows: np.ndarray) -> np.ndarray:
+    """Order the twin pairs of one seam line along side A (a->b of one follows the last)."""
+    nxt = {int(a): k for k, a in enumerate(rows[:, 0])}
+    ends = set(rows[:, 1].tolist())
+    starts = [k for k, a in enumerate(rows[:, 0].tolist()) if a not in ends]
+    k = starts[0] if starts else 0
+    order = []
+    seen = set()
+    while k is not None and k not in seen:
+        order.append(k)
+        seen.add(k)
+        k = nxt.get(int(rows[k, 1]))
+    return rows[order] if len(order) == len(rows) else rows  # branching: keep file order
+
+
+def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """(k,2) unit normals pointing away from the piece for edges a->b (forward: as in face)."""
+    d = uv[b] - uv[a]
+    d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+    nrm = np.column_stack([d[:, 1], -d[:, 0]])
+    return np.where(forward[:, None], nrm, -nrm)
+
+
+def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 100.0,
+                 depth_mm: float = 3.0,
+                 lattice_coords: LatticeCoords | None = None) -> list[list[Notch]]:
+    """Per piece, the notches of every seam line (pattern mm), twins on matching points.
+
+    ``cuts`` (:func:`solver.garment.allowance.cut_lines`) carry the per-edge allowances
+    they were made with. With ``lattice_coords`` (the
+    print's fractional lattice coordinates of pattern points on a piece, from the
+    placement) the balance notches go where the print's lattice lines cross the sew line
+    (:func:`print_stations`), the match points a cutter lines a plaid up on, no closer
+    than half the spacing (a fine print would otherwise notch every few centimetres).
+    """
+    g = garment
+    n = g.n_vertices
+    loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
+    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
+    values = np.concatenate([a for c in cuts for a in (c.allowance, *c.hole_allowance)])
+    order = np.argsort(keys)
+    keys, values = keys[order], values[order]
+
+    def lookup(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Allowance of edge u-v and whether u->v runs as in its face."""
+        fk, bk = u * n + v, v * n + u
+        fi = np.clip(np.searchsorted(keys, fk), 0, len(keys) - 1)
+        bi = np.clip(np.searchsorted(keys, bk), 0, len(keys) - 1)
+        fwd = keys[fi] == fk
+        return np.where(fwd, values[fi], np.where(keys[bi] == bk, values[bi], 0.0)), fwd
+
+    out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
+    boundaries = [c.cut.boundary for c in cuts]
+    sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+    darts = {line: (piece, run) for piece in range(g.n_pieces)
+             for line, run in dart_runs(g, piece)}
+
+    def emit(line: int, sides: list) -> None:
+        """Add the notches of stations that are clear on both twin sides."""
+        made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, boundaries[piece],
+                                                      sews[piece], depth_mm))
+                for piece, point, nrm, w, a, b, f in sides]
+        both = made[0][-1] & made[1][-1]
+        for piece, point, nrm, a, b, f, at, depth, _ in made:
+            for j in np.flatnonzero(both):
+                out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
+                                        line, int(j), (int(a[j]), int(b[j])), float(f[j])))
+
+    for line in range(len(g.seam_lines)):
+        if line in darts:  # a dart: one notch at each end of its mouth, its legs sewn shut
+            piece, run = darts[line]
+            loop = g.piece_loops(piece)[0]
+            k = {int(v): j for j, v in enumerate(loop.tolist())}
+            before = loop[k[int(run[0])] - 1]
+            after = loop[(k[int(run[-1])] + 1) % len(loop)]
+            sides = []
+            for a, b, f in ((before, run[0], 1.0), (run[-1], after, 0.0)):
+                a, b = np.array([a]), np.array([b])
+                w, fwd = lookup(a, b)
+                sides.append((piece, g.uv[b] if f else g.uv[a], _outward(g.uv, a, b, fwd), w,
+                              a, b, np.array([f])))
+            emit(line, sides)
+            continue
+        rows = _chain(g.seam_edges[g.seam_line_of_edge == line])
+        pa, pb = g.uv[rows[:, 0]], g.uv[rows[:, 1]]
+        seg = np.hypot(*(pb - pa).T)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        total = float(s[-1])
+        if total <= 1e-9:
+            continue
+        allow, _ = lookup(rows[:, 0], rows[:, 1])
+        inset = min(float(allow.max()), total / 4)
+        if lattice_coords is None:
+            count = int(np.ceil((total - 2 * inset) / spacing_mm)) if spacing_mm > 0 else 1
+            stations = np.linspace(inset, total - inset, max(count, 1) + 1)
+        else:
+            piece_a = int(g.piece_of_vertex[rows[0, 0]])
+            f_a = lattice_coords(piece_a, g.uv[rows[:, 0]])
+            f_b = lattice_coords(piece_a, g.uv[rows[:, 1]])
+            stations = print_stations(s, f_a, f_b, inset, spacing_mm,
+                                      min_gap=max(2.0 * float(allow.max()), spacing_mm / 2))
+        k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
+        f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
+        sides = []
+        for cols in ((0, 1), (2, 3)):
+            a, b = rows[k, cols[0]], rows[k, cols[1]]
+            w, fwd = lookup(a, b)
+            point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
+            sides.append((int(g.piece_of_vertex[a[0]]), point, _outward(g.uv, a, b, fwd), w,
+                          a, b, f))
+        emit(line, sides)
+    return out
+
+
+def cut_ready(garment: Garment, rules, placement=None) -> tuple[list[CutLine], list[list[Notch]]]:
+    """Per piece the cut line and the notches with ``rules`` (AllowanceRules); with the
+    placement the balance notches sit on the print's lattice lines."""
+    from solver.garment.allowance import cut_lines
+
+    cuts = cut_lines(garment, rules)
+    lattice = None if placement is None or placement.fabric is None else placement_lattice(
+        placement)
+    return cuts, seam_notches(garment, cuts, spacing_mm=rules.notch_spacing_mm,
+                              depth_mm=rules.notch_depth_mm, lattice_coords=lattice)
+
+
+def placement_lattice(placement) -> LatticeCoords:
+    """The print's fractional lattice coordinates of pattern points, as ``placement``
+    (:class:`solver.placement.Placement`) lays each piece on its fabric."""
+    fabric = placement.fabric
+    basis = np.column_stack([fabric.w1, fabric.w2])
+
+    def coords(piece: int, uv: np.ndarray) -> np.ndarray:
+        wp = placement.to_wallpaper(np.asarray(uv, float), np.full(len(uv), piece))
+        return np.linalg.solve(basis, (wp - fabric.origin).T).T
+
+    return coords
+
+
+def print_stations(s: np.ndarray, f_start: np.ndarray, f_end: np.ndarray, inset: float,
+                   spacing_mm: float, min_gap: float) -> np.ndarray:
+    """Arc-length stations on one side of a seam: both ends (``inset`` in), every crossing of
+    a lattice line of the print (a fractional coordinate passing an integer), none closer
+    than ``min_gap`` to a kept one, and fill-ins so no gap exceeds ``spacing_mm``.
+
+    ``s`` (k+1,) are the arc lengths of the edge ends; ``f_start``, ``f_end`` (k,2) the
+    lattice coordinates of each edge's two ends.
+    """
+    total = float(s[-1])
+    lo, hi = np.floor(np.minimum(f_start, f_end)), np.floor(np.maximum(f_start, f_end))
+    cross = []
+    for j in range(2):  # the two families of lattice lines
+        n = (hi[:, j] - lo[:, j]).astype(int)
+        edge = np.repeat(np.arange(len(n)), n)
+        level = lo[edge, j] + 1 + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+        span = f_end[edge, j] - f_start[edge, j]
+        t = (level - f_start[edge, j]) / np.where(span == 0, 1.0, span)
+        cross.append(s[edge] + t * (s[edge + 1] - s[edge]))
+    cross = np.sort(np.concatenate(cross))
+    cross = cross[(cross > inset + min_gap) & (cross < total - inset - min_gap)]
+    kept = [inset]
+    for c in cross:  # greedy: a crossing at least min_gap past the last kept station
+        if c - kept[-1] >= min_gap:
+            kept.append(float(c))
+    if total - inset - kept[-1] < min_gap and len(kept) > 1:
+        kept.pop()
+    kept.append(total - inset)
+    out = [kept[0]]
+    for a, b in zip(kept[:-1], kept[1:]):
+        extra = int(np.ceil((b - a) / spacing_mm)) - 1 if spacing_mm > 0 else 0
+        out += list(np.linspace(a, b, extra + 2)[1:])
+    return np.asarray(out)
+
+
+def _slits(point: np.ndarray, nrm: np.ndarray, w: np.ndarray, boundary, sew, depth_mm: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each outward ray from the sew line meets the cut line, the slit depth there,
+    and whether the slit keeps clear of the sew line (a quarter of the allowance)."""
+    reach = 3.0 * np.maximum(w, 1e-6)
+    rays = shapely.linestrings(np.stack([point + 1e-6 * nrm, point + reach[:, None] * nrm], 1))
+    hits = shapely.intersection(rays, boundary)
+    coords, owner = shapely.get_coordinates(hits, return_index=True)
+    t = np.full(len(point), np.inf)
+    np.minimum.at(t, owner, np.hypot(*(coords - point[owner]).T))
+    found = np.isfinite(t)
+    t = np.where(found, t, 0.0)
+    depth = np.minimum(depth_mm, np.minimum(w, t) / 2)
+    at = point + t[:, None] * nrm
+    clear = shapely.distance(shapely.linestrings(np.stack([at, at - depth[:, None] * nrm], 1)),
+                             sew)
+    ok = found & (w > 0) & (depth > 0) & (clear >= 0.25 * w - 1e-9)
+    return at, depth, ok
+
+
+def dart_marks(garment: Garment, piece: int, inset_mm: float = 10.0) -> np.ndarray:
+    """(k,2) drill marks, one per dart of ``piece``: ``inset_mm`` before the dart's point
+    on its centre line (hidden in the seam once sewn), as pattern makers mark darts."""
+    g = garment
+    marks = []
+    for _, run in dart_runs(g, piece):
+        mouth = 0.5 * (g.uv[run[0]] + g.uv[run[-1]])
+        tip = g.uv[run[int(np.argmax(np.hypot(*(g.uv[run] - mouth).T)))]]
+        d = mouth - tip
+        length = float(np.hypot(*d))
+        if length > 1e-9:
+            marks.append(tip + min(inset_mm, length / 4) * d / length)
+    return np.asarray(marks, float).reshape(-1, 2)
