@@ -207,7 +207,7 @@ def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, cap
     assert placed["grain"]["tolerance_deg"] == 1.0
     turn = np.array([p["angle_deg"] - p["grain_deg"] for p in placed["pieces"]]) % 180.0
     assert np.all(np.minimum(turn, 180.0 - turn) <= 1.0)
-    assert summary["off_grain_max_deg"] <= 1.0 and "cut-ready     grain" in printed
+    assert summary["off_grain_max_deg"] <= 1.0 and "grain: largest off-grain" in printed
     if summary["e_fit_reshaped_cm2"] is not None:
         assert summary["reshape_max_move_mm"] <= 10.0
         assert summary["reshape_area_change_max_pct"] <= 1.0
