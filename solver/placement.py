@@ -54,6 +54,11 @@ class Placement:
     piece_names: list[str] | None = None
     garment_units: str | None = None  # units the garment file was read in (it may not say)
     report: dict[str, Any] = field(default_factory=dict)
+    # per piece {"grain_deg", "grain_source", "bias"} (solver.garment.grain), when known
+    grains: list[dict[str, Any]] | None = None
+    # the cutting rule: {"tolerance_deg": float | None (None: free rotation), "nap": bool,
+    # "fabric_grain_deg": float}; nesting keeps to it
+    grain_rule: dict[str, Any] = field(default_factory=dict)
     # left/right pairs and how each was kept: [[i, j, "mirror" | "same"], ...]
     pairs: list[list] = field(default_factory=list)
 
@@ -88,9 +93,11 @@ class Placement:
             "garment_units": self.garment_units,
             "fabric": self.fabric.to_dict(),
             "convention": "p2D = R(angle_deg) p_wp + translation_mm",
+            "grain": self.grain_rule,
             "pieces": [
                 {"index": i, "name": names[i], "angle_deg": float(np.degrees(a)),
-                 "translation_mm": [float(t[0]), float(t[1])]}
+                 "translation_mm": [float(t[0]), float(t[1])],
+                 **(self.grains[i] if self.grains else {})}
                 for i, (a, t) in enumerate(zip(self.angles, self.translations))
             ],
             "pairs": [[int(i), int(j), str(mode)] for i, j, mode in self.pairs],
@@ -109,9 +116,12 @@ class Placement:
                 garment_units=d.get("garment_units"),
                 piece_names=[p.get("name", f"piece{p['index']}") for p in pieces],
                 report=d.get("report", {}),
+                grains=([{k: p[k] for k in ("grain_deg", "grain_source", "bias") if k in p}
+                         for p in pieces] if all("grain_deg" in p for p in pieces) else None),
+                grain_rule=dict(d.get("grain") or {}),
                 pairs=_pairs(d.get("pairs", []), len(pieces)),
             )
-        except (KeyError, TypeError) as exc:
+        except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"placement lacks or misstates {exc}") from None
 
     def save(self, path: str | Path) -> None:

@@ -76,6 +76,66 @@ def load_config_arg(args: argparse.Namespace, overrides=None):
     return load_config(path, overrides)
 
 
+def add_grain_arguments(parser: argparse.ArgumentParser, *, rule: bool = False) -> None:
+    """Where each piece's grain comes from; with ``rule`` also how strictly to keep it."""
+    parser.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
+                        help="the grain direction of a piece (name or index) in pattern "
+                        "space, degrees, where the file has no grain line; repeatable")
+    parser.add_argument("--bias", action="append", metavar="PIECE",
+                        help="cut this piece on the bias (grain at 45 degrees); repeatable")
+    parser.add_argument("--up", metavar="AXIS",
+                        help="the drape's up axis: x, y, z, -x, -y or -z (default: detected)")
+    if rule:
+        parser.add_argument("--grain", nargs="?", const="1", default="1", metavar="TOL|off",
+                            help="keep each piece's grain within TOL degrees (default 1) of "
+                            "the fabric's grain at 0 or 180 degrees; off: turn freely")
+        parser.add_argument("--nap", action="store_true",
+                            help="one-way print or napped fabric: every grain at 0 degrees")
+
+
+def grain_tolerance(text: str) -> float | None:
+    """``--grain`` value: degrees >= 0, or None for ``off``."""
+    if str(text).strip().lower() == "off":
+        return None
+    try:
+        tol = float(text)
+    except ValueError:
+        tol = float("nan")
+    if not tol >= 0 or tol == float("inf"):
+        raise ValueError(f"--grain must be a tolerance in degrees >= 0 or off, got {text!r}")
+    return tol
+
+
+def garment_with_grain(garment, args: argparse.Namespace):
+    """``garment`` with the grain the command line asks for; a guessed grain is told on
+    stderr (one line) so that ``--json`` stays clean."""
+    import sys
+    import warnings
+
+    from solver.garment.grain import parse_grain_lines
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = garment.with_grain(lines=parse_grain_lines(getattr(args, "grain_line", None)),
+                                 bias=getattr(args, "bias", None) or (),
+                                 up=getattr(args, "up", None))
+    for w in caught:
+        print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
+    return out
+
+
+def fabric_grain_deg(path: str | Path) -> float:
+    """The fabric's grain direction in fabric space: FABRIC.json ``grain_deg``, else 0
+    (the roll's length, fabric x)."""
+    from solver.jsonfile import read_json
+
+    doc = read_json(Path(path))
+    value = doc.get("grain_deg", 0.0) if isinstance(doc, dict) else 0.0
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
+        raise ValueError(f"{path}: grain_deg must be a number of degrees")
+    return float(value)
+
+
 def read_name_map(path: str | Path, what: str) -> dict[int | str, float]:
     """A JSON object {"seam line name or index": number} (weights, allowances) from a file.
 

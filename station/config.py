@@ -88,11 +88,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "restarts": Key(int, 15, "random restarts", minimum=1, maximum=10_000),
         "seed": Key(int, 0, "random seed", minimum=0, maximum=2**32 - 1),
         "reflect": Key(bool, False, "allow mirror-symmetric fits across seams"),
-        "grain_tolerance_deg": Key(float, -1.0, "keep pieces on grain within this many "
-                                   "degrees (negative: off)", minimum=-1.0, maximum=180.0),
+        "grain_tolerance_deg": Key(float, 1.0, "keep each piece's grain within this many "
+                                   "degrees of the fabric's grain (negative: turn freely)",
+                                   minimum=-1.0, maximum=180.0),
+        "nap": Key(bool, False, "one-way print or napped fabric: every grain at 0 degrees"),
+        "fabric_grain_deg": Key(float, 0.0, "the fabric's grain in fabric space (0: along "
+                                "the roll); a fabric's FABRIC.json grain_deg wins",
+                                minimum=-360.0, maximum=360.0),
+        "up": Key(str, "auto", "the drapes' up axis", choices=("auto", "x", "y", "z", "-x",
+                                                               "-y", "-z")),
     },
     "reshape": {
         "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
+        "max_move_mm": Key(float, 10.0, "largest move of any pattern vertex when reshaping",
+                           minimum=0.1, maximum=1000.0),
     },
     "nest": {
         "width_mm": Key(float, 1000.0, "usable fabric width across the table", minimum=1.0,

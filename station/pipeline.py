@@ -20,6 +20,7 @@ import json
 import logging
 import shutil
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -65,9 +66,18 @@ class StationPipeline:
         if fabric is not None:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
-                                  "seam_allowance", "allowance"}
+                                  "grain_lines", "bias", "seam_allowance", "allowance"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
+        lines, bias = options.get("grain_lines", {}), options.get("bias", [])
+        if not isinstance(lines, dict) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in lines.values()):
+            raise ValueError('job option grain_lines must be {"piece": degrees}')
+        if not isinstance(bias, list) or not all(isinstance(b, (str, int)) for b in bias):
+            raise ValueError("job option bias must be a list of pieces")
+        with warnings.catch_warnings():  # a guessed grain is reported when the job runs
+            warnings.simplefilter("ignore")
+            grained(loaded, self.config, options)  # names every piece that does not exist
         from solver.garment.allowance import edge_allowances
         from station.allowance import rules_for_job
 
@@ -207,7 +217,9 @@ class StationPipeline:
             control.progress.update(step="aligning", fraction=min(1.0, k / max(n, 1)))
             control.checkpoint()
 
-        placement = align_garment(garment, wallpaper, self.config, job.options, on_restart)
+        garment = grained(garment, self.config, job.options)
+        placement = align_garment(garment, wallpaper, self.config, job.options, on_restart,
+                                  fabric_grain_deg=fabric_doc.get("grain_deg"))
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
@@ -227,9 +239,10 @@ class StationPipeline:
         aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
             start_step(control, "reshaping")
-            from solver.reshape import reshape
+            from solver.reshape import ReshapeOptions, reshape
 
-            garment, reshaped = reshape(garment, placement)
+            garment, reshaped = reshape(garment, placement, options=ReshapeOptions(
+                max_move_mm=self.config["reshape"]["max_move_mm"]))
             garment_path = workdir / "garment-reshaped.obj"
             save_obj(garment, garment_path)
             placement.garment = str(garment_path)
@@ -238,7 +251,7 @@ class StationPipeline:
             cuts, notches = cut_ready(garment, rules, placement)  # follows the sew
             draw_fit(garment, placement, final_fit, workdir / "fit-reshaped.png",
                      title=f"reshaped on {wallpaper.group}", colour_of=colour_of, cuts=cuts,
-                     notches=notches)
+                     notches=notches, original=aligned_garment)
             lap("reshape")
             self._write_report(workdir, report)
             control.checkpoint()
@@ -307,9 +320,20 @@ class StationPipeline:
         garment_path = workdir / "garment.obj"
         save_obj(garment, garment_path)
         keep_licence_note(Path(job.garment), workdir)
-        # The pattern's own frame on the cloth; the placement's print is a stand-in that
-        # nest_placement drops (plain nesting).
-        placement = Placement.identity(garment.n_pieces, Wallpaper("p1", (1, 0), (0, 1)))
+        # Each piece turned so that its grain runs along the cloth's (the roll, unless the
+        # station says otherwise); the placement's print is a stand-in that nest_placement
+        # drops (plain nesting). The grain rule goes with it, so nesting keeps the grain.
+        garment = grained(garment, self.config, job.options)
+        a = self.config["align"]
+        grain_deg = np.array([g.deg for g in garment.grains()])
+        placement = Placement(np.radians(grain_deg - a["fabric_grain_deg"]),
+                              np.zeros((garment.n_pieces, 2)), Wallpaper("p1", (1, 0), (0, 1)),
+                              piece_names=list(garment.piece_names),
+                              grains=[g.to_dict() for g in garment.grains()],
+                              grain_rule={"tolerance_deg": a["grain_tolerance_deg"]
+                                          if a["grain_tolerance_deg"] >= 0 else None,
+                                          "nap": a["nap"],
+                                          "fabric_grain_deg": a["fabric_grain_deg"]})
         placement.garment = str(garment_path)
         placement.save(workdir / "placement.json")
         start_step(control, "nesting", 0.0)
@@ -630,8 +654,9 @@ def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float
 
 
 def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
-                  progress=None):
-    """The best placement of the print on every piece (solver.align).
+                  progress=None, fabric_grain_deg: float | None = None):
+    """The best placement of the print on every piece (solver.align), on grain as the
+    configuration says; ``fabric_grain_deg`` (FABRIC.json's) wins over the station's.
 
     ``progress(k, n, e_random, e_aligned)`` is called as each random restart finishes.
     """
@@ -644,7 +669,16 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
                  restarts=int(options.get("restarts", a["restarts"])),
                  seed=int(options.get("seed", a["seed"])),
                  reflect=a["reflect"], grain_tol_deg=grain if grain >= 0 else None,
+                 nap=a["nap"], fabric_grain_deg=(a["fabric_grain_deg"] if fabric_grain_deg
+                                                 is None else fabric_grain_deg),
                  progress=progress)
+
+
+def grained(garment, config: Config, options: dict[str, Any]):
+    """``garment`` with the job's grain lines and bias pieces and the station's up axis."""
+    up = config["align"]["up"]
+    return garment.with_grain(lines=options.get("grain_lines"), bias=options.get("bias", ()),
+                              up=None if up == "auto" else up)
 
 
 def nest_placement(placement_path: Path, config: Config, progress=None, options=None, *,

@@ -88,12 +88,14 @@ def notch_ticks(image: np.ndarray, notches, to_px, min_mm: float) -> None:
 def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path, *,
              width_px: int = 1600, red_mm: float = 20.0,
              colour_of: ColourOf | None = None, title: str | None = None,
-             cuts=None, notches=None) -> np.ndarray:
+             cuts=None, notches=None, original=None) -> np.ndarray:
     """Draw the pieces (pattern space) over the print and save a PNG; returns the image.
 
     With ``cuts`` (per piece :class:`solver.garment.allowance.CutLine`) the seam allowance
     shows as a lighter band of the print, the cut line solid and the sew line dashed;
-    ``notches`` (per piece, :class:`solver.garment.notches.Notch`) as red slits.
+    ``notches`` (per piece, :class:`solver.garment.notches.Notch`) as red slits. Each piece
+    shows its grain line as an arrow; ``original`` (the garment before reshaping) is
+    overlaid as a thin grey outline so that the change can be seen.
     """
     uv = garment.uv
     extent = uv if not cuts else np.vstack([uv] + [c.outline for c in cuts])
@@ -144,6 +146,12 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     for per_piece in notches or []:
         notch_ticks(image, [(q.at, q.direction, q.depth) for q in per_piece], to_px,
                     4.0 / scale)
+    if original is not None:
+        for piece in range(original.n_pieces):
+            for loop in original.piece_loops(piece):
+                cv2.polylines(image, [to_px(original.uv[loop])], True, (150, 150, 150), 1,
+                              cv2.LINE_AA, shift=4)
+    draw_grain_arrows(image, garment, to_px, scale)
     # One polylines call per colour level (not per edge), on both twins of every edge.
     edges = garment.seam_edges
     segments = np.concatenate([
@@ -164,6 +172,17 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     if not cv2.imwrite(str(path), image):
         raise ValueError(f"{path}: cannot write the picture (folder missing or not a .png?)")
     return image
+
+
+def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
+    """Each piece's grain line, dark blue, arrow head at the grain's direction."""
+    from solver.garment.grain import grain_lines
+
+    for tail, head in grain_lines(garment):
+        a, b = to_px(np.array([tail])), to_px(np.array([head]))
+        length = max(float(np.hypot(*(head - tail))) * scale, 1.0)
+        cv2.arrowedLine(image, tuple(int(v) for v in a[0]), tuple(int(v) for v in b[0]),
+                        (120, 40, 20), 2, cv2.LINE_AA, shift=4, tipLength=min(0.3, 20 / length))
 
 
 def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str) -> None:

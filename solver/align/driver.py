@@ -46,15 +46,18 @@ def parse_fix(garment, specs: list[str] | None) -> tuple[np.ndarray, np.ndarray]
 
 def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 15,
           seed: int = 0, weights: Mapping[int | str, float] | None = None,
-          fix: list[str] | None = None, grain_tol_deg: float | None = None,
-          reflect: bool = False, rotation: bool = True, translation: bool = True,
+          fix: list[str] | None = None, grain_tol_deg: float | None = 1.0,
+          nap: bool = False, fabric_grain_deg: float = 0.0, reflect: bool = False,
+          rotation: bool = True, translation: bool = True,
           init: Placement | None = None, use_drape: bool = True,
           progress: Callable[[int, int, float, float], None] | None = None) -> Placement:
     """Align ``fabric`` on every piece of ``garment`` (paper Sec. 4, or the global method).
 
     ``weights`` maps seam-line names or indices to w_S (0 ignores a seam); ``fix`` lists
     pieces that keep the rotation and/or translation of ``init`` (identity if None);
-    ``grain_tol_deg`` enables the grain rule (0 or 180 degrees to the print);
+    ``grain_tol_deg``: each piece's grain (``garment.grains()``) within this many degrees
+    of the fabric's grain (at ``fabric_grain_deg`` in fabric space), at 0 or 180 degrees,
+    only 0 with ``nap``, 45 degrees more for bias pieces; None turns pieces freely;
     ``rotation``/``translation`` False keep that part at ``init``.
     The report's ``e_fit_*`` figures use the garment's own seam weights, as `station fit`
     does; with ``weights`` the optimised objective is reported as ``objective_mm2``.
@@ -67,7 +70,8 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
     if init is not None and init.n_pieces != garment.n_pieces:
         raise ValueError(f"initial placement has {init.n_pieces} pieces, the garment "
                          f"{garment.n_pieces}")
-    grain = None if grain_tol_deg is None else GrainRule.from_garment(garment, grain_tol_deg)
+    grain = None if grain_tol_deg is None else GrainRule.from_garment(
+        garment, grain_tol_deg, nap=nap, fabric_grain_deg=fabric_grain_deg)
     problem = AlignProblem.build(
         weighted, fabric, fix_rot=fix_rot, fix_trans=fix_trans,
         init_angles=None if init is None else init.angles,
@@ -79,7 +83,10 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
     placement = Placement(res.angles, res.translations, fabric,
                           garment=getattr(garment, "source", None) or None,
                           garment_units=_named_units(garment),
-                          piece_names=list(garment.piece_names))
+                          piece_names=list(garment.piece_names),
+                          grains=[g.to_dict() for g in garment.grains()],
+                          grain_rule={"tolerance_deg": grain_tol_deg, "nap": bool(nap),
+                                      "fabric_grain_deg": float(fabric_grain_deg)})
     fit = fit_report(garment, placement)
     own_w = garment.seam_weights()
     e_random = problem.energy(res.info["random_angles"], res.info["random_translations"],
@@ -105,6 +112,7 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
         "translation": bool(translation),
         "reflect": bool(reflect),
         "grain_tol_deg": grain_tol_deg,
+        **grain_report(garment, res.angles, nap=nap, fabric_grain_deg=fabric_grain_deg),
         "fixed": {garment.piece_names[i]: ("both" if fix_rot[i] and fix_trans[i]
                                            else "rot" if fix_rot[i] else "trans")
                   for i in np.flatnonzero(fix_rot | fix_trans)},
@@ -117,6 +125,23 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
     report["seconds"] = time.perf_counter() - start
     placement.report = report
     return placement
+
+
+def grain_report(garment, angles: np.ndarray, *, nap: bool = False,
+                 fabric_grain_deg: float = 0.0) -> dict:
+    """Per piece its grain and how far (degrees) the placement turns it off grain: from
+    the nearest allowed turn (straight, or bias), whatever tolerance was asked for."""
+    rule = GrainRule.from_garment(garment, 0.0, nap=nap, fabric_grain_deg=fabric_grain_deg)
+    off = np.degrees(rule.violation(np.asarray(angles, float)))
+    turn = rule.relative_deg(np.asarray(angles, float))
+    grains = garment.grains()
+    return {
+        "grain": [{"piece": garment.piece_names[i], **g.to_dict(),
+                   "turn_deg": round(float(turn[i]), 4), "off_grain_deg": round(float(off[i]), 4)}
+                  for i, g in enumerate(grains)],
+        "grain_guessed": [garment.piece_names[i] for i, g in enumerate(grains) if g.guessed],
+        "off_grain_max_deg": float(off.max()) if len(off) else 0.0,
+    }
 
 
 def _named_units(garment) -> str | None:

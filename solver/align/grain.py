@@ -1,12 +1,13 @@
-"""Grain lines: woven fabric is cut on grain, so a piece may only take a few rotations
-relative to the print.
+"""Cutting on grain: each piece's grain line lies along the fabric's grain, so a piece may
+take only a few rotations relative to the print.
 
-The print's grain is the wallpaper's vertical axis ``(0, 1)``; on piece ``c`` it points
-along ``R_c (0, 1)``, i.e. at angle ``theta_c + 90°`` in pattern space. The piece's grain
-line points at ``gamma_c`` (from the input's grain line, else the pattern's vertical
-axis, ``gamma_c = 90°``). The rotation of the piece relative to the print is
-``theta_c + 90° - gamma_c`` and must lie within ``tol`` of one of ``allowed`` (default
-0° and 180°).
+The fabric's grain runs at ``fabric_grain_deg`` in fabric (= wallpaper) space, by default 0
+(the roll's length, fabric x). With ``p2D = R(theta) p_wp + t`` it appears on piece ``c`` at
+``theta_c + fabric_grain``; the piece's grain (``solver.garment.grain``) points at
+``gamma_c``. The piece's turn relative to the fabric grain, ``theta_c + fabric_grain -
+gamma_c``, must lie within ``tol`` of an allowed turn: 0 or 180 degrees, 0 only with a nap
+(one-way prints, pile), and for a bias piece 45 degrees more (both diagonals; with a nap the
+two whose grain still points along the roll).
 """
 
 from __future__ import annotations
@@ -15,37 +16,55 @@ from dataclasses import dataclass
 
 import numpy as np
 
+STRAIGHT = (0.0, 180.0)
+NAP = (0.0,)
+BIAS = (45.0, 135.0, 225.0, 315.0)
+BIAS_NAP = (45.0, 315.0)
+
 
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+def allowed_turns(bias: bool, nap: bool) -> tuple[float, ...]:
+    """Allowed turns (degrees) of a piece's grain relative to the fabric's grain."""
+    if bias:
+        return BIAS_NAP if nap else BIAS
+    return NAP if nap else STRAIGHT
+
+
 @dataclass(frozen=True)
 class GrainRule:
     """Allowed placement angles per piece: ``centres`` (P,m) radians, half-width ``tol``;
-    ``base`` (P,) is the placement angle at which the print runs along the grain line."""
+    ``base`` (P,) is the placement angle at which the piece's grain runs along the
+    fabric's grain (pieces with fewer allowed turns repeat their last centre)."""
 
     centres: np.ndarray
     tol: float
     base: np.ndarray
 
     @classmethod
-    def from_garment(cls, garment, tol_deg: float = 2.0,
-                     allowed_deg: tuple[float, ...] = (0.0, 180.0)) -> GrainRule:
+    def from_garment(cls, garment, tol_deg: float = 1.0, *, nap: bool = False,
+                     fabric_grain_deg: float = 0.0) -> GrainRule:
+        """The rule for ``garment.grains()`` on a fabric whose grain is at
+        ``fabric_grain_deg``."""
         if not np.isfinite(tol_deg) or tol_deg < 0:
             raise ValueError(f"grain tolerance must be >= 0 degrees, got {tol_deg}")
-        p = garment.n_pieces
-        gamma = np.full(p, np.pi / 2)
-        for piece, line in (getattr(garment, "grainlines", None) or {}).items():
-            (x0, y0), (x1, y1) = line
-            if 0 <= int(piece) < p and (x1 - x0, y1 - y0) != (0, 0):
-                gamma[int(piece)] = np.arctan2(y1 - y0, x1 - x0)
-        allowed = np.radians(np.asarray(allowed_deg, float))
-        centres = gamma[:, None] - np.pi / 2 + allowed[None, :]
-        return cls(centres=centres, tol=float(np.radians(tol_deg)), base=gamma - np.pi / 2)
+        if not np.isfinite(fabric_grain_deg):
+            raise ValueError("the fabric's grain direction must be finite")
+        grains = garment.grains()
+        gamma = np.radians([g.deg for g in grains])
+        base = gamma - np.radians(fabric_grain_deg)
+        turns = [allowed_turns(g.bias, nap) for g in grains]
+        m = max(len(t) for t in turns)
+        table = np.radians([list(t) + [t[-1]] * (m - len(t)) for t in turns])
+        # a hair inside the tolerance, so that angles written in degrees and checked
+        # again after rounding still lie within it
+        return cls(centres=base[:, None] + table, tol=float(np.radians(tol_deg)) * (1 - 1e-7),
+                   base=base)
 
     def relative_deg(self, angles: np.ndarray) -> np.ndarray:
-        """(...,P) rotation of each piece relative to the print, degrees in (-180, 180]."""
+        """(...,P) turn of each piece's grain from the fabric's grain, degrees in (-180, 180]."""
         return np.degrees(_wrap(angles - self.base))
 
     def violation(self, angles: np.ndarray) -> np.ndarray:

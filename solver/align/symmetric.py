@@ -134,6 +134,7 @@ def quotient_garment(garment: Garment, rules: Sequence[PairRule]) -> tuple[Garme
     q.piece_names = [garment.piece_names[k] for k in kept]
     q.seam_lines = lines
     q.grainlines = {int(keep[k]): v for k, v in garment.grainlines.items() if k in kept}
+    q.grain = tuple(garment.grains()[k] for k in kept)  # a pair takes its first's grain
     q.notches = {int(keep[k]): v for k, v in garment.notches.items() if k in kept}
     q._loops = None
     return q, keep
@@ -165,10 +166,13 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     """
     import time
 
-    from solver.align.driver import align
+    from solver.align.driver import align, grain_report
     from solver.fit import fit_report
+    from solver.garment.grain import paired_grains
 
     start = time.perf_counter()
+    garment = garment.copy()  # the pairs' two pieces take mirrored grains
+    garment.grain = paired_grains(garment.grains(), pairs)
     rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap) for p in pairs]
     quotient, keep = quotient_garment(garment, rules)
     seconds = {"symmetric": 0.0, "unconstrained": 0.0}
@@ -180,22 +184,28 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         first_of = _first_of(keep)
         q_init = Placement(init.angles[first_of], init.translations[first_of], fabric)
     q_fix = [_fix_in_quotient(spec, garment, quotient, keep) for spec in fix or []]
+    options = dict(options, nap=nap, fabric_grain_deg=grain_deg)
     q_options = dict(options)
-    if options.get("grain_tol_deg") is not None:
+    if options.get("grain_tol_deg", 1.0) is not None:
         # the second piece inherits the first's angle to the grain, plus the pair's own
         # small disagreement of grain lines: keep the first that much closer to grain
         slack = _pair_grain_disagreement(garment, fabric, rules, keep)
-        q_options["grain_tol_deg"] = max(options["grain_tol_deg"] - slack, 0.0)
+        q_options["grain_tol_deg"] = max(options.get("grain_tol_deg", 1.0) - slack, 0.0)
     t0 = time.perf_counter()
     q_place = align(quotient, fabric, fix=q_fix or None, init=q_init, **q_options)
     seconds["symmetric"] = time.perf_counter() - t0
     angles, trans = expand(q_place, rules, keep, garment.n_pieces)
     placement = Placement(angles, trans, fabric, garment=garment.source or None,
                           garment_units=q_place.garment_units,
-                          piece_names=list(garment.piece_names))
+                          piece_names=list(garment.piece_names),
+                          grains=[g.to_dict() for g in garment.grains()],
+                          grain_rule=dict(q_place.grain_rule))
     fit = fit_report(garment, placement)
     report = dict(q_place.report)
     report.update(fit.summary())
+    report.update(grain_report(garment, angles, nap=nap, fabric_grain_deg=grain_deg))
+    report["grain_tol_deg"] = options.get("grain_tol_deg", 1.0)
+    placement.grain_rule["tolerance_deg"] = report["grain_tol_deg"]
     report.update(pieces=int(garment.n_pieces), seam_edges=int(len(garment.seam_edges)),
                   e_fit_aligned_mm2=fit.e_fit_mm2, e_fit_aligned_cm2=fit.e_fit_cm2)
     if report.get("e_fit_random_mm2"):
@@ -241,7 +251,7 @@ def _pair_grain_disagreement(garment: Garment, fabric: Wallpaper, rules: Sequenc
 
     if not rules:
         return 0.0
-    grain = GrainRule.from_garment(garment, 0.0)
+    grain = GrainRule.from_garment(garment, 0.0)  # the turns, whatever the fabric's grain
     on_grain = Placement(grain.centres[:, 0], np.zeros((garment.n_pieces, 2)), fabric)
     first_of = _first_of(keep)
     angles, _ = expand(Placement(on_grain.angles[first_of], on_grain.translations[first_of],

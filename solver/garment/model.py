@@ -23,6 +23,7 @@ from scipy.sparse.csgraph import connected_components
 
 import untrusted
 from solver.garment.errors import GarmentError
+from solver.garment.grain import PieceGrain, piece_grains
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,9 @@ class Garment:
         Pattern boundary edges sewn to nothing (hems, necklines): boundary = 2 E + this.
     grainlines, notches : dict
         Per piece index, where the input has them (mm, pattern coordinates).
+    grain : tuple of PieceGrain
+        Each piece's grain direction and its source (`solver.garment.grain`); empty until
+        :meth:`grains` infers it or :meth:`with_grain` sets it.
     panel_frames : dict
         Per piece a (3,3) float array ``F``: a specification places its panel around the
         body, and the pattern point (u, v) sits at ``F @ (u, v, 1)`` (mm, world, +y up).
@@ -90,6 +94,7 @@ class Garment:
         default_factory=dict
     )
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    grain: tuple[PieceGrain, ...] = ()
     panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
@@ -109,6 +114,21 @@ class Garment:
     def piece_of_face(self) -> np.ndarray:
         """(F,) int piece of each face."""
         return self.piece_of_vertex[self.faces[:, 0]]
+
+    def grains(self) -> tuple[PieceGrain, ...]:
+        """Each piece's grain: as set by :meth:`with_grain`, else from the file, the drape
+        or (with a warning) the outline, inferred once and kept."""
+        if len(self.grain) != self.n_pieces:
+            self.grain = piece_grains(self)
+        return self.grain
+
+    def with_grain(self, *, lines: Mapping[int | str, float] | None = None,
+                   bias=(), up: np.ndarray | str | None = None) -> Garment:
+        """Copy whose grain takes the operator's ``lines`` (degrees by piece name or index),
+        ``bias`` pieces and the drape's ``up`` axis into account."""
+        out = self.copy()
+        out.grain = piece_grains(self, lines=lines, bias=bias, up=up)
+        return out
 
     def seam_weights(self) -> np.ndarray:
         """(E,) float weight of each seam edge, taken from its seam line."""

@@ -52,6 +52,7 @@ def subdivided(garment: Garment) -> Garment:
         scale_recovered=g.scale_recovered, piece_names=list(g.piece_names),
         grainlines=dict(g.grainlines), notches={k: list(v) for k, v in g.notches.items()})
     out.seam_lines = _carried_seam_lines(g, out, key, origin)
+    out.grain = g.grain
     return out
 
 

@@ -64,7 +64,7 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     return pieces
 
 
-def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
+def pieces_from_placement(path: str | Path, *, orientations=None,
                           units: str | None = None, allowance=None, fabric=None,
                           plain: bool = False):
     """Garment pieces at their aligned position on the print, and that print.
@@ -75,7 +75,9 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
     ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
     makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
-    balance notches follow (``plain``: no print, notches by spacing alone).
+    balance notches follow (``plain``: no print, notches by spacing alone). The turns
+    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
+    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -91,6 +93,11 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
+    if orientations is None:
+        rule = placement.grain_rule
+        orientations = ((0.0,) if rule.get("nap") else
+                        None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
+                        else (0.0, 180.0))
     if fabric is not None:
         placement.fabric = fabric
     pieces = garment_pieces(garment, allowance, placement.piece_names or None,
@@ -99,7 +106,15 @@ def pieces_from_placement(path: str | Path, *, orientations=(0.0, 180.0),
         a = placement.angles[i]
         r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
         piece.base = np.column_stack([r.T, -r.T @ placement.translations[i]])
-        piece.orientations = tuple(float(o) % 360.0 for o in orientations)
+        piece.orientations = (None if orientations is None
+                              else tuple(float(o) % 360.0 for o in orientations))
+    if placement.grains:  # the grain the alignment kept, drawn where the file has none
+        from solver.garment.grain import grain_lines
+
+        lines = grain_lines(garment, [g["grain_deg"] for g in placement.grains])
+        for i, piece in enumerate(pieces):
+            if piece.grainline is None:
+                piece.grainline = lines[i]
     return pieces, placement.fabric
 
 

@@ -58,6 +58,8 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     from solver.reshape.optimise import optimise
 
     options = options or ReshapeOptions()
+    if not options.max_move_mm > 0:
+        raise ValueError(f"the largest move must be > 0 mm, got {options.max_move_mm}")
     levels = 0
     if options.refine and fit_report(garment, placement).e_fit_mm2 > 0:
         garment, levels = refined(garment, placement.fabric.covering_radius)
@@ -65,7 +67,8 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
                       pairs=pairs)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
-    return new, reshape_report(garment, placement, result, subdivisions=levels)
+    return new, reshape_report(garment, placement, result, subdivisions=levels,
+                               max_move_mm=options.max_move_mm)
 
 
 def _carry_marks(garment, uv: np.ndarray):

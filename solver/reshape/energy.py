@@ -1,6 +1,7 @@
 """The pattern energy of paper Eq. (10), its terms and analytic gradients.
 
     E = E_prox + alpha E_conf + beta sum_f phi_f(A_f) + 1/(2 gamma) sum_e w_e (c_e / l0_e)^2
+        + sum_v psi_v(|u_v - u0_v|)
 
 Every term is vectorised over seam vertices, faces or seam edges (sparse matrices and
 ``np.bincount``); ``uv`` is always the (V,2) pattern in millimetres and every gradient has
@@ -22,6 +23,11 @@ the same shape.
   Injective Mappings": ``1/g(A/s) - 1`` with ``g(x) = x^3 - 3x^2 + 3x`` below the
   threshold area ``s`` (a fraction of the input area), 0 above it and +inf at or below
   zero area, so no flipped or degenerate triangle has finite energy.
+- psi_v: a barrier on each vertex's move from the input pattern, zero below 90 % of
+  ``max_move`` and +inf at it (`move_barrier`): a pattern maker accepts a bounded change,
+  so the bound is a constraint (the line search never crosses it), not a weight.
+- The same form on each piece's area change keeps it within ``area_tol`` (1 %) of the
+  input area (`area_barrier`, step cap `max_area_step`).
 - The twin-length penalty uses ``c_e = |e|^2 - |e'|^2`` as in the paper, divided by the
   input length ``l0_e`` of the pair so that gamma is dimensionless and means the same in
   mm or inches (the constraint c_e = 0 is unchanged); its weight ``w_e`` includes
@@ -210,6 +216,131 @@ def barrier_energy(uv: np.ndarray, faces: np.ndarray,
     return e, _scatter(len(uv), fa.ravel(), ga.reshape(-1, 2))
 
 
+# ---------------------------------------------------------------------- move bound
+MOVE_ONSET = 0.81  # the move barrier acts beyond 90 % of the bound (rho = (d / bound)^2)
+
+
+def _move_terms(uv: np.ndarray, rest: np.ndarray, bound: float):
+    """Displacements p, rho = |p|^2 / bound^2 and the vertices beyond the onset."""
+    p = uv - rest
+    rho = np.einsum("ij,ij->i", p, p) / (bound * bound)
+    return p, rho, np.flatnonzero(rho > MOVE_ONSET)
+
+
+def move_barrier(uv: np.ndarray, rest: np.ndarray, bound: float,
+                 weight: float) -> tuple[float, np.ndarray]:
+    """sum_v w ((rho - r0) / (1 - rho))^2 over vertices with rho = |p_v|^2 / bound^2 > r0,
+    and its gradient; +inf once any vertex has moved ``bound`` or more.
+
+    Like the flip barrier, it is C1 where it starts acting (value and slope 0 at r0) and
+    infinite on the constraint, so the bound holds as a constraint, not as a weight: the
+    line search caps every step before it (`max_bounded_step`) and no iterate crosses it.
+    """
+    grad = np.zeros_like(uv)
+    if not np.isfinite(bound):
+        return 0.0, grad
+    p, rho, act = _move_terms(uv, rest, bound)
+    if np.any(rho >= 1.0):
+        return np.inf, grad
+    if not act.size:
+        return 0.0, grad
+    r = rho[act]
+    e = float(weight * np.sum(((r - MOVE_ONSET) / (1.0 - r)) ** 2))
+    dphi = weight * 2.0 * (r - MOVE_ONSET) * (1.0 - MOVE_ONSET) / (1.0 - r) ** 3
+    grad[act] = (dphi * 2.0 / (bound * bound))[:, None] * p[act]
+    return e, grad
+
+
+def move_barrier_diagonal(uv: np.ndarray, rest: np.ndarray, bound: float,
+                          weight: float) -> np.ndarray:
+    """(V,) isotropic Gauss-Newton curvature of `move_barrier` per vertex (for the model)."""
+    out = np.zeros(len(uv))
+    if not np.isfinite(bound):
+        return out
+    _, rho, act = _move_terms(uv, rest, bound)
+    r = np.minimum(rho[act], 1.0 - 1e-12)
+    k = 1.0 - MOVE_ONSET
+    dphi = weight * 2.0 * (r - MOVE_ONSET) * k / (1.0 - r) ** 3
+    d2phi = weight * 2.0 * k * (1.0 - r + 3.0 * (r - MOVE_ONSET)) / (1.0 - r) ** 4
+    b2 = bound * bound
+    out[act] = dphi * 2.0 / b2 + d2phi * 4.0 * r / b2  # |d rho / d u|^2 = 4 rho / b^2
+    return out
+
+
+def max_bounded_step(uv: np.ndarray, rest: np.ndarray, direction: np.ndarray,
+                     bound: float) -> float:
+    """Largest t with every vertex of ``uv + t direction`` within ``bound`` of ``rest``
+    (per vertex the positive root of |p + t d|^2 = bound^2, vectorised)."""
+    if not np.isfinite(bound):
+        return np.inf
+    moving = np.flatnonzero(np.any(direction != 0, axis=1))
+    if not moving.size:
+        return np.inf
+    p, d = uv[moving] - rest[moving], direction[moving]
+    a = np.einsum("ij,ij->i", d, d)
+    b = np.einsum("ij,ij->i", p, d)
+    c = np.einsum("ij,ij->i", p, p) - bound * bound  # < 0 inside
+    t = (-b + np.sqrt(np.maximum(b * b - a * c, 0.0))) / a
+    return float(max(t.min(), 0.0))
+
+
+# ---------------------------------------------------------------------- piece areas
+def _area_coefficients(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray):
+    """Per face A(t) = a0 + b1 t + c2 t^2 of the signed area along ``uv + t direction``."""
+    ax, ay, bx, by = _edges(uv, faces)
+    fx, fy, gx, gy = _edges(direction, faces)
+    return (0.5 * (ax * by - ay * bx), 0.5 * (ax * gy + fx * by - ay * gx - fy * bx),
+            0.5 * (fx * gy - fy * gx))
+
+
+def area_barrier(uv: np.ndarray, faces: np.ndarray, piece: np.ndarray, area0: np.ndarray,
+                 tol: float, weight: float) -> tuple[float, np.ndarray]:
+    """The `move_barrier` form on each piece's relative area change x = (A - A0) / (tol
+    A0), r = x^2: a piece's area stays within ``tol`` (a fraction) of its input area."""
+    grad = np.zeros_like(uv)
+    if not np.isfinite(tol):
+        return 0.0, grad
+    n = len(area0)
+    area = np.bincount(piece, weights=signed_areas(uv, faces), minlength=n)
+    x = (area - area0) / (tol * area0)
+    r = x * x
+    if np.any(r >= 1.0):
+        return np.inf, grad
+    act = r > MOVE_ONSET
+    if not act.any():
+        return 0.0, grad
+    ra = r[act]
+    e = float(weight * np.sum(((ra - MOVE_ONSET) / (1.0 - ra)) ** 2))
+    dphi = np.zeros(n)
+    dphi[act] = (weight * 2.0 * (ra - MOVE_ONSET) * (1.0 - MOVE_ONSET) / (1.0 - ra) ** 3
+                 * 2.0 * x[act] / (tol * area0[act]))
+    on = np.flatnonzero(act[piece])
+    ga = area_gradients(uv, faces[on]) * dphi[piece[on]][:, None, None]
+    return e, _scatter(len(uv), faces[on].ravel(), ga.reshape(-1, 2))
+
+
+def max_area_step(uv: np.ndarray, faces: np.ndarray, piece: np.ndarray, area0: np.ndarray,
+                  tol: float, direction: np.ndarray) -> float:
+    """Largest t with every piece's area within ``tol`` x its input area along ``uv + t
+    direction`` (per piece a quadratic in t: the first positive root of A(t) - A0 = +-tol
+    A0, vectorised)."""
+    if not np.isfinite(tol):
+        return np.inf
+    n = len(area0)
+    a0, b1, c2 = (np.bincount(piece, weights=c, minlength=n)
+                  for c in _area_coefficients(uv, faces, direction))
+    best = np.full(n, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for side in (-1.0, 1.0):
+            c0 = a0 - area0 * (1.0 + side * tol)
+            disc = b1 * b1 - 4.0 * c2 * c0
+            real = disc >= 0
+            den = -0.5 * (b1 + np.copysign(np.sqrt(np.maximum(disc, 0.0)), b1))
+            for root in (den / c2, c0 / den):
+                best = np.minimum(best, np.where(real & (root > 0), root, np.inf))
+    return float(best.min()) if n else np.inf
+
+
 # ---------------------------------------------------------------------- penalty
 def length_constraints(uv: np.ndarray, seam_edges: np.ndarray) -> tuple[np.ndarray, ...]:
     """c_e = |e|^2 - |e'|^2 and the edge vectors e, e' of every twin pair."""
@@ -291,6 +422,11 @@ class PatternEnergy:
     alpha: float = 1.0
     beta: float = 1.0
     outline: OutlineGuard | None = None  # rejects crossing outlines
+    max_move: float = np.inf  # no vertex moves this far (mm) from ``rest``
+    move_weight: float = 1.0
+    piece: np.ndarray | None = None  # (F,) piece of each face, for the area bound
+    area0: np.ndarray | None = None  # (P,) input area of each piece
+    area_tol: float = np.inf  # no piece's area changes by this fraction or more
 
     def terms(self, uv: np.ndarray, gamma: float) -> dict[str, tuple[float, np.ndarray]]:
         """Each term's value and gradient (for reports and gradient checks)."""
@@ -300,7 +436,25 @@ class PatternEnergy:
             "barrier": barrier_energy(uv, self.faces, self.threshold),
             "length": length_penalty(uv, self.seam_edges, self.edge_weight,
                                      self.ref_length, gamma),
+            "move": move_barrier(uv, self.rest, self.max_move, self.move_weight),
+            "area": self.area_term(uv),
         }
+
+    def area_term(self, uv: np.ndarray) -> tuple[float, np.ndarray]:
+        if self.piece is None or self.area0 is None:
+            return 0.0, np.zeros_like(uv)
+        return area_barrier(uv, self.faces, self.piece, self.area0, self.area_tol,
+                            self.move_weight)
+
+    def max_step(self, uv: np.ndarray, direction: np.ndarray) -> float:
+        """Largest step along ``direction`` before a flip, the move bound or the area
+        bound (each iterate must satisfy all three)."""
+        t = min(max_flip_free_step(uv, self.faces, direction),
+                max_bounded_step(uv, self.rest, direction, self.max_move))
+        if self.piece is not None and self.area0 is not None:
+            t = min(t, max_area_step(uv, self.faces, self.piece, self.area0, self.area_tol,
+                                     direction))
+        return t
 
     def __call__(self, uv: np.ndarray, gamma: float) -> tuple[float, np.ndarray]:
         """Total energy and (V,2) gradient; +inf (zero gradient) for any flip or crossing
@@ -311,5 +465,9 @@ class PatternEnergy:
         ep, gp = prox_energy(uv, self.vertex, self.target, self.weight)
         ec, gc = conformal_energy(uv, self.q, self.rest)
         el, gl = length_penalty(uv, self.seam_edges, self.edge_weight, self.ref_length, gamma)
-        e = ep + self.alpha * ec + self.beta * eb + el
-        return e, gp + self.alpha * gc + self.beta * gb + gl
+        em, gm = move_barrier(uv, self.rest, self.max_move, self.move_weight)
+        ea, ga = self.area_term(uv)
+        if not (np.isfinite(em) and np.isfinite(ea)):
+            return np.inf, gm
+        e = ep + self.alpha * ec + self.beta * eb + el + em + ea
+        return e, gp + self.alpha * gc + self.beta * gb + gl + gm + ga

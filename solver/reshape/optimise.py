@@ -45,7 +45,7 @@ from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
     length_constraints,
-    max_flip_free_step,
+    move_barrier_diagonal,
     outline_bending_matrix,
     signed_areas,
     stiffened_conformal_matrix,
@@ -89,6 +89,9 @@ class ReshapeOptions:
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
     smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
     corner_smooth_mm: float = 12.0  # ... and shorter than this near seam-line ends
+    max_move_mm: float = 10.0  # no pattern vertex moves farther (a constraint; inf: none)
+    move_weight: float = 1.0  # strength of the move and area barriers in their last 10 %
+    max_area_change: float = 0.01  # no piece's area changes by this fraction (inf: none)
 
 
 class _Preconditioner:
@@ -202,6 +205,8 @@ def _gauss_newton_matrix(energy: PatternEnergy, uv: np.ndarray, gamma: float) ->
         vals.append((phi2[:, None, None] * ga[:, :, None] * ga[:, None, :]).ravel() / energy.beta)
     m = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(2 * n, 2 * n))
+    diag = diag + np.repeat(move_barrier_diagonal(uv, energy.rest, energy.max_move,
+                                                  energy.move_weight), 2)
     m = m + energy.alpha * energy.q + sp.diags(diag)
     reg = 1e-8 * float(np.abs(m.diagonal()).mean() or 1.0)
     return (m + reg * sp.eye(2 * n)).tocsr()
@@ -273,7 +278,8 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
         slope = _dot(gf, d)
     direction = np.zeros_like(state.uv)
     direction[free] = d.reshape(-1, 2)
-    t = min(1.0, 0.9 * max_flip_free_step(state.uv, energy.faces, direction))
+    # capped short of the first flip and of the move bound: every iterate satisfies both
+    t = min(1.0, 0.9 * energy.max_step(state.uv, direction))
     e0 = state.energy
     for _ in range(60):
         trial = state.uv + t * direction
@@ -370,6 +376,11 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         beta=options.beta,
         outline=OutlineGuard(garment),
         seam_across=garment.piece_of_vertex[e[:, 0]] != garment.piece_of_vertex[e[:, 2]],
+        max_move=options.max_move_mm,
+        move_weight=options.move_weight,
+        piece=garment.piece_of_face(),
+        area0=garment.piece_areas(),
+        area_tol=options.max_area_change,
     )
 
 

@@ -29,6 +29,10 @@ class ReshapeReport:
     faces: int
     vertices: int
     subdivisions: int = 0  # times the input mesh was subdivided first (faces x 4 each)
+    max_move_bound_mm: float = float("inf")  # the bound the moves were held to
+    area_change_max_pct: float = 0.0  # largest |area change| of a piece, % of its area
+    # per piece: name, largest move (mm), area change (%), seam length change (mm and %)
+    pieces: tuple[dict, ...] = ()
 
     @property
     def e_fit_ratio(self) -> float:
@@ -37,15 +41,47 @@ class ReshapeReport:
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        d["pieces"] = list(self.pieces)
+        d["max_move_bound_mm"] = (None if not np.isfinite(self.max_move_bound_mm)
+                                  else self.max_move_bound_mm)
         d["e_fit_before_cm2"] = self.e_fit_before_mm2 / 100.0
         d["e_fit_after_cm2"] = self.e_fit_after_mm2 / 100.0
         d["e_fit_ratio"] = self.e_fit_ratio
         return d
 
 
-def reshape_report(garment, placement, result, *, subdivisions: int = 0) -> ReshapeReport:
+def piece_changes(garment, uv: np.ndarray) -> list[dict]:
+    """Per piece what reshaping to ``uv`` changed: its largest vertex move (mm), its area
+    (%) and the length of its seams (mm and %), so a pattern maker can judge it."""
+    from solver.garment.model import triangle_areas
+
+    n, pf = garment.n_pieces, garment.piece_of_face()
+    move = np.zeros(n)
+    np.maximum.at(move, garment.piece_of_vertex, np.hypot(*(uv - garment.uv).T))
+    a0 = np.bincount(pf, weights=triangle_areas(garment.uv, garment.faces), minlength=n)
+    a1 = np.bincount(pf, weights=triangle_areas(uv, garment.faces), minlength=n)
+    e = garment.seam_edges
+    sides = np.concatenate([e[:, :2], e[:, 2:]])  # both twins: each piece's own seam edges
+    owner = garment.piece_of_vertex[sides[:, 0]]
+
+    def seam_length(points: np.ndarray) -> np.ndarray:
+        lengths = np.hypot(*(points[sides[:, 1]] - points[sides[:, 0]]).T)
+        return np.bincount(owner, weights=lengths, minlength=n)
+
+    s0, s1 = seam_length(garment.uv), seam_length(uv)
+    return [{"piece": garment.piece_names[i], "max_move_mm": round(float(move[i]), 4),
+             "area_change_pct": round(float(100.0 * (a1[i] - a0[i]) / a0[i]), 4),
+             "seam_length_change_mm": round(float(s1[i] - s0[i]), 4),
+             "seam_length_change_pct": round(float(100.0 * (s1[i] - s0[i]) / s0[i]), 4)
+             if s0[i] > 0 else 0.0}
+            for i in range(n)]
+
+
+def reshape_report(garment, placement, result, *, subdivisions: int = 0,
+                   max_move_mm: float = float("inf")) -> ReshapeReport:
     """Measure ``result`` (an ``OptimiseResult``) against the ``garment`` it reshaped."""
     disp = np.hypot(*(result.uv - garment.uv).T)
+    pieces = piece_changes(garment, result.uv)
     ideal = result.ideal
     ideal_disp = (np.hypot(*(ideal.target - garment.uv[ideal.vertex]).T)
                   if len(ideal.vertex) else np.zeros(1))
@@ -67,4 +103,7 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0) -> Resh
         faces=int(len(garment.faces)),
         vertices=int(garment.n_vertices),
         subdivisions=subdivisions,
+        max_move_bound_mm=float(max_move_mm),
+        area_change_max_pct=max((abs(p["area_change_pct"]) for p in pieces), default=0.0),
+        pieces=tuple(pieces),
     )

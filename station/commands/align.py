@@ -9,6 +9,10 @@ import sys
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
+    add_grain_arguments,
+    fabric_grain_deg,
+    garment_with_grain,
+    grain_tolerance,
     load_fabric,
     load_garment_arg,
 )
@@ -37,9 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "no --init); :rot or :trans fixes only that part; repeatable")
     p.add_argument("--init", metavar="PLACEMENT.json",
                    help="placement that fixed pieces (and --no-rotation/--no-translation) keep")
-    p.add_argument("--grain", nargs="?", type=float, const=2.0, default=None, metavar="TOL",
-                   help="cut on grain: each piece within TOL degrees (default 2) of 0 or 180 "
-                   "degrees to the print, measured from its grain line or vertical axis")
+    add_grain_arguments(p, rule=True)
     p.add_argument("--reflect", action="store_true",
                    help="also favour mirror symmetry across seams (paper Eqs. 7-8)")
     p.add_argument("--no-rotation", action="store_true",
@@ -83,9 +85,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
         raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
-    if args.grain is not None and not args.grain >= 0:
-        raise ValueError(f"--grain tolerance must be >= 0 degrees, got {args.grain}")
-    garment = load_garment_arg(args)
+    tol = grain_tolerance(args.grain)
+    garment = garment_with_grain(load_garment_arg(args), args)
     fabric = load_fabric(args.fabric)
     weights = _load_weights(args.weights) if args.weights else None
     init = Placement.load(args.init) if args.init else None
@@ -94,18 +95,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"station align: start {k}/{n}: E_fit {e_random:.1f} -> {e_aligned:.1f} mm²",
               file=sys.stderr, flush=True)
 
+    grain_deg = fabric_grain_deg(args.fabric)
     options = dict(
         method=args.method, restarts=args.restarts, seed=args.seed,
-        weights=weights, fix=args.fix, grain_tol_deg=args.grain, reflect=args.reflect,
+        weights=weights, fix=args.fix, grain_tol_deg=tol, reflect=args.reflect,
         rotation=not args.no_rotation, translation=not args.no_translation, init=init,
         use_drape=not args.pattern_frames, progress=progress)
     pairs = [] if args.no_symmetry else _mirror_pairs(args, garment)
     if pairs:
         from solver.align.symmetric import align_symmetric
 
-        placement = align_symmetric(garment, fabric, pairs, **options)
+        placement = align_symmetric(garment, fabric, pairs, grain_deg=grain_deg, nap=args.nap,
+                                    **options)
     else:
-        placement = align(garment, fabric, **options)
+        placement = align(garment, fabric, nap=args.nap, fabric_grain_deg=grain_deg, **options)
     placement.garment = str(args.garment)
     placement.garment_units = args.units or placement.garment_units
     placement.save(args.output)
@@ -125,6 +128,14 @@ def run(args: argparse.Namespace) -> int:
               f"(random) -> {rep['e_fit_aligned_mm2']:.1f} mm² "
               f"({rep['e_fit_aligned_cm2']:.2f} cm², ratio {rep['ratio_aligned_random']:.2f}) "
               f"in {rep['seconds']:.2f} s; wrote {args.output}")
+        grain = ("free rotation (--grain off)" if tol is None else
+                 f"on grain within {tol:g} deg{' (nap)' if args.nap else ''}")
+        print(f"  grain: {grain}, largest off-grain angle {rep['off_grain_max_deg']:.2f} deg",
+              file=sys.stdout)
+        for g in rep["grain"]:
+            print(f"    {g['piece']:<20s} grain {g['grain_deg']:8.2f} deg ({g['grain_source']}"
+                  f"{', bias' if g['bias'] else ''})  turn {g['turn_deg']:8.2f}  "
+                  f"off grain {g['off_grain_deg']:.2f}")
         sym = rep.get("symmetry")
         if sym:
             kept = ", ".join(f"{i}~{j} {mode}" for i, j, mode in sym["pairs"])

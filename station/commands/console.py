@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "may take the job (fleet)")
     p.add_argument("--min-table", metavar="XxY", type=_table,
                    help="only a station whose table travels at least X by Y mm (fleet)")
+    p.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
+                   help="a piece's grain direction (pattern space, degrees); repeatable")
+    p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -165,6 +168,12 @@ def run_submit(args: argparse.Namespace) -> int:
                                 read_name_map(args.allowance, "allowance").items()}
     if not args.wait > 0:
         raise UserError("--wait must be positive")
+    if args.grain_line:
+        from solver.garment.grain import parse_grain_lines
+
+        options["grain_lines"] = parse_grain_lines(args.grain_line)
+    if args.bias:
+        options["bias"] = list(args.bias)
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
                   options=options, timeout=args.wait, on_wait=_Patience(args.garment),

@@ -183,6 +183,11 @@ def summarise(status: dict[str, Any], plan: dict[str, Any], camera: dict[str, An
         "e_fit_reshaped_cm2": (reshape["e_fit_after_mm2"] / 100.0
                                if "e_fit_after_mm2" in reshape else None),
         "reshape_rejected": reshape.get("rejected"),
+        "off_grain_max_deg": align.get("off_grain_max_deg"),
+        "grain_tol_deg": align.get("grain_tol_deg"),
+        "grain_guessed": align.get("grain_guessed") or [],
+        "reshape_max_move_mm": reshape.get("max_displacement_mm"),
+        "reshape_area_change_max_pct": reshape.get("area_change_max_pct"),
         "nest_density": (plan.get("nest") or {}).get("density"),
         "allowance": plan.get("allowance"),
         "pieces_cut": pieces.get("cut", 0),
@@ -221,8 +226,14 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     ]
     if s.get("reshape_rejected"):
         lines.append(f"  !!! reshaped pattern {s['reshape_rejected']}; the aligned one was cut")
-    if parts := cut_ready_parts(s):
-        lines.append(f"  cut-ready     {'; '.join(parts)}")
+    tol = s.get("grain_tol_deg")
+    parts = cut_ready_parts(s) + [
+        f"grain: largest off-grain {num(s.get('off_grain_max_deg'), '.2f')} deg "
+        f"({'free rotation' if tol is None else f'tolerance {tol:g} deg'}"
+        f"{', guessed for ' + ', '.join(s['grain_guessed']) if s.get('grain_guessed') else ''})",
+        f"reshape: largest move {num(s.get('reshape_max_move_mm'), '.1f')} mm, area "
+        f"{num(s.get('reshape_area_change_max_pct'), '.2f')} %"]
+    lines.append(f"  cut-ready     {'; '.join(parts)}")
     lines += [
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
         f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",

@@ -13,7 +13,9 @@ from station.cliargs import (
     add_config_argument,
     add_fabric_argument,
     add_garment_arguments,
+    add_grain_arguments,
     allowance_rules,
+    garment_with_grain,
     load_fabric,
     load_garment_arg,
 )
@@ -30,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_fabric_argument(p)
     p.add_argument("--placement", metavar="PLACEMENT.json",
                    help="per-piece rotation and translation of the print (default: identity)")
+    add_grain_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the pieces over the print, seams coloured by mismatch, with "
@@ -44,7 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     fabric = load_fabric(args.fabric)  # the small file first: fail fast
-    garment = load_garment_arg(args)
+    garment = garment_with_grain(load_garment_arg(args), args)
     if args.placement:
         placement = Placement.load(args.placement)
         if placement.n_pieces != garment.n_pieces:

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from station.cliargs import add_garment_arguments
+from station.cliargs import add_garment_arguments, add_grain_arguments
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_garment_arguments(p)
     p.add_argument("--resolution-mm", type=float, metavar="MM",
                    help="target edge length when meshing a JSON specification (default 20)")
+    add_grain_arguments(p)
     p.add_argument("--pairs", metavar="P.json",
                    help='declare or veto mirror pairs: {"pairs": [[i, j]], "not_pairs": [[k, l]]} '
                    "(indices or piece names)")
@@ -43,6 +44,7 @@ def garment_summary(g, pairs=None) -> dict:
     weights = g.seam_weights()
     uv_len = np.linalg.norm(g.uv[g.seam_edges[:, 1]] - g.uv[g.seam_edges[:, 0]], axis=1)
     seam_len = np.bincount(g.seam_line_of_edge, weights=uv_len, minlength=len(g.seam_lines))
+    grains = g.grains()
     pieces = [
         {
             "index": i,
@@ -54,6 +56,7 @@ def garment_summary(g, pairs=None) -> dict:
             "area_mm2": round(float(area[i]), 3),
             "area_cm2": round(float(area[i]) / 100.0, 3),
             "holes": len(g.piece_holes(i)),
+            **grains[i].to_dict(),
         }
         for i in range(g.n_pieces)
     ]
@@ -85,6 +88,7 @@ def garment_summary(g, pairs=None) -> dict:
         "seam_weight_total": float(weights.sum()),
         "grainlines": len(g.grainlines),
         "notches": sum(len(v) for v in g.notches.values()),
+        "grain_guessed": [g.piece_names[i] for i, gr in enumerate(grains) if gr.guessed],
         "piece_list": pieces,
         "seam_line_list": lines,
         "mirror_pairs": [[p.first, p.second] for p in pairs],
@@ -119,8 +123,13 @@ def _print_text(s: dict, out) -> None:
     for p in s["piece_list"]:
         holes = f", {p['holes']} holes" if p["holes"] else ""
         size = f"{p['width_mm']:8.1f} x {p['height_mm']:7.1f} mm"
+        bias = ", bias" if p["bias"] else ""
         print(f"    {p['index']:3d} {p['name']:<20s} {size}  area {p['area_cm2']:9.1f} cm2"
-              f"  ({p['vertices']} vertices{holes})", file=out)
+              f"  ({p['vertices']} vertices{holes})  grain {p['grain_deg']:7.1f} deg "
+              f"({p['grain_source']}{bias})", file=out)
+    if s["grain_guessed"]:
+        print(f"  warning: grain guessed from the outline for {', '.join(s['grain_guessed'])}"
+              " (give it with --grain-line PIECE=DEG)", file=out)
     print("  seam lines:", file=out)
     for ln in s["seam_line_list"]:
         print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
@@ -145,14 +154,17 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from station.cliargs import load_garment_arg
+    from station.cliargs import garment_with_grain, load_garment_arg
 
     start = time.perf_counter()
+    from solver.garment.grain import paired_grains
     from solver.garment.symmetry import mirror_pairs, read_pairs_file
 
-    g = load_garment_arg(args, resolution_mm=args.resolution_mm)
+    g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
-    summary = garment_summary(g, mirror_pairs(g, declared=declared, vetoed=vetoed))
+    pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
+    g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
+    summary = garment_summary(g, pairs)
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))

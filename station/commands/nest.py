@@ -45,6 +45,11 @@ def register(sub) -> None:
                    choices=("auto", "resnap", "resnap-margin", "fill", "repair", "naive"),
                    help="search on a print (default auto: fill, and resnap (many pieces) or "
                    "resnap-margin (few); the best wins)")
+    p.add_argument("--nap", action="store_true",
+                   help="one-way print or napped fabric: no piece turns by 180 degrees")
+    p.add_argument("--grain", choices=("on", "off"),
+                   help="on: turn pieces only by 0 or 180 degrees, off: turn freely "
+                   "(default: what each input says; a placement keeps its grain rule)")
     add_allowance_arguments(p)
     add_config_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -73,6 +78,10 @@ def run(args) -> int:
         quantity=args.quantity, pairs=args.pairs,
         keepouts=load_keepouts(args.keepout) if args.keepout else None,
         allowance=allowance_rules(args, config), default_width=config["nest"]["width_mm"])
+    if args.nap or args.grain:
+        turns = (0.0,) if args.nap else None if args.grain == "off" else (0.0, 180.0)
+        for piece in problem.pieces:
+            piece.orientations = turns
     progress = stderr_progress
     t0 = time.monotonic()
     try:

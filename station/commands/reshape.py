@@ -13,7 +13,9 @@ from station.cliargs import (
     add_allowance_arguments,
     add_fabric_argument,
     add_garment_arguments,
+    add_grain_arguments,
     allowance_rules,
+    garment_with_grain,
     load_fabric,
     load_garment_arg,
 )
@@ -38,6 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="reshaped garment; the suffix picks the format")
     p.add_argument("--fix", action="append", default=[], metavar="PIECE",
                    help="piece (name or index) that must keep its shape; repeatable")
+    p.add_argument("--max-move", type=float, default=10.0, metavar="MM",
+                   help="no pattern vertex moves farther than MM (default 10); each piece's "
+                   "area also stays within 1 %%")
+    add_grain_arguments(p)
     p.add_argument("--no-symmetry", action="store_true",
                    help="reshape every piece on its own (default: the placement's left/right "
                    "pairs move as mirror images)")
@@ -98,13 +104,15 @@ def _print_round(record: dict) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from solver.garment.symmetry import fit_pairs
-    from solver.reshape import reshape
+    from solver.reshape import ReshapeOptions, reshape
 
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:
         raise UserError(f"{out}: unknown output format {out.suffix!r} "
                         f"(expected one of {', '.join(FORMATS)})")
-    garment = load_garment_arg(args)
+    if not args.max_move > 0 or args.max_move == float("inf"):
+        raise ValueError(f"--max-move must be a positive number of mm, got {args.max_move}")
+    garment = garment_with_grain(load_garment_arg(args), args)
     fabric = load_fabric(args.fabric)
     placement = Placement.load(args.placement)
     if placement.n_pieces != garment.n_pieces:
@@ -118,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
     if pairs:
         print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
               "(from the placement) move as mirror images", file=sys.stderr)
-    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round, pairs=pairs)
+    new, report = reshape(garment, placement, fixed=fixed, progress=_print_round, pairs=pairs,
+                          options=ReshapeOptions(max_move_mm=args.max_move))
     if report.subdivisions:
         print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "
               f"covering radius: the mesh was subdivided {report.subdivisions}x "
@@ -130,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         from solver.fit import fit_report
         from station.render import draw_fit
 
-        draw_fit(new, placement, fit_report(new, placement), args.png)
+        draw_fit(new, placement, fit_report(new, placement), args.png, original=garment)
         result["png"] = str(args.png)
     if args.json:
         print(json.dumps(result))
@@ -141,4 +150,8 @@ def run(args: argparse.Namespace) -> int:
               f"{report.max_displacement_mm:.2f} mm, {report.flipped_triangles} flipped "
               f"triangles, {report.iterations} iterations in {report.gamma_rounds} rounds, "
               f"{report.seconds:.2f} s")
+        for p in report.pieces:
+            print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
+                  f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
+                  f" mm ({p['seam_length_change_pct']:+.2f} %)")
     return 0

@@ -180,16 +180,19 @@ def test_grain_keeps_every_piece_within_tolerance_of_the_print(pants, method):
     wp = print_for("p4m")
     free = align(pants, wp, method=method, restarts=3, seed=0, fix=["0"])
     out = align(pants, wp, method=method, restarts=3, seed=0, grain_tol_deg=2.0, fix=["0"])
-    rel = np.degrees(out.angles) % 180.0  # no grain lines in the file: vertical axis
-    assert np.all(np.minimum(rel, 180.0 - rel) <= 2.0 + 1e-9)
+    gamma = np.array([g.deg for g in pants.grains()])  # no grain lines: from the drape
+    rel = (np.degrees(out.angles) - gamma)[1:] % 180.0  # against the fabric's grain (x);
+    assert np.all(np.minimum(rel, 180.0 - rel) <= 2.0 + 1e-9)  # piece 0 is fixed
     assert out.report["e_fit_aligned_mm2"] >= 0.5 * free.report["e_fit_aligned_mm2"]
 
 
 def test_grain_line_of_the_piece_is_used(pants):
     g = pants.copy()
     g.grainlines = {0: ((0.0, 0.0), (1.0, 1.0))}  # piece 0's grain at 45 degrees
+    g.grain = ()  # inferred again, now with the file's line
     out = align(g, print_for("p1"), restarts=4, grain_tol_deg=1.0)
-    rel0 = (np.degrees(out.angles[0]) - 45.0 + 90.0) % 180.0
+    assert out.grains[0]["grain_source"] == "file"
+    rel0 = (np.degrees(out.angles[0]) - 45.0) % 180.0
     assert min(rel0, 180.0 - rel0) <= 1.0 + 1e-9
 
 

@@ -53,8 +53,9 @@ def test_grain_option_in_degrees_in_the_file(tmp_path, fabric, capsys):
     placement = tmp_path / "p.json"
     run_json(capsys, ["align", str(PANTS), "--units", "m", "--fabric", str(fabric),
                       "--restarts", "3", "--grain", "2", "-o", str(placement), "--json"])
-    angles = np.array([p["angle_deg"] for p in json.loads(placement.read_text())["pieces"]])
-    rel = angles % 180.0
+    pieces = json.loads(placement.read_text())["pieces"]
+    assert {p["grain_source"] for p in pieces} == {"drape"}
+    rel = np.array([p["angle_deg"] - p["grain_deg"] for p in pieces]) % 180.0
     assert np.all(np.minimum(rel, 180.0 - rel) <= 2.0 + 1e-9)
 
 

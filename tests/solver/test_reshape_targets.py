@@ -29,11 +29,12 @@ def skirt():
 
 @pytest.fixture(scope="module")
 def shorts_aligned():
-    """The shorts under the paper's alignment (quick; test_reshape.py uses the global one)."""
+    """The shorts under the paper's alignment (quick; test_reshape.py uses the global one),
+    turned freely: these tests are about the targets' geometry, not the grain."""
     from solver.align.driver import align
 
     g = load_garment(BERKELEY / "shorts-iso.obj", units="m")
-    return g, align(g, P4M, method="paper", restarts=3, seed=0)
+    return g, align(g, P4M, method="paper", restarts=3, seed=0, grain_tol_deg=None)
 
 
 def test_matched_targets_fit_each_edge_under_its_own_symmetry(shorts_aligned):
@@ -123,7 +124,7 @@ def test_subdivision_keeps_outline_drape_and_seams(skirt):
 
 
 @pytest.mark.parametrize("name", ["skirt-coarse", "pants-coarse", "tshirt-coarse"])
-def test_berkeley_p4m_after_global_alignment_halves_e_fit(name):
+def test_berkeley_p4m_after_global_alignment_lowers_e_fit_within_the_bounds(name):
     """The issue's check on the bundled coarse Berkeley garments (50 mm p4m, global
     alignment); the bundled shorts-iso is checked in test_reshape.py."""
     from solver.align.driver import align
@@ -133,8 +134,15 @@ def test_berkeley_p4m_after_global_alignment_halves_e_fit(name):
     new, report = reshape(g, placement)
     assert report.subdivisions == 1  # 35-70 mm seam edges against a 50 mm repeat
     assert len(new.faces) == len(g.faces) * 4 ** report.subdivisions
-    assert report.e_fit_after_mm2 <= 0.5 * report.e_fit_before_mm2
+    # issue 4 asked for half; issue 13 bounds every move by 10 mm, which costs the pants
+    # (0.57) a little: the median over the Berkeley garments stays <= 0.5 (BENCHMARKS.md)
+    assert report.e_fit_after_mm2 <= 0.65 * report.e_fit_before_mm2
     assert report.flipped_triangles == 0
+    # a change a pattern maker accepts: every vertex within 10 mm, every area within 1 %
+    assert np.hypot(*(new.uv - refined(g, P4M.covering_radius)[0].uv).T).max() <= 10.0
+    assert report.area_change_max_pct <= 1.0
+    assert max(p["max_move_mm"] for p in report.pieces) == pytest.approx(
+        report.max_displacement_mm, abs=1e-4)
     assert report.length_mismatch_final_mm <= report.epsilon_mm
     assert all(shapely.LinearRing(new.piece_outline(i)).is_simple
                for i in range(new.n_pieces))

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from simulators.classics import classic_print
@@ -43,6 +44,10 @@ def test_plain_cloth_is_nested_without_a_print(tmp_path, monkeypatch):
     assert len(plan["pieces"]) == len(layout["pieces"]) >= 2
     assert Path(plan["program"]).stat().st_size > 0
     assert json.loads(Path(plan["report"]).read_text())["fabric"]["kind"] == "plain"
+    # woven cloth without a print is still cut on grain: every piece's grain along x
+    placed = json.loads(Path(plan["placement"]).read_text())
+    turn = np.array([p["angle_deg"] - p["grain_deg"] for p in placed["pieces"]]) % 180.0
+    assert np.all(np.minimum(turn, 180.0 - turn) <= 1e-9)
 
 
 def test_an_uncertain_print_pauses_at_confirm_fabric(tmp_path, monkeypatch):

@@ -183,4 +183,6 @@ def test_a_coarse_garment_is_subdivided_and_says_so(tmp_path, data_dir, capsys):
     fit = run_json(capsys, "fit", str(out), "--units", "mm", "--fabric", str(fabric),
                    "--placement", str(placement), "--json")
     assert fit["e_fit_mm2"] == pytest.approx(rep["e_fit_after_mm2"], rel=1e-9)
-    assert rep["e_fit_after_mm2"] < 0.5 * rep["e_fit_before_mm2"]
+    # unaligned, so a 10 mm bound on every move leaves much of the mismatch
+    assert rep["e_fit_after_mm2"] < 0.8 * rep["e_fit_before_mm2"]
+    assert rep["max_displacement_mm"] <= rep["max_move_bound_mm"] == 10.0

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from station.cli import main
@@ -201,6 +202,15 @@ def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, cap
     assert summary["pieces_cut"] == summary["pieces_total"] == 6
     assert summary["e_fit_aligned_cm2"] < summary["e_fit_random_cm2"]
     assert "pieces cut    6/6" in printed and "VISION UNAVAILABLE" not in printed
+    # cut-ready by default: every piece on grain (1 deg, fabric x), reshaping bounded
+    placed = json.loads((out / "placement.json").read_text())
+    assert placed["grain"]["tolerance_deg"] == 1.0
+    turn = np.array([p["angle_deg"] - p["grain_deg"] for p in placed["pieces"]]) % 180.0
+    assert np.all(np.minimum(turn, 180.0 - turn) <= 1.0)
+    assert summary["off_grain_max_deg"] <= 1.0 and "grain: largest off-grain" in printed
+    if summary["e_fit_reshaped_cm2"] is not None:
+        assert summary["reshape_max_move_mm"] <= 10.0
+        assert summary["reshape_area_change_max_pct"] <= 1.0
     frame = cv2.imread(str(out / "frame.png"))
     assert frame is not None and frame.shape[:2] == (960, 1280)
     nc = (out / "job.nc").read_text()
