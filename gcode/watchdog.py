@@ -156,8 +156,10 @@ class Watchdog:
     def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
         """Match ``xy`` to the path from where the head was: within ``reach`` mm further
         if it is there, else anywhere ahead. Returns (distance, segment index, position
-        along the segment 0..1) of the earliest segment within the deviation (progress is
-        minimal where the path crosses itself), else of the nearest one."""
+        along the segment 0..1) of the earliest match within the deviation that is not
+        behind the head's last position (progress is minimal where the path crosses
+        itself, and never goes back where it doubles back on itself), else of the
+        nearest one."""
         if len(self.path) < 2:
             return math.inf, -1, 0.0
         lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
@@ -174,8 +176,20 @@ class Watchdog:
         t = np.clip(np.einsum("ij,ij->i", xy - a, ab)
                     / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
         d = np.hypot(*(a + t[:, None] * ab - xy).T)
-        near = np.flatnonzero(d <= self.deviation)
-        j = int(near[0]) if len(near) else int(np.argmin(d))
+        near = d <= self.deviation
+        # The head only moves forward along the program. Where the path doubles back (a
+        # cut that starts back along the rapid which brought the head to its start, as
+        # when a resumed job re-cuts the piece the head stopped on), a point is near both
+        # ways; the way already travelled would put a cutting head on the rapid.
+        along = self._along[idx] + t * (self._along[idx + 1] - self._along[idx])
+        ahead = np.flatnonzero(near & (along >= self._at - 1e-6))
+        behind = np.flatnonzero(near)
+        if len(ahead):
+            j = int(ahead[0])
+        elif len(behind):  # a report a hair behind the last one (rounding at a corner)
+            j = int(behind[np.argmax(along[behind])])
+        else:
+            j = int(np.argmin(d))
         return float(d[j]), int(idx[j]), float(t[j])
 
     def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float,
@@ -219,7 +233,8 @@ class Watchdog:
         power = float(st.speed or 0.0)
         if inside == _LEG or (inside is not None and self.line_power[inside] <= 0):
             return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
-                          "(the cut starts off its path: a corrupted or rejected line?)", inside)
+                          "(the cut starts off its path: a corrupted or rejected line?)",
+                          inside if inside != _LEG else None)
         if np.min(np.abs(self.powers * spindle_ovr - power)) > 0.5:
             allowed = ", ".join(f"S{p:g}" for p in self.powers)
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
