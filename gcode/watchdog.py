@@ -153,19 +153,20 @@ class Watchdog:
         self._leg_end = len(leg) - 1
         self._reindex()
 
-    def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
+    def follow(self, xy: np.ndarray, reach: float, anywhere: bool = True
+               ) -> tuple[float, int, float]:
         """Match ``xy`` to the path from where the head was: within ``reach`` mm further
-        if it is there, else anywhere ahead. Returns (distance, segment index, position
-        along the segment 0..1) of the earliest match within the deviation that is not
-        behind the head's last position (progress is minimal where the path crosses
-        itself, and never goes back where it doubles back on itself), else of the
-        nearest one."""
+        if it is there, else (``anywhere``) anywhere ahead. Returns (distance, segment
+        index, position along the segment 0..1) of the earliest match within the
+        deviation that is not behind the head's last position (progress is minimal where
+        the path crosses itself, and never goes back where it doubles back on itself),
+        else of the nearest one."""
         if len(self.path) < 2:
             return math.inf, -1, 0.0
         lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
         hi = int(np.searchsorted(self._along, self._at + reach, "right"))
         found = self._nearest(xy, lo, min(max(hi, lo + 1), len(self.path) - 1))
-        if found[0] > self.deviation:  # not where the clock says: look further ahead
+        if found[0] > self.deviation and anywhere:  # not where the clock says: look ahead
             found = self._nearest(xy, lo, len(self.path) - 1)
         return found
 
@@ -209,19 +210,21 @@ class Watchdog:
             self._slow_since = self._dark_since = None
         self._last_asked = asked
         inside = None  # the line whose interior the head is on, if any
-        if xy is not None and st.state in ("Run", "Hold", "Jog"):
-            d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation)
-            if d > self.deviation:
+        # A head at rest is followed too: the stroke-start gate (Streamer._at_start) sees
+        # it Idle at a cut's start, and a short rapid may run between two polls; without
+        # that report the cut would be matched from where the head was before the rapid.
+        # Only a moving head is judged off the path (at rest before the first move it
+        # may stand anywhere), and a head at rest is only followed as far as it could have
+        # gone since the last report.
+        if xy is not None and st.state in ("Run", "Hold", "Jog", "Idle"):
+            d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation,
+                                  anywhere=st.state != "Idle")
+            if d > self.deviation and st.state != "Idle":
                 return Breach(StopReason.OFF_PATH, f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is "
                               f"{d:.2f} mm off the program's path (corrupted line?)",
                               self.last_line)
-            self._at = self._along[k] + t * (self._along[k + 1] - self._along[k])
-            line = int(self.path_line[k])
-            self.last_line = line if line >= 0 else None
-            if line >= 0 and self._line_from[line] + 0.5 < self._at < self._line_to[line] - 0.5:
-                inside = line
-            elif line == _LEG and self._at < self._along[self._leg_end] - 0.5:
-                inside = _LEG
+            if d <= self.deviation:
+                inside = self._reached(k, t)
         if st.state != "Run" or not len(self.powers):
             self._slow_since = self._dark_since = None
             return None
@@ -257,6 +260,18 @@ class Watchdog:
                           f"{now - self._slow_since:.2f} s of machine time: the programmed "
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
+        return None
+
+    def _reached(self, k: int, t: float) -> int | None:
+        """The head is at ``t`` along segment ``k``: move it there; the line whose interior
+        that is (``_LEG`` for the leg), if any."""
+        self._at = self._along[k] + t * (self._along[k + 1] - self._along[k])
+        line = int(self.path_line[k])
+        self.last_line = line if line >= 0 else None
+        if line >= 0 and self._line_from[line] + 0.5 < self._at < self._line_to[line] - 0.5:
+            return line
+        if line == _LEG and self._at < self._along[self._leg_end] - 0.5:
+            return _LEG
         return None
 
     def _check_dark(self, inside: int | None, now: float) -> Breach | None:

@@ -34,9 +34,9 @@ def square_program(*travel: str) -> list[str]:
 
 
 def drive(wd: Watchdog, moves: list[tuple[np.ndarray, np.ndarray, bool]],
-          step: float = 0.4) -> Breach | None:
-    """Report the head every ``step`` mm along each (from, to, beam on) move, in order."""
-    t = 0.0
+          step: float = 0.4, t: float = 0.0) -> Breach | None:
+    """Report the head every ``step`` mm along each (from, to, beam on) move, in order,
+    from machine time ``t`` on."""
     for a, b, beam in moves:
         n = max(1, int(np.ceil(np.hypot(*(b - a)) / step)))
         for xy in a + (b - a) * np.linspace(0.0, 1.0, n + 1)[1:, None]:
@@ -69,6 +69,20 @@ def test_a_cut_that_starts_back_along_the_leg_from_the_rest_position_is_followed
     wd = watchdog(square_program(), rest)
     assert drive(wd, square_moves(here)) is None
     assert wd.last_line == square_program().index("G1 X20 Y20")
+
+
+def test_a_rapid_seen_only_at_rest_at_both_ends_still_puts_the_cut_after_it():
+    """Under load no report may fall inside a short rapid: the head is seen Idle where it
+    rests, then Idle at the cut's start (the report that lets the beam come on), then
+    cutting. The cut is matched after the rapid, not on it."""
+    wd = watchdog(square_program(), (40.0, 20.0))
+    for t, xy in ((0.1, (40.0, 20.0)), (0.6, (20.0, 20.0))):
+        assert wd.check(Status("Idle", wpos=(*xy, 0.0)), np.array(xy), t, t) is None
+    # polled every 1 mm of cut (the streamer's watch_mm): the first report is 1 mm in
+    assert drive(wd, square_moves(np.array([20.0, 20.0]))[1:], step=1.0, t=0.6) is None
+    # a head at rest off the path is no fault (it may stand anywhere before the first move)
+    wd = watchdog(square_program(), None)
+    assert wd.check(Status("Idle", wpos=(5.0, 5.0, 0.0)), np.array([5.0, 5.0]), 0.1, 0.1) is None
 
 
 def test_a_cut_that_starts_back_along_a_travel_move_of_the_program_is_followed():
