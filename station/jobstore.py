@@ -12,6 +12,7 @@ The schema is plain DDL that is safe to run on every start.
 from __future__ import annotations
 
 import json
+import re
 import sqlite3
 import threading
 import time
@@ -73,6 +74,9 @@ create index if not exists events_job on events(job_id, id);
 """
 
 
+_SCHEMA_NAMES = set(re.findall(r"create (?:table|index) if not exists (\w+)", _SCHEMA))
+
+
 class JobStoreError(ValueError):
     """A request the store refuses (unknown job, forbidden transition); nothing changed."""
 
@@ -109,7 +113,28 @@ class JobStore:
         self._conn.execute("pragma foreign_keys=on")
         self._conn.execute("pragma busy_timeout=5000")
         with self._lock:
-            self._conn.executescript(_SCHEMA)
+            self._create_schema()
+
+    def _create_schema(self, timeout: float = 30.0) -> None:
+        """The tables, unless they all exist (read first: reading never waits in WAL mode).
+
+        Why: creating them takes the write lock, and the busy handler only polls for it, so
+        a process committing in a tight loop (the daemon while a second store opens the
+        file it has just created) can hold it past the busy timeout ("database is locked")
+        although it has created them meanwhile. So the write is tried in short waits, and
+        the schema looked for again between them.
+        """
+        end = time.monotonic() + timeout
+        while not _SCHEMA_NAMES <= {r[0] for r in self._conn.execute(
+                "select name from sqlite_master")}:
+            self._conn.execute("pragma busy_timeout=100")
+            try:
+                self._conn.executescript(_SCHEMA)
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) or time.monotonic() > end:
+                    raise
+            finally:
+                self._conn.execute("pragma busy_timeout=5000")
 
     def close(self) -> None:
         with self._lock:
