@@ -153,20 +153,19 @@ class Watchdog:
         self._leg_end = len(leg) - 1
         self._reindex()
 
-    def follow(self, xy: np.ndarray, reach: float, anywhere: bool = True
-               ) -> tuple[float, int, float]:
+    def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
         """Match ``xy`` to the path from where the head was: within ``reach`` mm further
-        if it is there, else (``anywhere``) anywhere ahead. Returns (distance, segment
-        index, position along the segment 0..1) of the earliest match within the
-        deviation that is not behind the head's last position (progress is minimal where
-        the path crosses itself, and never goes back where it doubles back on itself),
-        else of the nearest one."""
+        if it is there, else anywhere ahead. Returns (distance, segment index, position
+        along the segment 0..1) of the earliest match within the deviation that is not
+        behind the head's last position (progress is minimal where the path crosses
+        itself, and never goes back where it doubles back on itself), else of the
+        nearest one."""
         if len(self.path) < 2:
             return math.inf, -1, 0.0
         lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
         hi = int(np.searchsorted(self._along, self._at + reach, "right"))
         found = self._nearest(xy, lo, min(max(hi, lo + 1), len(self.path) - 1))
-        if found[0] > self.deviation and anywhere:  # not where the clock says: look ahead
+        if found[0] > self.deviation:  # not where the clock says: look further ahead
             found = self._nearest(xy, lo, len(self.path) - 1)
         return found
 
@@ -214,11 +213,9 @@ class Watchdog:
         # it Idle at a cut's start, and a short rapid may run between two polls; without
         # that report the cut would be matched from where the head was before the rapid.
         # Only a moving head is judged off the path (at rest before the first move it
-        # may stand anywhere), and a head at rest is only followed as far as it could have
-        # gone since the last report.
+        # may stand anywhere).
         if xy is not None and st.state in ("Run", "Hold", "Jog", "Idle"):
-            d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation,
-                                  anywhere=st.state != "Idle")
+            d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation)
             if d > self.deviation and st.state != "Idle":
                 return Breach(StopReason.OFF_PATH, f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is "
                               f"{d:.2f} mm off the program's path (corrupted line?)",
