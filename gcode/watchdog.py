@@ -156,8 +156,10 @@ class Watchdog:
     def follow(self, xy: np.ndarray, reach: float) -> tuple[float, int, float]:
         """Match ``xy`` to the path from where the head was: within ``reach`` mm further
         if it is there, else anywhere ahead. Returns (distance, segment index, position
-        along the segment 0..1) of the earliest segment within the deviation (progress is
-        minimal where the path crosses itself), else of the nearest one."""
+        along the segment 0..1) of the earliest match within the deviation that is not
+        behind the head's last position (progress is minimal where the path crosses
+        itself, and never goes back where it doubles back on itself), else of the
+        nearest one."""
         if len(self.path) < 2:
             return math.inf, -1, 0.0
         lo = max(int(np.searchsorted(self._along, self._at - self.step, "right")) - 1, 0)
@@ -174,8 +176,20 @@ class Watchdog:
         t = np.clip(np.einsum("ij,ij->i", xy - a, ab)
                     / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
         d = np.hypot(*(a + t[:, None] * ab - xy).T)
-        near = np.flatnonzero(d <= self.deviation)
-        j = int(near[0]) if len(near) else int(np.argmin(d))
+        near = d <= self.deviation
+        # The head only moves forward along the program. Where the path doubles back (a
+        # cut that starts back along the rapid which brought the head to its start, as
+        # when a resumed job re-cuts the piece the head stopped on), a point is near both
+        # ways; the way already travelled would put a cutting head on the rapid.
+        along = self._along[idx] + t * (self._along[idx + 1] - self._along[idx])
+        ahead = np.flatnonzero(near & (along >= self._at - 1e-6))
+        behind = np.flatnonzero(near)
+        if len(ahead):
+            j = int(ahead[0])
+        elif len(behind):  # a report a hair behind the last one (rounding at a corner)
+            j = int(behind[np.argmax(along[behind])])
+        else:
+            j = int(np.argmin(d))
         return float(d[j]), int(idx[j]), float(t[j])
 
     def check(self, st: Status, xy: np.ndarray | None, asked: float, received: float,
@@ -195,19 +209,19 @@ class Watchdog:
             self._slow_since = self._dark_since = None
         self._last_asked = asked
         inside = None  # the line whose interior the head is on, if any
-        if xy is not None and st.state in ("Run", "Hold", "Jog"):
+        # A head at rest is followed too: the stroke-start gate (Streamer._at_start) sees
+        # it Idle at a cut's start, and a short rapid may run between two polls; without
+        # that report the cut would be matched from where the head was before the rapid.
+        # Only a moving head is judged off the path (at rest before the first move it
+        # may stand anywhere).
+        if xy is not None and st.state in ("Run", "Hold", "Jog", "Idle"):
             d, k, t = self.follow(xy, self.fastest * dt + 2.0 + self.deviation)
-            if d > self.deviation:
+            if d > self.deviation and st.state != "Idle":
                 return Breach(StopReason.OFF_PATH, f"head at X{xy[0]:.3f} Y{xy[1]:.3f} is "
                               f"{d:.2f} mm off the program's path (corrupted line?)",
                               self.last_line)
-            self._at = self._along[k] + t * (self._along[k + 1] - self._along[k])
-            line = int(self.path_line[k])
-            self.last_line = line if line >= 0 else None
-            if line >= 0 and self._line_from[line] + 0.5 < self._at < self._line_to[line] - 0.5:
-                inside = line
-            elif line == _LEG and self._at < self._along[self._leg_end] - 0.5:
-                inside = _LEG
+            if d <= self.deviation:
+                inside = self._reached(k, t)
         if st.state != "Run" or not len(self.powers):
             self._slow_since = self._dark_since = None
             return None
@@ -219,7 +233,8 @@ class Watchdog:
         power = float(st.speed or 0.0)
         if inside == _LEG or (inside is not None and self.line_power[inside] <= 0):
             return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
-                          "(the cut starts off its path: a corrupted or rejected line?)", inside)
+                          "(the cut starts off its path: a corrupted or rejected line?)",
+                          inside if inside != _LEG else None)
         if np.min(np.abs(self.powers * spindle_ovr - power)) > 0.5:
             allowed = ", ".join(f"S{p:g}" for p in self.powers)
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
@@ -242,6 +257,18 @@ class Watchdog:
                           f"{now - self._slow_since:.2f} s of machine time: the programmed "
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
+        return None
+
+    def _reached(self, k: int, t: float) -> int | None:
+        """The head is at ``t`` along segment ``k``: move it there; the line whose interior
+        that is (``_LEG`` for the leg), if any."""
+        self._at = self._along[k] + t * (self._along[k + 1] - self._along[k])
+        line = int(self.path_line[k])
+        self.last_line = line if line >= 0 else None
+        if line >= 0 and self._line_from[line] + 0.5 < self._at < self._line_to[line] - 0.5:
+            return line
+        if line == _LEG and self._at < self._along[self._leg_end] - 0.5:
+            return _LEG
         return None
 
     def _check_dark(self, inside: int | None, now: float) -> Breach | None:
