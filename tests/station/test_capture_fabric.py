@@ -52,7 +52,7 @@ def test_plain_cloth_is_nested_without_a_print(tmp_path, monkeypatch):
 
 def test_an_uncertain_print_pauses_at_confirm_fabric(tmp_path, monkeypatch):
     image = render_print(classic_print("gingham", 30.0, rotation=5.0), (240, 180), 0.5)
-    pipeline = _pipeline(monkeypatch, image, 0.5, confirm_below=1.01)  # never sure enough
+    pipeline = _pipeline(monkeypatch, image, 0.5, confirm_below=1.0)  # only a certain answer passes
     store = JobStore(tmp_path / "jobs.db")
     job = store.submit(str(GARMENT), None, {"units": "m"})
     with pytest.raises(JobInterrupted) as exc:

@@ -81,8 +81,8 @@ def test_pieces_touching_the_selvedge_still_make_a_program(clean_cwd, data_dir, 
 
 
 def test_a_piece_wider_than_the_roll_is_refused_by_name(clean_cwd, data_dir, capsys):
-    """Berkeley trousers: a leg with its hem allowance is 1004 mm long, on grain across a
-    1000 mm roll it cannot fit; the operator hears which piece and why."""
+    """Berkeley trousers on grain (legs along the roll) on a 200 mm wide roll: no leg fits
+    across it; the operator hears which piece and why."""
     tmp = clean_cwd
     fabric = tmp / "fabric.json"
     fabric.write_text(json.dumps({"group": "p4m", "w1": [50, 0], "w2": [0, 50]}))
@@ -90,7 +90,8 @@ def test_a_piece_wider_than_the_roll_is_refused_by_name(clean_cwd, data_dir, cap
     assert main(["align", str(garment), "--units", "m", "--fabric", str(fabric),
                  "--restarts", "2", "-o", str(tmp / "P.json")]) == 0
     capsys.readouterr()
-    assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "1"]) == 2
+    assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "1",
+                 "--width", "200"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "mm across the roll" in err and "piece" in err
 
