@@ -92,6 +92,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                    "degrees of the fabric's grain (negative: turn freely)",
                                    minimum=-1.0, maximum=180.0),
         "nap": Key(bool, False, "one-way print or napped fabric: every grain at 0 degrees"),
+        "symmetry": Key(bool, True, "left/right pairs keep the print mirrored (or in the same "
+                        "place where the print has no mirror along the grain)"),
         "fabric_grain_deg": Key(float, 0.0, "the fabric's grain in fabric space (0: along "
                                 "the roll); a fabric's FABRIC.json grain_deg wins",
                                 minimum=-360.0, maximum=360.0),

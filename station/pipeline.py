@@ -66,7 +66,8 @@ class StationPipeline:
         if fabric is not None:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
-                                  "grain_lines", "bias", "seam_allowance", "allowance"}
+                                  "grain_lines", "bias", "seam_allowance", "allowance",
+                                  "symmetry", "pairs"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
         lines, bias = options.get("grain_lines", {}), options.get("bias", [])
@@ -82,6 +83,12 @@ class StationPipeline:
         from station.allowance import rules_for_job
 
         edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
+        if not isinstance(options.get("symmetry", True), bool):
+            raise ValueError("job option symmetry must be true or false")
+        if "pairs" in options:
+            from solver.garment.symmetry import pairs_from_dict
+
+            pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
 
     # ------------------------------------------------------------------ capture
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
@@ -239,10 +246,12 @@ class StationPipeline:
         aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
             start_step(control, "reshaping")
+            from solver.garment.symmetry import fit_pairs
             from solver.reshape import ReshapeOptions, reshape
 
             garment, reshaped = reshape(garment, placement, options=ReshapeOptions(
-                max_move_mm=self.config["reshape"]["max_move_mm"]))
+                max_move_mm=self.config["reshape"]["max_move_mm"]),
+                pairs=fit_pairs(garment, [p[:2] for p in placement.pairs]))
             garment_path = workdir / "garment-reshaped.obj"
             save_obj(garment, garment_path)
             placement.garment = str(garment_path)
@@ -661,17 +670,26 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
     ``progress(k, n, e_random, e_aligned)`` is called as each random restart finishes.
     """
     from solver.align import align
+    from solver.align.symmetric import align_symmetric
+    from solver.garment.symmetry import mirror_pairs, pairs_from_dict
 
     a = config["align"]
     grain = a["grain_tolerance_deg"]
-    return align(garment, wallpaper,
-                 method=options.get("method", a["method"]),
-                 restarts=int(options.get("restarts", a["restarts"])),
-                 seed=int(options.get("seed", a["seed"])),
-                 reflect=a["reflect"], grain_tol_deg=grain if grain >= 0 else None,
-                 nap=a["nap"], fabric_grain_deg=(a["fabric_grain_deg"] if fabric_grain_deg
-                                                 is None else fabric_grain_deg),
-                 progress=progress)
+    fabric_grain = a["fabric_grain_deg"] if fabric_grain_deg is None else fabric_grain_deg
+    common = dict(method=options.get("method", a["method"]),
+                  restarts=int(options.get("restarts", a["restarts"])),
+                  seed=int(options.get("seed", a["seed"])),
+                  reflect=a["reflect"], grain_tol_deg=grain if grain >= 0 else None,
+                  progress=progress)
+    pairs = []
+    if options.get("symmetry", a["symmetry"]):
+        declared, vetoed = pairs_from_dict(options.get("pairs", {}), garment,
+                                           "job option pairs")
+        pairs = mirror_pairs(garment, declared=declared, vetoed=vetoed)
+    if pairs:
+        return align_symmetric(garment, wallpaper, pairs, grain_deg=fabric_grain,
+                               nap=a["nap"], **common)
+    return align(garment, wallpaper, nap=a["nap"], fabric_grain_deg=fabric_grain, **common)
 
 
 def grained(garment, config: Config, options: dict[str, Any]):

@@ -65,26 +65,34 @@ def _reflection_along(axis: np.ndarray) -> np.ndarray:
 
 
 def pair_rule(pair: MirrorPair, fabric: Wallpaper, *, grain_deg: float = 0.0,
-              nap: bool = False, tol: float = 1e-6) -> PairRule:
-    """The rule for one pair: a grain-keeping opposite operation of the print if it has
-    one ("mirror"; along the grain preferred, across it allowed without nap), else "same".
+              nap: bool = False, grain_tol_deg: float | None = 1.0) -> PairRule:
+    """The rule for one pair: an opposite operation of the print whose mirror axis keeps
+    the grain ("mirror"), else "same".
+
+    The second piece's grain is the first's reflected across the operation's axis, so an
+    axis ``b`` degrees off the grain turns it ``2 b`` off: the axis must lie within half
+    the grain tolerance of the grain (along it preferred, across it allowed without nap;
+    a detected print is never exactly square to the roll). Without a grain rule any
+    mirror or glide will do, the one closest to the grain first.
     """
-    axis = np.array([np.cos(np.radians(grain_deg)), np.sin(np.radians(grain_deg))])
-    along = _reflection_along(axis)
-    best = None
+    half = np.inf if grain_tol_deg is None else 0.5 * grain_tol_deg + 1e-9
+    best, best_off = None, np.inf
     for op in fabric.cartesian_ops():
         lin = op[:2, :2]
         if np.linalg.det(lin) > 0:
             continue
-        if np.allclose(lin, along, atol=tol):
-            best = op
-            break
-        if not nap and best is None and np.allclose(lin, -along, atol=tol):
-            best = op
-    if best is not None:
+        axis = 0.5 * np.degrees(np.arctan2(lin[1, 0], lin[0, 0]))
+        off = abs((axis - grain_deg + 90.0) % 180.0 - 90.0)  # along the grain
+        across = abs((axis - grain_deg) % 180.0 - 90.0)
+        if not nap:  # across the grain, ranked after any axis along it
+            off = min(off, across + 180.0)
+        if off < best_off:
+            best, best_off = op, off
+    if best is not None and best_off % 180.0 <= half:
         return PairRule(pair, "mirror", best.copy())
     same = np.eye(3)
-    same[:2, :2] = along
+    same[:2, :2] = _reflection_along(np.array([np.cos(np.radians(grain_deg)),
+                                               np.sin(np.radians(grain_deg))]))
     return PairRule(pair, "same", same)
 
 
@@ -173,7 +181,8 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     start = time.perf_counter()
     garment = garment.copy()  # the pairs' two pieces take mirrored grains
     garment.grain = paired_grains(garment.grains(), pairs)
-    rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap) for p in pairs]
+    rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap,
+                       grain_tol_deg=options.get("grain_tol_deg", 1.0)) for p in pairs]
     quotient, keep = quotient_garment(garment, rules)
     seconds = {"symmetric": 0.0, "unconstrained": 0.0}
     q_init = None

@@ -283,9 +283,15 @@ def read_pairs_file(path, garment: Garment) -> tuple[list[tuple[int, int]], list
     """
     from solver.jsonfile import read_json
 
-    data = read_json(path)
+    return pairs_from_dict(read_json(path), garment, str(path))
+
+
+def pairs_from_dict(data, garment: Garment, where: str
+                    ) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+    """Declared and vetoed pairs from ``{"pairs": [...], "not_pairs": [...]}`` (a P.json's
+    content or a job option); ``where`` names the source in the one-line errors."""
     if not isinstance(data, dict) or not set(data) <= {"pairs", "not_pairs"}:
-        raise ValueError(f'{path}: expected {{"pairs": [[i, j], ...], "not_pairs": [...]}}')
+        raise ValueError(f'{where}: expected {{"pairs": [[i, j], ...], "not_pairs": [...]}}')
     names = {name: i for i, name in enumerate(garment.piece_names)}
 
     def piece(value) -> int:
@@ -294,18 +300,18 @@ def read_pairs_file(path, garment: Garment) -> tuple[list[tuple[int, int]], list
         if isinstance(value, int) and not isinstance(value, bool) \
                 and 0 <= value < garment.n_pieces:
             return value
-        raise ValueError(f"{path}: no piece {value!r} (pieces 0..{garment.n_pieces - 1} "
+        raise ValueError(f"{where}: no piece {value!r} (pieces 0..{garment.n_pieces - 1} "
                          "or their names)")
 
     def pairs(key: str) -> list[tuple[int, int]]:
         value = data.get(key, [])
         if not isinstance(value, list) or not all(
                 isinstance(p, list) and len(p) == 2 for p in value):
-            raise ValueError(f"{path}: {key!r} must be a list of [piece, piece] pairs")
+            raise ValueError(f"{where}: {key!r} must be a list of [piece, piece] pairs")
         out = [(piece(a), piece(b)) for a, b in value]
         for a, b in out:
             if a == b:
-                raise ValueError(f"{path}: pair {[a, b]} names one piece twice")
+                raise ValueError(f"{where}: pair {[a, b]} names one piece twice")
         return out
 
     return pairs("pairs"), pairs("not_pairs")

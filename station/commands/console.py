@@ -39,6 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--grain-line", action="append", metavar="PIECE=DEG",
                    help="a piece's grain direction (pattern space, degrees); repeatable")
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
+    p.add_argument("--pairs", metavar="P.json",
+                   help="declare or veto left/right pairs for this job (sent by value)")
+    p.add_argument("--no-symmetry", action="store_true",
+                   help="align every piece on its own (default: pairs mirror the print)")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -174,6 +178,12 @@ def run_submit(args: argparse.Namespace) -> int:
         options["grain_lines"] = parse_grain_lines(args.grain_line)
     if args.bias:
         options["bias"] = list(args.bias)
+    if args.no_symmetry:
+        options["symmetry"] = False
+    if args.pairs:
+        from solver.jsonfile import read_json
+
+        options["pairs"] = read_json(args.pairs)
     answer = _ask(args, "submit", garment=str(Path(args.garment).resolve()),
                   fabric=str(Path(args.fabric).resolve()) if args.fabric else None,
                   options=options, timeout=args.wait, on_wait=_Patience(args.garment),

@@ -175,3 +175,18 @@ def test_reshaped_pairs_move_as_mirror_images(tshirt) -> None:
     assert PairTie(base, pairs).mirror_error(moved) < 0.1
     assert report.e_fit_after_mm2 < report.e_fit_before_mm2
     assert np.all(signed_areas(new.uv, new.faces) > 0)
+
+
+def test_a_print_slightly_off_the_roll_still_mirrors_on_grain(tshirt) -> None:
+    """A detected check lies a fraction of a degree off the roll: its mirror still keeps
+    both pieces of every pair within the grain tolerance."""
+    c, s = np.cos(np.radians(0.3)), np.sin(np.radians(0.3))
+    fabric = Wallpaper("pmm", (60 * c, 60 * s), (-80 * s, 80 * c))
+    pairs = mirror_pairs(tshirt)
+    placement = align_symmetric(tshirt, fabric, pairs, compare=False, method="paper",
+                                restarts=2, grain_tol_deg=1.0)
+    assert {m for *_, m in placement.pairs} == {"mirror"}
+    by_pieces = {(p.first, p.second): p for p in pairs}
+    for i, j, _ in placement.pairs:
+        assert _sampled_mirror_mismatch(tshirt, placement, i, j, by_pieces[(i, j)]) < 0.1
+    assert placement.report["off_grain_max_deg"] <= 1.0 + 1e-6
