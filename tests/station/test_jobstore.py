@@ -6,13 +6,14 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-import sqlite3
 import threading
 import time
 
 import pytest
 
-from station.jobstore import _SCHEMA, JobStore, JobStoreError
+from station.jobstore import JobStore, JobStoreError
+from station.storeengine import SQLiteEngine
+from station.storeschema import migrate
 
 
 def test_job_lifecycle_is_recorded_with_reasons(store_location):
@@ -102,14 +103,17 @@ def test_opening_a_store_another_process_is_creating_and_writing_does_not_lock(t
     pause (the writer above, the daemon): the write lock is free only for instants the busy
     handler's sleeps miss, so waiting to create the tables ran into "database is locked"."""
     path = tmp_path / "jobs.db"
-    creator = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
-    creator.execute("pragma journal_mode=wal")
+    engine = SQLiteEngine(path)  # the creator
+    creator = engine._conn
     creator.execute("begin immediate")  # it holds the write lock: no tables yet
     released = threading.Event()
 
     def create_then_hold() -> None:
         time.sleep(0.3)
-        creator.executescript(_SCHEMA)  # commits, then takes the lock again at once
+        # lock released and taken back within microseconds, three times: the store's
+        # busy handler, sleeping milliseconds between its polls, misses every gap
+        creator.execute("commit")
+        migrate(engine)
         creator.execute("begin immediate")
         released.wait(10.0)
         creator.execute("commit")
@@ -126,3 +130,4 @@ def test_opening_a_store_another_process_is_creating_and_writing_does_not_lock(t
         worker.join()
     job = store.submit("a.obj", None, {})
     assert store.job(job.id).state == "submitted"
+    engine.close()
