@@ -8,8 +8,9 @@ then reshaped with the default bounds (no vertex moves 10 mm, no piece's area 1 
 Columns: E_fit of the seeded random starts (median), aligned, reshaped; reshaped/aligned
 (the issue's aim: median <= 0.5 with every move <= 10 mm); the baseline in the same run
 is the free-rotation alignment (``--grain off``): on-grain/free tells what the grain
-costs; the largest off-grain angle, the largest move and the largest area change. The
-marker density with seam allowances is left for the `cutline` work (a blank column).
+costs; the largest off-grain angle, the largest move and the largest area change; the
+marker density of the reshaped pieces' cut lines (default allowances: 10 mm seams, 20 mm
+hems) nested on the printed fabric, 1000 mm wide, 3 s (`solver.nest`), as the daemon does.
 
     python -m bench cutready                       # every garment, both prints
     CUTREADY_BENCH_GARMENTS=pants,tshirt ...       # garments whose name contains these
@@ -72,8 +73,9 @@ def main() -> None:
                          grain_tol_deg=None)
             e_random, _ = random_median(g, wp)
             t = time.perf_counter()
-            _, r = reshape(g, placement)
+            reshaped, r = reshape(g, placement)
             t_reshape = time.perf_counter() - t
+            density = _marker_density(reshaped, placement)
             aligned = r.e_fit_before_mm2
             ratio = r.e_fit_after_mm2 / aligned if aligned else 0.0
             ratios.append(ratio)
@@ -83,10 +85,32 @@ def main() -> None:
                   f"{aligned / 100:.1f} | {aligned / e_free if e_free else 0:.2f} | "
                   f"{r.e_fit_after_mm2 / 100:.1f} | {ratio:.3f} | "
                   f"{placement.report['off_grain_max_deg']:.2f} | "
-                  f"{r.max_displacement_mm:.2f} | {r.area_change_max_pct:.2f} |  | "
+                  f"{r.max_displacement_mm:.2f} | {r.area_change_max_pct:.2f} | "
+                  f"{100 * density:.1f} % | "
                   f"{t_align:.1f} | {t_reshape:.1f} |", flush=True)
     for note in notes:
         print(f"- {note}")
     if ratios:
         print(f"- reshaped/aligned: median {np.median(ratios):.3f} over {len(ratios)} runs "
               f"(aim <= 0.5); largest move {max(moves):.2f} mm (bound 10)", flush=True)
+
+
+def _marker_density(garment, placement) -> float:
+    """Density of a 1000 mm wide marker of the pieces' cut lines on the print (3 s)."""
+    import tempfile
+    from pathlib import Path
+
+    from solver.garment import save_obj
+    from solver.nest.solve import nest
+    from solver.nest.sources import load_problem
+    from station.allowance import rules_for_job
+    from station.config import defaults
+
+    with tempfile.TemporaryDirectory() as tmp:
+        obj, placed = Path(tmp) / "garment.obj", Path(tmp) / "placement.json"
+        save_obj(garment, obj)
+        placement.garment, placement.garment_units = str(obj), "mm"
+        placement.save(placed)
+        problem = load_problem([placed], width=1000.0, gap=3.0,
+                               allowance=rules_for_job(defaults(), {}))
+        return float(nest(problem, time_limit=3.0).density)

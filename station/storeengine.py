@@ -116,16 +116,23 @@ class SQLiteEngine(Engine):
         self._conn.execute("pragma busy_timeout=5000")
 
     def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
+        """``patience``: seconds to wait for the write lock (default 5)."""
         with self._lock:
-            cur = self._conn.cursor()
-            cur.execute("begin immediate")
+            if patience is not None:
+                self._conn.execute(f"pragma busy_timeout={max(int(patience * 1000), 1)}")
             try:
-                result = work(Tx(cur, self.dialect))
-            except BaseException:
-                cur.execute("rollback")
-                raise
-            cur.execute("commit")
-            return result
+                cur = self._conn.cursor()
+                cur.execute("begin immediate")
+                try:
+                    result = work(Tx(cur, self.dialect))
+                except BaseException:
+                    cur.execute("rollback")
+                    raise
+                cur.execute("commit")
+                return result
+            finally:
+                if patience is not None:
+                    self._conn.execute("pragma busy_timeout=5000")
 
     def read(self, work: Callable[[Tx], T]) -> T:
         """Reads run in autocommit: each statement sees one committed state (WAL)."""

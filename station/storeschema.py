@@ -123,10 +123,18 @@ def migrate(engine: Engine) -> int:
                    "values (?, ?, ?)", version, description, time.time())
         return max(current, SCHEMA_VERSION)
 
-    try:
+    if engine.dialect != "sqlite":
         return engine.write(work)
-    except sqlite3.OperationalError:
-        # Busy: another station process holds the file; if it migrated meanwhile, fine.
-        if engine.read(version) == SCHEMA_VERSION:
-            return SCHEMA_VERSION
-        raise
+    # SQLite's busy handler only polls for the write lock: a process committing in a tight
+    # loop (the daemon, right after it created the file) can hold it past any busy timeout
+    # although it has migrated meanwhile ("database is locked"). So: short tries, and the
+    # version looked at again between them.
+    end = time.monotonic() + 30.0
+    while True:
+        try:
+            return engine.write(work, patience=0.1)
+        except sqlite3.OperationalError:
+            if engine.read(version) == SCHEMA_VERSION:
+                return SCHEMA_VERSION
+            if time.monotonic() > end:
+                raise

@@ -203,7 +203,10 @@ def check_cut_exactly_once(station: Station, job: int) -> None:
                             < 0.3)
             complete = sum(bool(cKDTree(densify(seg[a:b])).query(samples)[0].max() < 0.2)
                            for a, b in beam_runs(on, station.attempts))
-            assert complete == 1, (p["name"], c, complete)
+            # A closed contour separates the piece: exactly once. An open stroke (a notch)
+            # is retraced by every attempt that reached it, like an interrupted kerf.
+            closed = np.hypot(*(samples[0] - samples[-1])) < 0.05
+            assert complete == 1 if closed else complete >= 1, (p["name"], c, complete)
 
 
 def beam_runs(on: np.ndarray, breaks: list[int]) -> list[tuple[int, int]]:

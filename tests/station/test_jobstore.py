@@ -6,10 +6,14 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import threading
+import time
 
 import pytest
 
 from station.jobstore import JobStore, JobStoreError
+from station.storeengine import SQLiteEngine
+from station.storeschema import migrate
 
 
 def test_job_lifecycle_is_recorded_with_reasons(store_location):
@@ -92,3 +96,38 @@ def test_sigkill_mid_write_loses_nothing_committed(store_location):
     # Every cut piece has exactly one "cut" event, and no event lacks its state.
     cut_events = [e for e in store.events(1) if e["message"].endswith(" cut")]
     assert len(cut_events) == len(cut)
+
+
+def test_opening_a_store_another_process_is_creating_and_writing_does_not_lock(tmp_path):
+    """A store opened while the file's creator makes the tables and then commits without
+    pause (the writer above, the daemon): the write lock is free only for instants the busy
+    handler's sleeps miss, so waiting to create the tables ran into "database is locked"."""
+    path = tmp_path / "jobs.db"
+    engine = SQLiteEngine(path)  # the creator
+    creator = engine._conn
+    creator.execute("begin immediate")  # it holds the write lock: no tables yet
+    released = threading.Event()
+
+    def create_then_hold() -> None:
+        time.sleep(0.3)
+        # lock released and taken back within microseconds, three times: the store's
+        # busy handler, sleeping milliseconds between its polls, misses every gap
+        creator.execute("commit")
+        migrate(engine)
+        creator.execute("begin immediate")
+        released.wait(10.0)
+        creator.execute("commit")
+
+    worker = threading.Thread(target=create_then_hold)
+    worker.start()
+    t0 = time.monotonic()
+    try:
+        store = JobStore(path)
+        assert time.monotonic() - t0 < 3.0  # not the busy timeout
+        assert store.jobs() == []
+    finally:
+        released.set()
+        worker.join()
+    job = store.submit("a.obj", None, {})
+    assert store.job(job.id).state == "submitted"
+    engine.close()
