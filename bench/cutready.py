@@ -10,7 +10,8 @@ Columns: E_fit of the seeded random starts (median), aligned, reshaped; reshaped
 is the free-rotation alignment (``--grain off``): on-grain/free tells what the grain
 costs; the largest off-grain angle, the largest move and the largest area change; the
 marker density of the reshaped pieces' cut lines (default allowances: 10 mm seams, 20 mm
-hems) nested on the printed fabric, 1000 mm wide, 3 s (`solver.nest`), as the daemon does.
+hems) nested on the printed fabric, 1600 mm wide (a common width for wide cloth: some
+dress pieces are wider than a 1000 mm roll), 3 s (`solver.nest`), as the daemon does.
 
     python -m bench cutready                       # every garment, both prints
     CUTREADY_BENCH_GARMENTS=pants,tshirt ...       # garments whose name contains these
@@ -96,7 +97,7 @@ def main() -> None:
 
 
 def _marker_density(garment, placement) -> float:
-    """Density of a 1000 mm wide marker of the pieces' cut lines on the print (3 s)."""
+    """Density of a 1600 mm wide marker of the pieces' cut lines on the print (3 s)."""
     import tempfile
     from pathlib import Path
 
@@ -111,6 +112,6 @@ def _marker_density(garment, placement) -> float:
         save_obj(garment, obj)
         placement.garment, placement.garment_units = str(obj), "mm"
         placement.save(placed)
-        problem = load_problem([placed], width=1000.0, gap=3.0,
+        problem = load_problem([placed], width=1600.0, gap=3.0,
                                allowance=rules_for_job(defaults(), {}))
         return float(nest(problem, time_limit=3.0).density)
