@@ -1,6 +1,7 @@
 """Nesting benchmark: ESICUP instances, shirts under square prints, Berkeley garments on a roll.
 
-    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments] [--seed S]
+    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,density] [--seed S]
+                         [--garments tshirt,pants] [--method auto]
 
 ``make bench`` runs it with the time from $BENCH_NEST_TIME (default 30 s per run, the
 issue's setting). Every layout is verified with ``verify_layout`` before it is counted.
@@ -14,6 +15,8 @@ import os
 import platform
 import time
 from pathlib import Path
+
+import numpy as np
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RECORDS = {"shirts": 90.92, "trousers": 92.62, "swim": 79.83, "albano": 89.82, "dagli": 90.17,
@@ -90,11 +93,57 @@ def garments(t: float, seed: int) -> None:
         print(f"| {Path(rel).stem} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
 
 
+DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0), ("p4m", 50.0))
+
+
+def density(t: float, seed: int, wanted: list[str], method: str) -> None:
+    """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
+
+    The plain marker (sparrow, 0 and 180 degrees) and the printed ones (aligned position =
+    pattern coordinates, moves = lattice vectors and the print's grain-keeping operations)
+    get the same time, in the same process.
+    """
+    from bench.reshape import GARMENTS as LIBRARY
+    from bench.reshape import berkeley_garments
+    from solver.nest import NestProblem
+    from solver.nest.sources import garment_pieces
+    from solver.wallpaper import Wallpaper
+
+    print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
+          f"square prints, {t:g} s each, method {method}\n")
+    heads = " | ".join(f"{g} {a:g} mm" for g, a in DENSITY_PRINTS)
+    print(f"| garment | pieces | plain | {heads} |")
+    print("|---|---|---|" + "---|" * len(DENSITY_PRINTS))
+    if not LIBRARY.is_dir():
+        print(f"(skipped: {LIBRARY} absent)")
+        return
+    cases, _ = berkeley_garments()
+    ratios = []
+    for name, g in cases:
+        if wanted and not any(w in name for w in wanted):
+            continue
+        pieces = garment_pieces(g)
+        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        cells = [f"{plain.density:.1%}"]
+        for group, a in DENSITY_PRINTS:
+            problem = NestProblem(pieces, 1500.0, gap=2.0, fabric=Wallpaper(group, (a, 0.0),
+                                                                           (0.0, a)))
+            layout, sec = _run(problem, method, t, seed)
+            ratios.append(layout.density / plain.density)
+            cells.append(f"{layout.density:.1%} ({ratios[-1]:.3f}, {sec:.1f} s)")
+        print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+    if ratios:
+        print(f"\nprinted/plain: median {np.median(ratios):.3f}, min {min(ratios):.3f}, "
+              f"{sum(r >= 0.95 for r in ratios)} of {len(ratios)} at least 0.95")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="bench.nest")
     ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 30)))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--only", default="esicup,shirts,garments")
+    ap.add_argument("--garments", default="", help="density: names containing one of these")
+    ap.add_argument("--method", default="auto", help="density: the printed nesting method")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -103,6 +152,10 @@ def main(argv: list[str] | None = None) -> None:
           f"{platform.processor() or platform.machine()}  {os.cpu_count()} cpus, "
           f"sparrow with 1 worker")
     for part in args.only.split(","):
+        if part == "density":
+            density(args.time, args.seed, [w for w in args.garments.split(",") if w],
+                    args.method)
+            continue
         {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time, args.seed)
 
 

@@ -432,7 +432,7 @@ def problem_density(items: list[Item], problem: NestProblem, length: float) -> f
     return area / (problem.width * length)
 
 
-SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4}
+SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -477,6 +477,12 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
                 if progress:
                     progress(f"{strategy}: {exc}")
                 r = None
+        elif strategy == "coset":
+            from solver.nest.coset import coset_search  # coset imports this module's engine
+
+            start = min(results, key=lambda r: r[1])[0] if results else None
+            r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                             start=start)
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:

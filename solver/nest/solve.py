@@ -8,7 +8,7 @@ from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import Progress, plain_moves
 
-METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "naive")
+METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "coset", "naive")
 
 
 def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
