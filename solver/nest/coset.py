@@ -10,7 +10,7 @@ grain-keeping operations, :func:`solver.nest.instance.candidate_maps`):
 
 - the weighted overlap of one piece with all others, at every allowed position at once,
   is one FFT cross-correlation per operation (the raster engine of
-  :mod:`solver.nest.lattice`): the others' outlines grown by the gap are stamped into one
+  :mod:`solver.nest.engine`): the others' outlines grown by the gap are stamped into one
   map with their pair weights;
 - collisions and their depth are judged exactly (shapely, vectorised over pairs); a
   raster-free position is taken only after the exact check passes, so every accepted
@@ -28,9 +28,10 @@ import numpy as np
 import scipy.fft as sfft
 import shapely
 
+from solver.nest.budget import Progress
+from solver.nest.engine import AREA_TOL, Board, Filler, default_resolution, moves_of
 from solver.nest.instance import Item, NestProblem, affine
-from solver.nest.lattice import AREA_TOL, Board, Filler, default_resolution, moves_of
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice
 
 SHRINK = (0.03, 0.015, 0.007, 0.003)  # strip steps tried in turn, fraction of the length

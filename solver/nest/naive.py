@@ -9,9 +9,10 @@ piece, which is what the lattice-aware search (:mod:`solver.nest.lattice`) wins 
 
 from __future__ import annotations
 
+from solver.nest.budget import Progress
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.plain import plain_moves
 from solver.nest.regions import snap_to_lattice
 from solver.wallpaper import covering_radius
 

@@ -14,16 +14,14 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections.abc import Callable
 
 import numpy as np
 import shapely
 import spyrrow
 
+from solver.nest.budget import Progress
 from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose, rotation
 from solver.nest.layout import Layout, build_layout
-
-Progress = Callable[[str], None]
 
 
 def stderr_progress(msg: str) -> None:

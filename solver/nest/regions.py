@@ -4,7 +4,7 @@ A free sparrow nest knows nothing of flaws marked by the operator nor of a print
 lattice. Both are handled the same way: find the pieces in conflict (outside the
 window, on a flaw, overlapping after snapping to the lattice), take out as few as a
 greedy vertex cover allows, and re-insert them with the bottom-left filler of
-:mod:`solver.nest.lattice` around the pieces that stay.
+:mod:`solver.nest.engine` around the pieces that stay.
 """
 
 from __future__ import annotations
@@ -17,8 +17,10 @@ import shapely
 
 import untrusted
 from solver.jsonfile import read_json
+from solver.nest.budget import Progress
+from solver.nest.engine import fill_search
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.plain import plain_moves
 
 
 def load_keepouts(path: str | Path) -> list[np.ndarray]:
@@ -78,8 +80,6 @@ def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
     Re-inserted pieces go to the allowed position nearest to where they were, left-most
     first. ``everything`` re-inserts all pieces that way (a global re-snap).
     """
-    from solver.nest.lattice import fill_search
-
     polys = np.array([shapely.Polygon(affine(m, it.ref)) for it, m in zip(items, moves)],
                      dtype=object)
     bad = np.ones(len(items), bool) if everything else conflicting(problem, polys)

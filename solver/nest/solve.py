@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.nest.instance import NestProblem
+from solver.nest.budget import Progress
+from solver.nest.instance import NestProblem, affine
+from solver.nest.lattice import nest_lattice
 from solver.nest.layout import Layout, build_layout
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.naive import nest_naive
+from solver.nest.plain import plain_moves
+from solver.nest.regions import repair
 
 METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "coset", "naive")
 
@@ -23,12 +27,8 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
     _check_widths(problem)
     if problem.fabric is not None:
         if method == "naive":
-            from solver.nest.naive import nest_naive
-
             layout = nest_naive(problem, time_limit=time_limit, seed=seed, progress=progress)
         else:
-            from solver.nest.lattice import nest_lattice
-
             strategies = None if method == "auto" else (method,)
             layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
                                   strategies=strategies)
@@ -39,8 +39,6 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
         moves, length = plain_moves(problem, items, time_limit=share * time_limit, seed=seed,
                                     progress=progress)
         if regions and (problem.keepouts or length > problem.length):
-            from solver.nest.regions import repair
-
             r = repair(problem, items, moves, time_limit=(1 - share) * time_limit, seed=seed,
                        progress=progress)
             if r is None:
@@ -55,8 +53,6 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
 def _check_widths(problem: NestProblem) -> None:
     """Refuse, naming the piece, one that is wider than the fabric at every allowed angle
     (the searches would only give up, sparrow with a panic)."""
-    from solver.nest.instance import affine
-
     room = problem.width - 2 * problem.gap
     seen = set()
     for item in problem.items():

@@ -140,7 +140,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             pieces += inst.pieces
             found_width = found_width or inst.width
         elif kind == "dxf":
-            from solver.dxf_aama import read_dxf_aama
+            from solver.nest.dxf_aama import read_dxf_aama
 
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
