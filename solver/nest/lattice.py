@@ -3,15 +3,21 @@
 On a printed fabric a piece aligned to the print may still move by any whole lattice
 vector and by any operation of the print's group that keeps the grain (see
 :func:`solver.nest.instance.candidate_maps`); the positions of one piece therefore form
-a few *cosets* of the lattice. Two searches compete (see :func:`nest_lattice`):
+a few *cosets* of the lattice. Several searches compete (see :func:`nest_lattice`):
 
 - the bottom-left fill of :mod:`solver.nest.engine` reads its FFT collision maps only at
   each piece's lattice coset, with restarts and compaction;
 - a free sparrow nest is snapped to the lattice and swept left to right onto the
-  nearest allowed positions ("resnap", :mod:`solver.nest.regions`); the shorter result wins.
+  nearest allowed positions ("resnap", :mod:`solver.nest.regions`), or jointly onto
+  allowed positions around the free ones that do not collide ("joint",
+  :mod:`solver.nest.snapjoint`);
+- the best of those is shortened by strip shrinking on the cosets (:mod:`solver.nest.coset`).
+The shortest marker wins.
 """
 
 from __future__ import annotations
+
+import time
 
 from solver.nest.budget import Progress
 from solver.nest.coset import coset_search
@@ -19,9 +25,11 @@ from solver.nest.engine import fill_search, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.regions import repair_snapped
+from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
-SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.6}
+SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.6,
+          "joint": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -38,20 +46,27 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     - ``repair``: the same, but only the pieces in conflict after snapping move.
     - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
       coarse lattices relative to the pieces.
+    - ``joint``: free nests snapped jointly, each piece to one of the allowed positions
+      around its free one, none colliding, shortest (:mod:`solver.nest.snapjoint`).
+    - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
+      lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: fill, and resnap for many pieces (from ``MANY``) or resnap-margin for few
-    (a collision after snapping costs a whole large piece's move; many small pieces lose
-    more to the margin than to collisions).
+    By default: resnap for many pieces (from ``MANY``) or resnap-margin for few (a
+    collision after snapping costs a whole large piece's move; many small pieces lose
+    more to the margin than to collisions), joint, fill, then coset on the best of them.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     if strategies is None:
-        strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "fill")
+        strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "joint", "fill",
+                      "coset")
     results = []
-    total = sum(SHARES.get(s, 0.0) for s in strategies) or 1.0
-    for strategy in strategies:
-        share = time_limit * SHARES.get(strategy, 0.0) / total
+    deadline = time.monotonic() + time_limit
+    for n, strategy in enumerate(strategies):
+        # a strategy that finishes early leaves its time to those after it
+        total = sum(SHARES.get(s, 0.0) for s in strategies[n:]) or 1.0
+        share = max(0.0, deadline - time.monotonic()) * SHARES.get(strategy, 0.0) / total
         if strategy == "fill":
             r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
         elif strategy in ("resnap", "resnap-margin", "repair"):
@@ -64,6 +79,8 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
                 if progress:
                     progress(f"{strategy}: {exc}")
                 r = None
+        elif strategy == "joint":
+            r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress)
         elif strategy == "coset":
             start = min(results, key=lambda r: r[1])[0] if results else None
             r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
