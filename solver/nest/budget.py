@@ -43,6 +43,10 @@ class Deadline:
         """The earlier of this deadline and ``seconds`` from now."""
         return Deadline(0.0, clock=self.clock, end=min(self.end, self.clock() + seconds))
 
+    def later(self, seconds: float) -> Deadline:
+        """This deadline moved ``seconds`` later (time that was not the search's)."""
+        return Deadline(0.0, clock=self.clock, end=self.end + seconds)
+
     def before(self, seconds: float) -> Deadline:
         """This deadline moved ``seconds`` earlier (a reserve for what follows)."""
         return Deadline(0.0, clock=self.clock, end=self.end - seconds)

@@ -346,10 +346,16 @@ def moves_of(filler: Filler, sol: list) -> list[np.ndarray]:
     return out
 
 
-#: measured cost of one greedy placement per candidate map (s; 3-13 ms on the benchmark
-#: inputs under load, the high end for 99 pieces on a long board): what a fill that must
-#: finish is given before the time runs out
-FILL_PER_CANDIDATE = 0.006
+#: measured cost of one greedy placement per candidate map (s; 2-20 ms on the benchmark
+#: inputs at load average 4-7 on 2 cores, the high end for albano's and shirts' long
+#: boards): what a fill that must finish is given before the time runs out
+FILL_PER_CANDIDATE = 0.012
+
+
+#: pixel size factor when a fill that must finish has less time than it needs: about
+#: halves its time (measured on shirts under a 0.5 p1 print: 1.05 -> 0.58 s); a coarser
+#: raster does not save more (the exact checks dominate)
+COARSE = 2.0
 
 
 def first_fill_estimate(items: list[Item]) -> float:
@@ -388,7 +394,10 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | 
     deadline = deadline_of(time_limit)
     total = deadline.left()
     n = len(items)
-    res = res or default_resolution(problem, items)
+    if res is None:
+        res = default_resolution(problem, items)
+        if not interruptible and deadline.left() < first_fill_estimate(items):
+            res *= COARSE  # a fill that must finish in less than it needs: fewer pixels
     fixed = [shapely.Polygon(k) for k in problem.keepouts]
     length = problem.length or estimate_length(problem, items)
     if start is not None and problem.length is None:
