@@ -28,7 +28,7 @@ import numpy as np
 import scipy.fft as sfft
 import shapely
 
-from solver.nest.budget import Progress
+from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.engine import AREA_TOL, Board, Filler, default_resolution, moves_of
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
@@ -270,7 +270,7 @@ ATTEMPT_MIN = 0.4  # s, at least (a success takes about 0.1 s)
 FREE_SHARE = 0.45  # of the time, for sparrow's free nest
 
 
-def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float,
+def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                  seed: int | None, progress: Progress | None = None,
                  start: list[np.ndarray] | None = None, res: float | None = None,
                  ) -> tuple[list[np.ndarray], float] | None:
@@ -281,13 +281,14 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float,
     ``start`` (a valid printed marker from another search) is shrunk instead when it is
     shorter than the first separated one.
     """
-    deadline = time.monotonic() + time_limit
+    budget = deadline_of(time_limit)
+    deadline = time.monotonic() + budget.left()
     rng = np.random.default_rng(seed)
     res = res or default_resolution(problem, items)
     free, free_len = None, math.inf
     if start is None:
         try:
-            free, free_len = plain_moves(problem, items, time_limit=FREE_SHARE * time_limit,
+            free, free_len = plain_moves(problem, items, time_limit=budget.share(FREE_SHARE),
                                          seed=seed)
         except ValueError as exc:  # sparrow gave up
             if progress:

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.fft as sfft
 import shapely
 
-from solver.nest.budget import Progress
+from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.instance import Item, NestProblem, affine
 
 # weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
@@ -273,9 +273,15 @@ class Filler:
         return None
 
     def fill(self, order: list[int], board: Board, sol: list, index: list[int],
-             targets: list | None = None) -> bool:
-        """Greedy fill of the items in ``order`` (``sol``/``index`` updated); False if stuck."""
+             targets: list | None = None, deadline: Deadline | None = None) -> bool:
+        """Greedy fill of the items in ``order`` (``sol``/``index`` updated).
+
+        False if stuck, or if ``deadline`` passed before every item was placed (a fill
+        that must give a result is called without one).
+        """
         for k in order:
+            if deadline is not None and deadline.expired():
+                return False
             pos = self.best_position(board, self.items[k], None if targets is None else targets[k])
             if pos is None:
                 return False
@@ -298,14 +304,15 @@ class Filler:
     def right(self, k: int, pos: tuple[int, np.ndarray]) -> float:
         return float(self.shapes[self.items[k].key][pos[0]].hi[0] + pos[1][0])
 
-    def compact(self, sol: list, board: Board, deadline: float, board_index: list[int]) -> list:
+    def compact(self, sol: list, board: Board, deadline: Deadline,
+                board_index: list[int]) -> list:
         """Re-insert pieces right-most first while that shortens the marker or frees room."""
         improved = True
-        while improved and time.monotonic() < deadline:
+        while improved and not deadline.expired():
             improved = False
             order = np.argsort([-self.right(k, p) for k, p in enumerate(sol)])
             for k in order[: max(4, len(order) // 4)]:
-                if time.monotonic() > deadline:
+                if deadline.expired():
                     break
                 old = sol[k]
                 board.remove(board_index[k])
@@ -339,6 +346,23 @@ def moves_of(filler: Filler, sol: list) -> list[np.ndarray]:
     return out
 
 
+#: measured cost of one greedy placement per candidate map (s; 2-20 ms on the benchmark
+#: inputs at load average 4-7 on 2 cores, the high end for albano's and shirts' long
+#: boards): what a fill that must finish is given before the time runs out
+FILL_PER_CANDIDATE = 0.012
+
+
+#: pixel size factor when a fill that must finish has less time than it needs: about
+#: halves its time (measured on shirts under a 0.5 p1 print: 1.05 -> 0.58 s); a coarser
+#: raster does not save more (the exact checks dominate)
+COARSE = 2.0
+
+
+def first_fill_estimate(items: list[Item]) -> float:
+    """Seconds one greedy fill of ``items`` takes, roughly (see FILL_PER_CANDIDATE)."""
+    return FILL_PER_CANDIDATE * sum(len(it.candidates) for it in items)
+
+
 def default_resolution(problem: NestProblem, items: list[Item]) -> float:
     """Pixel size: fine enough for the smallest piece and the lattice, small enough to be fast."""
     small = min(float(np.min(np.ptp(it.ref, axis=0))) for it in items)
@@ -351,10 +375,10 @@ def estimate_length(problem: NestProblem, items: list[Item]) -> float:
     return 2.0 * area / problem.width + 2 * longest + 4 * problem.gap
 
 
-def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, seed: int | None,
-                progress: Progress | None = None, res: float | None = None,
+def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
+                seed: int | None, progress: Progress | None = None, res: float | None = None,
                 start: list[np.ndarray | None] | None = None,
-                targets: list[np.ndarray | None] | None = None,
+                targets: list[np.ndarray | None] | None = None, interruptible: bool = False,
                 ) -> tuple[list[np.ndarray], float] | None:
     """Best greedy fill + compaction over several orderings within ``time_limit``.
 
@@ -362,11 +386,18 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, s
     items to insert); they stay put during the fill and may move during compaction.
     ``targets`` optionally gives, for the items to insert, where they would like to be:
     the first run inserts them as close to it as possible instead of bottom-left.
+    Every fill after the first stops at the deadline (its partial layout is dropped);
+    the first one finishes, so that there is a result, unless ``interruptible`` (the
+    caller has another result): then None when the deadline comes first.
     """
     t0 = time.monotonic()
-    deadline = t0 + time_limit
+    deadline = deadline_of(time_limit)
+    total = deadline.left()
     n = len(items)
-    res = res or default_resolution(problem, items)
+    if res is None:
+        res = default_resolution(problem, items)
+        if not interruptible and deadline.left() < first_fill_estimate(items):
+            res *= COARSE  # a fill that must finish in less than it needs: fewer pixels
     fixed = [shapely.Polygon(k) for k in problem.keepouts]
     length = problem.length or estimate_length(problem, items)
     if start is not None and problem.length is None:
@@ -383,7 +414,7 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, s
             None if m is None else filler.pose(k, m) for k, m in enumerate(targets)]
         stuck = False
         for order in orderings(items, rng):
-            if best is not None and time.monotonic() > deadline:
+            if (best is not None or interruptible) and deadline.expired():
                 break
             board, sol, index = filler.board(), list(pre), [0] * n
             for k in range(n):
@@ -391,18 +422,21 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, s
                     index[k] = board.add(filler.polygon(k, sol[k]))
             runs += 1
             filler.lean = LEANS[(runs - 1) % len(LEANS)]
+            late = None if best is None and not interruptible else deadline
             if wish is not None and runs == 1:  # nearest to the wished positions, left first
                 todo = [k for k in range(n) if pre[k] is None]
                 todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
-                ok = filler.fill(todo, board, sol, index, wish)
+                ok = filler.fill(todo, board, sol, index, wish, deadline=late)
             else:
-                ok = filler.fill([k for k in order if pre[k] is None], board, sol, index)
+                ok = filler.fill([k for k in order if pre[k] is None], board, sol, index,
+                                 deadline=late)
             if not ok:
+                if late is not None and deadline.expired():
+                    return (best, best_len) if best is not None else None
                 stuck = True
                 break
             # each ordering compacts within a share of the time
-            sol = filler.compact(sol, board, min(deadline, time.monotonic() + time_limit / 4),
-                                 index)
+            sol = filler.compact(sol, board, deadline.within(total / 4), index)
             used = max(filler.right(k, p) for k, p in enumerate(sol)) + problem.gap
             if used < best_len:
                 best, best_len = moves_of(filler, sol), used

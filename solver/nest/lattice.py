@@ -17,9 +17,7 @@ The shortest marker wins.
 
 from __future__ import annotations
 
-import time
-
-from solver.nest.budget import Progress
+from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
 from solver.nest.engine import fill_search, problem_density
 from solver.nest.instance import NestProblem
@@ -33,7 +31,7 @@ SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "cose
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
-def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                  progress: Progress | None = None,
                  strategies: tuple[str, ...] | None = None) -> Layout:
     """Nest on a printed fabric; every strategy runs and the shortest marker wins.
@@ -61,20 +59,23 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
     if strategies is None:
         strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "joint", "fill",
                       "coset")
+    deadline = deadline_of(time_limit)
     results = []
-    deadline = time.monotonic() + time_limit
-    for n, strategy in enumerate(strategies):
-        # a strategy that finishes early leaves its time to those after it
-        total = sum(SHARES.get(s, 0.0) for s in strategies[n:]) or 1.0
-        share = max(0.0, deadline - time.monotonic()) * SHARES.get(strategy, 0.0) / total
+    for i, strategy in enumerate(strategies):
+        # a share of what is left, so an overrun shrinks the later strategies; once one
+        # marker exists the others may be cut short by the deadline
+        rest = sum(SHARES.get(s, 0.0) for s in strategies[i:]) or 1.0
+        share = deadline.share(SHARES.get(strategy, 0.0) / rest)
+        late = bool(results)
         if strategy == "fill":
-            r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
+            r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                            interruptible=late)
         elif strategy in ("resnap", "resnap-margin", "repair"):
             extra = 0.5 * covering_radius(problem.lattice) if strategy == "resnap-margin" else 0.0
             try:
                 r = repair_snapped(problem, items, time_limit=share, seed=seed,
                                    progress=progress, everything=strategy != "repair",
-                                   extra=extra)
+                                   extra=extra, interruptible=late)
             except ValueError as exc:  # sparrow gave up; the other strategies may not
                 if progress:
                     progress(f"{strategy}: {exc}")

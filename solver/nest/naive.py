@@ -9,7 +9,7 @@ piece, which is what the lattice-aware search (:mod:`solver.nest.lattice`) wins 
 
 from __future__ import annotations
 
-from solver.nest.budget import Progress
+from solver.nest.budget import Deadline, Progress
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.plain import plain_moves
@@ -17,7 +17,7 @@ from solver.nest.regions import snap_to_lattice
 from solver.wallpaper import covering_radius
 
 
-def nest_naive(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest_naive(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                progress: Progress | None = None) -> Layout:
     """The baseline on a printed fabric (see module docstring)."""
     if problem.fabric is None:

@@ -17,8 +17,8 @@ import shapely
 
 import untrusted
 from solver.jsonfile import read_json
-from solver.nest.budget import Progress
-from solver.nest.engine import fill_search
+from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.engine import fill_search, first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
 from solver.nest.plain import plain_moves
 
@@ -73,12 +73,14 @@ def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:
 
 
 def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
-           time_limit: float, seed: int | None, progress: Progress | None = None,
-           everything: bool = False) -> tuple[list[np.ndarray], float] | None:
+           time_limit: float | Deadline, seed: int | None, progress: Progress | None = None,
+           everything: bool = False, interruptible: bool = False,
+           ) -> tuple[list[np.ndarray], float] | None:
     """Take out the conflicting pieces of ``moves``, re-insert them around the rest, compact.
 
     Re-inserted pieces go to the allowed position nearest to where they were, left-most
     first. ``everything`` re-inserts all pieces that way (a global re-snap).
+    ``interruptible``: the caller has another result, give up (None) at the deadline.
     """
     polys = np.array([shapely.Polygon(affine(m, it.ref)) for it, m in zip(items, moves)],
                      dtype=object)
@@ -88,7 +90,7 @@ def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
     start = [None if b else m for m, b in zip(moves, bad)]
     wish = [m if b else None for m, b in zip(moves, bad)]
     return fill_search(problem, items, time_limit=time_limit, seed=seed, progress=progress,
-                       start=start, targets=wish)
+                       start=start, targets=wish, interruptible=interruptible)
 
 
 def snap_to_lattice(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
@@ -109,12 +111,20 @@ def snap_to_lattice(problem: NestProblem, items: list[Item], moves: list[np.ndar
     return out
 
 
-def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float,
+def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                    seed: int | None, progress: Progress | None = None, extra: float = 0.0,
-                   everything: bool = False) -> tuple[list[np.ndarray], float] | None:
-    """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted."""
-    moves, _ = plain_moves(problem, items, extra=extra, time_limit=0.8 * time_limit, seed=seed,
+                   everything: bool = False, interruptible: bool = False,
+                   ) -> tuple[list[np.ndarray], float] | None:
+    """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted.
+
+    Unless ``interruptible``, the re-insertion must finish: sparrow stops early enough
+    to leave it its estimated time.
+    """
+    deadline = deadline_of(time_limit)
+    fill = 0.0 if interruptible else first_fill_estimate(items)
+    moves, _ = plain_moves(problem, items, extra=extra,
+                           time_limit=deadline.before(fill).share(0.8), seed=seed,
                            progress=progress)
     snapped = snap_to_lattice(problem, items, moves)
-    return repair(problem, items, snapped, time_limit=0.2 * time_limit, seed=seed,
-                  progress=progress, everything=everything)
+    return repair(problem, items, snapped, time_limit=deadline, seed=seed,
+                  progress=progress, everything=everything, interruptible=interruptible)

@@ -19,7 +19,7 @@ import time
 import numpy as np
 import shapely
 
-from solver.nest.budget import Progress
+from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
 
@@ -153,28 +153,27 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
 # (reach, push) in lattice steps, tried in turn on each free nest: no one setting wins
 # everywhere (a wider reach finds more combinations, and takes longer to exhaust)
 REACHES = ((1.5, 4.0), (2.0, 6.0), (1.0, 2.0))
-FREE_SHARE = 0.4  # of the time, for each free nest
+FREE_SHARE = 0.4  # of the time, for each free nest (the snaps take less than a second)
 
 
-def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float,
+def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                  seed: int | None, progress: Progress | None = None,
                  ) -> tuple[list[np.ndarray], float] | None:
     """Free nests on the full width and one lattice step narrower (room to snap across
     the roll), each snapped jointly with the settings of ``REACHES``; the shortest wins."""
+    budget = deadline_of(time_limit)
     t0 = time.monotonic()
-    deadline = t0 + time_limit
+    deadline = t0 + budget.left()
     step = float(np.abs(problem.lattice).max())
     best = None
-    for narrow in (0.0, step):
-        left = deadline - time.monotonic()
-        if best is not None and left < FREE_SHARE * time_limit + 1.0:
-            break  # sparrow takes whole seconds
+    for k, narrow in enumerate((0.0, step)):
         room = problem.width - narrow
-        if room <= 2 * problem.gap:
+        if room <= 2 * problem.gap or budget.expired():
             break
-        try:
+        try:  # the first free nest takes a share, the second what the snaps left
             free, _ = plain_moves(dataclasses.replace(problem, width=room), items,
-                                  time_limit=FREE_SHARE * time_limit, seed=seed)
+                                  time_limit=budget.share(FREE_SHARE / (1 - k * FREE_SHARE)),
+                                  seed=seed)
         except ValueError as exc:  # sparrow gave up (a piece too wide for the narrower roll)
             if progress:
                 progress(f"joint snap: {exc}")
