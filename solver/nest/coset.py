@@ -279,9 +279,12 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     The snapped nest overlaps; it is separated on a strip a little longer than the free
     one (longer again after each failure), then the strip shrinks while time remains.
     ``start`` (a valid printed marker from another search) is shrunk instead when it is
-    shorter than the first separated one.
+    shorter than the first separated one. None when nothing shorter than ``start`` came
+    out (or no valid marker at all).
     """
     budget = deadline_of(time_limit)
+    if budget.expired():
+        return None
     deadline = time.monotonic() + budget.left()
     rng = np.random.default_rng(seed)
     res = res or default_resolution(problem, items)
@@ -325,4 +328,7 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     if best is None:
         return None
     best = search.shrink(best, deadline, progress)
-    return moves_of(search.filler, best), search.length_of(best)
+    length = search.length_of(best)
+    if length >= start_len - 1e-9:
+        return None  # nothing shorter than the marker it was given
+    return moves_of(search.filler, best), length
