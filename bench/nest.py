@@ -169,32 +169,39 @@ def budget(budgets: list[float], seed: int, cases: list[str]) -> None:
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus")
 
 
-DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0), ("p4m", 50.0))
+# p4m keeps the grain with the same operations as p2 (the half turns about the half
+# lattice points; its quarter turns and mirrors turn or flip the grain): same markers
+DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0))
+BEFORE = ("resnap-margin", "fill")  # nest_lattice's strategies before issue 18
 
 
 def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
 
-    The plain marker (sparrow, 0 and 180 degrees) and the printed ones (aligned position =
-    pattern coordinates, moves = lattice vectors and the print's grain-keeping operations)
-    get the same time, in the same process.
+    The plain marker (sparrow, 0 and 180 degrees), and per print the strategies before
+    issue 18 and ``method`` (aligned position = pattern coordinates, moves = lattice
+    vectors and the print's grain-keeping operations) get the same time, in one process.
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
-    from solver.nest import NestProblem
+    from solver.nest import NestProblem, verify_layout
+    from solver.nest.lattice import nest_lattice
     from solver.nest.sources import garment_pieces
     from solver.wallpaper import Wallpaper
 
     print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
-          f"square prints, {t:g} s each, method {method}\n")
-    heads = " | ".join(f"{g} {a:g} mm" for g, a in DENSITY_PRINTS)
+          f"square prints, {t:g} s each\n")
+    print("Cells: density (printed / plain, wall s). before = strategies "
+          f"{'+'.join(BEFORE)}; now = method {method}.\n")
+    heads = " | ".join(f"{g} {a:g} mm {when}" for g, a in DENSITY_PRINTS
+                       for when in ("before", "now"))
     print(f"| garment | pieces | plain | {heads} |")
-    print("|---|---|---|" + "---|" * len(DENSITY_PRINTS))
+    print("|---|---|---|" + "---|" * 2 * len(DENSITY_PRINTS))
     if not LIBRARY.is_dir():
         print(f"(skipped: {LIBRARY} absent)")
         return
     cases, _ = berkeley_garments()
-    ratios = []
+    ratios: dict[str, list[float]] = {"before": [], "now": []}
     for name, g in cases:
         if wanted and not any(w in name for w in wanted):
             continue
@@ -202,15 +209,23 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
         plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
         cells = [f"{plain.density:.1%}"]
         for group, a in DENSITY_PRINTS:
-            problem = NestProblem(pieces, 1500.0, gap=2.0, fabric=Wallpaper(group, (a, 0.0),
-                                                                           (0.0, a)))
-            layout, sec = _run(problem, method, t, seed)
-            ratios.append(layout.density / plain.density)
-            cells.append(f"{layout.density:.1%} ({ratios[-1]:.3f}, {sec:.1f} s)")
+            problem = NestProblem(pieces, 1500.0, gap=2.0,
+                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+            t0 = time.monotonic()
+            old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
+            sec = time.monotonic() - t0
+            if verify_layout(old, problem):
+                raise RuntimeError(f"invalid layout (before): {verify_layout(old, problem)[0]}")
+            for when, (layout, s) in (("before", (old, sec)),
+                                      ("now", _run(problem, method, t, seed))):
+                ratios[when].append(layout.density / plain.density)
+                cells.append(f"{layout.density:.1%} ({ratios[when][-1]:.3f}, {s:.1f} s)")
         print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
-    if ratios:
-        print(f"\nprinted/plain: median {np.median(ratios):.3f}, min {min(ratios):.3f}, "
-              f"{sum(r >= 0.95 for r in ratios)} of {len(ratios)} at least 0.95")
+    for when, r in ratios.items():
+        if r:
+            print(f"\nprinted/plain {when}: median {np.median(r):.3f}, min {min(r):.3f}, "
+                  f"{sum(x >= 0.95 for x in r)} of {len(r)} at least 0.95")
+    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
 
 
 def main(argv: list[str] | None = None) -> None:
