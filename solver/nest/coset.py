@@ -114,12 +114,11 @@ class CosetSearch:
             return i, j, np.zeros(0)
         half = shapely.buffer(polys, g / 2, quad_segs=4) if g > 0 else polys
         depth = shapely.area(shapely.intersection(half[i], half[j]))
-        areas = shapely.area(polys)
-        floor = AREA_TOL * np.minimum(areas[i], areas[j])
-        if g <= 0:
-            real = depth > floor
-            i, j, depth = i[real], j[real], depth[real]
-        return i, j, depth + 1e-3 * np.minimum(areas[i], areas[j]) + floor
+        smaller = np.minimum(shapely.area(polys[i]), shapely.area(polys[j]))
+        if g <= 0:  # at gap 0 touching is fine: only a real overlap collides
+            real = depth > AREA_TOL * smaller
+            i, j, depth, smaller = i[real], j[real], depth[real], smaller[real]
+        return i, j, depth + (1e-3 + AREA_TOL) * smaller
 
     def move(self, k: int, sol: list, polys: np.ndarray, length: float,
              free_only: bool = False) -> bool:

@@ -49,16 +49,17 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: resnap for many pieces (from ``MANY``) or resnap-margin for few (a
-    collision after snapping costs a whole large piece's move; many small pieces lose
-    more to the margin than to collisions), joint, fill, then coset on the best of them.
+    By default: for few pieces resnap-margin (a collision after snapping costs a whole
+    large piece's move), joint, fill; for many (from ``MANY``) resnap (many small pieces
+    lose more to the margin than to collisions) and fill; then coset on the best of them.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     if strategies is None:
-        strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "joint", "fill",
-                      "coset")
+        # many pieces: the joint snap's collision table and search outgrow the budget
+        strategies = (("resnap", "fill", "coset") if len(items) >= MANY
+                      else ("resnap-margin", "joint", "fill", "coset"))
     deadline = deadline_of(time_limit)
     results = []
     for i, strategy in enumerate(strategies):

@@ -129,10 +129,11 @@ def test_coset_shrink_shortens_a_loose_marker_on_the_print(printed):
     assert layout.length < 0.7 * loose.length
 
 
-def test_separation_resolves_collisions_on_the_cosets(printed):
+@pytest.mark.parametrize("gap", [0.0, 2.0])
+def test_separation_resolves_collisions_on_the_cosets(printed, gap):
     """Two pieces put on the same spot are separated by allowed moves only."""
-    items = printed.items()[:2]
-    problem = NestProblem(printed.pieces[:2], 1500.0, gap=2.0, fabric=printed.fabric)
+    problem = NestProblem(printed.pieces[:2], 1500.0, gap=gap, fabric=printed.fabric)
+    items = problem.items()
     search = CosetSearch(problem, items, 1500.0, 6.0, np.random.default_rng(0))
     sol = [(0, np.zeros(2)), (0, np.zeros(2))]
     for k, it in enumerate(items):  # both pieces' lower left corners near (100, 100)
