@@ -98,6 +98,8 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
     g = problem.gap
     clash: dict[tuple[int, int], np.ndarray] = {}  # (i, j) -> (m_i, m_j) bool
     for i in range(n):
+        if time.monotonic() > deadline:
+            return None  # the table alone outgrew the budget
         near = np.flatnonzero((box[:, 0] <= box[i, 2] + g) & (box[:, 2] >= box[i, 0] - g)
                               & (box[:, 1] <= box[i, 3] + g) & (box[:, 3] >= box[i, 1] - g))
         for j in near[near > i]:
