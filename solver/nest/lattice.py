@@ -26,7 +26,7 @@ from solver.nest.regions import repair_snapped
 from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
-SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.6,
+SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.3,
           "joint": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
@@ -44,22 +44,20 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``repair``: the same, but only the pieces in conflict after snapping move.
     - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
       coarse lattices relative to the pieces.
-    - ``joint``: free nests snapped jointly, each piece to one of the allowed positions
-      around its free one, none colliding, shortest (:mod:`solver.nest.snapjoint`).
+    - ``joint``: the free nest of resnap-margin (resnap from ``MANY`` pieces: many small
+      pieces lose more to the margin than to collisions) snapped both by the sweep and
+      jointly, each piece to one of the allowed positions around its free one, none
+      colliding, the shortest such choice (:mod:`solver.nest.snapjoint`).
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: for few pieces resnap-margin (a collision after snapping costs a whole
-    large piece's move), joint, fill; for many (from ``MANY``) resnap (many small pieces
-    lose more to the margin than to collisions) and fill; then coset on the best of them.
+    By default: joint, fill, then coset on the better of them.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     if strategies is None:
-        # many pieces: the joint snap's collision table and search outgrow the budget
-        strategies = (("resnap", "fill", "coset") if len(items) >= MANY
-                      else ("resnap-margin", "joint", "fill", "coset"))
+        strategies = ("joint", "fill", "coset")
     deadline = deadline_of(time_limit)
     results = []
     for i, strategy in enumerate(strategies):
@@ -82,7 +80,10 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
                     progress(f"{strategy}: {exc}")
                 r = None
         elif strategy == "joint":
-            r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress)
+            # many small pieces lose more to a margin than to collisions after snapping
+            extra = 0.0 if len(items) >= MANY else 0.5 * covering_radius(problem.lattice)
+            r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                             extra=extra, interruptible=late)
         elif strategy == "coset":
             start = min(results, key=lambda r: r[1])[0] if results else None
             r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,

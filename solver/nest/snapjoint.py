@@ -12,7 +12,6 @@ collision-free combination, or proves there is none within reach.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
@@ -20,8 +19,10 @@ import numpy as np
 import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.engine import first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
+from solver.nest.regions import repair, snap_to_lattice
 
 AREA_TOL = 1e-7  # overlap accepted at gap 0, fraction of the smaller area (verify: 1e-6)
 
@@ -152,41 +153,49 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
     return out, best["len"] + problem.gap
 
 
-# (reach, push) in lattice steps, tried in turn on each free nest: no one setting wins
-# everywhere (a wider reach finds more combinations, and takes longer to exhaust)
+# (reach, push) in lattice steps, tried in turn: no one setting wins everywhere (a wider
+# reach finds more combinations, and takes longer to exhaust)
 REACHES = ((1.5, 4.0), (2.0, 6.0), (1.0, 2.0))
-FREE_SHARE = 0.4  # of the time, for each free nest (the snaps take less than a second)
+FREE_SHARE = 0.7  # of the time, for sparrow's free nest
+SNAP_SHARE = 0.5  # of the time after it, for the joint snaps; the sweep has the rest
 
 
 def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
-                 seed: int | None, progress: Progress | None = None,
-                 ) -> tuple[list[np.ndarray], float] | None:
-    """Free nests on the full width and one lattice step narrower (room to snap across
-    the roll), each snapped jointly with the settings of ``REACHES``; the shortest wins."""
+                 seed: int | None, progress: Progress | None = None, extra: float = 0.0,
+                 interruptible: bool = False) -> tuple[list[np.ndarray], float] | None:
+    """One free nest (``extra`` mm of margin around every piece), snapped two ways: jointly
+    with each setting of ``REACHES``, and by the nearest-first sweep of
+    :func:`solver.nest.regions.repair` (what ``resnap`` does); the shortest wins.
+
+    Unless ``interruptible``, the sweep must finish: sparrow stops early enough to leave
+    it its estimated time.
+    """
     budget = deadline_of(time_limit)
     t0 = time.monotonic()
-    deadline = t0 + budget.left()
+    sweep = 0.0 if interruptible else first_fill_estimate(items)
+    try:
+        free, _ = plain_moves(problem, items, extra=extra, seed=seed,
+                              time_limit=budget.before(sweep).share(FREE_SHARE))
+    except ValueError as exc:  # sparrow gave up; the other strategies may not
+        if progress:
+            progress(f"joint snap: {exc}")
+        return None
     step = float(np.abs(problem.lattice).max())
+    snaps = budget.before(sweep).share(SNAP_SHARE)
+    deadline = time.monotonic() + snaps.left()
     best = None
-    for k, narrow in enumerate((0.0, step)):
-        room = problem.width - narrow
-        if room <= 2 * problem.gap or budget.expired():
+    for reach, push in REACHES:
+        if time.monotonic() > deadline:
             break
-        try:  # the first free nest takes a share, the second what the snaps left
-            free, _ = plain_moves(dataclasses.replace(problem, width=room), items,
-                                  time_limit=budget.share(FREE_SHARE / (1 - k * FREE_SHARE)),
-                                  seed=seed)
-        except ValueError as exc:  # sparrow gave up (a piece too wide for the narrower roll)
+        r = joint_snap(problem, items, free, reach=reach * step, push=push * step,
+                       deadline=deadline)
+        if r is not None and (best is None or r[1] < best[1]):
+            best = r
             if progress:
-                progress(f"joint snap: {exc}")
-            continue
-        for reach, push in REACHES:
-            if time.monotonic() > deadline:
-                break
-            r = joint_snap(problem, items, free, reach=reach * step, push=push * step,
-                           deadline=deadline)
-            if r is not None and (best is None or r[1] < best[1]):
-                best = r
-                if progress:
-                    progress(f"joint snap: {time.monotonic() - t0:5.1f} s  length {r[1]:.4g}")
+                progress(f"joint snap: {time.monotonic() - t0:5.1f} s  length {r[1]:.4g}")
+    r = repair(problem, items, snap_to_lattice(problem, items, free), time_limit=budget,
+               seed=seed, progress=progress, everything=True,
+               interruptible=interruptible or best is not None)
+    if r is not None and (best is None or r[1] < best[1]):
+        best = r
     return best
