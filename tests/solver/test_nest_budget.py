@@ -79,9 +79,9 @@ def test_the_first_fill_finishes_past_the_deadline_and_no_other_starts(printed_t
 
 
 def test_an_expired_budget_still_gives_a_verified_printed_marker(printed_tshirt):
-    """Every stage reads the one deadline: sparrow stops at its first feasible marker,
-    the snapped re-insertion finishes (it is the only marker), the fill strategy is
-    skipped."""
+    """Every stage reads the one deadline: no time for a fill that must finish, so the
+    naive marker (sparrow's first feasible one, snapped) comes first; the searches that
+    would improve on it are cut at the deadline, and what is left is verified."""
     said: list[str] = []
     layout = nest(printed_tshirt, time_limit=Deadline(0.0, clock=ExpiresAfter(0)), seed=0,
                   progress=said.append)
@@ -89,7 +89,16 @@ def test_an_expired_budget_still_gives_a_verified_printed_marker(printed_tshirt)
     assert len(layout.pieces) == len(printed_tshirt.items())
     strategies = [m.split(":")[0] for m in said if "density" in m and "run" not in m
                   and not m.startswith("spyrrow")]
-    assert strategies == ["resnap-margin"]
+    assert strategies == ["naive"]
+
+
+def test_with_time_for_a_fill_the_searches_give_the_marker(printed_tshirt):
+    said: list[str] = []
+    layout = nest(printed_tshirt, time_limit=2.0, seed=0, progress=said.append)
+    assert verify_layout(layout, printed_tshirt) == []
+    strategies = [m.split(":")[0] for m in said if "density" in m and "run" not in m
+                  and not m.startswith("spyrrow")]
+    assert strategies == ["resnap-margin", "fill"]
 
 
 def test_sparrow_is_cut_at_the_deadline_with_its_best_feasible_marker():
