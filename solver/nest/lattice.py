@@ -52,7 +52,7 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     if strategies is None:
         strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "fill")
         first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
-        if first_fill_estimate(items) > first:
+        if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
             # too short for a fill that must finish: the naive marker is certain and
             # quick; the searches then improve on it while time remains
             strategies = ("naive", *strategies)
