@@ -19,15 +19,16 @@ from __future__ import annotations
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
-from solver.nest.engine import fill_search, problem_density
+from solver.nest.engine import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
+from solver.nest.naive import naive_moves
 from solver.nest.regions import repair_snapped
 from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
-SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4, "coset": 0.3,
-          "joint": 0.6}
+SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
+          "coset": 0.3, "joint": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -51,14 +52,22 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: joint, fill, then coset on the better of them.
+    By default: joint, fill, then coset on the better of them. When the time left is
+    shorter than a fill that must finish would take, the naive baseline
+    (:mod:`solver.nest.naive`) gives the first marker, and the searches improve on it
+    until the deadline.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
+    deadline = deadline_of(time_limit)
     if strategies is None:
         strategies = ("joint", "fill", "coset")
-    deadline = deadline_of(time_limit)
+        first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
+        if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
+            # too short for a fill that must finish: the naive marker is certain and
+            # quick; the searches then improve on it while time remains
+            strategies = ("naive", *strategies)
     results = []
     for i, strategy in enumerate(strategies):
         # a share of what is left, so an overrun shrinks the later strategies; once one
@@ -66,7 +75,15 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
         rest = sum(SHARES.get(s, 0.0) for s in strategies[i:]) or 1.0
         share = deadline.share(SHARES.get(strategy, 0.0) / rest)
         late = bool(results)
-        if strategy == "fill":
+        if strategy == "naive":
+            try:
+                r = naive_moves(problem, items, time_limit=share, seed=seed,
+                                progress=progress)
+            except ValueError as exc:  # a piece too wide with the margin: the others may do
+                if progress:
+                    progress(f"naive: {exc}")
+                r = None
+        elif strategy == "fill":
             r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress,
                             interruptible=late)
         elif strategy in ("resnap", "resnap-margin", "repair"):

@@ -41,6 +41,10 @@ def _join_sparrow() -> None:
         thread.join()
 
 
+class Late(ValueError):
+    """A search that may be cut short found nothing before its deadline."""
+
+
 def stderr_progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -70,7 +74,7 @@ def narrowest(ring: np.ndarray, orientations) -> float:
 
 def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
                  seed: int | None, workers: int = 1, progress: Progress | None = None,
-                 label: str = "spyrrow") -> tuple[dict, float]:
+                 label: str = "spyrrow", interruptible: bool = False) -> tuple[dict, float]:
     """Run sparrow on ``{key: (ring, demand, orientations|None)}`` until the deadline.
 
     Returns ``{key: [(angle_deg, (tx, ty)), ...]}`` (one entry per copy) and the strip
@@ -78,6 +82,8 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
     sparrow's clock is not ours (it overruns by up to a second on hard instances), so its
     progress reports are watched and, at the deadline, the best feasible one is the
     answer; sparrow then ends on its own in the background, shortly after.
+    Without a feasible one by then it is waited for, unless ``interruptible`` (the caller
+    has another marker): then :class:`Late` is raised.
     """
     deadline = deadline_of(time_limit)
     items = [spyrrow.Item(str(k), [tuple(map(float, p)) for p in ring], int(n),
@@ -116,6 +122,9 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
             progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
                      f"density {sol.density:.1%}")
             last = time.monotonic()
+        if interruptible and best is None and deadline.expired() and thread.is_alive():
+            _RUNNING.add(thread)
+            raise Late(f"{label}: no marker before the deadline")
         if best is not None and deadline.expired() and thread.is_alive():
             if progress:
                 progress(f"{label}: deadline; sparrow's best feasible marker is the answer")
@@ -135,7 +144,8 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
 
 def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
                 time_limit: float | Deadline = 30.0, seed: int | None = 0,
-                progress: Progress | None = None) -> tuple[list[np.ndarray], float]:
+                progress: Progress | None = None, interruptible: bool = False,
+                ) -> tuple[list[np.ndarray], float]:
     """Per item the map ``G`` (reference frame -> fabric) of a free nest by sparrow.
 
     ``extra`` is added to every side of every shape (the naive print baseline uses it).
@@ -161,7 +171,7 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
     # buffered shapes lie in [0, L] x [0, W - g]; true outlines keep ``grow`` inside that,
     # so shifting by g/2 leaves g + extra to every fabric edge and g + 2 extra between pieces
     placed, length = spyrrow_pack(shapes, problem.width - g, time_limit=time_limit, seed=seed,
-                                  progress=progress)
+                                  progress=progress, interruptible=interruptible)
     shift = np.array([g / 2, g / 2])
     moves = []
     used: dict = {k: 0 for k in placed}

