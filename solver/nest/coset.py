@@ -17,6 +17,10 @@ grain-keeping operations, :func:`solver.nest.instance.candidate_maps`):
   marker is valid, never only nearly so;
 - after each success the strip is shortened again; after a failure the last valid
   marker is restored and a smaller step tried.
+
+Measured (BENCHMARKS.md): it shortens markers of many small pieces and some of few; on a
+lattice coarse against the pieces a move is a whole step, so a small overlap is rarely
+resolved by one move and the separation of a much shorter strip mostly stalls.
 """
 
 from __future__ import annotations
@@ -41,6 +45,12 @@ STALL = 10  # rounds without less overlap make a strike (back to the best state)
 STRIKES = 3  # strikes before a separation gives up
 CONTACT = 8.0  # raster overlap (weighted pixels) told apart when ordering candidates
 EXACT_CHECKS = 256  # raster-free candidates checked exactly before taking an overlapping one
+# alone (no marker given): strips tried for the snapped free nest, times the free length
+GROW_TARGET = (1.04, 1.07, 1.1, 1.15, 1.2, 1.3)
+TRIES = 3  # separations tried per strip: one either succeeds fast or stalls
+ATTEMPT = 0.15  # of the time left, for one separation
+ATTEMPT_MIN = 0.4  # s, at least (a success takes about 0.1 s)
+FREE_SHARE = 0.45  # of the time, for sparrow's free nest
 
 
 class CosetSearch:
@@ -262,13 +272,6 @@ class CosetSearch:
         return best
 
 
-GROW_TARGET = (1.04, 1.07, 1.1, 1.15, 1.2, 1.3)
-TRIES = 3  # separations tried per strip  # first strips tried for a snapped free nest
-ATTEMPT = 0.15  # of the time left, for separating the snapped nest on one strip
-ATTEMPT_MIN = 0.4  # s, at least (a success takes about 0.1 s)
-FREE_SHARE = 0.45  # of the time, for sparrow's free nest
-
-
 def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                  seed: int | None, progress: Progress | None = None,
                  start: list[np.ndarray] | None = None, res: float | None = None,
@@ -305,7 +308,6 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     if free is not None:
         snapped = [search.filler.pose(k, m)
                    for k, m in enumerate(snap_to_lattice(problem, items, free))]
-        # a separation either succeeds fast or stalls: short tries, several per strip
         tries = [grow for grow in GROW_TARGET for _ in range(TRIES)]
         for grow in tries:
             target = min(free_len * grow, problem.length or math.inf)
