@@ -10,9 +10,11 @@ sent proves nothing, so every status report is held against the program:
 * the head is followed along the path in program order: in the middle of a move that
   cuts, the beam is on; in the middle of a travel move, it is off;
 * while the beam is on, the reported feed reaches the programmed cutting feed within the
-  time the profile's acceleration ($120/$121) needs (unless the planner runs dry: then the
-  machine slows with M4 power following the speed; a corrupted ``F1`` keeps it full), and
-  never exceeds it.
+  time the profile's acceleration ($120/$121) needs, and never exceeds it. A machine the
+  line cannot keep fed is slower, exactly as far as its look-ahead demands: GRBL plans
+  every block so that the last one queued can stop, so with ``n`` blocks queued (``Bf:``)
+  the head can go no faster than ``sqrt(2 a d)`` over the distance ``d`` those blocks
+  cover; the feed is held to that (a corrupted ``F1`` fills the planner, and is caught).
 
 Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest programmed
 cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
@@ -104,6 +106,7 @@ class Watchdog:
         self.deviation = float(deviation_mm)
         self.step = float(step)
         self.fastest = float(fastest) / 60.0  # mm/s, the bound on how far the head can go
+        self.acceleration = float(acceleration)
         self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
                                       watch_mm=watch_mm)
         slow = min(self.feeds, default=0.0) / 60.0
@@ -140,6 +143,7 @@ class Watchdog:
         ok = self.path_line >= 0
         np.minimum.at(self._line_from, self.path_line[ok], self._along[ok])
         np.maximum.at(self._line_to, self.path_line[ok], self._along[ok])
+        self._motion_lines = np.flatnonzero(np.isfinite(self._line_to))
 
     def start_from(self, here: np.ndarray | None) -> None:
         """The first rapid starts wherever the head is: add that leg to the path."""
@@ -240,15 +244,17 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
                           f"{allowed} (corrupted S word?)", self.last_line)
         feed = float(st.feed or 0.0)
+        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
+        expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)
             starved = st.planner_free >= PLANNER_BLOCKS - 2
+            expected = min(low, self.lookahead_feed(PLANNER_BLOCKS - st.planner_free))
         if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
             self._slow_since = None
-        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
         if feed > high * 1.02 + 1.0:
             return Breach(StopReason.FEED, f"beam on at F{feed:g}, above the program's "
                           f"cutting feed F{high:g} (corrupted line?)", self.last_line)
-        if feed >= 0.9 * low or starved:
+        if feed >= 0.9 * expected or starved:
             self._slow_since = None
         elif self._slow_since is None:
             self._slow_since = now
@@ -258,6 +264,22 @@ class Watchdog:
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
         return None
+
+    def lookahead_feed(self, blocks: int) -> float:
+        """The fastest feed (mm/min) GRBL may plan with ``blocks`` queued from the head's
+        position: the last of them must be able to stop, so ``sqrt(2 a d)`` over the
+        distance ``d`` they cover. Each queued block is taken as one program line, and no
+        longer than the path's samples (an arc is many blocks): ``d`` errs short, the bound
+        low, so a slow line never passes for a corrupted feed."""
+        if self.last_line is None or blocks <= 0 or not len(self._motion_lines):
+            return math.inf if blocks > 0 else 0.0
+        k = int(np.searchsorted(self._motion_lines, self.last_line))
+        last = self._motion_lines[min(k + blocks - 1, len(self._motion_lines) - 1)]
+        by_lines = self._line_to[last] - self._at
+        j = int(np.searchsorted(self._along, self._at, "right"))
+        by_samples = self._along[min(j + blocks - 1, len(self._along) - 1)] - self._at
+        d = max(min(by_lines, by_samples), 0.0)
+        return math.sqrt(2.0 * self.acceleration * d) * 60.0
 
     def _reached(self, k: int, t: float) -> int | None:
         """The head is at ``t`` along segment ``k``: move it there; the line whose interior
