@@ -94,6 +94,17 @@ def stroke_starts(program: Program, lines: list[int]) -> dict[int, np.ndarray]:
     return out
 
 
+def line_baud(port) -> float | None:
+    """The baud rate of the wire behind ``port``, if it is a real one: a serial device's
+    ``baudrate``, or the emulator's modelled line (``grblsim://?baud=``); None for the
+    emulator's instant link, whose time is not the wire's."""
+    if getattr(port, "emulator", None) is not None:
+        byte_time = getattr(getattr(port, "wire", None), "byte_time", None)
+        return 10.0 / byte_time if byte_time else None
+    baud = getattr(port, "baudrate", None)
+    return float(baud) if isinstance(baud, (int, float)) and baud > 0 else None
+
+
 def is_sync_command(code: str) -> bool:
     """True for ``$`` system commands and EEPROM-writing G-codes (sent one at a time)."""
     return bool(_SYNC_CMD.match(code.replace(" ", "")))
@@ -324,6 +335,7 @@ class Streamer:
         self.time_scale = float(time_scale if time_scale is not None else getattr(
             getattr(port, "emulator", None), "speed", 1.0))
         self.watchdog: Watchdog | None = None
+        self.line_baud = line_baud(port)
         # machine seconds: the emulator's simulated clock, else the wall clock
         emulator = getattr(port, "emulator", None)
         self._clock: Callable[[], float] = (
@@ -685,7 +697,7 @@ class Streamer:
             return None
         wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
                                   time_scale=self.time_scale, deviation_mm=self.deviation_limit,
-                                  watch_mm=self.watch_mm)
+                                  watch_mm=self.watch_mm, baud=self.line_baud)
         wd.start_from(self._work_xy() if self.status is not None else None)
         try:  # never sleep in a read longer than the next poll is due
             self.port.timeout = min(0.02, wd.interval)

@@ -20,7 +20,10 @@ Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest progr
 cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
 GRBL, the emulator's ``speed`` on ``grblsim://``). A deviation is therefore seen within
 ``deviation_mm + watch_mm`` of travel at any emulator speed, as long as the host keeps up
-with its own schedule.
+with its own schedule, plus what the serial line adds (the ``?`` queued behind the bytes
+already written, the report's own transmission). On a line of known baud rate the polls
+are also spaced so that the reports take at most half of what the controller can send:
+the ``ok``s share that line, and a sender that reads them late leaves the line idle.
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ import numpy as np
 
 from gcode.grbl import Status
 
-__all__ = ["Breach", "StopReason", "Watchdog", "poll_interval"]
+__all__ = ["REPORT_BYTES", "Breach", "StopReason", "Watchdog", "poll_interval",
+           "report_spacing"]
 
 PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
 _LEG = -2  # path_line of the leg from where the head stood to the program's first move
@@ -71,15 +75,32 @@ class Breach:
     line: int | None
 
 
+#: Bytes of a status report with MPos, Bf and FS at full width (WCO and Ov come now and
+#: then on top): what one poll costs the controller's transmit line.
+REPORT_BYTES = 60
+#: The share of the controller's transmit line the reports may take.
+REPORT_SHARE = 0.5
+
+
+def report_spacing(baud: float | None) -> float:
+    """Wall seconds between reports so that they fill at most REPORT_SHARE of a ``baud``
+    8N1 line (10 bits per byte); 0 when the line is not a real one (no baud)."""
+    if not baud or not math.isfinite(baud) or baud <= 0:
+        return 0.0
+    return REPORT_BYTES / (REPORT_SHARE * baud / 10.0)
+
+
 def poll_interval(fastest_feed: float, time_scale: float, *, watch_mm: float = 0.5,
-                  shortest: float = 2e-4, longest: float = 0.2) -> float:
+                  shortest: float = 2e-4, longest: float = 0.2,
+                  baud: float | None = None) -> float:
     """Wall seconds between status polls so that the head moves at most ``watch_mm``
     between two reports at ``fastest_feed`` (mm/min), on a machine whose time runs
-    ``time_scale`` times the wall clock."""
+    ``time_scale`` times the wall clock, and never closer than the line carries
+    (:func:`report_spacing`)."""
     if fastest_feed <= 0 or not math.isfinite(fastest_feed):
         return longest
     wall = watch_mm / (fastest_feed / 60.0 * max(time_scale, 1e-9))
-    return float(min(max(wall, shortest), longest))
+    return float(min(max(wall, shortest, report_spacing(baud)), longest))
 
 
 class Watchdog:
@@ -96,7 +117,7 @@ class Watchdog:
     def __init__(self, path: np.ndarray, path_line: np.ndarray, line_power: np.ndarray,
                  feeds: tuple[float, ...], powers: tuple[float, ...], acceleration: float,
                  fastest: float, *, time_scale: float = 1.0, deviation_mm: float = 0.3,
-                 watch_mm: float = 0.5, step: float = 1.0):
+                 watch_mm: float = 0.5, step: float = 1.0, baud: float | None = None):
         self.path = np.asarray(path, float).reshape(-1, 2)
         self.path_line = np.asarray(path_line, int)
         self.line_power = np.asarray(line_power, float)
@@ -108,7 +129,7 @@ class Watchdog:
         self.fastest = float(fastest) / 60.0  # mm/s, the bound on how far the head can go
         self.acceleration = float(acceleration)
         self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
-                                      watch_mm=watch_mm)
+                                      watch_mm=watch_mm, baud=baud)
         slow = min(self.feeds, default=0.0) / 60.0
         latency = 2.0 * self.interval * self.time_scale  # two polls, in machine time
         # a corner's braking and re-acceleration plus the polls' latency, in machine time
@@ -144,6 +165,7 @@ class Watchdog:
         np.minimum.at(self._line_from, self.path_line[ok], self._along[ok])
         np.maximum.at(self._line_to, self.path_line[ok], self._along[ok])
         self._motion_lines = np.flatnonzero(np.isfinite(self._line_to))
+        self._knots = np.unique(self._along)  # the samples' distances, repeats dropped
 
     def start_from(self, here: np.ndarray | None) -> None:
         """The first rapid starts wherever the head is: add that leg to the path."""
@@ -276,8 +298,8 @@ class Watchdog:
         k = int(np.searchsorted(self._motion_lines, self.last_line))
         last = self._motion_lines[min(k + blocks - 1, len(self._motion_lines) - 1)]
         by_lines = self._line_to[last] - self._at
-        j = int(np.searchsorted(self._along, self._at, "right"))
-        by_samples = self._along[min(j + blocks - 1, len(self._along) - 1)] - self._at
+        j = int(np.searchsorted(self._knots, self._at, "right"))
+        by_samples = self._knots[min(j + blocks - 1, len(self._knots) - 1)] - self._at
         d = max(min(by_lines, by_samples), 0.0)
         return math.sqrt(2.0 * self.acceleration * d) * 60.0
 
