@@ -271,20 +271,21 @@ def bench_line() -> None:
     fast = ",120:10000,121:10000"
     print(f"\n### Serial line use while cutting (real time, speed 1, {BAUD}-baud line model)")
     print(f"Capacity: {BAUD} baud, 8N1 = 10 bits per byte = {cap:.0f} B/s in each direction. "
-          "One circle of radius 30 mm in 0.25 mm segments (no arcs) on a table with "
+          "One circle of radius 30 mm in short segments (no arcs: 0.1 mm at 6000 mm/min, "
+          "0.25 mm at 12000, 1000 and 800 lines/s asked) on a table with "
           "$120/$121 = 10000 mm/s^2, so that GRBL's look-ahead (15 blocks) lets the machine "
           "take more lines than the line carries: the line is the limit. 'contour' = from "
           "the first G1 line to the last through the wire, where nothing in the protocol "
           "holds a line back (no sync, no beam switching); the whole run adds the travel "
-          "moves, the beam-on gate and the final wait for Idle. Best of 2.")
+          "moves, the beam-on gate and the final wait for Idle. Best of 3, same run.")
     print("| feed mm/min | mode | contour G-code B/s | of capacity | `?` B/s | "
           "whole run lines/s | reports/s | controller->host B/s | of capacity | "
           "`?` waits behind the queue ms (median / max) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for feed in (6000.0, 12000.0):
-        prog = _short_segment_job(0.25, feed, n_rings=1)
+    for feed, seg in ((6000.0, 0.1), (12000.0, 0.25)):  # 1000 and 800 lines/s asked
+        prog = _short_segment_job(seg, feed, n_rings=1)
         for mode in ("check", "off", "on"):
-            u = max((_line_use(prog, 1.0, mode, fast) for _ in range(2)),
+            u = max((_line_use(prog, 1.0, mode, fast) for _ in range(3)),
                     key=lambda r: r.contour_gcode)
             print(f"| {feed:.0f} | {mode} | {u.contour_gcode:.0f} | "
                   f"{u.contour_gcode / cap:.1%} | {u.contour_polls:.0f} | "
@@ -296,28 +297,34 @@ def bench_detection() -> None:
     """How far the head travels before the host holds a report that shows a deviation,
     at every cutting feed up to the profile's max_feed; braking apart."""
     from gcode.machine import default_machine
-    from gcode.watchdog import poll_interval
+    from gcode.watchdog import REPORT_BYTES, catch_travel_mm, poll_interval
 
     m = default_machine()
     byte_time = 10.0 / BAUD
-    report = len("<Run|MPos:1234.567,1234.567,0.000|Bf:15,128|FS:12000,1000>\r\n")
-    print(f"\n### Deviation caught within how much travel ({BAUD} baud, a {report}-byte "
-          f"report, watch_mm = 1, deviation limit 0.3 mm, a = {m.acceleration:g} mm/s^2)")
-    print("Latency = poll interval + the `?`'s wait behind bytes already on the wire "
-          "(at most one 127-byte buffer) + the report's own transmission; travel = feed x "
-          "latency, after the head has left the path by the 0.3 mm limit.")
-    print("| feed mm/min | polls/s | reports of the receive line | poll interval ms | "
-          "`?` wait ms (max) | report ms | travel mm | braking to rest mm |")
-    print("|---|---|---|---|---|---|---|---|")
-    feeds = [f for f in (1500.0, 3000.0, 6000.0, 9000.0, 12000.0) if f <= m.max_feed]
-    for feed in feeds:
+    wait = 127 * byte_time  # a `?` behind a full receive buffer's worth of lines
+    report = REPORT_BYTES * byte_time
+    print(f"\n### Deviation caught within how much travel, on a real GRBL ({BAUD} baud, "
+          f"watch_mm = 1, deviation limit 0.3 mm, a = {m.acceleration:g} mm/s^2)")
+    print("Worst case after the head has crossed the 0.3 mm limit: the poll interval "
+          f"(watch_mm at the feed, never closer than {REPORT_BYTES}-byte reports filling half "
+          f"the receive line) + the `?` waiting behind 127 bytes of lines on the wire "
+          f"({wait * 1e3:.1f} ms) + the report's own transmission ({report * 1e3:.1f} ms), "
+          "times the feed. Braking (feed hold to rest, v^2 / 2a) comes after detection.")
+    print("| feed mm/min | polls/s | reports of the receive line | latency ms | "
+          "travel mm | + 0.3 mm limit | within 2 mm | travel, wire idle (machine the limit) | "
+          "braking to rest mm |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for feed in [f for f in (1500.0, 3000.0, 4500.0, 6000.0, 9000.0, 12000.0)
+                 if f <= m.max_feed]:
         v = feed / 60.0
-        interval = poll_interval(feed, 1.0, watch_mm=1.0)
-        wait = 127 * byte_time
-        latency = interval + wait + report * byte_time
-        print(f"| {feed:.0f} | {1 / interval:.0f} | {report / interval / (BAUD / 10):.0%} | "
-              f"{interval * 1e3:.1f} | {wait * 1e3:.1f} | {report * byte_time * 1e3:.1f} | "
-              f"{v * latency:.2f} | {v * v / (2 * m.acceleration):.1f} |")
+        interval = poll_interval(feed, 1.0, watch_mm=1.0, baud=BAUD)
+        latency = interval + wait + report
+        travel = catch_travel_mm(feed, interval, BAUD)
+        idle = catch_travel_mm(feed, interval, BAUD, queued_bytes=0)
+        print(f"| {feed:.0f} | {1 / interval:.0f} | "
+              f"{REPORT_BYTES / interval / (BAUD / 10):.0%} | {latency * 1e3:.1f} | "
+              f"{travel:.2f} | {travel + 0.3:.2f} | {'yes' if travel <= 2.0 else 'no'} | "
+              f"{idle:.2f} | {v * v / (2 * m.acceleration):.1f} |")
 
 
 def main() -> None:

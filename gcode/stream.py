@@ -30,7 +30,7 @@ import numpy as np
 from gcode.grbl import Response, Status, error_message, parse_settings
 from gcode.program import Program, strip_comment
 from gcode.session import PortLost, ResponseReader
-from gcode.watchdog import StopReason, Watchdog
+from gcode.watchdog import CATCH_MM, StopReason, Watchdog
 
 __all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
            "StreamState", "Streamer", "is_sync_command", "turns_beam_on"]
@@ -519,6 +519,12 @@ class Streamer:
         wd = self._make_watchdog(program) if not check else None
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
+        if wd is not None and wd.catch_mm > CATCH_MM:
+            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm before "
+                    f"a report shows it ({CATCH_MM:g} mm asked): the line carries too few "
+                    "reports; cut slower or raise the baud rate")
+            log.warning("%s%s", self.prefix, note)
+            job.res.messages.append(note)
         try:
             try:
                 self._enter(StreamState.CHECKING if check else StreamState.STREAMING)

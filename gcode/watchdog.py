@@ -36,8 +36,8 @@ import numpy as np
 
 from gcode.grbl import Status
 
-__all__ = ["REPORT_BYTES", "Breach", "StopReason", "Watchdog", "poll_interval",
-           "report_spacing"]
+__all__ = ["CATCH_MM", "REPORT_BYTES", "Breach", "StopReason", "Watchdog", "catch_travel_mm",
+           "poll_interval", "report_spacing"]
 
 PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
 _LEG = -2  # path_line of the leg from where the head stood to the program's first move
@@ -90,6 +90,20 @@ def report_spacing(baud: float | None) -> float:
     return REPORT_BYTES / (REPORT_SHARE * baud / 10.0)
 
 
+#: The travel within which the issue asks a deviation to be caught (mm).
+CATCH_MM = 2.0
+
+
+def catch_travel_mm(feed: float, interval: float, baud: float | None, *,
+                    time_scale: float = 1.0, queued_bytes: int = 127) -> float:
+    """Worst-case travel (mm) at ``feed`` (mm/min) from the head crossing the deviation
+    limit to the host holding a report that shows it: the poll interval, then on a real
+    line the ``?`` waiting behind ``queued_bytes`` of lines and the report's own
+    transmission (10 bits per byte)."""
+    line = (queued_bytes + REPORT_BYTES) * 10.0 / baud if baud else 0.0
+    return feed / 60.0 * time_scale * (interval + line)
+
+
 def poll_interval(fastest_feed: float, time_scale: float, *, watch_mm: float = 0.5,
                   shortest: float = 2e-4, longest: float = 0.2,
                   baud: float | None = None) -> float:
@@ -130,6 +144,8 @@ class Watchdog:
         self.acceleration = float(acceleration)
         self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
                                       watch_mm=watch_mm, baud=baud)
+        self.catch_mm = catch_travel_mm(max(self.feeds, default=0.0), self.interval, baud,
+                                        time_scale=self.time_scale)
         slow = min(self.feeds, default=0.0) / 60.0
         latency = 2.0 * self.interval * self.time_scale  # two polls, in machine time
         # a corner's braking and re-acceleration plus the polls' latency, in machine time

@@ -216,7 +216,31 @@ def test_a_line_limited_job_cuts_through_a_real_time_115200_baud_line_with_the_w
         assert res.pieces_cut == 1
         assert st.watchdog.interval >= report_spacing(115200) > 0
         assert (port.wire.bytes_to_host - rx0) / res.seconds < 0.85 * 11520
+        # at 6000 mm/min the 115200-baud line cannot show a deviation within 2 mm: said
+        assert st.watchdog.catch_mm > 2.0
+        assert any("before a report shows it" in msg for msg in res.messages)
         burnt = [s for s in port.emulator.trace if s.power > 0]
         assert burnt and min(s.feed for s in burnt) == 6000.0
     finally:
         port.close()
+
+
+def test_the_travel_before_a_deviation_shows_counts_the_line():
+    """Polls every watch_mm of travel; on a real line the `?` may wait behind a buffer of
+    lines and the report takes its own time: at 115200 baud 3000 mm/min is caught within
+    2 mm, 6000 is not (the streamer says so). The emulator's instant link adds nothing, at
+    any speed."""
+    from gcode.watchdog import CATCH_MM, catch_travel_mm, poll_interval
+
+    lines = square_program()
+    check = validate(lines, MACHINE)
+    for feed, baud, within in ((3000.0, 115200, True), (6000.0, 115200, False),
+                               (6000.0, 250000, True)):
+        wd = Watchdog(check.path, check.path_line, check.line_power, (feed,),
+                      check.cut_powers, MACHINE.acceleration, 12000.0, watch_mm=1.0,
+                      baud=baud)
+        assert (wd.catch_mm <= CATCH_MM) == within, (feed, baud, wd.catch_mm)
+        assert wd.catch_mm > 1.0  # never less than the polls' own spacing
+    for speed in (1.0, 50.0):
+        interval = poll_interval(6000.0, speed, watch_mm=1.0)
+        assert abs(catch_travel_mm(6000.0, interval, None, time_scale=speed) - 1.0) < 1e-9
