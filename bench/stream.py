@@ -278,17 +278,20 @@ def bench_line() -> None:
           "the first G1 line to the last through the wire, where nothing in the protocol "
           "holds a line back (no sync, no beam switching); the whole run adds the travel "
           "moves, the beam-on gate and the final wait for Idle. Best of 3, same run.")
-    print("| feed mm/min | mode | contour G-code B/s | of capacity | `?` B/s | "
-          "whole run lines/s | reports/s | controller->host B/s | of capacity | "
+    print("| feed mm/min | mode | contour G-code B/s | of capacity | ratio to check | "
+          "`?` B/s | whole run lines/s | reports/s | controller->host B/s | of capacity | "
           "`?` waits behind the queue ms (median / max) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for feed, seg in ((6000.0, 0.1), (12000.0, 0.25)):  # 1000 and 800 lines/s asked
         prog = _short_segment_job(seg, feed, n_rings=1)
+        base = None
         for mode in ("check", "off", "on"):
             u = max((_line_use(prog, 1.0, mode, fast) for _ in range(3)),
                     key=lambda r: r.contour_gcode)
+            base = base or u.contour_gcode
             print(f"| {feed:.0f} | {mode} | {u.contour_gcode:.0f} | "
-                  f"{u.contour_gcode / cap:.1%} | {u.contour_polls:.0f} | "
+                  f"{u.contour_gcode / cap:.1%} | {u.contour_gcode / base:.2f} | "
+                  f"{u.contour_polls:.0f} | "
                   f"{u.lines_per_s:.0f} | {u.reports_per_s:.0f} | {u.to_host:.0f} | "
                   f"{u.to_host / cap:.0%} | {u.poll_wait_ms[0]:.1f} / {u.poll_wait_ms[1]:.1f} |")
 
