@@ -70,10 +70,9 @@ def test_without_a_baud_rate_the_link_is_instant():
     port = open_line(None)
     try:
         assert getattr(port, "wire", None) is None
-        t = time.monotonic()
         port.write(b"G21\n" * 10)
+        assert port.in_waiting == 40  # the ten `ok\r\n` are there as the write returns
         data, _ = read_until(port, b"ok\r\n", 10)
         assert data.count(b"ok\r\n") == 10
-        assert time.monotonic() - t < 40 * BYTE  # faster than 9600 baud could carry it
     finally:
         port.close()
