@@ -85,6 +85,11 @@ TEMPERATURE = 1.0
 #: or hexagonal print on fabric stretched or sheared by up to about 16 % (each group's
 #: answer must still snap to its lattice, see :meth:`Wallpaper.snapped`).
 HOLOHEDRY_TOL = 0.45
+HOLOHEDRY_STRAIN = 0.16
+
+#: How far a measured lattice may be off a group's lattice (relative length, angle in
+#: radians) for the group to be considered: ``Wallpaper.snapped``'s own default.
+SNAP_TOL = 0.2
 
 #: Width of the prior on the strain a group needs to explain the measured lattice: a
 #: higher symmetry on a distorted lattice needs correspondingly stronger evidence.
@@ -409,7 +414,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              scale: float | None = None, whiten: float = WHITEN,
              prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
              strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
-             temperature: float = TEMPERATURE) -> Classification:
+             temperature: float = TEMPERATURE, allowance: float = 0.0) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -430,6 +435,11 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     band : float
         Harmonics per repeat where the whitened motif rolls off (thread-scale texture
         above it does not share the print's symmetry).
+    allowance : float
+        Distortion the image is known to carry (relative), e.g. the lattice change a
+        measured perspective makes across the frame (:mod:`vision.perspective`): the
+        print's lattice cannot be read to better than that, so the snap tolerance and
+        the strain prior widen by it.
 
     Returns
     -------
@@ -462,7 +472,11 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
-    holo = holohedry(basis, tol=holohedry_tol)
+    # The tolerances widen by the known distortion (HOLOHEDRY_TOL spans a strain of
+    # HOLOHEDRY_STRAIN; the snap tolerance is a strain already).
+    holo = holohedry(basis, tol=holohedry_tol * (1.0 + allowance / HOLOHEDRY_STRAIN))
+    snap_tol = SNAP_TOL + allowance
+    strain_sigma = math.hypot(strain_sigma, allowance)
     if whiten:
         metric = _symmetric_metric(basis, holo)
         motif = _whiten(motif, metric, whiten, band)
@@ -520,7 +534,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             seen.add(sig)
             conv = basis @ u  # the group's conventional basis, working px
             try:
-                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1]).basis
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
+                                          snap_tol=snap_tol).basis
             except ValueError:
                 continue  # too distorted for this group's lattice
             prior = -0.5 * (lattice_strain(conv, ideal) / strain_sigma) ** 2
@@ -563,7 +578,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     origin_in = (origin_w + 0.5) / scale - 0.5
     w1 = new_basis_px[:, 0] / scale * mm
     w2 = new_basis_px[:, 1] / scale * mm
-    wp = Wallpaper.snapped(win, w1, w2, origin_in * mm, motif=motif)
+    wp = Wallpaper.snapped(win, w1, w2, origin_in * mm, motif=motif, snap_tol=snap_tol)
     strain = lattice_strain(np.column_stack([w1, w2]), wp.basis)
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
