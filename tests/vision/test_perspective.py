@@ -6,32 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
-from simulators.fabric import random_print
+from bench.vision import lattice_match, tilted_frame
 from solver.wallpaper import GROUP_NAMES
 from vision.perspective import _jacobians, fit_view
 from vision.pipeline import detect_fabric
 from vision.subgroups import error_kind
-
-SIZE = (480, 360)
-HEIGHT = 600.0
-
-
-def _tilted_frame(group: str, tilt: float, seed: int) -> tuple[np.ndarray, float]:
-    """A camera frame (not rectified) of a random print, looking ``tilt`` degrees off
-    the vertical in a random direction, and the mm per pixel at its centre."""
-    cam = CameraModel.default(SIZE, dist=(0, 0, 0, 0, 0))
-    mm_per_px = HEIGHT / cam.K[0, 0]
-    rng = np.random.default_rng(seed)
-    pr = random_print(group, SIZE[0] * mm_per_px / rng.uniform(6, 10),
-                      rotation=rng.uniform(0, 90), seed=seed)
-    sim = SyntheticCamera(Sheet(pr, size=(3000, 3000), shift=(-1500, -1500)), camera=cam,
-                          imaging=Imaging(blur=0.6, noise=2.0, jpeg_quality=92,
-                                          light_ramp=(0.05, -0.03), vignetting=0.1),
-                          poses=[Pose.overhead((0, 0), HEIGHT, tilt_deg=tilt,
-                                               tilt_azimuth_deg=rng.uniform(0, 360))],
-                          seed=seed)
-    return sim.read(), mm_per_px
 
 
 def test_fit_recovers_a_known_vanishing_line_and_ignores_a_flat_view():
@@ -55,10 +34,11 @@ def test_fit_recovers_a_known_vanishing_line_and_ignores_a_flat_view():
 def test_every_group_is_read_through_a_tilted_camera(tilt):
     """Frames straight from a tilted camera, never rectified: the repeat changes by up
     to about 20 % across the frame. Every group comes out right on at least 16 of 17,
-    never as a supergroup, and the perspective is reported."""
+    never as a supergroup, the perspective is reported and the lattice at the frame's
+    centre is found within 5 %."""
     outcomes = []
     for i, group in enumerate(GROUP_NAMES):
-        frame, mm_per_px = _tilted_frame(group, tilt, seed=100 * int(tilt) + i)
+        frame, mm_per_px, truth = tilted_frame(group, tilt, seed=100 * int(tilt) + i)
         det = detect_fabric(frame, mm_per_px=mm_per_px)
         outcomes.append((group, det.classification.group,
                          error_kind(det.classification.group, group)))
@@ -66,13 +46,15 @@ def test_every_group_is_read_through_a_tilted_camera(tilt):
             assert det.distortion.perspective is not None, group
             assert det.distortion.perspective["lattice_change"] > 0.04
             assert "perspective" in det.distortion.warning
+            same, err = lattice_match(det.lattice.basis, truth)
+            assert same and err < 0.05, (group, err)
     assert not [o for o in outcomes if o[2] in ("supergroup", "other")], outcomes
     assert sum(o[2] == "right" for o in outcomes) >= 16, outcomes
 
 
 def test_a_straight_view_reports_no_perspective():
     for i, group in enumerate(("p4m", "p31m", "pg")):
-        frame, mm_per_px = _tilted_frame(group, 0.0, seed=7 + i)
+        frame, mm_per_px, _ = tilted_frame(group, 0.0, seed=7 + i)
         det = detect_fabric(frame, mm_per_px=mm_per_px)
         assert det.classification.group == group
         assert det.distortion.perspective is None
