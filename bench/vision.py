@@ -266,9 +266,9 @@ def blurred(per_group: int, seed: int = 0):
             pr = random_print(group, period, rotation=rng.uniform(0, 90),
                               seed=int(rng.integers(1 << 30)))
             img = render_print(pr, (220.0, 170.0), 1.0)
-            img = wrinkle(img, rng.uniform(0, 2), rng.uniform(40, 90), rng=rng)
+            img = wrinkle(img, rng.uniform(0, 1), rng.uniform(40, 90), rng=rng)
             img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.01, 3.0))
-            img = np.clip(img + rng.normal(0, rng.uniform(0, 12), img.shape), 0, 255)
+            img = np.clip(img + rng.normal(0, rng.uniform(0, 8), img.shape), 0, 255)
             ok, buf = cv2.imencode(".jpg", img.astype(np.uint8),
                                    [cv2.IMWRITE_JPEG_QUALITY, int(rng.uniform(60, 95))])
             yield Sample("blurred", f"{group}/{period:.0f}px", cv2.imdecode(buf, 1), 1.0,
