@@ -130,10 +130,11 @@ def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndar
 #: averaging (blur from misregistered, distorted repeats makes any cell symmetric).
 REPEAT_SUPPORT = 0.5
 
-#: Largest spread of the (reliability-normalised) scores of one answer's operations. On
-#: 240 small synthetic prints under blur up to 3 px and noise, true groups spread by at
-#: most 0.030; symmetries made by blur (p6 as p6m, p31m as p6m) lag by 0.064 or more.
-OPERATION_SPREAD = 0.045
+#: How far the operations a group adds to its subgroup may all score below the
+#: subgroup's own (reliability-normalised) before the group is not taken. On 240 small
+#: synthetic prints under blur up to 3 px and noise, the operations of true groups spread
+#: by at most 0.030; symmetries made by blur (p6 as p6m, p31m as p6m) lag by 0.064 or more.
+ADDED_OPERATION_LAG = 0.045
 
 #: Confidence ceiling of an answer drawn from fewer than three whole repeats.
 FEW_REPEATS_CONFIDENCE = 0.5
@@ -600,27 +601,40 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
 
 def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray,
                       scores: dict) -> str:
-    """The likeliest group whose operations all hold alike and hold on the single
-    repeats; else its likeliest subgroup that does (the safe side).
+    """The likeliest group whose added operations hold like its subgroups' and that
+    holds on the single repeats; else its likeliest subgroup that does (the safe side).
 
-    Alike: blur, noise and distortion lower every symmetry of a print together (blur
-    not at all), while one that blur has half-made (the chiral detail of a p6 print
-    blurred away reads as p6m's mirrors) lags behind the print's true ones: an answer
-    whose operations' best scores (``scores``, per class) spread by more than
-    ``OPERATION_SPREAD`` is not taken. On the single repeats: see
-    :func:`repeat_support` (needs three repeats; with fewer the mean cell decides)."""
+    Added operations: blur, noise and distortion lower every symmetry of a print
+    together (blur not at all), while one that blur has half-made (the chiral detail of
+    a p6 print blurred away reads as p6m's mirrors) lags behind the print's true ones.
+    A group is not taken when every operation it adds to a maximal subgroup scores
+    (best per class, ``scores``) below every operation of that subgroup by more than
+    ``ADDED_OPERATION_LAG``. Single repeats: see :func:`repeat_support` (needs three
+    repeats; with fewer the mean cell decides)."""
     order = [names[k] for k in np.argsort(-ll)]
     top = order[0]
     for name in order:
-        if not is_subgroup(name, top):
-            continue
-        vals = [scores[key] for key in best[name][4] if key in scores]
-        if vals and max(vals) - min(vals) > OPERATION_SPREAD:
+        if not is_subgroup(name, top) or _lags(name, best, scores):
             continue
         ops = best[name][3]
         if len(cells) < 3 or not ops or repeat_support(cells, ops).min() >= REPEAT_SUPPORT:
             return name
     return order[0]
+
+
+def _lags(name: str, best: dict, scores: dict) -> bool:
+    """True when the operations ``name`` adds to one of its maximal subgroups (half its
+    point group, as found in this print) all score below that subgroup's by more than
+    ``ADDED_OPERATION_LAG``."""
+    have = best[name][4]
+    for sub, entry in best.items():
+        own = entry[4]
+        if sub == name or not own or not own < have or 2 * (len(own) + 1) != len(have) + 1:
+            continue
+        added = have - own
+        if min(scores[k] for k in own) - max(scores[k] for k in added) > ADDED_OPERATION_LAG:
+            return True
+    return False
 
 
 def _refine_origin(total: np.ndarray, ka: int, kb: int) -> np.ndarray:
