@@ -103,7 +103,8 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
     stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
-    tolerances are named in ``distortion.warning``."""
+    tolerances are named in ``distortion.warning``. Perspective left in the image
+    (:mod:`vision.perspective`) is undone before the group is read, and reported."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
