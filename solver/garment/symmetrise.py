@@ -32,7 +32,13 @@ from scipy.spatial import cKDTree
 
 from solver.garment.barycentric import barycentric_matrix
 from solver.garment.model import Garment, _components, build_garment, triangle_areas
-from solver.garment.symmetry import FLIP, MirrorPair, _closest_on_polygon
+from solver.garment.symmetry import (
+    FLIP,
+    MirrorPair,
+    _closest_on_polygon,
+    fit_pairs,
+    mirror_correspondence,
+)
 
 _KEPT, _FIRST, _SECOND = 0, 1, 2
 
@@ -77,7 +83,8 @@ class Symmetrised:
 def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
     """Copy of ``garment`` in which each pair's second piece is the mirrored first piece,
     both the average of the two; pairs whose seams cannot be re-derived are skipped."""
-    todo = list(pairs)
+    todo = [p for p in pairs if mirror_correspondence(garment, p) is None]
+    done = [p for p in pairs if p not in todo]  # already one pattern: nothing to do
     skipped: list[tuple[int, int, str]] = []
     averaged: dict[int, np.ndarray] = {}
     for p in list(todo):
@@ -96,8 +103,17 @@ def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
             continue
         exact = [MirrorPair(p.first, p.second, 0.0, p.size_mm, p.rotation, p.translation,
                             declared=True) for p in todo]
-        return Symmetrised(out, exact, _moves(garment, out, todo), skipped)
-    return Symmetrised(garment.copy(), [], [], skipped)
+        return Symmetrised(out, sorted(done + exact, key=lambda p: p.first),
+                           _moves(garment, out, todo), skipped)
+    return Symmetrised(garment.copy(), done, [], skipped)
+
+
+def symmetrise_as_recorded(garment: Garment, record) -> Symmetrised:
+    """The pattern a placement was made on: ``record`` is its report's ``"symmetrise"``
+    entry (`Symmetrised.to_dict`), whose pairs are symmetrised again (deterministic)."""
+    if not isinstance(record, dict) or not isinstance(record.get("pairs"), list):
+        raise ValueError('a placement\'s "symmetrise" record must hold "pairs": [[i, j], ...]')
+    return symmetrise(garment, fit_pairs(garment, record["pairs"]))
 
 
 class _Skip(Exception):

@@ -27,6 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pairs", metavar="P.json",
                    help='declare or veto mirror pairs: {"pairs": [[i, j]], "not_pairs": [[k, l]]} '
                    "(indices or piece names)")
+    p.add_argument("--symmetrise", action="store_true",
+                   help="also say what --symmetrise would do: the pairs made one pattern and "
+                   "how far each piece moves")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -165,6 +168,10 @@ def run(args: argparse.Namespace) -> int:
     pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
+    if args.symmetrise:
+        from solver.garment.symmetrise import symmetrise
+
+        summary["symmetrise"] = symmetrise(g, pairs).to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))
