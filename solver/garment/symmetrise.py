@@ -227,7 +227,43 @@ def _rebuilt(g: Garment, pairs: Sequence[MirrorPair], averaged: dict[int, np.nda
                         units_in_file=g.units_in_file, scale_recovered=g.scale_recovered,
                         piece_names=list(g.piece_names), grainlines=grainlines,
                         notches=notches, twins=twins, panel_frames=g.panel_frames)
+    _keep_seam_lines(g, out)
     return out
+
+
+def _keep_seam_lines(old: Garment, new: Garment) -> None:
+    """Give the new garment's seam lines the old numbers, names and weights (in place).
+
+    Lines are numbered by their first seam edge, which moves when a piece is re-meshed;
+    ``--weights`` and allowances name lines by number or name, so each new line takes
+    those of the old line between the same pieces that lies nearest (the centres of their
+    edges).
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    def centres(g: Garment) -> np.ndarray:
+        mid = g.uv[g.seam_edges].mean(axis=1)  # (E,2) centre of each twin row
+        count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
+        return np.column_stack([np.bincount(g.seam_line_of_edge, mid[:, k],
+                                            len(g.seam_lines)) for k in range(2)]) \
+            / np.maximum(count, 1)[:, None]
+
+    if len(old.seam_lines) != len(new.seam_lines):
+        return
+    at_old, at_new = centres(old), centres(new)
+    key_old = [(s.piece_a, s.piece_b) for s in old.seam_lines]
+    key_new = [(s.piece_a, s.piece_b) for s in new.seam_lines]
+    number = np.full(len(key_new), -1)
+    for key in set(key_new):
+        ks_new = [k for k, x in enumerate(key_new) if x == key]
+        ks_old = [k for k, x in enumerate(key_old) if x == key]
+        if len(ks_new) != len(ks_old):
+            return
+        cost = np.linalg.norm(at_new[ks_new][:, None] - at_old[ks_old][None], axis=2)
+        rows, cols = linear_sum_assignment(cost)
+        number[np.asarray(ks_new)[rows]] = np.asarray(ks_old)[cols]
+    new.seam_line_of_edge = number[new.seam_line_of_edge]
+    new.seam_lines = list(old.seam_lines)
 
 
 def _drape_at(g: Garment, p: MirrorPair, uv_new: np.ndarray) -> np.ndarray:
