@@ -146,7 +146,7 @@ def _averaged_first(g: Garment, p: MirrorPair) -> np.ndarray:
     best = np.full(len(pts), np.inf)
     target = pts.copy()
     for loop in g.piece_loops(p.second):
-        q = _closest_on_polygon(pts, _inverse_map(p, g.uv[loop]))
+        q = _closest(pts, _inverse_map(p, g.uv[loop]))
         d = np.linalg.norm(q - pts, axis=1)
         closer = d < best
         best[closer], target[closer] = d[closer], q[closer]
@@ -155,6 +155,13 @@ def _averaged_first(g: Garment, p: MirrorPair) -> np.ndarray:
     if (triangle_areas(new, faces) <= 0).any():
         raise _Skip("averaging the outlines would fold a triangle")
     return new
+
+
+def _closest(points: np.ndarray, polygon: np.ndarray, chunk: int = 256) -> np.ndarray:
+    """Closest points of a closed polygon, in chunks so that fine outlines (thousands of
+    vertices) stay within a few megabytes."""
+    return np.concatenate([_closest_on_polygon(points[k:k + chunk], polygon)
+                           for k in range(0, len(points), chunk)] or [points[:0]])
 
 
 def _harmonic(n: int, faces: np.ndarray, fixed: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -452,7 +459,7 @@ def _moves(old: Garment, new: Garment, pairs: Sequence[MirrorPair]) -> list[Piec
             pts = old.uv[np.concatenate(old.piece_loops(k))]
             d = np.full(len(pts), np.inf)
             for loop in new.piece_loops(k):
-                q = _closest_on_polygon(pts, new.uv[loop])
+                q = _closest(pts, new.uv[loop])
                 d = np.minimum(d, np.linalg.norm(q - pts, axis=1))
             out.append(PieceMove(k, float(d.max()), float(np.sqrt(np.mean(d ** 2))),
                                  100.0 * (area_new[k] / area_old[k] - 1.0)))

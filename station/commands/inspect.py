@@ -154,6 +154,15 @@ def _print_text(s: dict, out) -> None:
         print("  mirror pairs: none", file=out)
     names = [s["seam_line_list"][k]["name"] for k in s["centre_seams"]]
     print(f"  centre seams: {', '.join(names) if names else 'none'}", file=out)
+    if "symmetrise" in s:
+        print("  --symmetrise would make one pattern of pairs "
+              f"{', '.join(f'{i}~{j}' for i, j in s['symmetrise']['pairs']) or 'none'}:",
+              file=out)
+        for m in s["symmetrise"]["moves"]:
+            print(f"    piece {m['piece']:3d} moves {m['max_mm']:.2f} mm at most, "
+                  f"{m['rms_mm']:.2f} mm RMS, area {m['area_change_pct']:+.2f} %", file=out)
+        for i, j, why in s["symmetrise"]["skipped"]:
+            print(f"    pair {i}~{j} left as it is: {why}", file=out)
 
 
 def run(args: argparse.Namespace) -> int:
