@@ -4,8 +4,6 @@ stays one through alignment, reshaping and the cut lines."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -151,31 +149,29 @@ def test_reshaping_keeps_a_symmetrised_pair_one_pattern(name: str, fabric: Wallp
             assert np.linalg.norm(moved[:, None] - b[None], axis=2).min(axis=1).max() < 0.1
 
 
-def test_station_align_fit_and_inspect_symmetrise(tmp_path: Path) -> None:
+def test_station_align_fit_and_inspect_symmetrise(tmp_path: Path, capsys) -> None:
+    from station.cli import main
+
     fabric = tmp_path / "pmm.json"
     fabric.write_text(json.dumps(PMM.to_dict()))
     out = tmp_path / "placement.json"
-    base = [sys.executable, "-m", "station.cli"]
-    run = subprocess.run(base + ["align", str(TSHIRT), "--units", "m", "--fabric", str(fabric),
-                                 "--restarts", "1", "--symmetrise", "--json", "-o", str(out)],
-                         capture_output=True, text=True, cwd=REPO)
-    assert run.returncode == 0, run.stderr
-    rep = json.loads(run.stdout)
+    assert main(["align", str(TSHIRT), "--units", "m", "--fabric", str(fabric),
+                 "--restarts", "1", "--symmetrise", "--json", "-o", str(out)]) == 0
+    run = capsys.readouterr()
+    rep = json.loads(run.out)
     assert sorted(map(tuple, rep["symmetrise"]["pairs"])) == [(0, 1), (2, 3), (4, 5)]
-    assert len(rep["symmetrise"]["moves"]) == 6 and "moved" in run.stderr
+    assert len(rep["symmetrise"]["moves"]) == 6 and "moved" in run.err
     saved = json.loads(out.read_text())
     assert saved["report"]["symmetrise"] == rep["symmetrise"]
     # `station fit` on the placement measures the pattern it was made on
-    fit = subprocess.run(base + ["fit", str(TSHIRT), "--units", "m", "--fabric", str(fabric),
-                                 "--placement", str(out), "--json"],
-                         capture_output=True, text=True, cwd=REPO)
-    assert fit.returncode == 0, fit.stderr
-    assert "as the placement was made" in fit.stderr
-    assert json.loads(fit.stdout)["e_fit_mm2"] == pytest.approx(rep["e_fit_aligned_mm2"])
-    ins = subprocess.run(base + ["inspect", str(TSHIRT), "--units", "m", "--symmetrise",
-                                 "--json"], capture_output=True, text=True, cwd=REPO)
-    assert ins.returncode == 0, ins.stderr
-    assert json.loads(ins.stdout)["symmetrise"]["moves"] == rep["symmetrise"]["moves"]
+    assert main(["fit", str(TSHIRT), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(out), "--json"]) == 0
+    fit = capsys.readouterr()
+    assert "as the placement was made" in fit.err
+    assert json.loads(fit.out)["e_fit_mm2"] == pytest.approx(rep["e_fit_aligned_mm2"])
+    assert main(["inspect", str(TSHIRT), "--units", "m", "--symmetrise", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["symmetrise"]["moves"] == \
+        rep["symmetrise"]["moves"]
 
 
 def test_shared_garments_symmetrise_exactly_or_say_why(shared_data: Path) -> None:
