@@ -83,8 +83,9 @@ class Symmetrised:
 def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
     """Copy of ``garment`` in which each pair's second piece is the mirrored first piece,
     both the average of the two; pairs whose seams cannot be re-derived are skipped."""
-    todo = [p for p in pairs if mirror_correspondence(garment, p) is None]
-    done = [p for p in pairs if p not in todo]  # already one pattern: nothing to do
+    todo = _one_side_first(garment, [p for p in pairs
+                                     if mirror_correspondence(garment, p) is None])
+    done = [p for p in pairs if mirror_correspondence(garment, p) is not None]
     skipped: list[tuple[int, int, str]] = []
     averaged: dict[int, np.ndarray] = {}
     for p in list(todo):
@@ -101,11 +102,17 @@ def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
             todo = [p for p in todo if p is not bad]
             skipped.append((bad.first, bad.second, reason))
             continue
-        exact = [MirrorPair(p.first, p.second, 0.0, p.size_mm, p.rotation, p.translation,
-                            declared=True) for p in todo]
+        given = {frozenset((p.first, p.second)): p for p in pairs}  # as the caller reads them
+        exact = [MirrorPair(q.first, q.second, 0.0, q.size_mm, q.rotation, q.translation,
+                            declared=True)
+                 for q in (given[frozenset((p.first, p.second))] for p in todo)]
         return Symmetrised(out, sorted(done + exact, key=lambda p: p.first),
-                           _moves(garment, out, todo), skipped)
-    return Symmetrised(garment.copy(), done, [], skipped)
+                           _moves(garment, out, todo), _sorted(skipped))
+    return Symmetrised(garment.copy(), done, [], _sorted(skipped))
+
+
+def _sorted(skipped: list[tuple[int, int, str]]) -> list[tuple[int, int, str]]:
+    return sorted((min(i, j), max(i, j), why) for i, j, why in skipped)
 
 
 def symmetrise_as_recorded(garment: Garment, record) -> Symmetrised:
@@ -114,6 +121,47 @@ def symmetrise_as_recorded(garment: Garment, record) -> Symmetrised:
     if not isinstance(record, dict) or not isinstance(record.get("pairs"), list):
         raise ValueError('a placement\'s "symmetrise" record must hold "pairs": [[i, j], ...]')
     return symmetrise(garment, fit_pairs(garment, record["pairs"]))
+
+
+def _one_side_first(g: Garment, pairs: list[MirrorPair]) -> list[MirrorPair]:
+    """The pairs turned so that their first pieces lie on one side of the body.
+
+    A seam between two pairs then joins two first pieces (and, mirrored, two second ones),
+    and the first pieces' seams are what the second pieces are re-sewn from: a sleeve sewn
+    to a front of the other half would need both halves' samplings of one seam to agree.
+    The sides are found by walking the seams between pairs (a two-colouring).
+    """
+    pairs = sorted(pairs, key=lambda p: min(p.first, p.second))
+    index = {k: n for n, p in enumerate(pairs) for k in (p.first, p.second)}
+    side = {k: int(k == p.second) for p in pairs for k in (p.first, p.second)}
+    links: dict[int, list[tuple[int, int]]] = {n: [] for n in range(len(pairs))}
+    for line in g.seam_lines:
+        a, b = line.piece_a, line.piece_b
+        if a in index and b in index and index[a] != index[b]:
+            parity = side[a] ^ side[b]  # 1: joins a first piece to a second one
+            links[index[a]].append((index[b], parity))
+            links[index[b]].append((index[a], parity))
+    flip: dict[int, int] = {}
+    for start in range(len(pairs)):
+        if start in flip:
+            continue
+        # each group of linked pairs: its lowest-numbered piece first (whatever the order or
+        # the way round the pairs were given in), so the result is the same every time
+        flip[start] = int(pairs[start].first > pairs[start].second)
+        stack = [start]
+        while stack:
+            n = stack.pop()
+            for m, parity in links[n]:
+                if m not in flip:
+                    flip[m] = flip[n] ^ parity
+                    stack.append(m)
+    return [_turned(p) if flip[n] else p for n, p in enumerate(pairs)]
+
+
+def _turned(p: MirrorPair) -> MirrorPair:
+    """The same pair read the other way: ``p_first = R FLIP p_second - R FLIP t``."""
+    return MirrorPair(p.second, p.first, p.rms_mm, p.size_mm, p.rotation,
+                      -p.rotation @ FLIP @ p.translation, p.declared)
 
 
 class _Skip(Exception):

@@ -101,6 +101,8 @@ def test_the_berkeley_pairs_move_and_the_report_says_how_far() -> None:
     assert max(m.max_mm for m in sym.moves) > 1.0  # the halves differed by millimetres
     text = sym.lines()
     assert len(text) == 6 and all("moved" in t and "RMS" in t and "area" in t for t in text)
+    # the same pattern whatever order the pairs come in
+    assert np.array_equal(symmetrise(g, mirror_pairs(g)[::-1]).garment.uv, sym.garment.uv)
     record = json.loads(json.dumps(sym.to_dict()))
     again = symmetrise_as_recorded(g, record)  # what later commands rebuild
     assert np.array_equal(again.garment.uv, sym.garment.uv)
@@ -183,7 +185,7 @@ def test_shared_garments_symmetrise_exactly_or_say_why(shared_data: Path) -> Non
     files += sorted((root / "garment_pattern_generator").glob("*.json"))
     files += sorted((root / "garmentcode").rglob("*specification*.json"))
     assert files
-    made = 0
+    made = total = 0
     for f in files:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -197,4 +199,5 @@ def test_shared_garments_symmetrise_exactly_or_say_why(shared_data: Path) -> Non
         for p in sym.pairs:
             assert mirror_correspondence(h, p) is not None, (f.name, p.first, p.second)
         made += len(sym.pairs)
-    assert made >= 40  # most pairs of the library symmetrise
+        total += len(pairs)
+    assert made >= 0.9 * total  # nearly every pair of the library (70 of 73 today)
