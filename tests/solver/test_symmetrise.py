@@ -80,7 +80,17 @@ def test_a_symmetrised_pair_is_one_pattern_cut_twice(name: str) -> None:
         here, there = (x.uv[x.seam_edges[x.seam_line_of_edge == k]].mean(axis=(0, 1))
                        for x in (g, h))
         assert np.linalg.norm(here - there) < 10.0
-    assert len(centre_seams(h, sym.pairs)) == len(centre_seams(g, pairs))
+    centre = centre_seams(h, sym.pairs)
+    assert len(centre) == len(centre_seams(g, pairs))
+    by_pieces = {frozenset((p.first, p.second)): p for p in sym.pairs}
+    for k in centre:  # a centre seam sews each edge to its own mirror image, exactly
+        p = by_pieces[frozenset((h.seam_lines[k].piece_a, h.seam_lines[k].piece_b))]
+        e = h.seam_edges[h.seam_line_of_edge == k]
+        on_first = (h.piece_of_vertex[e[:, 0]] == p.first)[:, None]
+        here, there = np.where(on_first, e[:, :2], e[:, 2:]), np.where(on_first, e[:, 2:],
+                                                                     e[:, :2])
+        gap = p.map_first_to_second(h.uv[here.ravel()]) - h.uv[there.ravel()]
+        assert np.abs(gap).max() < 1e-9
     # the average: each piece moves at most about the pair's own difference, area ~kept
     rms = {k: p.rms_mm for p in pairs for k in (p.first, p.second)}
     assert {m.piece for m in sym.moves} == set(rms)
