@@ -192,7 +192,10 @@ def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs
 
     record = placement.report.get("symmetrise") if placement is not None else None
     if record:
-        sym = symmetrise_as_recorded(garment, record)
+        try:
+            sym = symmetrise_as_recorded(garment, record)
+        except ValueError as exc:
+            raise ValueError(f"{args.placement}: {exc}") from None
         why = "as the placement was made"
     elif getattr(args, "symmetrise", False):
         if pairs is None:

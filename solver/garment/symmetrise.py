@@ -118,9 +118,13 @@ def _sorted(skipped: list[tuple[int, int, str]]) -> list[tuple[int, int, str]]:
 def symmetrise_as_recorded(garment: Garment, record) -> Symmetrised:
     """The pattern a placement was made on: ``record`` is its report's ``"symmetrise"``
     entry (`Symmetrised.to_dict`), whose pairs are symmetrised again (deterministic)."""
-    if not isinstance(record, dict) or not isinstance(record.get("pairs"), list):
-        raise ValueError('a placement\'s "symmetrise" record must hold "pairs": [[i, j], ...]')
-    return symmetrise(garment, fit_pairs(garment, record["pairs"]))
+    pairs = record.get("pairs") if isinstance(record, dict) else None
+    if not isinstance(pairs, list) or not all(
+            isinstance(p, list) and len(p) == 2 and all(
+                isinstance(k, int) and not isinstance(k, bool) for k in p) for p in pairs):
+        raise ValueError('the "symmetrise" record must hold "pairs": [[i, j], ...] (piece '
+                         "indices)")
+    return symmetrise(garment, fit_pairs(garment, pairs))
 
 
 def _one_side_first(g: Garment, pairs: list[MirrorPair]) -> list[MirrorPair]:

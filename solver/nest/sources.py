@@ -96,7 +96,10 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
     if placement.report.get("symmetrise"):  # aligned on the symmetrised pattern: cut that
         from solver.garment.symmetrise import symmetrise_as_recorded
 
-        garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
+        try:
+            garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
     if orientations is None:
         rule = placement.grain_rule
         orientations = ((0.0,) if rule.get("nap") else

@@ -181,6 +181,13 @@ def test_station_align_fit_and_inspect_symmetrise(tmp_path: Path, capsys) -> Non
     fit = capsys.readouterr()
     assert "as the placement was made" in fit.err
     assert json.loads(fit.out)["e_fit_mm2"] == pytest.approx(rep["e_fit_aligned_mm2"])
+    saved["report"]["symmetrise"]["pairs"] = [[0, "piece1"]]  # a malformed record
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(saved))
+    assert main(["fit", str(TSHIRT), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(bad) in err and "symmetrise" in err
     assert main(["inspect", str(TSHIRT), "--units", "m", "--symmetrise", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["symmetrise"]["moves"] == \
         rep["symmetrise"]["moves"]
