@@ -128,7 +128,12 @@ def run(args: argparse.Namespace) -> int:
     fixed = _fixed_mask(garment, args.fix)
     print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
           f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
-    pairs = [] if args.no_symmetry else fit_pairs(garment, [p[:2] for p in placement.pairs])
+    tied = [tuple(p[:2]) for p in placement.pairs]
+    if symmetrised is not None:  # one pattern stays one pattern, whatever the print did
+        taken = {k for p in tied for k in p}
+        tied += [(p.first, p.second) for p in symmetrised.pairs
+                 if not {p.first, p.second} & taken]
+    pairs = [] if args.no_symmetry else fit_pairs(garment, tied)
     if pairs:
         print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
               "(from the placement) move as mirror images", file=sys.stderr)
