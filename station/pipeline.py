@@ -67,7 +67,7 @@ class StationPipeline:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
                                   "grain_lines", "bias", "seam_allowance", "allowance",
-                                  "symmetry", "pairs"}
+                                  "symmetry", "pairs", "symmetrise"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
         lines, bias = options.get("grain_lines", {}), options.get("bias", [])
@@ -83,8 +83,9 @@ class StationPipeline:
         from station.allowance import rules_for_job
 
         edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
-        if not isinstance(options.get("symmetry", True), bool):
-            raise ValueError("job option symmetry must be true or false")
+        for key in ("symmetry", "symmetrise"):
+            if not isinstance(options.get(key, key == "symmetry"), bool):
+                raise ValueError(f"job option {key} must be true or false")
         if "pairs" in options:
             from solver.garment.symmetry import pairs_from_dict
 
@@ -193,6 +194,7 @@ class StationPipeline:
         if json.loads(Path(fabric).read_text()).get("kind") in ("plain", "stripes"):
             return self.plan_plain(job, fabric, workdir, control)
         garment = load_garment(job.garment, units=job.options.get("units"))
+        garment, symmetrised = symmetrise_job(garment, job.options)
         wallpaper = Wallpaper.load(fabric)
         # The job's own copy of the pattern, in mm: later steps need no units.
         garment_path = workdir / "garment.obj"
@@ -204,6 +206,8 @@ class StationPipeline:
                                   "fabric": {k: fabric_doc.get(k) for k in (
                                       "group", "w1", "w2", "origin", "source", "confidence")},
                                   "seconds": {}}
+        if symmetrised is not None:
+            report["symmetrise"] = symmetrised.to_dict()
         clock = time.perf_counter()
 
         def lap(step: str) -> None:
@@ -326,7 +330,8 @@ class StationPipeline:
         from solver.wallpaper import Wallpaper
         from station.render import draw_marker, draw_toolpath, garment_credit
 
-        garment = load_garment(job.garment, units=job.options.get("units"))
+        garment, _ = symmetrise_job(load_garment(job.garment, units=job.options.get("units")),
+                                    job.options)
         garment_path = workdir / "garment.obj"
         save_obj(garment, garment_path)
         keep_licence_note(Path(job.garment), workdir)
@@ -692,6 +697,19 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
         return align_symmetric(garment, wallpaper, pairs, grain_deg=fabric_grain,
                                nap=a["nap"], **common)
     return align(garment, wallpaper, nap=a["nap"], fabric_grain_deg=fabric_grain, **common)
+
+
+def symmetrise_job(garment, options: dict[str, Any]):
+    """The job's garment with its left/right pairs (the job's ``pairs`` option heard) made
+    one pattern each when the job asks (``symmetrise``), and the record of it (or None)."""
+    if not options.get("symmetrise", False):
+        return garment, None
+    from solver.garment.symmetrise import symmetrise
+    from solver.garment.symmetry import mirror_pairs, pairs_from_dict
+
+    declared, vetoed = pairs_from_dict(options.get("pairs", {}), garment, "job option pairs")
+    sym = symmetrise(garment, mirror_pairs(garment, declared=declared, vetoed=vetoed))
+    return sym.garment, sym
 
 
 def grained(garment, config: Config, options: dict[str, Any]):
