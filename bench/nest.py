@@ -1,7 +1,8 @@
 """Nesting benchmark: ESICUP instances, shirts under square prints, Berkeley garments on a roll.
 
-    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,budget] [--seed S]
-                         [--budgets 1,3,10] [--cases tshirt,tshirt-p2,...]
+    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,budget,density]
+                         [--seed S] [--budgets 1,3,10] [--cases tshirt,tshirt-p2,...]
+                         [--garments tshirt,pants] [--method auto]
 
 ``make bench`` runs it with the time from $BENCH_NEST_TIME (default 30 s per run, the
 issue's setting). Every layout is verified with ``verify_layout`` before it is counted.
@@ -18,6 +19,8 @@ import os
 import platform
 import time
 from pathlib import Path
+
+import numpy as np
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RECORDS = {"shirts": 90.92, "trousers": 92.62, "swim": 79.83, "albano": 89.82, "dagli": 90.17,
@@ -166,6 +169,65 @@ def budget(budgets: list[float], seed: int, cases: list[str]) -> None:
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus")
 
 
+# p4m keeps the grain with the same operations as p2 (the half turns about the half
+# lattice points; its quarter turns and mirrors turn or flip the grain): same markers
+DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0))
+BEFORE = ("resnap-margin", "fill")  # nest_lattice's strategies before issue 18
+
+
+def density(t: float, seed: int, wanted: list[str], method: str) -> None:
+    """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
+
+    The plain marker (sparrow, 0 and 180 degrees), and per print the strategies before
+    issue 18 and ``method`` (aligned position = pattern coordinates, moves = lattice
+    vectors and the print's grain-keeping operations) get the same time, in one process.
+    """
+    from bench.reshape import GARMENTS as LIBRARY
+    from bench.reshape import berkeley_garments
+    from solver.nest import NestProblem, verify_layout
+    from solver.nest.lattice import nest_lattice
+    from solver.nest.sources import garment_pieces
+    from solver.wallpaper import Wallpaper
+
+    print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
+          f"square prints, {t:g} s each\n")
+    print("Cells: density (printed / plain, wall s). before = strategies "
+          f"{'+'.join(BEFORE)}; now = method {method}.\n")
+    heads = " | ".join(f"{g} {a:g} mm {when}" for g, a in DENSITY_PRINTS
+                       for when in ("before", "now"))
+    print(f"| garment | pieces | plain | {heads} |")
+    print("|---|---|---|" + "---|" * 2 * len(DENSITY_PRINTS))
+    if not LIBRARY.is_dir():
+        print(f"(skipped: {LIBRARY} absent)")
+        return
+    cases, _ = berkeley_garments()
+    ratios: dict[str, list[float]] = {"before": [], "now": []}
+    for name, g in cases:
+        if wanted and not any(w in name for w in wanted):
+            continue
+        pieces = garment_pieces(g)
+        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        cells = [f"{plain.density:.1%}"]
+        for group, a in DENSITY_PRINTS:
+            problem = NestProblem(pieces, 1500.0, gap=2.0,
+                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+            t0 = time.monotonic()
+            old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
+            sec = time.monotonic() - t0
+            if verify_layout(old, problem):
+                raise RuntimeError(f"invalid layout (before): {verify_layout(old, problem)[0]}")
+            for when, (layout, s) in (("before", (old, sec)),
+                                      ("now", _run(problem, method, t, seed))):
+                ratios[when].append(layout.density / plain.density)
+                cells.append(f"{layout.density:.1%} ({ratios[when][-1]:.3f}, {s:.1f} s)")
+        print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+    for when, r in ratios.items():
+        if r:
+            print(f"\nprinted/plain {when}: median {np.median(r):.3f}, min {min(r):.3f}, "
+                  f"{sum(x >= 0.95 for x in r)} of {len(r)} at least 0.95")
+    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="bench.nest")
     ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 30)))
@@ -174,6 +236,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--budgets", default="1,3,10", help="T values for the budget table")
     ap.add_argument("--cases", default=",".join(BUDGET_CASES),
                     help="inputs of the budget table")
+    ap.add_argument("--garments", default="", help="density: names containing one of these")
+    ap.add_argument("--method", default="auto", help="density: the printed nesting method")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -185,6 +249,9 @@ def main(argv: list[str] | None = None) -> None:
         if part == "budget":
             budget([float(t) for t in args.budgets.split(",")], args.seed,
                    args.cases.split(","))
+        elif part == "density":
+            density(args.time, args.seed, [w for w in args.garments.split(",") if w],
+                    args.method)
         else:
             {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time,
                                                                              args.seed)

@@ -3,25 +3,32 @@
 On a printed fabric a piece aligned to the print may still move by any whole lattice
 vector and by any operation of the print's group that keeps the grain (see
 :func:`solver.nest.instance.candidate_maps`); the positions of one piece therefore form
-a few *cosets* of the lattice. Two searches compete (see :func:`nest_lattice`):
+a few *cosets* of the lattice. Several searches compete (see :func:`nest_lattice`):
 
 - the bottom-left fill of :mod:`solver.nest.engine` reads its FFT collision maps only at
   each piece's lattice coset, with restarts and compaction;
 - a free sparrow nest is snapped to the lattice and swept left to right onto the
-  nearest allowed positions ("resnap", :mod:`solver.nest.regions`); the shorter result wins.
+  nearest allowed positions ("resnap", :mod:`solver.nest.regions`), or jointly onto
+  allowed positions around the free ones that do not collide ("joint",
+  :mod:`solver.nest.snapjoint`);
+- the best of those is shortened by strip shrinking on the cosets (:mod:`solver.nest.coset`).
+The shortest marker wins.
 """
 
 from __future__ import annotations
 
 from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.coset import coset_search
 from solver.nest.engine import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.naive import naive_moves
 from solver.nest.regions import repair_snapped
+from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
-SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4}
+SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
+          "coset": 0.3, "joint": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -38,19 +45,24 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``repair``: the same, but only the pieces in conflict after snapping move.
     - ``fill``: lattice-coset bottom-left greedy fill from scratch with restarts; wins on
       coarse lattices relative to the pieces.
+    - ``joint``: a free nest with a quarter of the covering radius of margin (none from
+      ``MANY`` pieces) snapped both by the sweep and jointly, each piece to one of the
+      allowed positions around its free one, none colliding, the shortest such choice
+      (:mod:`solver.nest.snapjoint`).
+    - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
+      lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: fill, and resnap for many pieces (from ``MANY``) or resnap-margin for few
-    (a collision after snapping costs a whole large piece's move; many small pieces lose
-    more to the margin than to collisions). When the time left is shorter than a fill
-    that must finish would take, the naive baseline (:mod:`solver.nest.naive`) gives the
-    first marker, and the searches improve on it until the deadline.
+    By default: joint, fill, then coset on the better of them. When the time left is
+    shorter than a fill that must finish would take, the naive baseline
+    (:mod:`solver.nest.naive`) gives the first marker, and the searches improve on it
+    until the deadline.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     deadline = deadline_of(time_limit)
     if strategies is None:
-        strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "fill")
+        strategies = ("joint", "fill", "coset")
         first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
         if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
             # too short for a fill that must finish: the naive marker is certain and
@@ -84,6 +96,17 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
                 if progress:
                     progress(f"{strategy}: {exc}")
                 r = None
+        elif strategy == "joint":
+            # many small pieces lose more to a margin than to collisions after snapping;
+            # for few, a quarter of the covering radius leaves the joint snap room (half
+            # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
+            extra = 0.0 if len(items) >= MANY else 0.25 * covering_radius(problem.lattice)
+            r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                             extra=extra, interruptible=late)
+        elif strategy == "coset":
+            start = min(results, key=lambda r: r[1])[0] if results else None
+            r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                             start=start)
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:

@@ -47,9 +47,10 @@ def register(sub) -> None:
     p.add_argument("--pairs", action="store_true",
                    help="cut every piece also mirrored (left and right)")
     p.add_argument("--method", default="auto",
-                   choices=("auto", "resnap", "resnap-margin", "fill", "repair", "naive"),
-                   help="search on a print (default auto: fill, and resnap (many pieces) or "
-                   "resnap-margin (few); the best wins)")
+                   choices=("auto", "resnap", "resnap-margin", "fill", "repair", "joint",
+                            "coset", "naive"),
+                   help="search on a print (default auto: resnap (many pieces) or "
+                   "resnap-margin (few), joint, fill, then coset shrinks the best)")
     p.add_argument("--nap", action="store_true",
                    help="one-way print or napped fabric: no piece turns by 180 degrees")
     p.add_argument("--grain", choices=("on", "off"),
