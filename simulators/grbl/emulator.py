@@ -906,22 +906,32 @@ class GrblEmulator:
     # ------------------------------------------------------------------ simulated time
     #: Clock steps: a host that keeps writing (at least every HOST_PACE wall seconds) moves
     #: the clock itself, by at most HOST_STEP simulated seconds per write; otherwise the
-    #: clock thread does, by at most THREAD_STEP wall seconds per tick. WHY: at speed 50 a
+    #: clock thread does, by at most THREAD_STEP wall seconds per tick (HOST_STEP while the
+    #: host is only late, see HOST_GONE). WHY: at speed 50 a
     #: Python host cannot keep a sub-millisecond schedule; pausing the machine between its
     #: writes emulates a host as fast, relative to the machine, as a real one at speed 1
     #: (a USB round trip takes 1-2 ms; 10 ms is 0.5 mm at 3000 mm/min). A stalled process
     #: pauses its machine instead of jumping half a second of motion nobody saw. A host
     #: that cannot know the speed (over a pty) gets an unpaced machine (``paced=False``).
+    #: A paced host silent for less than HOST_GONE wall seconds is taken as late (its
+    #: process descheduled by a loaded machine), not gone: the clock thread then moves the
+    #: machine at most HOST_STEP per tick, as a write would, so that a stall of the host
+    #: does not hide centimetres of motion at speed 50 (a real host at speed 1 is late by
+    #: milliseconds, not by tenths of the machine's seconds).
     HOST_PACE = 0.02
     HOST_STEP = 0.01
+    HOST_GONE = 1.0
     THREAD_STEP = 0.005
 
     def _run(self) -> None:
         while not self._stopped:
             time.sleep(0.002)
             with self._cond:
-                if not self.paced or time.monotonic() - self._host_wall > self.HOST_PACE:
+                silent = time.monotonic() - self._host_wall
+                if not self.paced or silent > self.HOST_GONE:
                     self._catch_up(self.THREAD_STEP)
+                elif silent > self.HOST_PACE:
+                    self._catch_up(self.HOST_STEP / self.speed)
 
     def _catch_up(self, max_wall: float) -> None:
         """Bring simulated time to the present wall instant, at most ``max_wall`` of it
