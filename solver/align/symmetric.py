@@ -20,8 +20,9 @@ across it where the print has no nap).
 Where the group has no such operation (p1, p2, p3, p4, p6, or mirrors off grain) the pair
 is kept "same": ``G`` is the reflection along the grain and ``tau = 0``, so the print's
 lattice sits at the same place relative to the flipped outline, but the motif is not
-mirrored; the quotient is then only the search space, and E_fit is measured on the
-garment itself.
+mirrored. The quotient's E_fit then measures j's seams as if its print were mirrored,
+which is not the garment cut: the quotient's answer only starts `search_tied`, which
+minimises the garment's own E_fit over the same unknowns, j following i (`PairTie`).
 """
 
 from __future__ import annotations
