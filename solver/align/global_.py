@@ -49,7 +49,7 @@ from solver.align.tree_dp import tree_dp_placement
 #: better basin (the cheap pass decides whether finer ones are worth their cost); after
 #: polishing, the sizes in turn search again (at most ``ALTERNATE_ROUNDS``) while they
 #: find one
-GLOBAL_GRID = {1: (40, 48), 2: (16, 20), 3: (10, 12, 16), 4: (10, 12, 16)}
+GLOBAL_GRID = {1: (40, 48), 2: (12, 16, 20), 3: (10, 12, 16), 4: (10, 12, 16)}
 ALTERNATE_ROUNDS = 3
 GRID_GAIN = 1e-3  # a joint grid "finds a better basin" when it lowers E_fit this much
 
