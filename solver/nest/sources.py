@@ -111,6 +111,13 @@ def placement_input(path: str | Path, *, orientations=None, units: str | None = 
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
+    if placement.report.get("symmetrise"):  # aligned on the symmetrised pattern: cut that
+        from solver.garment.symmetrise import symmetrise_as_recorded
+
+        try:
+            garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
     if orientations is None:
         rule = placement.grain_rule
         orientations = ((0.0,) if rule.get("nap") else
