@@ -1,9 +1,14 @@
 """Nesting benchmark: ESICUP instances, shirts under square prints, Berkeley garments on a roll.
 
-    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments] [--seed S]
+    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,budget,density]
+                         [--seed S] [--budgets 1,3,10] [--cases tshirt,tshirt-p2,...]
+                         [--garments tshirt,pants] [--method auto]
 
 ``make bench`` runs it with the time from $BENCH_NEST_TIME (default 30 s per run, the
 issue's setting). Every layout is verified with ``verify_layout`` before it is counted.
+``budget`` checks the ``--time T`` promise: wall time from the call to a verified layout,
+over T, on plain and printed inputs (issue 18: within 10 %). The garments table gives
+printed density / plain density (plain = the same pieces on grain, ``nest --plain``).
 Needs ../shared/data (skips, saying so, when absent).
 """
 
@@ -14,6 +19,8 @@ import os
 import platform
 import time
 from pathlib import Path
+
+import numpy as np
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RECORDS = {"shirts": 90.92, "trousers": 92.62, "swim": 79.83, "albano": 89.82, "dagli": 90.17,
@@ -75,26 +82,162 @@ def garments(t: float, seed: int) -> None:
     from solver.wallpaper import Wallpaper
 
     print(f"\n### Berkeley garments on a 1500 mm roll, gap 2 mm, p2 square print, {t:g} s\n")
-    print("| garment | pieces | plain | repeat 20 | repeat 50 | repeat 100 | repeat 200 |")
+    print("| garment | pieces | plain (`--plain`) | repeat 20 | repeat 50 | repeat 100 | "
+          "repeat 200 |")
     print("|---|---|---|---|---|---|---|")
     for rel in GARMENTS:
         g = load_garment(SHARED / "garments" / "berkeley_garment_library" / "Garments" / rel,
                          units="m")
         pieces = [Piece(f"p{i}", g.piece_outline(i)) for i in range(g.n_pieces)]
-        cells = []
+        cells, plain = [], None
         for rep in (None, 20.0, 50.0, 100.0, 200.0):
             fabric = None if rep is None else Wallpaper("p2", (rep, 0.0), (0.0, rep))
             problem = NestProblem(pieces, 1500.0, gap=2.0, fabric=fabric)
             layout, _ = _run(problem, "auto", t, seed)
-            cells.append(f"{layout.density:.1%} ({layout.length:.0f} mm)")
+            plain = plain or layout.density
+            ratio = "" if rep is None else f", {layout.density / plain:.2f} of plain"
+            cells.append(f"{layout.density:.1%} ({layout.length:.0f} mm{ratio})")
         print(f"| {Path(rel).stem} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+
+
+def _garment_problem(rel: str, repeat: float | None):
+    from solver.garment import load_garment
+    from solver.nest import NestProblem, Piece
+    from solver.wallpaper import Wallpaper
+
+    g = load_garment(SHARED / "garments" / "berkeley_garment_library" / "Garments" / rel,
+                     units="m")
+    pieces = [Piece(f"p{i}", g.piece_outline(i)) for i in range(g.n_pieces)]
+    fabric = None if repeat is None else Wallpaper("p2", (repeat, 0.0), (0.0, repeat))
+    return NestProblem(pieces, 1500.0, gap=2.0, fabric=fabric)
+
+
+def _esicup_problem(name: str, repeat: float | None):
+    from solver.nest import load_esicup
+    from solver.wallpaper import Wallpaper
+
+    problem = load_esicup(SHARED / "nesting" / f"{name}.json")
+    if repeat is not None:
+        problem.fabric = Wallpaper("p1", (repeat, 0.0), (0.0, repeat))
+    return problem
+
+
+BUDGET_CASES = {  # name: (problem maker, argument, print repeat or None for plain)
+    "tshirt": (_garment_problem, GARMENTS[0], None),
+    "tshirt-p2-50": (_garment_problem, GARMENTS[0], 50.0),
+    "pants": (_garment_problem, GARMENTS[1], None),
+    "pants-p2-50": (_garment_problem, GARMENTS[1], 50.0),
+    "skirt": (_garment_problem, GARMENTS[2], None),
+    "skirt-p2-50": (_garment_problem, GARMENTS[2], 50.0),
+    "shirts": (_esicup_problem, "shirts", None),
+    "shirts-p1-0.5": (_esicup_problem, "shirts", 0.5),
+    "swim": (_esicup_problem, "swim", None),
+    "albano-p1-20": (_esicup_problem, "albano", 20.0),
+}
+
+
+def budget(budgets: list[float], seed: int, cases: list[str]) -> None:
+    """Wall time of nest + verification over the promised T (sparrow's thread, the fills,
+    building and verifying the layout all inside)."""
+    import numpy as np
+
+    from solver.nest import verify_layout
+    from solver.nest.solve import nest
+    from solver.wallpaper import Wallpaper
+
+    # process start-up, as `station nest` does before its clock starts: the kernel's cache
+    Wallpaper("p1", (1.0, 0.0), (0.0, 1.0)).lattice_residual(np.zeros((1, 2)))
+    print(f"\n### `--time T` on budget: wall / T, nest + verification, seed {seed}\n")
+    print("| input | pieces | " + " | ".join(f"T = {t:g} s" for t in budgets) + " |")
+    print("|---|---|" + "---|" * len(budgets))
+    worst = (0.0, "")
+    for name in cases:
+        make, arg, repeat = BUDGET_CASES[name]
+        cells = []
+        for t in budgets:
+            problem = make(arg, repeat)
+            t0 = time.monotonic()
+            layout = nest(problem, time_limit=t, seed=seed)
+            faults = verify_layout(layout, problem)
+            ratio = (time.monotonic() - t0) / t
+            if faults:
+                raise RuntimeError(f"invalid layout ({name}, T={t:g}): {faults[0]}")
+            worst = max(worst, (ratio, f"{name} at T = {t:g} s"))
+            cells.append(f"{ratio:.2f} ({layout.density:.1%})")
+        print(f"| {name} | {len(problem.items())} | {' | '.join(cells)} |", flush=True)
+    print(f"\nworst: {worst[0]:.2f} x T ({worst[1]}); load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus")
+
+
+# p4m keeps the grain with the same operations as p2 (the half turns about the half
+# lattice points; its quarter turns and mirrors turn or flip the grain): same markers
+DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0))
+BEFORE = ("resnap-margin", "fill")  # nest_lattice's strategies before issue 18
+
+
+def density(t: float, seed: int, wanted: list[str], method: str) -> None:
+    """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
+
+    The plain marker (sparrow, 0 and 180 degrees), and per print the strategies before
+    issue 18 and ``method`` (aligned position = pattern coordinates, moves = lattice
+    vectors and the print's grain-keeping operations) get the same time, in one process.
+    """
+    from bench.reshape import GARMENTS as LIBRARY
+    from bench.reshape import berkeley_garments
+    from solver.nest import NestProblem, verify_layout
+    from solver.nest.lattice import nest_lattice
+    from solver.nest.sources import garment_pieces
+    from solver.wallpaper import Wallpaper
+
+    print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
+          f"square prints, {t:g} s each\n")
+    print("Cells: density (printed / plain, wall s). before = strategies "
+          f"{'+'.join(BEFORE)}; now = method {method}.\n")
+    heads = " | ".join(f"{g} {a:g} mm {when}" for g, a in DENSITY_PRINTS
+                       for when in ("before", "now"))
+    print(f"| garment | pieces | plain | {heads} |")
+    print("|---|---|---|" + "---|" * 2 * len(DENSITY_PRINTS))
+    if not LIBRARY.is_dir():
+        print(f"(skipped: {LIBRARY} absent)")
+        return
+    cases, _ = berkeley_garments()
+    ratios: dict[str, list[float]] = {"before": [], "now": []}
+    for name, g in cases:
+        if wanted and not any(w in name for w in wanted):
+            continue
+        pieces = garment_pieces(g)
+        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        cells = [f"{plain.density:.1%}"]
+        for group, a in DENSITY_PRINTS:
+            problem = NestProblem(pieces, 1500.0, gap=2.0,
+                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+            t0 = time.monotonic()
+            old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
+            sec = time.monotonic() - t0
+            if verify_layout(old, problem):
+                raise RuntimeError(f"invalid layout (before): {verify_layout(old, problem)[0]}")
+            for when, (layout, s) in (("before", (old, sec)),
+                                      ("now", _run(problem, method, t, seed))):
+                ratios[when].append(layout.density / plain.density)
+                cells.append(f"{layout.density:.1%} ({ratios[when][-1]:.3f}, {s:.1f} s)")
+        print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+    for when, r in ratios.items():
+        if r:
+            print(f"\nprinted/plain {when}: median {np.median(r):.3f}, min {min(r):.3f}, "
+                  f"{sum(x >= 0.95 for x in r)} of {len(r)} at least 0.95")
+    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="bench.nest")
     ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 30)))
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--only", default="esicup,shirts,garments")
+    ap.add_argument("--only", default="esicup,shirts,garments,budget")
+    ap.add_argument("--budgets", default="1,3,10", help="T values for the budget table")
+    ap.add_argument("--cases", default=",".join(BUDGET_CASES),
+                    help="inputs of the budget table")
+    ap.add_argument("--garments", default="", help="density: names containing one of these")
+    ap.add_argument("--method", default="auto", help="density: the printed nesting method")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -103,7 +246,15 @@ def main(argv: list[str] | None = None) -> None:
           f"{platform.processor() or platform.machine()}  {os.cpu_count()} cpus, "
           f"sparrow with 1 worker")
     for part in args.only.split(","):
-        {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time, args.seed)
+        if part == "budget":
+            budget([float(t) for t in args.budgets.split(",")], args.seed,
+                   args.cases.split(","))
+        elif part == "density":
+            density(args.time, args.seed, [w for w in args.garments.split(",") if w],
+                    args.method)
+        else:
+            {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time,
+                                                                             args.seed)
 
 
 if __name__ == "__main__":

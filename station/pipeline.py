@@ -745,16 +745,18 @@ def nest_placement(placement_path: Path, config: Config, progress=None, options=
     """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
     position (``plain``: on plain cloth, free of any print); ``options`` are the job's
     (its seam allowances)."""
+    from solver.nest.budget import Deadline
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import load_problem
     from station.allowance import rules_for_job
 
     n = config["nest"]
+    deadline = Deadline(n["seconds"])  # loading the cut lines and verifying count too
     problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
                            gap=n["gap_mm"], allowance=rules_for_job(config, options or {}),
                            plain=plain)
-    layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
+    layout = nest(problem, time_limit=deadline, seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")

@@ -88,7 +88,7 @@ def write_garment(garment, path: Path, rules=None) -> None:
 
         save_spec(garment, path)
     elif suffix == ".dxf":
-        from solver.dxf_aama import write_dxf_aama
+        from solver.nest.dxf_aama import write_dxf_aama
         from solver.nest.sources import garment_pieces
 
         # layer 1 the cut line (it follows the reshaped sew line), layer 14 the sew line

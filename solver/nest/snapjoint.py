@@ -1,0 +1,202 @@
+"""Snap a free nest to the print jointly: each piece picks a lattice point near its own.
+
+Snapping every piece of a free (sparrow) nest to its *nearest* allowed position moves
+each by up to the covering radius, independently, so neighbours collide and a sweep must
+push them apart. But a piece has several allowed positions around its free one (the
+corners of the lattice cell it sits in, and beyond): choosing among them *together* is a
+small constraint problem. Which choices of two neighbours collide is tabulated exactly
+(shapely, vectorised over all option pairs); a depth-first search with forward checking
+(fewest options first) and branch and bound on the marker length then finds the shortest
+collision-free combination, or proves there is none within reach.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import shapely
+
+from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.engine import first_fill_estimate
+from solver.nest.instance import Item, NestProblem, affine
+from solver.nest.plain import plain_moves
+from solver.nest.regions import repair, snap_to_lattice
+
+AREA_TOL = 1e-7  # overlap accepted at gap 0, fraction of the smaller area (verify: 1e-6)
+
+
+def snap_options(problem: NestProblem, item: Item, move: np.ndarray, reach: float,
+                 push: float) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 2, 3) allowed maps around the free ``move``, and their (m,) outlines.
+
+    Every print operation the item may undergo (not only the one with the free move's
+    rotation: a half turn changes the piece's coset, and so which neighbours it fits);
+    translations are the lattice points that put the outline's centre within ``reach``
+    (mm) of where the free move put it, or up to ``push`` (mm) further along the roll:
+    a free nest is tight, and its snapped pieces need room that only a longer marker
+    gives. Kept only where the outline stays on the fabric, clear of the keep-outs.
+    """
+    basis = item.lattice
+    centre = np.asarray(shapely.Polygon(item.ref).centroid.coords[0])
+    goal = affine(move, centre)[0]
+    lo, hi = np.array([-reach, -reach]), np.array([reach + push, reach])
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    fc = np.linalg.solve(basis, corners.T).T
+    a = np.arange(math.floor(fc[:, 0].min()) - 1, math.ceil(fc[:, 0].max()) + 2)
+    b = np.arange(math.floor(fc[:, 1].min()) - 1, math.ceil(fc[:, 1].max()) + 2)
+    cells = np.stack(np.meshgrid(a, b, indexing="ij"), -1).reshape(-1, 2) @ basis.T
+    maps = []
+    for c in item.candidates:
+        base = goal - affine(c, centre)[0]
+        f = np.linalg.solve(basis, base)
+        d = np.round(f) @ basis.T - base + cells  # offsets from the free centre
+        keep = np.all((d >= lo - 1e-9) & (d <= hi + 1e-9), axis=1)
+        m = np.repeat(c[None], int(keep.sum()), axis=0)
+        m[:, :, 2] += base + d[keep]
+        maps.append(m)
+    maps = np.concatenate(maps)
+    polys = shapely.polygons(np.einsum("mij,nj->mni", maps[:, :, :2], item.ref)
+                             + maps[:, None, :, 2])
+    g, b = problem.gap, shapely.bounds(polys)
+    ok = (b[:, 0] >= g - 1e-9) & (b[:, 1] >= g - 1e-9) & (b[:, 3] <= problem.width - g + 1e-9)
+    if problem.length is not None:
+        ok &= b[:, 2] <= problem.length - g + 1e-9
+    for k in problem.keepouts:
+        ok &= ~_collide(polys, shapely.Polygon(k), g)
+    return maps[ok], polys[ok]
+
+
+def _collide(a, b, gap: float) -> np.ndarray:
+    """Elementwise (broadcast): closer than the gap, or overlapping at gap 0."""
+    if gap > 0:
+        return shapely.dwithin(a, b, gap * (1 - 1e-7))
+    inter = shapely.area(shapely.intersection(a, b))
+    return inter > AREA_TOL * np.minimum(shapely.area(a), shapely.area(b))
+
+
+def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
+               reach: float, push: float, deadline: float = math.inf,
+               ) -> tuple[list[np.ndarray], float] | None:
+    """The shortest collision-free choice of allowed positions near the free ``moves``.
+
+    Returns (moves, length) or None when no choice within reach is free (or
+    none was found before ``deadline``; the best found so far is returned otherwise).
+    """
+    n = len(items)
+    opts = [snap_options(problem, it, m, reach, push) for it, m in zip(items, moves)]
+    if any(len(p) == 0 for _, p in opts):
+        return None
+    right = [shapely.bounds(p)[:, 2] for _, p in opts]
+    # order each piece's options by their right edge: the first free one is its best
+    for k in range(n):
+        o = np.argsort(right[k], kind="stable")
+        opts[k] = (opts[k][0][o], opts[k][1][o])
+        right[k] = right[k][o]
+    box = np.array([np.concatenate([shapely.bounds(p)[:, :2].min(0), shapely.bounds(p)[:, 2:]
+                                    .max(0)]) for _, p in opts])
+    g = problem.gap
+    clash: dict[tuple[int, int], np.ndarray] = {}  # (i, j) -> (m_i, m_j) bool
+    for i in range(n):
+        if time.monotonic() > deadline:
+            return None  # the table alone outgrew the budget
+        near = np.flatnonzero((box[:, 0] <= box[i, 2] + g) & (box[:, 2] >= box[i, 0] - g)
+                              & (box[:, 1] <= box[i, 3] + g) & (box[:, 3] >= box[i, 1] - g))
+        for j in near[near > i]:
+            m = _collide(opts[i][1][:, None], opts[j][1][None, :], problem.gap)
+            if m.any():
+                clash[i, j] = m
+                clash[j, i] = m.T
+    neighbours = [[j for j in range(n) if (i, j) in clash] for i in range(n)]
+    best: dict = {"len": math.inf, "pick": None}
+    nodes = [0]
+
+    def search(allowed: list[np.ndarray], pick: list[int], length: float) -> None:
+        nodes[0] += 1
+        if nodes[0] % 256 == 0 and time.monotonic() > deadline:
+            raise TimeoutError
+        todo = [k for k in range(n) if pick[k] < 0]
+        if not todo:
+            best["len"], best["pick"] = length, list(pick)
+            return
+        # bound: every piece still to place ends at least at its best allowed option
+        lows = [right[k][allowed[k]].min() for k in todo]
+        if max(length, max(lows)) >= best["len"] - 1e-9:
+            return
+        k = todo[int(np.argmin([allowed[k].sum() for k in todo]))]  # fewest options first
+        for o in np.flatnonzero(allowed[k]):
+            new_len = max(length, right[k][o])
+            if new_len >= best["len"] - 1e-9:
+                break  # options are sorted by their right edge
+            sub = list(allowed)
+            dead = False
+            for j in neighbours[k]:
+                if pick[j] < 0:
+                    sub[j] = allowed[j] & ~clash[k, j][o]
+                    if not sub[j].any():
+                        dead = True
+                        break
+            if dead:
+                continue
+            pick[k] = o
+            search(sub, pick, new_len)
+            pick[k] = -1
+
+    try:
+        search([np.ones(len(p), bool) for _, p in opts], [-1] * n, 0.0)
+    except TimeoutError:
+        pass
+    if best["pick"] is None:
+        return None
+    out = [opts[k][0][o] for k, o in enumerate(best["pick"])]
+    return out, best["len"] + problem.gap
+
+
+# (reach, push) in lattice steps, tried in turn: no one setting wins everywhere (a wider
+# reach finds more combinations, and takes longer to exhaust)
+REACHES = ((1.5, 4.0), (2.0, 6.0), (1.0, 2.0))
+FREE_SHARE = 0.7  # of the time, for sparrow's free nest
+SNAP_SHARE = 0.5  # of the time after it, for the joint snaps; the sweep has the rest
+
+
+def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
+                 seed: int | None, progress: Progress | None = None, extra: float = 0.0,
+                 interruptible: bool = False) -> tuple[list[np.ndarray], float] | None:
+    """One free nest (``extra`` mm of margin around every piece), snapped two ways: jointly
+    with each setting of ``REACHES``, and by the nearest-first sweep of
+    :func:`solver.nest.regions.repair` (what ``resnap`` does); the shortest wins.
+
+    Unless ``interruptible``, the sweep must finish: sparrow stops early enough to leave
+    it its estimated time.
+    """
+    budget = deadline_of(time_limit)
+    t0 = time.monotonic()
+    sweep = 0.0 if interruptible else first_fill_estimate(items)
+    try:
+        free, _ = plain_moves(problem, items, extra=extra, seed=seed,
+                              time_limit=budget.before(sweep).share(FREE_SHARE),
+                              interruptible=interruptible)
+    except ValueError as exc:  # sparrow gave up (or is late); the other strategies may not
+        if progress:
+            progress(f"joint snap: {exc}")
+        return None
+    step = float(np.abs(problem.lattice).max())
+    snaps = budget.before(sweep).share(SNAP_SHARE)
+    deadline = time.monotonic() + snaps.left()
+    best = None
+    for reach, push in REACHES:
+        if time.monotonic() > deadline:
+            break
+        r = joint_snap(problem, items, free, reach=reach * step, push=push * step,
+                       deadline=deadline)
+        if r is not None and (best is None or r[1] < best[1]):
+            best = r
+            if progress:
+                progress(f"joint snap: {time.monotonic() - t0:5.1f} s  length {r[1]:.4g}")
+    r = repair(problem, items, snap_to_lattice(problem, items, free), time_limit=budget,
+               seed=seed, progress=progress, everything=True,
+               interruptible=interruptible or best is not None)
+    if r is not None and (best is None or r[1] < best[1]):
+        best = r
+    return best
