@@ -79,8 +79,10 @@ def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
 
 
 def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
-                grid: int | None = None, top: int = 8):
-    """(translations (P,2), E_fit) of the best grid point after refinement."""
+                grid: int | None = None, top: int = 8, polish: bool = True):
+    """(translations (P,2), E_fit) of the best grid point after refinement (IRLS on the
+    ``top`` grid points, then BFGS on the best two unless ``polish`` is False: a caller
+    that polishes its own best candidates needs no second BFGS)."""
     movable = np.flatnonzero(~problem.fix_trans)
     m = len(movable)
     if m == 0:
@@ -105,8 +107,8 @@ def brute_force(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray, *,
     ang = np.repeat(angles[None], len(starts), axis=0)
     refined = irls_translations(problem, ang, starts)
     e = problem.energy(ang, refined)
-    order = np.argsort(e)[:2]
-    best_t, best_e = refined[order[0]], float(e[order[0]])
+    order = np.argsort(e)[:2 if polish else 0]
+    best_t, best_e = refined[np.argmin(e)], float(e.min())
     for i in order:
         _, tt, ei = bfgs_refine(problem, angles, refined[i], rotations=False, max_iter=60)
         if ei < best_e:

@@ -22,7 +22,10 @@ restarts find the best basin only by luck once there are more than a few pieces.
    own translational solve, keeping improvements (the r-RoSy field fixes angles, not
    the positions that E_fit measures);
 5. with at most four movable pieces, also search the joint grid over all their
-   translations (``solver.align.brute``, compiled), at three interleaving grid sizes;
+   translations (``solver.align.brute``, compiled), at interleaving grid sizes, coarse
+   first and the next only while one finds a better basin: where the steps above
+   already found the grid's best (most garments, and the 3-piece quotient of a
+   symmetric t-shirt), the grid costs one coarse pass, not three and their polishing;
 6. polish the best with BFGS over angles and translations and keep the lowest E_fit
    of all of these and of the paper's result; with few pieces, alternate joint grid and
    polish while the grid still finds a better basin at the polished angles.
@@ -41,11 +44,14 @@ from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
 from solver.align.tree_dp import tree_dp_placement
 
-#: joint-grid points per cell axis inside the global method, by number of movable pieces:
-#: every size searches the best candidate; after polishing, the sizes in turn search again
-#: (at most ``ALTERNATE_ROUNDS``) while they find a better basin
-GLOBAL_GRID = {1: (48, 40), 2: (20, 16), 3: (16, 12, 10), 4: (16, 12, 10)}
+#: joint-grid points per cell axis inside the global method, by number of movable pieces,
+#: coarse first: each size searches the best candidate while the previous one found a
+#: better basin (the cheap pass decides whether finer ones are worth their cost); after
+#: polishing, the sizes in turn search again (at most ``ALTERNATE_ROUNDS``) while they
+#: find one
+GLOBAL_GRID = {1: (40, 48), 2: (12, 16, 20), 3: (10, 12, 16), 4: (10, 12, 16)}
 ALTERNATE_ROUNDS = 3
+GRID_GAIN = 1e-3  # a joint grid "finds a better basin" when it lowers E_fit this much
 
 
 def _piece_graph(problem: AlignProblem) -> np.ndarray:
@@ -241,17 +247,23 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         cand_t = np.concatenate([cand_t, t_h[None]])
         e = np.append(e, e_h)
     perfect = float(e.min()) <= zero
-    small = int((~problem.fix_trans).sum()) <= 4 and not perfect
+    small = int((~problem.fix_trans).sum()) in GLOBAL_GRID and not perfect
     if small:
         # few movable pieces: the joint grid over all their translations is affordable;
         # grids of several sizes, as their sample points interleave and a basin narrower
-        # than one grid step ranks among the best grid points of one size, not another
+        # than one grid step ranks among the best grid points of one size, not another.
+        # The grid is worth its cost only where the tree, sweeps and hops missed a basin:
+        # the sizes are tried in turn while they find a better one
         i = int(np.argmin(e))
+        e_best = float(e[i])
         for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())]:
-            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid)
+            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid, polish=False)
             cand_a = np.concatenate([cand_a, cand_a[i][None]])
             cand_t = np.concatenate([cand_t, tb[None]])
             e = np.append(e, eb)
+            if eb >= e_best * (1 - GRID_GAIN):
+                break
+            e_best = eb
     top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
     for i in top:
         a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
@@ -266,7 +278,7 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         # the grid finds one, so the answer is grid-optimal for its own final angles
         a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
         for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())][:ALTERNATE_ROUNDS]:
-            tb, eb = brute_force(problem, a_i, t_i, grid=grid)
+            tb, eb = brute_force(problem, a_i, t_i, grid=grid, polish=False)
             if eb >= e_i * (1 - 1e-9):
                 break
             a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)

@@ -10,6 +10,8 @@ Both only ever return a placement that is at least as good as the one given.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.optimize import minimize
 
@@ -66,16 +68,25 @@ def _energy_grad(problem: AlignProblem, angles, t, rec, w):
 
 
 def bfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
-                 rotations: bool = True, max_iter: int = 200):
-    """Joint local descent on E_fit of one placement; returns (angles, t, energy)."""
+                 rotations: bool = True, max_iter: int = 200,
+                 objective: Callable[[np.ndarray, np.ndarray], tuple] | None = None):
+    """Joint local descent on E_fit of one placement; returns (angles, t, energy).
+
+    ``objective(angles, t) -> (e, g_angles, g_t)`` replaces the problem's own E_fit (the
+    problem still gives the unknowns, their grain limits and fixed pieces): symmetric
+    placement descends on the E_fit of the whole garment over the quotient's unknowns.
+    """
     fr = problem.frames
     rec = np.arange(fr.n_edges)
     w = problem.weight * fr.length[rec]
     rec, w = rec[w > 0], w[w > 0]
+    if objective is None:
+        def objective(a, tt):
+            return _energy_grad(problem, a, tt, rec, w)
     free_a = ~problem.fix_rot if rotations else np.zeros(problem.n_pieces, bool)
     free_t = ~problem.fix_trans
     ia, it = np.flatnonzero(free_a), np.flatnonzero(free_t)
-    e0 = float(problem.energy(angles[None], t[None])[0])
+    e0 = objective(angles, t)[0]
     if len(rec) == 0 or (len(ia) == 0 and len(it) == 0):
         return angles, t, e0
     # grain limits: theta = c + tol sin(phi) keeps every angle inside its interval
@@ -100,7 +111,7 @@ def bfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
 
     def fun(x):
         a, tt = unpack(x)
-        e, ga, gt = _energy_grad(problem, a, tt, rec, w)
+        e, ga, gt = objective(a, tt)
         if grain:
             ga[ia] *= tol * np.cos(x[: len(ia)])
         return e, np.concatenate([ga[ia], gt[it].ravel()])
@@ -108,7 +119,7 @@ def bfgs_refine(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
     # BFGS (NumPy only): L-BFGS-B's Fortran core stalls on BLAS threads on a busy machine
     res = minimize(fun, x0, jac=True, method="BFGS", options={"maxiter": max_iter})
     a, tt = unpack(res.x)
-    e = float(problem.energy(a[None], tt[None])[0])
+    e = objective(a, tt)[0]
     if e < e0:
         return a, tt, e
     return angles, t, e0

@@ -20,8 +20,9 @@ across it where the print has no nap).
 Where the group has no such operation (p1, p2, p3, p4, p6, or mirrors off grain) the pair
 is kept "same": ``G`` is the reflection along the grain and ``tau = 0``, so the print's
 lattice sits at the same place relative to the flipped outline, but the motif is not
-mirrored; the quotient is then only the search space, and E_fit is measured on the
-garment itself.
+mirrored. The quotient's E_fit then measures j's seams as if its print were mirrored,
+which is not the garment cut: the quotient's answer only starts `search_tied`, which
+minimises the garment's own E_fit over the same unknowns, j following i (`PairTie`).
 """
 
 from __future__ import annotations
@@ -103,16 +104,48 @@ def expand(quotient: Placement, rules: Sequence[PairRule], keep: np.ndarray,
     ``keep`` (P,) gives each piece's index in the quotient (the second piece of a pair
     maps to its first piece's index).
     """
-    angles = quotient.angles[keep].copy()
-    trans = quotient.translations[keep].copy()
-    for rule in rules:
-        i, j = rule.first, rule.second
-        r_i = rotation_matrices(angles[i:i + 1])[0]
-        g, tau = rule.op[:2, :2], rule.op[:2, 2]
-        r_j = rule.pair.rotation @ FLIP @ r_i @ g.T
-        angles[j] = np.arctan2(r_j[1, 0], r_j[0, 0])
-        trans[j] = rule.pair.translation + r_j @ (g @ r_i.T @ trans[i] - tau)
-    return angles, trans
+    return PairTie(tuple(rules), keep).expand(quotient.angles, quotient.translations)
+
+
+@dataclass(frozen=True)
+class PairTie:
+    """The whole garment's placement as a function of the quotient's unknowns: the
+    second piece of a pair follows its first (``R_j = R_m FLIP R_i G^T``,
+    ``t_j = t_m + R_m FLIP t_i - R_j tau``), batched, with the chain rule back."""
+
+    rules: tuple[PairRule, ...]
+    keep: np.ndarray  # (P,) each piece's index in the quotient
+
+    def expand(self, q_angles: np.ndarray, q_trans: np.ndarray):
+        """(..., Q) angles, (..., Q, 2) translations -> (..., P), (..., P, 2)."""
+        angles = np.array(np.asarray(q_angles, float)[..., self.keep])
+        trans = np.array(np.asarray(q_trans, float)[..., self.keep, :])
+        for rule in self.rules:
+            i, j = rule.first, rule.second
+            mirror = rule.pair.rotation @ FLIP
+            r_j = mirror @ rotation_matrices(angles[..., i]) @ rule.op[:2, :2].T
+            angles[..., j] = np.arctan2(r_j[..., 1, 0], r_j[..., 0, 0])
+            trans[..., j, :] = (rule.pair.translation + trans[..., i, :] @ mirror.T
+                                - r_j @ rule.op[:2, 2])
+        return angles, trans
+
+    def pull_back(self, angles: np.ndarray, g_angles: np.ndarray, g_trans: np.ndarray):
+        """Gradient in the garment's angles (P,) and translations (P,2), at the garment's
+        ``angles``, -> gradient in the quotient's unknowns (Q,), (Q,2)."""
+        q = int(self.keep.max()) + 1
+        lead = np.ones(len(self.keep), bool)
+        lead[[r.second for r in self.rules]] = False
+        gq_a, gq_t = np.zeros(q), np.zeros((q, 2))
+        np.add.at(gq_a, self.keep[lead], g_angles[lead])
+        np.add.at(gq_t, self.keep[lead], g_trans[lead])
+        turn = np.array([[0.0, -1.0], [1.0, 0.0]])  # dR/dtheta = R turn
+        for rule in self.rules:
+            j, qi = rule.second, self.keep[rule.first]
+            r_j = rotation_matrices(angles[j:j + 1])[0]
+            # theta_j = const - theta_i; t_j depends on theta_i through -R_j tau
+            gq_a[qi] += -g_angles[j] + g_trans[j] @ (r_j @ turn @ rule.op[:2, 2])
+            gq_t[qi] += (rule.pair.rotation @ FLIP).T @ g_trans[j]
+        return gq_a, gq_t
 
 
 def quotient_garment(garment: Garment, rules: Sequence[PairRule]) -> tuple[Garment, np.ndarray]:
@@ -202,8 +235,14 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         q_options["grain_tol_deg"] = max(options.get("grain_tol_deg", 1.0) - slack, 0.0)
     t0 = time.perf_counter()
     q_place = align(quotient, fabric, fix=q_fix or None, init=q_init, **q_options)
+    tie = PairTie(tuple(rules), keep)
+    angles, trans = tie.expand(q_place.angles, q_place.translations)
+    tied = None
+    if any(r.mode == "same" for r in rules):
+        q_angles, q_trans, tied = search_tied(garment, quotient, fabric, tie, q_place,
+                                              fix=q_fix, init=q_init, **q_options)
+        angles, trans = tie.expand(q_angles, q_trans)
     seconds["symmetric"] = time.perf_counter() - t0
-    angles, trans = expand(q_place, rules, keep, garment.n_pieces)
     placement = Placement(angles, trans, fabric, garment=garment.source or None,
                           garment_units=q_place.garment_units,
                           piece_names=list(garment.piece_names),
@@ -225,6 +264,8 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         "pair_print_mismatch_mm": [pair_mismatch_mm(garment, placement, r) for r in rules],
         "e_fit_symmetric_mm2": fit.e_fit_mm2,
     }
+    if tied is not None:
+        symmetry["e_fit_quotient_search_mm2"] = tied
     same = [f"{r.first}-{r.second}" for r in rules if r.mode == "same"]
     if same:
         symmetry["note"] = (f"{fabric.group} has no mirror or glide along the grain: pairs "
@@ -243,6 +284,59 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     placement.report = report
     placement.pairs = symmetry["pairs"]
     return placement
+
+
+def search_tied(garment: Garment, quotient: Garment, fabric: Wallpaper, tie: PairTie,
+                start: Placement, *, fix: list[str] | None = None,
+                init: Placement | None = None, weights=None, grain_tol_deg: float | None = 1.0,
+                nap: bool = False, fabric_grain_deg: float = 0.0, use_drape: bool = True,
+                rotation: bool = True, translation: bool = True, sweeps: int = 2,
+                grid: int = 12, **_) -> tuple[np.ndarray, np.ndarray, float]:
+    """The quotient's unknowns that minimise the E_fit of the garment actually cut.
+
+    With a "same" pair the quotient's E_fit is only a stand-in (it measures j's seams as
+    if its print were mirrored), so from the quotient's answer ``start`` this searches on
+    the garment's own E_fit, j following i through ``tie``: block-coordinate exhaustive
+    moves (each quotient piece's print offset over a ``grid`` x ``grid`` cell grid,
+    every candidate scored on the whole garment in one batch), then BFGS over angles and
+    translations within the grain limits. Returns (angles, translations, E_fit before).
+    """
+    from solver.align.driver import parse_fix
+    from solver.align.grain import GrainRule
+    from solver.align.problem import AlignProblem
+    from solver.align.refine import _energy_grad, bfgs_refine
+
+    weighted = garment.with_seam_weights(weights) if weights else garment
+    full = AlignProblem.build(weighted, fabric, use_drape=use_drape)
+    fix_rot, fix_trans = parse_fix(quotient, fix)
+    grain = None if grain_tol_deg is None else GrainRule.from_garment(
+        quotient, grain_tol_deg, nap=nap, fabric_grain_deg=fabric_grain_deg)
+    unknowns = AlignProblem.build(
+        quotient, fabric, fix_rot=fix_rot | (not rotation), fix_trans=fix_trans | (not translation),
+        init_angles=None if init is None else init.angles,
+        init_translations=None if init is None else init.translations, grain=grain,
+        use_drape=use_drape)
+    rec = np.arange(full.frames.n_edges)
+    w = full.weight * full.frames.length[rec]
+    rec, w = rec[w > 0], w[w > 0]
+
+    def objective(q_a: np.ndarray, q_t: np.ndarray):
+        a, t = tie.expand(q_a, q_t)
+        e, g_a, g_t = _energy_grad(full, a, t, rec, w)
+        return e, *tie.pull_back(a, g_a, g_t)
+
+    a, t = np.array(start.angles, float), np.array(start.translations, float)
+    before = float(full.energy(*tie.expand(a[None], t[None]))[0])
+    f = (np.arange(grid) + 0.5) / grid
+    cell = np.stack(np.meshgrid(f, f, indexing="ij"), -1).reshape(-1, 2) @ fabric.basis.T
+    for _ in range(sweeps):
+        for c in np.flatnonzero(~unknowns.fix_trans):
+            cand = np.repeat(t[None], len(cell) + 1, axis=0)
+            cand[1:, c] -= cell @ rotation_matrices(a[c:c + 1])[0].T  # print shifted by cell
+            e = full.energy(*tie.expand(np.broadcast_to(a, (len(cand), len(a))), cand))
+            t = cand[int(np.argmin(e))]
+        a, t, _ = bfgs_refine(unknowns, a, t, rotations=rotation, objective=objective)
+    return a, t, before
 
 
 def _first_of(keep: np.ndarray) -> np.ndarray:

@@ -119,6 +119,18 @@ class Piece:
         return float(shapely.Polygon(self.outline).area)
 
 
+@dataclass(frozen=True)
+class PiecePair:
+    """Pieces ``first`` and ``second`` (indices into ``NestProblem.pieces``) are a left/right
+    pair kept ``mode`` ("mirror" or "same") by the alignment; ``mirror`` (2, 3) maps the
+    first's input coordinates onto their mirror images on the second."""
+
+    first: int
+    second: int
+    mode: str
+    mirror: np.ndarray
+
+
 @dataclass
 class NestProblem:
     """Pieces on a roll of ``width`` (y), optionally limited in ``length`` (x, the table)."""
@@ -131,6 +143,7 @@ class NestProblem:
     keepouts: list[np.ndarray] = field(default_factory=list)
     name: str = ""
     allowance: dict | None = None  # the rules garments' cut lines were made with (reported)
+    pairs: list[PiecePair] = field(default_factory=list)  # left/right pairs of garments
 
     def __post_init__(self) -> None:
         if not self.pieces:

@@ -88,6 +88,9 @@ class Layout:
     fabric: dict | None = None
     keepouts: list[np.ndarray] = field(default_factory=list)
     allowance: dict | None = None  # the allowance rules the cut lines were made with
+    # left/right pairs as PLACEMENT.json has them, [i, j, "mirror" | "same"], i and j
+    # indices into ``pieces`` (copy k of a pair's first piece with copy k of its second)
+    pairs: list[list] = field(default_factory=list)
 
     @property
     def density(self) -> float:
@@ -100,6 +103,8 @@ class Layout:
              "fabric": self.fabric, "pieces": [p.to_dict() for p in self.pieces]}
         if self.allowance is not None:
             d["allowance"] = self.allowance
+        if self.pairs:
+            d["pairs"] = [[int(i), int(j), str(m)] for i, j, m in self.pairs]
         if self.keepouts:
             d["keepouts"] = [np.asarray(k, float).tolist() for k in self.keepouts]
         return d
@@ -108,9 +113,14 @@ class Layout:
     def from_dict(cls, d: dict) -> Layout:
         if d.get("version") != 1 or d.get("units") != "mm":
             raise ValueError("not a version-1 LAYOUT in mm")
-        return cls(float(d["width"]), float(d["length"]), float(d.get("gap", 0.0)),
-                   [Placed.from_dict(p) for p in d["pieces"]], d.get("fabric"),
-                   [np.asarray(k, float) for k in d.get("keepouts", [])], d.get("allowance"))
+        pieces = [Placed.from_dict(p) for p in d["pieces"]]
+        pairs = [[int(i), int(j), str(m)] for i, j, m in d.get("pairs", [])]
+        if any(not (0 <= i < len(pieces) and 0 <= j < len(pieces)) or i == j
+               for i, j, _ in pairs):
+            raise ValueError('"pairs" name pieces the layout does not have')
+        return cls(float(d["width"]), float(d["length"]), float(d.get("gap", 0.0)), pieces,
+                   d.get("fabric"), [np.asarray(k, float) for k in d.get("keepouts", [])],
+                   d.get("allowance"), pairs)
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=1) + "\n")
@@ -144,7 +154,18 @@ def build_layout(problem: NestProblem, items: list[Item], moves: list[np.ndarray
         length = xmax + problem.gap
     fabric = None if problem.fabric is None else problem.fabric.to_dict()
     return Layout(float(problem.width), float(length), float(problem.gap), placed, fabric,
-                  list(problem.keepouts), problem.allowance)
+                  list(problem.keepouts), problem.allowance, layout_pairs(problem, items))
+
+
+def layout_pairs(problem: NestProblem, items: list[Item]) -> list[list]:
+    """The problem's pairs as indices into the placed copies: the k-th copy of a pair's
+    first piece goes with the k-th copy (same side up) of its second."""
+    copies: dict[tuple[int, bool], list[int]] = {}
+    for k, item in enumerate(items):
+        copies.setdefault(item.key, []).append(k)
+    return [[a, b, pair.mode] for pair in problem.pairs for side in (False, True)
+            for a, b in zip(copies.get((pair.first, side), []),
+                            copies.get((pair.second, side), []))]
 
 
 def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
@@ -157,7 +178,8 @@ def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
     the keep-outs; with ``problem``: the right copies are all there, each transform
     carries the piece's input outline onto the placed outline, its rotation relative to
     the piece's reference frame is allowed, and on a print it is a symmetry of the print
-    (checked on sample points with ``Wallpaper.mismatch_distance``).
+    (checked on sample points with ``Wallpaper.mismatch_distance``), and the layout's
+    pairs are the problem's, each "mirror" pair's print still mirrored (`_check_pairs`).
     """
     faults: list[str] = []
     g = layout.gap
@@ -194,6 +216,40 @@ def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
                 faults.append(f"{p.id}: touches keep-out region {i}")
     if problem is not None:
         faults += _check_against_problem(layout, problem, symmetry_samples)
+        faults += _check_pairs(layout, problem, symmetry_samples)
+    return faults
+
+
+PAIR_TOL_MM = 0.1  # mirrored print: largest mismatch at mirror-image points (issue 14)
+
+
+def _check_pairs(layout: Layout, problem: NestProblem, samples: int) -> list[str]:
+    """The layout records the problem's pairs, and on a print every "mirror" pair is still
+    mirrored: the map from one copy's fabric point through the pattern's mirror onto the
+    other copy, ``T_b M T_a^-1``, is an operation of the print (checked at points of the
+    first copy's outline and halfway to its centre, by ``Wallpaper.mismatch_distance``)."""
+    faults = []
+    by_id = {it.id: it for it in problem.items()}
+    items = [by_id.get(p.id) for p in layout.pieces]
+    if any(it is None for it in items):
+        return faults  # reported as unknown pieces
+    expected = layout_pairs(problem, items)
+    if sorted(map(tuple, layout.pairs)) != sorted(map(tuple, expected)):
+        faults.append(f"pairs {layout.pairs} are not the pieces' pairs {expected}")
+        return faults
+    maps = {(p.first, p.second): p.mirror for p in problem.pairs}
+    for a, b, mode in layout.pairs:
+        if mode != "mirror" or problem.fabric is None:
+            continue
+        pa, pb = layout.pieces[a], layout.pieces[b]
+        ring = pa.outline[np.linspace(0, len(pa.outline) - 1, samples).astype(int)]
+        pts = np.vstack([ring, 0.5 * (ring + pa.outline.mean(axis=0))])
+        mirror = maps[(items[a].piece, items[b].piece)]
+        there = affine(compose(pb.transform, compose(mirror, invert(pa.transform))), pts)
+        err = float(problem.fabric.mismatch_distance(there, pts).max())
+        if err > PAIR_TOL_MM:
+            faults.append(f"{pa.id} and {pb.id}: the pair's print is no longer mirrored "
+                          f"(mismatch {err:.3g} mm)")
     return faults
 
 

@@ -7,13 +7,14 @@ imports (load ~9 on 2 cores), paid only by the inputs that need them.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import shapely
 
 from solver.jsonfile import read_json
-from solver.nest.instance import NestProblem, Piece, load_esicup
+from solver.nest.instance import NestProblem, Piece, PiecePair, load_esicup
 from untrusted import limits
 
 
@@ -69,9 +70,26 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     return pieces
 
 
-def pieces_from_placement(path: str | Path, *, orientations=None,
-                          units: str | None = None, allowance=None, fabric=None,
-                          plain: bool = False):
+def placement_pairs(garment, placement) -> list[PiecePair]:
+    """The placement's left/right pairs with their mirror maps (pattern coordinates), so
+    that a layout can be checked to keep each "mirror" pair's print mirrored."""
+    from solver.garment.symmetry import FLIP, fit_pairs
+
+    modes = {(int(i), int(j)): str(m) for i, j, m in placement.pairs}
+    return [PiecePair(p.first, p.second,
+                      modes.get((p.first, p.second), modes.get((p.second, p.first), "same")),
+                      np.column_stack([p.rotation @ FLIP, p.translation]))
+            for p in fit_pairs(garment, list(modes))]
+
+
+def pieces_from_placement(path: str | Path, **options):
+    """(pieces, print) of `placement_input` (its pairs left out)."""
+    pieces, fabric, _ = placement_input(path, **options)
+    return pieces, fabric
+
+
+def placement_input(path: str | Path, *, orientations=None, units: str | None = None,
+                    allowance=None, fabric=None, plain: bool = False):
     """Garment pieces at their aligned position on the print, and that print.
 
     PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
@@ -127,7 +145,7 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
         for i, piece in enumerate(pieces):
             if piece.grainline is None:
                 piece.grainline = lines[i]
-    return pieces, placement.fabric
+    return pieces, placement.fabric, placement_pairs(garment, placement)
 
 
 def load_problem(paths: list[str | Path], *, width: float | None = None,
@@ -144,6 +162,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     ``plain``: nest on plain cloth whatever print the inputs name.
     """
     pieces: list[Piece] = []
+    piece_pairs: list[PiecePair] = []
     found_width, found_fabric = None, None
     for path in paths:
         kind = kind_of(path)
@@ -157,8 +176,11 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
         else:
-            got, wp = pieces_from_placement(path, units=units, allowance=allowance,
-                                            fabric=fabric, plain=plain)
+            got, wp, got_pairs = placement_input(path, units=units, allowance=allowance,
+                                                 fabric=fabric, plain=plain)
+            piece_pairs += [dataclasses.replace(p, first=p.first + len(pieces),
+                                                second=p.second + len(pieces))
+                            for p in got_pairs]
             pieces += got
             found_fabric = found_fabric or wp
     for p in pieces:
@@ -182,4 +204,4 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         rules = (allowance or AllowanceRules()).to_dict()
     return NestProblem(pieces, float(width), length, gap,
                        None if plain else fabric or found_fabric, list(keepouts or []),
-                       allowance=rules)
+                       allowance=rules, pairs=piece_pairs)

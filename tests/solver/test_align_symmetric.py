@@ -190,3 +190,68 @@ def test_a_print_slightly_off_the_roll_still_mirrors_on_grain(tshirt) -> None:
     for i, j, _ in placement.pairs:
         assert _sampled_mirror_mismatch(tshirt, placement, i, j, by_pieces[(i, j)]) < 0.1
     assert placement.report["off_grain_max_deg"] <= 1.0 + 1e-6
+
+
+@pytest.mark.parametrize("group", ["p1", "p4"])
+def test_same_pairs_report_the_fit_of_the_garment_cut(tshirt, group: str,
+                                                      tmp_path: Path) -> None:
+    # no mirror on grain: the search runs on the garment's own E_fit, j following i
+    fabric = {"p1": Wallpaper("p1", (30, 0), (9, 27)),
+              "p4": Wallpaper("p4", (40, 0), (0, 40), (3, 5))}[group]
+    placement = align_symmetric(tshirt, fabric, mirror_pairs(tshirt), compare=False,
+                                method="paper", restarts=3, grain_tol_deg=1.0)
+    assert {mode for *_, mode in placement.pairs} == {"same"}
+    path = tmp_path / "placement.json"
+    placement.save(path)
+    written = Placement.load(path)
+    reported = placement.report["e_fit_aligned_mm2"]
+    assert fit_report(tshirt, written).e_fit_mm2 == pytest.approx(reported, rel=1e-6)
+    assert placement.report["symmetry"]["e_fit_symmetric_mm2"] == reported
+    # the quotient's stand-in answer is where the search started, never better
+    assert reported <= placement.report["symmetry"]["e_fit_quotient_search_mm2"]
+    # a local optimum of the real E_fit: no small tied move of a pair's first piece helps
+    rules = [pair_rule(p, fabric) for p in mirror_pairs(tshirt)]
+    quotient, keep = quotient_garment(tshirt, rules)
+    first = [int(np.flatnonzero(keep == q)[0]) for q in range(quotient.n_pieces)]
+    rng = np.random.default_rng(2)
+    for _ in range(6):
+        q = Placement(written.angles[first], written.translations[first]
+                      + rng.normal(0, 0.3, (quotient.n_pieces, 2)), fabric)
+        angles, trans = expand(q, rules, keep, tshirt.n_pieces)
+        moved = fit_report(tshirt, Placement(angles, trans, fabric)).e_fit_mm2
+        assert moved >= reported * (1 - 1e-6)
+
+
+def test_tie_gradient_matches_finite_differences(tshirt) -> None:
+    from solver.align.problem import AlignProblem
+    from solver.align.refine import _energy_grad
+    from solver.align.symmetric import PairTie
+
+    fabric = Wallpaper("pmg", (40, 0), (0, 55))  # "mirror" rules with a glide: tau != 0
+    rules = [pair_rule(p, fabric) for p in mirror_pairs(tshirt)]
+    assert any(np.abs(r.op[:2, 2]).max() > 1 for r in rules)
+    _, keep = quotient_garment(tshirt, rules)
+    tie = PairTie(tuple(rules), keep)
+    full = AlignProblem.build(tshirt, fabric)
+    rec = np.arange(full.frames.n_edges)
+    w = full.weight * full.frames.length[rec]
+
+    def energy(q_a, q_t):
+        a, t = tie.expand(q_a, q_t)
+        return _energy_grad(full, a, t, rec, w), a
+
+    rng = np.random.default_rng(3)
+    q_a, q_t = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-50, 50, (3, 2))
+    (e, g_a, g_t), a = energy(q_a, q_t)
+    gq_a, gq_t = tie.pull_back(a, g_a, g_t)
+    h = 1e-6
+    for k in range(3):
+        da = np.zeros(3)
+        da[k] = h
+        num = (energy(q_a + da, q_t)[0][0] - energy(q_a - da, q_t)[0][0]) / (2 * h)
+        assert num == pytest.approx(gq_a[k], rel=1e-4, abs=1e-3)
+        for x in range(2):
+            dt = np.zeros((3, 2))
+            dt[k, x] = h
+            num = (energy(q_a, q_t + dt)[0][0] - energy(q_a, q_t - dt)[0][0]) / (2 * h)
+            assert num == pytest.approx(gq_t[k, x], rel=1e-4, abs=1e-3)
