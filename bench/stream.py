@@ -271,25 +271,27 @@ def bench_line() -> None:
     fast = ",120:10000,121:10000"
     print(f"\n### Serial line use while cutting (real time, speed 1, {BAUD}-baud line model)")
     print(f"Capacity: {BAUD} baud, 8N1 = 10 bits per byte = {cap:.0f} B/s in each direction. "
-          "One circle of radius 30 mm in short segments (no arcs: 0.1 mm at 6000 mm/min, "
-          "0.25 mm at 12000, 1000 and 800 lines/s asked) on a table with "
+          "One circle of radius 30 mm in short segments (no arcs: 0.05 and 0.0625 mm at "
+          "3000 mm/min, 1000 and 800 lines/s asked) on a table with "
           "$120/$121 = 10000 mm/s^2, so that GRBL's look-ahead (15 blocks) lets the machine "
           "take more lines than the line carries: the line is the limit. 'contour' = from "
           "the first G1 line to the last through the wire, where nothing in the protocol "
           "holds a line back (no sync, no beam switching); the whole run adds the travel "
           "moves, the beam-on gate and the final wait for Idle. Best of 3, same run.")
-    print("| feed mm/min | mode | contour G-code B/s | of capacity | ratio to check | "
+    print("| feed mm/min | segment mm | mode | contour G-code B/s | of capacity | ratio to check | "
           "`?` B/s | whole run lines/s | reports/s | controller->host B/s | of capacity | "
           "`?` waits behind the queue ms (median / max) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for feed, seg in ((6000.0, 0.1), (12000.0, 0.25)):  # 1000 and 800 lines/s asked
+    # 1000 and 800 lines/s asked, at a feed the line can watch within 2 mm (the streamer
+    # refuses a laser job it cannot: gcode.watchdog.CATCH_MM)
+    for feed, seg in ((3000.0, 0.05), (3000.0, 0.0625)):
         prog = _short_segment_job(seg, feed, n_rings=1)
         base = None
         for mode in ("check", "off", "on"):
             u = max((_line_use(prog, 1.0, mode, fast) for _ in range(3)),
                     key=lambda r: r.contour_gcode)
             base = base or u.contour_gcode
-            print(f"| {feed:.0f} | {mode} | {u.contour_gcode:.0f} | "
+            print(f"| {feed:.0f} | {seg:g} | {mode} | {u.contour_gcode:.0f} | "
                   f"{u.contour_gcode / cap:.1%} | {u.contour_gcode / base:.2f} | "
                   f"{u.contour_polls:.0f} | "
                   f"{u.lines_per_s:.0f} | {u.reports_per_s:.0f} | {u.to_host:.0f} | "

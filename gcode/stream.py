@@ -18,6 +18,7 @@ it only uses ``read``, ``write``, ``in_waiting`` and ``timeout``.
 from __future__ import annotations
 
 import logging
+import math
 import re
 import time
 from collections import deque
@@ -520,11 +521,14 @@ class Streamer:
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
         if wd is not None and wd.catch_mm > CATCH_MM:
-            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm before "
-                    f"a report shows it ({CATCH_MM:g} mm asked): the line carries too few "
-                    "reports; cut slower or raise the baud rate")
-            log.warning("%s%s", self.prefix, note)
-            job.res.messages.append(note)
+            fastest = max(wd.feeds)
+            # travel before a report is proportional to the feed: the fastest watchable one
+            watchable = fastest * CATCH_MM / wd.catch_mm
+            raise StreamError(
+                f"{self.prefix}at F{fastest:g} with the beam on a deviation may travel "
+                f"{wd.catch_mm:.1f} mm before a status report shows it ({CATCH_MM:g} mm is "
+                f"the limit): the serial line carries too few reports; cut at most "
+                f"F{math.floor(watchable):g} or raise the baud rate")
         try:
             try:
                 self._enter(StreamState.CHECKING if check else StreamState.STREAMING)

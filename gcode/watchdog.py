@@ -286,7 +286,9 @@ class Watchdog:
         expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)
             starved = st.planner_free >= PLANNER_BLOCKS - 2
-            expected = min(low, self.lookahead_feed(PLANNER_BLOCKS - st.planner_free))
+            # two blocks fewer than reported: the one being run is partly done, and one
+            # more may end between GRBL sampling the speed and counting the free blocks
+            expected = min(low, self.lookahead_feed(PLANNER_BLOCKS - st.planner_free - 2))
         if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
             self._slow_since = None
         if feed > high * 1.02 + 1.0:
