@@ -67,17 +67,10 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
 def pieces_from_placement(path: str | Path, *, orientations=None,
                           units: str | None = None, allowance=None, fabric=None,
                           plain: bool = False):
-    """Garment pieces at their aligned position on the print, and that print.
+    """Garment pieces at their aligned position on the print, and that print, read from a
+    PLACEMENT.json and the garment file it names (see :func:`placed_pieces`).
 
-    PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
-    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``: the same rigid map carries
-    the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
-    ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
-    ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
-    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
-    balance notches follow (``plain``: no print, notches by spacing alone). The turns
-    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
-    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
+    ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so).
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -93,13 +86,33 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
+    return placed_pieces(garment, placement, orientations=orientations, allowance=allowance,
+                         fabric=fabric, plain=plain)
+
+
+def placed_pieces(garment, placement, *, orientations=None, allowance=None, fabric=None,
+                  plain: bool = False):
+    """Garment pieces at their aligned position on the print, and that print.
+
+    The placement gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
+    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``: the same rigid map carries
+    the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
+    ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
+    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
+    balance notches follow (``plain``: no print, notches by spacing alone). The turns
+    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
+    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
+    ``placement`` is not changed.
+    """
+    import dataclasses
+
     if orientations is None:
         rule = placement.grain_rule
         orientations = ((0.0,) if rule.get("nap") else
                         None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
                         else (0.0, 180.0))
     if fabric is not None:
-        placement.fabric = fabric
+        placement = dataclasses.replace(placement, fabric=fabric)
     pieces = garment_pieces(garment, allowance, placement.piece_names or None,
                             None if plain else placement)
     for i, piece in enumerate(pieces):
@@ -116,6 +129,18 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
             if piece.grainline is None:
                 piece.grainline = lines[i]
     return pieces, placement.fabric
+
+
+def placement_problem(garment, placement, *, width: float, length: float | None = None,
+                      gap: float = 0.0, allowance=None, plain: bool = False) -> NestProblem:
+    """The marker problem of one aligned garment, from the objects alignment handed over
+    (the station's plan: no trip through PLACEMENT.json and the garment file)."""
+    from solver.garment.allowance import AllowanceRules
+
+    pieces, fabric = placed_pieces(garment, placement, allowance=allowance, plain=plain)
+    return assemble_problem(pieces, width=width, length=length, gap=gap,
+                            fabric=None if plain else fabric, what="the garment",
+                            allowance=(allowance or AllowanceRules()).to_dict())
 
 
 def load_problem(paths: list[str | Path], *, width: float | None = None,
@@ -149,17 +174,6 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
                                             fabric=fabric, plain=plain)
             pieces += got
             found_fabric = found_fabric or wp
-    for p in pieces:
-        p.quantity *= quantity
-        p.mirrored_pair = p.mirrored_pair or pairs
-    copies = sum(p.quantity * (2 if p.mirrored_pair else 1) for p in pieces)
-    if copies > limits.MAX_DEMAND:
-        raise ValueError(f"{', '.join(map(str, paths))}: {copies:,} copies to nest; at most "
-                         f"{limits.MAX_DEMAND:,} are nested at once")
-    names = [p.name for p in pieces]
-    for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
-        if names.count(p.name) > 1:
-            p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
     width = width if width is not None else found_width or default_width
     if width is None:
         raise ValueError("give the fabric width with --width (the input does not say it)")
@@ -168,6 +182,28 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         from solver.garment.allowance import AllowanceRules
 
         rules = (allowance or AllowanceRules()).to_dict()
-    return NestProblem(pieces, float(width), length, gap,
-                       None if plain else fabric or found_fabric, list(keepouts or []),
-                       allowance=rules)
+    return assemble_problem(pieces, width=width, length=length, gap=gap,
+                            fabric=None if plain else fabric or found_fabric,
+                            quantity=quantity, pairs=pairs, keepouts=keepouts, allowance=rules,
+                            what=", ".join(map(str, paths)))
+
+
+def assemble_problem(pieces: list[Piece], *, width: float, length: float | None, gap: float,
+                     fabric, quantity: int = 1, pairs: bool = False,
+                     keepouts: list[np.ndarray] | None = None, allowance: dict | None = None,
+                     what: str = "the input") -> NestProblem:
+    """One marker problem from pieces gathered from any inputs: copies counted against the
+    demand limit (``what`` names the inputs in the refusal), names made unique."""
+    for p in pieces:
+        p.quantity *= quantity
+        p.mirrored_pair = p.mirrored_pair or pairs
+    copies = sum(p.quantity * (2 if p.mirrored_pair else 1) for p in pieces)
+    if copies > limits.MAX_DEMAND:
+        raise ValueError(f"{what}: {copies:,} copies to nest; at most "
+                         f"{limits.MAX_DEMAND:,} are nested at once")
+    names = [p.name for p in pieces]
+    for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
+        if names.count(p.name) > 1:
+            p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
+    return NestProblem(pieces, float(width), length, gap, fabric, list(keepouts or []),
+                       allowance=allowance)
