@@ -33,9 +33,11 @@ import numpy as np
 from gcode.recovery import (
     FINAL_MOVES,
     MARKER_SYSTEM,
-    distance_to_path,
     final_moves,
+    head_position,
     load_final_moves,
+    piece_finished,
+    read_marker,
     read_params,
     save_final_moves,
     wait_at_rest,
@@ -235,7 +237,7 @@ class StationPipeline:
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
         from station.allowance import rules_for_job
-        from station.render import draw_fit
+        from station.render import draw_fit, photo_colours
 
         captured = fabric if isinstance(fabric, Captured) else Captured.read(fabric, workdir)
         garment, garment_path = self._job_garment(job, workdir)
@@ -570,38 +572,15 @@ class StationPipeline:
         ``rest`` is the status read before anything reset the controller, ``alarm`` says
         whether its position can be trusted, ``params`` is ``$#``.
         """
-        marker = params.get(f"G{53 + MARKER_SYSTEM}")
-        if marker is None or len(marker) < 3 or round(marker[0]) != job.id:
+        marker = read_marker(params)
+        if marker is None or marker.job != job.id:
             return
-        piece, phase = int(round(marker[1])) - 1, int(round(marker[2]))
+        piece = marker.piece
         record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
-        if record is None or record["state"] == "cut" or phase not in (1, 2):
+        if record is None or record["state"] == "cut" or marker.phase not in (1, 2):
             return
         path = load_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id).get(piece)
-        if path is None or len(path) < 2:
-            path = np.zeros((0, 2))
-            start = end = np.full(2, np.inf)  # unknown geometry: nothing is proven by it
-        else:
-            start, end = path[0], path[-1]
-        here = None
-        if rest is not None and not alarm and rest.mpos is not None:
-            g54 = params.get("G54", (0.0, 0.0, 0.0))
-            here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
-        at_end = here is not None and float(np.hypot(*(here - end))) < 0.02
-        on_move = here is not None and distance_to_path(here, path) < 0.05
-        if phase == 2:
-            # Written only after the final move (GRBL syncs before an EEPROM write). The
-            # one contradiction a trusted position can show is a head stopped on the final
-            # move short of its end: then believe the head (an emulator that stores the
-            # offset when it parses the line, not when it runs it, gets this right too).
-            done = not (on_move and not at_end)
-            why = ("its sync point executed (marker written after its final move)" if done
-                   else "the marker says finished but the head stopped on its final move")
-        else:
-            done = at_end and float(np.hypot(*(start - end))) > 0.05
-            why = ("the head rests at the end of its final move" if done else
-                   "its final move may not have run (head elsewhere or position lost): "
-                   "cut again in full")
+        done, why = piece_finished(marker.phase, path, head_position(rest, alarm, params))
         if done:
             store.set_piece_state(job.id, piece, "cut")
         store.log(job.id, "recovery", f"piece {piece} ({record['name']}): the machine "
@@ -666,35 +645,6 @@ def start_step(control: JobControl, step: str, fraction: float | None = None) ->
     ``fraction`` only where the step can measure how far it is."""
     control.progress.clear()
     control.progress.update(step=step, **({} if fraction is None else {"fraction": fraction}))
-
-
-def photo_colours(photo: np.ndarray | None, mm_per_px: float, wallpaper):
-    """Colours of the print as photographed (None without a photo): any fabric point is
-    moved by whole lattice vectors into the middle of the photo and sampled there, so
-    the pictures show the real cloth rather than a stand-in print."""
-    import cv2
-
-    if photo is None:
-        return None
-    s = float(mm_per_px)
-    h, w = photo.shape[:2]
-    centre = np.array([w, h], float) * s / 2
-    base = wallpaper.to_fractional(centre[None])[0]
-
-    def colour_of(points: np.ndarray) -> np.ndarray:
-        f = wallpaper.to_fractional(np.asarray(points, float))
-        f = base - 0.5 + (f - base + 0.5) % 1.0
-        px = wallpaper.to_cartesian(f) / s
-        n, width = len(px), 4096
-        rows = -(-n // width)
-        grid = np.zeros((rows * width, 2), np.float32)
-        grid[:n] = px
-        grid = grid.reshape(rows, width, 2)
-        out = cv2.remap(photo, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REFLECT)
-        return out.reshape(-1, 3)[:n]
-
-    return colour_of
 
 
 def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float = 80.0,
