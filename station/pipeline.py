@@ -50,6 +50,8 @@ from station.jobstore import Job, JobStore
 
 log = logging.getLogger("station.pipeline")
 
+HELD_PLANS = 16  # plans a daemon keeps in memory for jobs paused and resumed in it
+
 
 @dataclass
 class Captured:
@@ -98,6 +100,10 @@ class StationPipeline:
         profile = config["machine"]["profile"]
         machine = load_machine(config.resolve(profile)) if profile else default_machine()
         self.machine = with_station_cut(machine, config)
+        # Plans made in this process by job id, so that a job paused and resumed here cuts
+        # from the objects too; used only while the store's plan is still this one (another
+        # station may have planned the job again since).
+        self._planned: dict[int, Planned] = {}
 
     # ------------------------------------------------------------------ checks
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
@@ -407,13 +413,18 @@ class StationPipeline:
         draw_marker(doc, workdir / "marker.png", garment=garment, report=report,
                     photo=None if photo is None else photo.photo,
                     photo_mm_per_px=1.0 if photo is None else photo.mm_per_px, credit=credit)
-        return Planned({"fabric": captured.path, "garment": str(garment_path),
-                        "placement": str(workdir / "placement.json"),
-                        "layout": str(workdir / "layout.json"),
-                        "program": str(workdir / "job.nc"),
-                        "report": str(workdir / "report.json"),
-                        "pieces": [p.id for p in layout.pieces]},
-                       layout_doc=doc, program_summary=program.summary())
+        planned = Planned({"fabric": captured.path, "garment": str(garment_path),
+                           "placement": str(workdir / "placement.json"),
+                           "layout": str(workdir / "layout.json"),
+                           "program": str(workdir / "job.nc"),
+                           "report": str(workdir / "report.json"),
+                           "pieces": [p.id for p in layout.pieces]},
+                          layout_doc=doc, program_summary=program.summary())
+        self._planned.pop(job.id, None)
+        self._planned[job.id] = planned
+        while len(self._planned) > HELD_PLANS:  # the oldest go: they resume from files
+            self._planned.pop(next(iter(self._planned)))
+        return planned
 
     @staticmethod
     def _write_report(workdir: Path, report: dict[str, Any]) -> None:
@@ -512,8 +523,9 @@ class StationPipeline:
             if cleared.kind != "ok":
                 raise RuntimeError(f"the controller refused to clear the piece marker: "
                                    f"{cleared.raw}")
-            # the layout planned in this process, else (a job resumed) its LAYOUT.json
-            layout = getattr(plan, "layout_doc", None) or plan["layout"]
+            # the layout planned in this process, else (resumed after a restart) LAYOUT.json
+            held = plan if isinstance(plan, Planned) else self._planned.get(job.id)
+            layout = held.layout_doc if held is not None and held == plan else plan["layout"]
             program = with_markers(self.program_for(layout, todo,
                                                     job_dir=Path(plan["layout"]).parent),
                                    job.id, index)
@@ -559,6 +571,7 @@ class StationPipeline:
         if not result.completed:
             raise RuntimeError(f"cut stopped: {result.reason} "
                                f"{(result.fault or {}).get('detail', '')}".strip())
+        self._planned.pop(job.id, None)  # every piece cut: nothing left to resume
 
     def reconcile(self, job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool,
                   params: dict[str, tuple[float, ...]]) -> None:
