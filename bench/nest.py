@@ -1,9 +1,13 @@
 """Nesting benchmark: ESICUP instances, shirts under square prints, Berkeley garments on a roll.
 
-    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments] [--seed S]
+    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,budget] [--seed S]
+                         [--budgets 1,3,10] [--cases tshirt,tshirt-p2,...]
 
 ``make bench`` runs it with the time from $BENCH_NEST_TIME (default 30 s per run, the
 issue's setting). Every layout is verified with ``verify_layout`` before it is counted.
+``budget`` checks the ``--time T`` promise: wall time from the call to a verified layout,
+over T, on plain and printed inputs (issue 18: within 10 %). The garments table gives
+printed density / plain density (plain = the same pieces on grain, ``nest --plain``).
 Needs ../shared/data (skips, saying so, when absent).
 """
 
@@ -75,26 +79,101 @@ def garments(t: float, seed: int) -> None:
     from solver.wallpaper import Wallpaper
 
     print(f"\n### Berkeley garments on a 1500 mm roll, gap 2 mm, p2 square print, {t:g} s\n")
-    print("| garment | pieces | plain | repeat 20 | repeat 50 | repeat 100 | repeat 200 |")
+    print("| garment | pieces | plain (`--plain`) | repeat 20 | repeat 50 | repeat 100 | "
+          "repeat 200 |")
     print("|---|---|---|---|---|---|---|")
     for rel in GARMENTS:
         g = load_garment(SHARED / "garments" / "berkeley_garment_library" / "Garments" / rel,
                          units="m")
         pieces = [Piece(f"p{i}", g.piece_outline(i)) for i in range(g.n_pieces)]
-        cells = []
+        cells, plain = [], None
         for rep in (None, 20.0, 50.0, 100.0, 200.0):
             fabric = None if rep is None else Wallpaper("p2", (rep, 0.0), (0.0, rep))
             problem = NestProblem(pieces, 1500.0, gap=2.0, fabric=fabric)
             layout, _ = _run(problem, "auto", t, seed)
-            cells.append(f"{layout.density:.1%} ({layout.length:.0f} mm)")
+            plain = plain or layout.density
+            ratio = "" if rep is None else f", {layout.density / plain:.2f} of plain"
+            cells.append(f"{layout.density:.1%} ({layout.length:.0f} mm{ratio})")
         print(f"| {Path(rel).stem} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+
+
+def _garment_problem(rel: str, repeat: float | None):
+    from solver.garment import load_garment
+    from solver.nest import NestProblem, Piece
+    from solver.wallpaper import Wallpaper
+
+    g = load_garment(SHARED / "garments" / "berkeley_garment_library" / "Garments" / rel,
+                     units="m")
+    pieces = [Piece(f"p{i}", g.piece_outline(i)) for i in range(g.n_pieces)]
+    fabric = None if repeat is None else Wallpaper("p2", (repeat, 0.0), (0.0, repeat))
+    return NestProblem(pieces, 1500.0, gap=2.0, fabric=fabric)
+
+
+def _esicup_problem(name: str, repeat: float | None):
+    from solver.nest import load_esicup
+    from solver.wallpaper import Wallpaper
+
+    problem = load_esicup(SHARED / "nesting" / f"{name}.json")
+    if repeat is not None:
+        problem.fabric = Wallpaper("p1", (repeat, 0.0), (0.0, repeat))
+    return problem
+
+
+BUDGET_CASES = {  # name: (problem maker, argument, print repeat or None for plain)
+    "tshirt": (_garment_problem, GARMENTS[0], None),
+    "tshirt-p2-50": (_garment_problem, GARMENTS[0], 50.0),
+    "pants": (_garment_problem, GARMENTS[1], None),
+    "pants-p2-50": (_garment_problem, GARMENTS[1], 50.0),
+    "skirt": (_garment_problem, GARMENTS[2], None),
+    "skirt-p2-50": (_garment_problem, GARMENTS[2], 50.0),
+    "shirts": (_esicup_problem, "shirts", None),
+    "shirts-p1-0.5": (_esicup_problem, "shirts", 0.5),
+    "swim": (_esicup_problem, "swim", None),
+    "albano-p1-20": (_esicup_problem, "albano", 20.0),
+}
+
+
+def budget(budgets: list[float], seed: int, cases: list[str]) -> None:
+    """Wall time of nest + verification over the promised T (sparrow's thread, the fills,
+    building and verifying the layout all inside)."""
+    import numpy as np
+
+    from solver.nest import verify_layout
+    from solver.nest.solve import nest
+    from solver.wallpaper import Wallpaper
+
+    # process start-up, as `station nest` does before its clock starts: the kernel's cache
+    Wallpaper("p1", (1.0, 0.0), (0.0, 1.0)).lattice_residual(np.zeros((1, 2)))
+    print(f"\n### `--time T` on budget: wall / T, nest + verification, seed {seed}\n")
+    print("| input | pieces | " + " | ".join(f"T = {t:g} s" for t in budgets) + " |")
+    print("|---|---|" + "---|" * len(budgets))
+    worst = (0.0, "")
+    for name in cases:
+        make, arg, repeat = BUDGET_CASES[name]
+        cells = []
+        for t in budgets:
+            problem = make(arg, repeat)
+            t0 = time.monotonic()
+            layout = nest(problem, time_limit=t, seed=seed)
+            faults = verify_layout(layout, problem)
+            ratio = (time.monotonic() - t0) / t
+            if faults:
+                raise RuntimeError(f"invalid layout ({name}, T={t:g}): {faults[0]}")
+            worst = max(worst, (ratio, f"{name} at T = {t:g} s"))
+            cells.append(f"{ratio:.2f} ({layout.density:.1%})")
+        print(f"| {name} | {len(problem.items())} | {' | '.join(cells)} |", flush=True)
+    print(f"\nworst: {worst[0]:.2f} x T ({worst[1]}); load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus")
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="bench.nest")
     ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 30)))
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--only", default="esicup,shirts,garments")
+    ap.add_argument("--only", default="esicup,shirts,garments,budget")
+    ap.add_argument("--budgets", default="1,3,10", help="T values for the budget table")
+    ap.add_argument("--cases", default=",".join(BUDGET_CASES),
+                    help="inputs of the budget table")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -103,7 +182,12 @@ def main(argv: list[str] | None = None) -> None:
           f"{platform.processor() or platform.machine()}  {os.cpu_count()} cpus, "
           f"sparrow with 1 worker")
     for part in args.only.split(","):
-        {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time, args.seed)
+        if part == "budget":
+            budget([float(t) for t in args.budgets.split(",")], args.seed,
+                   args.cases.split(","))
+        else:
+            {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time,
+                                                                             args.seed)
 
 
 if __name__ == "__main__":

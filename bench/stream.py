@@ -7,14 +7,16 @@
 3. The planner kept fed on a job of many short segments, in real time (speed 1): the
    emulator's planner occupancy sampled while the job runs.
 
-Run: ``python -m bench stream``. The emulator does not model the wire's speed itself, so a
-wrapper here holds each write for its transmission time (10 bits per byte).
+Run: ``python -m bench stream``. The emulator's port models the serial line
+(``grblsim://?baud=115200``, ``simulators.grbl.wire``): 10 bits per byte in each direction,
+bytes queued behind the ones before them.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,48 +34,6 @@ BUNDLED = ROOT / "tests" / "data" / "garments" / "berkeley"
 SETTINGS = ("settings=32:1,130:6000,131:3000,110:12000,111:12000,120:1500,121:1500,"
             "100:80,101:80,10:3")
 BAUD = 115200
-
-
-class Wire:
-    """A port behind a serial wire: each write returns at once (the OS buffers it) and its
-    bytes reach the controller after their transmission time at 10 bits per byte."""
-
-    def __init__(self, port, baud: int = BAUD):
-        import queue
-
-        self.__dict__.update(port=port, byte_time=10.0 / baud, busy_until=0.0,
-                             q=queue.Queue())
-        threading.Thread(target=self._deliver, daemon=True).start()
-
-    def __getattr__(self, name):
-        return getattr(self.port, name)
-
-    def __setattr__(self, name, value):
-        setattr(self.port, name, value)
-
-    def _deliver(self) -> None:
-        while True:
-            item = self.q.get()
-            if item is None:
-                return
-            at, data = item
-            wait = at - time.perf_counter()
-            if wait > 0:
-                time.sleep(wait)
-            try:
-                self.port.write(data)
-            except Exception:  # noqa: BLE001 - the port went away; drop like a cut cable
-                return
-
-    def write(self, data: bytes) -> int:
-        start = max(time.perf_counter(), self.busy_until)
-        self.__dict__["busy_until"] = start + len(data) * self.byte_time
-        self.q.put((self.busy_until, bytes(data)))
-        return len(data)
-
-    def close(self) -> None:
-        self.q.put(None)
-        self.port.close()
 
 
 def _garments() -> list[Path]:
@@ -152,10 +112,12 @@ def _short_segment_job(seg: float, feed: float, n_rings: int = 4, radius: float 
     return build_program(build_toolpaths(_shelf_layout(rings, 5800.0), m), m)
 
 
-def _open(speed: float):
+def _open(speed: float, wire: bool = True, settings: str = ""):
     import simulators.grbl  # noqa: F401  (registers grblsim://)
 
-    return serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}", timeout=0.02)
+    baud = f"&baud={BAUD}" if wire else ""
+    return serial.serial_for_url(f"grblsim://?speed={speed}{baud}&{SETTINGS}{settings}",
+                                 timeout=0.02)
 
 
 def bench_throughput() -> None:
@@ -169,11 +131,11 @@ def bench_throughput() -> None:
           f"{limit:.0f} lines/s")
     print("| wire | lines/s | of the line limit |")
     print("|---|---|---|")
-    for label, wrap in (("115200-baud wire model", Wire), ("no wire delay", lambda p: p)):
+    for label, wire in (("115200-baud wire model", True), ("no wire delay", False)):
         best = np.inf
         for _ in range(3):  # best of three: the machine is shared and noisy
-            raw = _open(1.0)
-            st = Streamer(wrap(raw))
+            raw = _open(1.0, wire)
+            st = Streamer(raw)
             st.connect()
             t = time.perf_counter()
             res = st.run(prog, check=True)
@@ -195,7 +157,7 @@ def bench_planner() -> None:
         prog = _short_segment_job(seg, feed, n_rings=rings)
         raw = _open(1.0)
         em = raw.emulator
-        st = Streamer(Wire(raw))
+        st = Streamer(raw)
         st.connect()
         samples: list[tuple[int, int, str]] = []
         done = threading.Event()
@@ -228,56 +190,151 @@ def bench_planner() -> None:
               f"{ideal:.1f} |")
 
 
-def _stream_once(prog: Program, speed: float, watchdog: bool) -> tuple[float, object, object]:
-    """One cut through the wire model: (seconds, result, emulator)."""
-    raw = _open(speed)
-    st = Streamer(Wire(raw), deviation_limit=0.3 if watchdog else None)
+class _Recorder:
+    """A port that notes when each write was made (wall seconds) and what it held."""
+
+    def __init__(self, port):
+        self.__dict__.update(port=port, writes=[], answers=[])
+
+    def read(self, size: int = 1) -> bytes:
+        data = self.port.read(size)
+        self.__dict__["answers"] += [time.perf_counter()] * data.count(b"ok\r\n")
+        return data
+
+    def __getattr__(self, name):
+        return getattr(self.port, name)
+
+    def __setattr__(self, name, value):
+        setattr(self.port, name, value)
+
+    def write(self, data: bytes) -> int:
+        self.writes.append((time.perf_counter(), bytes(data)))
+        return self.port.write(data)
+
+
+@dataclass
+class LineUse:
+    """One run's use of the serial line (bytes/s over the run or over the contour)."""
+
+    seconds: float
+    lines_per_s: float
+    contour_gcode: float  # G-code bytes/s while the contour streams (nothing forbids sending)
+    contour_polls: float  # `?` bytes/s in that window
+    to_host: float  # bytes/s the controller sent back over the whole run
+    reports_per_s: float
+    poll_wait_ms: tuple[float, float]  # a `?`'s wait behind earlier bytes: median, max
+
+
+def _line_use(prog: Program, speed: float, mode: str, settings: str) -> LineUse:
+    """Stream ``prog`` once through the 115200-baud line: ``mode`` is ``check`` ($C), ``off``
+    (no watchdog: 5 Hz polls) or ``on`` (the watchdog at its machine-time schedule)."""
+    raw = _open(speed, settings=settings)
+    acc = float(dict(kv.split(":") for kv in (SETTINGS + settings)[9:].split(","))["120"])
+    port = _Recorder(raw)
+    st = Streamer(port, deviation_limit=0.3 if mode == "on" else None, acceleration=acc)
     st.connect(quiet=0.05)
+    port.writes.clear()
+    rx0 = raw.wire.bytes_to_host
     t = time.perf_counter()
-    res = st.run(prog)
+    res = st.run(prog, check=mode == "check")
     dt = time.perf_counter() - t
+    to_host = raw.wire.bytes_to_host - rx0
     raw.close()
     assert res.completed, res.fault
-    return dt, res, raw.emulator
+    byte_time = 10.0 / BAUD
+    free, rows = 0.0, []  # (written, through the wire, bytes): the wire is a FIFO
+    for at, data in port.writes:
+        free = max(at, free) + len(data) * byte_time
+        rows.append((at, free, data))
+    # the contour: from the `ok` of the line turning the beam on (GRBL runs it once the
+    # travel has ended) to the last G1 through the wire; bytes counted by their wire time
+    lines = [d for _, _, d in rows if d.endswith(b"\n")]
+    beam_on = next(k for k, d in enumerate(lines) if d.startswith(b"M4"))
+    t0 = port.answers[beam_on] if len(port.answers) > beam_on else rows[0][0]
+    t1 = max(done for _, done, d in rows if d.startswith(b"G1"))
+
+    def on_wire(keep) -> float:
+        return sum(max(0.0, min(done, t1) - max(done - len(d) * byte_time, t0)) / byte_time
+                   for _, done, d in rows if keep(d))
+
+    gcode, polls = on_wire(lambda d: d != b"?"), on_wire(lambda d: d == b"?")
+    waits = [(done - at - byte_time) * 1e3 for at, done, d in rows if d == b"?"] or [0.0]
+    n_lines = len([ln for ln in prog.lines if strip_comment(ln)])
+    return LineUse(dt, n_lines / dt, gcode / (t1 - t0), polls / (t1 - t0), to_host / dt,
+                   res.status_reports / dt, (float(np.median(waits)), float(np.max(waits))))
 
 
-def bench_watchdog() -> None:
-    """Issue 16: the machine-time watchdog's cost in line throughput and in status reports."""
-    prog = _short_segment_job(0.5, 6000.0, n_rings=2)
-    codes = [strip_comment(ln).replace(" ", "") for ln in prog.lines if strip_comment(ln)]
-    mean_len = float(np.mean([len(c) + 1 for c in codes]))
-    limit = BAUD / 10 / mean_len
-    print("\n### Throughput with the watchdog, cutting (emulator speed 20: the wire is the limit)")
-    print(f"{len(codes)} lines of 0.5 mm segments at 6000 mm/min, mean {mean_len:.1f} bytes "
-          f"per line; line limit {limit:.0f} lines/s. Best of 2, same run.")
-    print("| watchdog | lines/s | of the line limit | ratio to no watchdog | "
-          "status reports | reports per machine s |")
-    print("|---|---|---|---|---|---|")
-    rates = {}
-    for on in (False, True):
-        best, res, em = min((_stream_once(prog, 20.0, on) for _ in range(2)),
-                            key=lambda r: r[0])
-        rates[on] = len(codes) / best
-        reports = f"{res.status_reports} | {res.status_reports / em.sim_time:.0f}" if on \
-            else "- | -"
-        print(f"| {'on' if on else 'off (5 Hz polls)'} | {rates[on]:.0f} | "
-              f"{rates[on] / limit:.0%} | {rates[on] / rates[False]:.2f} | {reports} |")
-    print("\nPolling load on a real GRBL (speed 1), from the poll schedule: one report per "
-          "`watch_mm` = 1 mm of travel at the fastest cutting feed.")
-    print("| cutting feed mm/min | polls/s | report bytes/s (~52 B each) | of the 11520 B/s "
-          "receive line |")
-    print("|---|---|---|---|")
-    from gcode.watchdog import poll_interval
+def bench_line() -> None:
+    """Issue 16: the sender's use of the serial line while cutting, with and without the
+    watchdog, against the line's capacity and check mode in the same run."""
+    cap = BAUD / 10
+    fast = ",120:10000,121:10000"
+    print(f"\n### Serial line use while cutting (real time, speed 1, {BAUD}-baud line model)")
+    print(f"Capacity: {BAUD} baud, 8N1 = 10 bits per byte = {cap:.0f} B/s in each direction. "
+          "One circle of radius 30 mm in short segments (no arcs: 0.1 mm at 6000 mm/min, "
+          "0.25 mm at 12000, 1000 and 800 lines/s asked) on a table with "
+          "$120/$121 = 10000 mm/s^2, so that GRBL's look-ahead (15 blocks) lets the machine "
+          "take more lines than the line carries: the line is the limit. 'contour' = from "
+          "the first G1 line to the last through the wire, where nothing in the protocol "
+          "holds a line back (no sync, no beam switching); the whole run adds the travel "
+          "moves, the beam-on gate and the final wait for Idle. Best of 3, same run.")
+    print("| feed mm/min | mode | contour G-code B/s | of capacity | ratio to check | "
+          "`?` B/s | whole run lines/s | reports/s | controller->host B/s | of capacity | "
+          "`?` waits behind the queue ms (median / max) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for feed, seg in ((6000.0, 0.1), (12000.0, 0.25)):  # 1000 and 800 lines/s asked
+        prog = _short_segment_job(seg, feed, n_rings=1)
+        base = None
+        for mode in ("check", "off", "on"):
+            u = max((_line_use(prog, 1.0, mode, fast) for _ in range(3)),
+                    key=lambda r: r.contour_gcode)
+            base = base or u.contour_gcode
+            print(f"| {feed:.0f} | {mode} | {u.contour_gcode:.0f} | "
+                  f"{u.contour_gcode / cap:.1%} | {u.contour_gcode / base:.2f} | "
+                  f"{u.contour_polls:.0f} | "
+                  f"{u.lines_per_s:.0f} | {u.reports_per_s:.0f} | {u.to_host:.0f} | "
+                  f"{u.to_host / cap:.0%} | {u.poll_wait_ms[0]:.1f} / {u.poll_wait_ms[1]:.1f} |")
 
-    for feed in (1500.0, 3000.0, 6000.0):
-        hz = 1.0 / poll_interval(feed, 1.0, watch_mm=1.0)
-        print(f"| {feed:.0f} | {hz:.0f} | {hz * 52:.0f} | {hz * 52 / 11520:.0%} |")
+
+def bench_detection() -> None:
+    """How far the head travels before the host holds a report that shows a deviation,
+    at every cutting feed up to the profile's max_feed; braking apart."""
+    from gcode.machine import default_machine
+    from gcode.watchdog import REPORT_BYTES, catch_travel_mm, poll_interval
+
+    m = default_machine()
+    byte_time = 10.0 / BAUD
+    wait = 127 * byte_time  # a `?` behind a full receive buffer's worth of lines
+    report = REPORT_BYTES * byte_time
+    print(f"\n### Deviation caught within how much travel, on a real GRBL ({BAUD} baud, "
+          f"watch_mm = 1, deviation limit 0.3 mm, a = {m.acceleration:g} mm/s^2)")
+    print("Worst case after the head has crossed the 0.3 mm limit: the poll interval "
+          f"(watch_mm at the feed, never closer than {REPORT_BYTES}-byte reports filling half "
+          f"the receive line) + the `?` waiting behind 127 bytes of lines on the wire "
+          f"({wait * 1e3:.1f} ms) + the report's own transmission ({report * 1e3:.1f} ms), "
+          "times the feed. Braking (feed hold to rest, v^2 / 2a) comes after detection.")
+    print("| feed mm/min | polls/s | reports of the receive line | latency ms | "
+          "travel mm | + 0.3 mm limit | within 2 mm | travel, wire idle (machine the limit) | "
+          "braking to rest mm |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for feed in [f for f in (1500.0, 3000.0, 4500.0, 6000.0, 9000.0, 12000.0)
+                 if f <= m.max_feed]:
+        v = feed / 60.0
+        interval = poll_interval(feed, 1.0, watch_mm=1.0, baud=BAUD)
+        latency = interval + wait + report
+        travel = catch_travel_mm(feed, interval, BAUD)
+        idle = catch_travel_mm(feed, interval, BAUD, queued_bytes=0)
+        print(f"| {feed:.0f} | {1 / interval:.0f} | "
+              f"{REPORT_BYTES / interval / (BAUD / 10):.0%} | {latency * 1e3:.1f} | "
+              f"{travel:.2f} | {travel + 0.3:.2f} | {'yes' if travel <= 2.0 else 'no'} | "
+              f"{idle:.2f} | {v * v / (2 * m.acceleration):.1f} |")
 
 
 def main() -> None:
     bench_arcs()
     bench_throughput()
-    bench_watchdog()
+    bench_line()
+    bench_detection()
     bench_planner()
 
 

@@ -8,6 +8,10 @@ Sources (each reported on its own; never pooled into one number):
   calibration, then given one residual fault at a random strength: perspective error
   (frame corners moved by up to 5 %) or a fold (up to 3 px), or a strong blur, noise,
   JPEG or light ramp.
+- ``tilted``: camera frames of a random print of each group, the camera tilted 3-18
+  degrees and the frame not rectified (perspective left in a photo).
+- ``blurred``: small prints of every group (20-34 px repeats) under blur up to 3 px,
+  noise, wrinkles and JPEG, three times as many: the supergroup hunt.
 - ``cloth``: random prints of the 17 groups on real-looking cloth (``simulators.cloth``):
   woven thread texture (plain or twill), stretch 3-16 % with up to 3 degrees of shear,
   wrinkles, a misregistered colour separation, noise and JPEG. Truth is the group the
@@ -214,6 +218,63 @@ def classics(per_name: int = 2, seed: int = 0):
                          truth, basis=basis)
 
 
+def tilted_frame(group: str, tilt: float, seed: int, size: tuple[int, int] = (480, 360),
+                 height: float = 600.0) -> tuple[np.ndarray, float, np.ndarray]:
+    """A frame straight from a camera looking ``tilt`` degrees off the vertical (in a
+    random direction) at a random print, never rectified; the mm per pixel at its
+    centre and the print's lattice there (the view's Jacobian at the centre)."""
+    cam = CameraModel.default(size, dist=(0, 0, 0, 0, 0))
+    mm_per_px = height / cam.K[0, 0]
+    rng = np.random.default_rng(seed)
+    pr = random_print(group, size[0] * mm_per_px / rng.uniform(6, 10),
+                      rotation=rng.uniform(0, 90), seed=seed)
+    sim = SyntheticCamera(Sheet(pr, size=(3000, 3000), shift=(-1500, -1500)), camera=cam,
+                          imaging=Imaging(blur=0.6, noise=2.0, jpeg_quality=92,
+                                          light_ramp=(0.05, -0.03), vignetting=0.1),
+                          poses=[Pose.overhead((0, 0), height, tilt_deg=tilt,
+                                               tilt_azimuth_deg=rng.uniform(0, 360))],
+                          seed=seed)
+    frame = sim.read()
+    # Table -> image homography; its Jacobian at the frame centre carries the lattice.
+    hom = sim.truth.homography / sim.truth.homography[2, 2]
+    centre = np.array([(size[0] - 1) / 2, (size[1] - 1) / 2, 1.0])
+    inv = np.linalg.inv(hom)
+    t = inv @ centre
+    q = hom @ (t / t[2])
+    jac = (hom[:2, :2] * q[2] - np.outer(q[:2], hom[2, :2])) / q[2] ** 2
+    return frame, mm_per_px, jac * mm_per_px @ pr.wallpaper.basis
+
+
+def tilted(per_group: int, seed: int = 0):
+    """Camera frames tilted 3-18 degrees, not rectified (perspective left in a photo)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 613 * gi + k)
+            tilt = float(rng.uniform(3, 18))
+            frame, mm, basis = tilted_frame(group, tilt, int(rng.integers(1 << 30)))
+            yield Sample("tilted", f"{group}/{tilt:.0f}deg", frame, mm, group, basis=basis,
+                         tol=0.05)
+
+
+def blurred(per_group: int, seed: int = 0):
+    """Small prints (20-34 px repeats) under heavy blur (up to 3 px), noise, wrinkles and
+    JPEG: where blur can make a print look more symmetric than it is (supergroups)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 389 * gi + k + 7)
+            period = rng.uniform(20, 34)
+            pr = random_print(group, period, rotation=rng.uniform(0, 90),
+                              seed=int(rng.integers(1 << 30)))
+            img = render_print(pr, (220.0, 170.0), 1.0)
+            img = wrinkle(img, rng.uniform(0, 1), rng.uniform(40, 90), rng=rng)
+            img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.01, 3.0))
+            img = np.clip(img + rng.normal(0, rng.uniform(0, 8), img.shape), 0, 255)
+            ok, buf = cv2.imencode(".jpg", img.astype(np.uint8),
+                                   [cv2.IMWRITE_JPEG_QUALITY, int(rng.uniform(60, 95))])
+            yield Sample("blurred", f"{group}/{period:.0f}px", cv2.imdecode(buf, 1), 1.0,
+                         group, basis=pr.wallpaper.basis)
+
+
 def plain(per_weave: int = 3, seed: int = 0):
     """Unprinted cloth close up: the weave is all there is."""
     for wi, weave in enumerate(("plain", "twill", "rib")):
@@ -417,9 +478,12 @@ def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 
 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
-        sources: tuple[str, ...] = ("synthetic", "cloth", "classics", "plain", "photos")
+        sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
+                                    "plain", "photos")
         ) -> dict:
     makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
+              "tilted": lambda: tilted(per_group, seed=seed),
+              "blurred": lambda: blurred(3 * per_group, seed=seed),
               "cloth": lambda: cloth(per_group, seed=seed),
               "classics": lambda: classics(max(2, per_group), seed=seed),
               "plain": lambda: plain(max(2, per_group), seed=seed),

@@ -30,7 +30,7 @@ import numpy as np
 from gcode.grbl import Response, Status, error_message, parse_settings, time_scale_of
 from gcode.program import Program, strip_comment
 from gcode.session import PortLost, ResponseReader
-from gcode.watchdog import StopReason, Watchdog
+from gcode.watchdog import CATCH_MM, StopReason, Watchdog
 
 __all__ = ["BEAM_OFF", "PieceState", "Progress", "StopReason", "StreamError", "StreamResult",
            "StreamState", "Streamer", "is_sync_command", "turns_beam_on"]
@@ -92,6 +92,17 @@ def stroke_starts(program: Program, lines: list[int]) -> dict[int, np.ndarray]:
             j = int(np.searchsorted(c.path_line, i)) - 1  # path_line grows with the line
             out[k] = c.path[max(j, 0)]
     return out
+
+
+def line_baud(port) -> float | None:
+    """The baud rate of the wire behind ``port``, if it is a real one: a serial device's
+    ``baudrate``, or the emulator's modelled line (``grblsim://?baud=``); None for the
+    emulator's instant link, whose time is not the wire's."""
+    if getattr(port, "emulator", None) is not None:
+        byte_time = getattr(getattr(port, "wire", None), "byte_time", None)
+        return 10.0 / byte_time if byte_time else None
+    baud = getattr(port, "baudrate", None)
+    return float(baud) if isinstance(baud, (int, float)) and baud > 0 else None
 
 
 def is_sync_command(code: str) -> bool:
@@ -320,6 +331,7 @@ class Streamer:
         self.watch_mm = watch_mm
         self.acceleration = acceleration
         self.rapid_feed = rapid_feed
+        self.line_baud = line_baud(port)
         # machine seconds per wall second: 1 on a real GRBL, `speed` on the emulator; the
         # machine tells it (`$I`) on connecting unless given or the emulator is in-process
         emulator = getattr(port, "emulator", None)
@@ -435,6 +447,10 @@ class Streamer:
             st = self.query_status(0.3) or self.query_status()
         if self._ask_time_scale:
             self.time_scale = self.read_time_scale()
+            if self.line_baud and self.time_scale != 1.0:
+                # an emulator behind a pty: no wire is modelled there, its simulated line
+                # runs in machine time, so it carries time_scale times the reports
+                self.line_baud *= self.time_scale
         if alarm_boot or (st is not None and st.state == "Alarm"):
             raise StreamError(f"{self.prefix}controller is in ALARM after start-up: home ($H) or "
                               "unlock ($X) it first (station stream --unlock)")
@@ -524,6 +540,12 @@ class Streamer:
         wd = self._make_watchdog(program) if not check else None
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
+        if wd is not None and wd.catch_mm > CATCH_MM:
+            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm before "
+                    f"a report shows it ({CATCH_MM:g} mm asked): the line carries too few "
+                    "reports; cut slower or raise the baud rate")
+            log.warning("%s%s", self.prefix, note)
+            job.res.messages.append(note)
         try:
             try:
                 self._enter(StreamState.CHECKING if check else StreamState.STREAMING)
@@ -702,7 +724,7 @@ class Streamer:
             return None
         wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
                                   time_scale=self.time_scale, deviation_mm=self.deviation_limit,
-                                  watch_mm=self.watch_mm)
+                                  watch_mm=self.watch_mm, baud=self.line_baud)
         wd.start_from(self._work_xy() if self.status is not None else None)
         try:  # never sleep in a read longer than the next poll is due
             self.port.timeout = min(0.02, wd.interval)

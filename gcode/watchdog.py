@@ -10,15 +10,20 @@ sent proves nothing, so every status report is held against the program:
 * the head is followed along the path in program order: in the middle of a move that
   cuts, the beam is on; in the middle of a travel move, it is off;
 * while the beam is on, the reported feed reaches the programmed cutting feed within the
-  time the profile's acceleration ($120/$121) needs (unless the planner runs dry: then the
-  machine slows with M4 power following the speed; a corrupted ``F1`` keeps it full), and
-  never exceeds it.
+  time the profile's acceleration ($120/$121) needs, and never exceeds it. A machine the
+  line cannot keep fed is slower, exactly as far as its look-ahead demands: GRBL plans
+  every block so that the last one queued can stop, so with ``n`` blocks queued (``Bf:``)
+  the head can go no faster than ``sqrt(2 a d)`` over the distance ``d`` those blocks
+  cover; the feed is held to that (a corrupted ``F1`` fills the planner, and is caught).
 
 Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest programmed
 cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
 GRBL, the emulator's ``speed`` on ``grblsim://``). A deviation is therefore seen within
 ``deviation_mm + watch_mm`` of travel at any emulator speed, as long as the host keeps up
-with its own schedule.
+with its own schedule, plus what the serial line adds (the ``?`` queued behind the bytes
+already written, the report's own transmission). On a line of known baud rate the polls
+are also spaced so that the reports take at most half of what the controller can send:
+the ``ok``s share that line, and a sender that reads them late leaves the line idle.
 """
 
 from __future__ import annotations
@@ -31,7 +36,8 @@ import numpy as np
 
 from gcode.grbl import Status
 
-__all__ = ["Breach", "StopReason", "Watchdog", "poll_interval"]
+__all__ = ["CATCH_MM", "REPORT_BYTES", "Breach", "StopReason", "Watchdog", "catch_travel_mm",
+           "poll_interval", "report_spacing"]
 
 PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
 _LEG = -2  # path_line of the leg from where the head stood to the program's first move
@@ -69,15 +75,46 @@ class Breach:
     line: int | None
 
 
+#: Bytes of a status report with MPos, Bf and FS at full width (WCO and Ov come now and
+#: then on top): what one poll costs the controller's transmit line.
+REPORT_BYTES = 60
+#: The share of the controller's transmit line the reports may take.
+REPORT_SHARE = 0.5
+
+
+def report_spacing(baud: float | None) -> float:
+    """Wall seconds between reports so that they fill at most REPORT_SHARE of a ``baud``
+    8N1 line (10 bits per byte); 0 when the line is not a real one (no baud)."""
+    if not baud or not math.isfinite(baud) or baud <= 0:
+        return 0.0
+    return REPORT_BYTES / (REPORT_SHARE * baud / 10.0)
+
+
+#: The travel within which the issue asks a deviation to be caught (mm).
+CATCH_MM = 2.0
+
+
+def catch_travel_mm(feed: float, interval: float, baud: float | None, *,
+                    time_scale: float = 1.0, queued_bytes: int = 127) -> float:
+    """Worst-case travel (mm) at ``feed`` (mm/min) from the head crossing the deviation
+    limit to the host holding a report that shows it: the poll interval, then on a real
+    line the ``?`` waiting behind ``queued_bytes`` of lines and the report's own
+    transmission (10 bits per byte)."""
+    line = (queued_bytes + REPORT_BYTES) * 10.0 / baud if baud else 0.0
+    return feed / 60.0 * time_scale * (interval + line)
+
+
 def poll_interval(fastest_feed: float, time_scale: float, *, watch_mm: float = 0.5,
-                  shortest: float = 2e-4, longest: float = 0.2) -> float:
+                  shortest: float = 2e-4, longest: float = 0.2,
+                  baud: float | None = None) -> float:
     """Wall seconds between status polls so that the head moves at most ``watch_mm``
     between two reports at ``fastest_feed`` (mm/min), on a machine whose time runs
-    ``time_scale`` times the wall clock."""
+    ``time_scale`` times the wall clock, and never closer than the line carries
+    (:func:`report_spacing`)."""
     if fastest_feed <= 0 or not math.isfinite(fastest_feed):
         return longest
     wall = watch_mm / (fastest_feed / 60.0 * max(time_scale, 1e-9))
-    return float(min(max(wall, shortest), longest))
+    return float(min(max(wall, shortest, report_spacing(baud)), longest))
 
 
 class Watchdog:
@@ -94,7 +131,7 @@ class Watchdog:
     def __init__(self, path: np.ndarray, path_line: np.ndarray, line_power: np.ndarray,
                  feeds: tuple[float, ...], powers: tuple[float, ...], acceleration: float,
                  fastest: float, *, time_scale: float = 1.0, deviation_mm: float = 0.3,
-                 watch_mm: float = 0.5, step: float = 1.0):
+                 watch_mm: float = 0.5, step: float = 1.0, baud: float | None = None):
         self.path = np.asarray(path, float).reshape(-1, 2)
         self.path_line = np.asarray(path_line, int)
         self.line_power = np.asarray(line_power, float)
@@ -104,8 +141,11 @@ class Watchdog:
         self.deviation = float(deviation_mm)
         self.step = float(step)
         self.fastest = float(fastest) / 60.0  # mm/s, the bound on how far the head can go
+        self.acceleration = float(acceleration)
         self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
-                                      watch_mm=watch_mm)
+                                      watch_mm=watch_mm, baud=baud)
+        self.catch_mm = catch_travel_mm(max(self.feeds, default=0.0), self.interval, baud,
+                                        time_scale=self.time_scale)
         slow = min(self.feeds, default=0.0) / 60.0
         latency = 2.0 * self.interval * self.time_scale  # two polls, in machine time
         # a corner's braking and re-acceleration plus the polls' latency, in machine time
@@ -140,6 +180,8 @@ class Watchdog:
         ok = self.path_line >= 0
         np.minimum.at(self._line_from, self.path_line[ok], self._along[ok])
         np.maximum.at(self._line_to, self.path_line[ok], self._along[ok])
+        self._motion_lines = np.flatnonzero(np.isfinite(self._line_to))
+        self._knots = np.unique(self._along)  # the samples' distances, repeats dropped
 
     def start_from(self, here: np.ndarray | None) -> None:
         """The first rapid starts wherever the head is: add that leg to the path."""
@@ -240,15 +282,17 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
                           f"{allowed} (corrupted S word?)", self.last_line)
         feed = float(st.feed or 0.0)
+        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
+        expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)
             starved = st.planner_free >= PLANNER_BLOCKS - 2
+            expected = min(low, self.lookahead_feed(PLANNER_BLOCKS - st.planner_free))
         if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
             self._slow_since = None
-        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
         if feed > high * 1.02 + 1.0:
             return Breach(StopReason.FEED, f"beam on at F{feed:g}, above the program's "
                           f"cutting feed F{high:g} (corrupted line?)", self.last_line)
-        if feed >= 0.9 * low or starved:
+        if feed >= 0.9 * expected or starved:
             self._slow_since = None
         elif self._slow_since is None:
             self._slow_since = now
@@ -258,6 +302,22 @@ class Watchdog:
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
         return None
+
+    def lookahead_feed(self, blocks: int) -> float:
+        """The fastest feed (mm/min) GRBL may plan with ``blocks`` queued from the head's
+        position: the last of them must be able to stop, so ``sqrt(2 a d)`` over the
+        distance ``d`` they cover. Each queued block is taken as one program line, and no
+        longer than the path's samples (an arc is many blocks): ``d`` errs short, the bound
+        low, so a slow line never passes for a corrupted feed."""
+        if self.last_line is None or blocks <= 0 or not len(self._motion_lines):
+            return math.inf if blocks > 0 else 0.0
+        k = int(np.searchsorted(self._motion_lines, self.last_line))
+        last = self._motion_lines[min(k + blocks - 1, len(self._motion_lines) - 1)]
+        by_lines = self._line_to[last] - self._at
+        j = int(np.searchsorted(self._knots, self._at, "right"))
+        by_samples = self._knots[min(j + blocks - 1, len(self._knots) - 1)] - self._at
+        d = max(min(by_lines, by_samples), 0.0)
+        return math.sqrt(2.0 * self.acceleration * d) * 60.0
 
     def _reached(self, k: int, t: float) -> int | None:
         """The head is at ``t`` along segment ``k``: move it there; the line whose interior

@@ -305,17 +305,19 @@ class Wallpaper:
 
     # ---------------------------------------------------------------- construction
     @classmethod
-    def snapped(cls, group: str, w1, w2, origin=(0.0, 0.0), **kw) -> Wallpaper:
+    def snapped(cls, group: str, w1, w2, origin=(0.0, 0.0), *, snap_tol: float = 0.2,
+                **kw) -> Wallpaper:
         """The nearest lattice that fits ``group`` exactly (for measured lattices).
 
         Lengths are averaged where they must be equal and the two vectors are turned
-        symmetrically about their bisector where the angle is fixed.
+        symmetrically about their bisector where the angle is fixed. ``snap_tol`` is how
+        far (relative length, angle in radians) a measured lattice may be off the group's.
         """
         lattice = GROUPS[group].lattice
         w1, w2 = np.asarray(w1, float), np.asarray(w2, float)
         if lattice == "oblique":
             return cls(group, w1, w2, origin, **kw)
-        u = _standard_basis(lattice, w1, w2, tol=0.2)
+        u = _standard_basis(lattice, w1, w2, tol=snap_tol)
         if u is None:
             raise ValueError(f"lattice {w1.tolist()}, {w2.tolist()} is too far from a "
                              f"{lattice} lattice for group {group}")

@@ -174,3 +174,42 @@ def allowance_rules(args: argparse.Namespace, config=None):
         raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
     more = read_name_map(args.allowance, "allowance") if args.allowance else None
     return rules_for(config or load_config_arg(args), args.seam_allowance, more)
+
+
+def add_symmetrise_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--symmetrise", action="store_true",
+                        help="replace each near left/right pair by one pattern cut twice, "
+                        "the average of the two (a placement made so is followed anyway)")
+
+
+def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs=None):
+    """``garment`` and its `Symmetrised` record (None when nothing asks for it): as the
+    placement recorded it, else with ``--symmetrise`` on ``pairs`` (default: the pairs
+    found, with the command's ``--pairs`` file). How far each piece moved goes to stderr."""
+    import sys
+
+    from solver.garment.symmetrise import symmetrise, symmetrise_as_recorded
+
+    record = placement.report.get("symmetrise") if placement is not None else None
+    if record:
+        try:
+            sym = symmetrise_as_recorded(garment, record)
+        except ValueError as exc:
+            raise ValueError(f"{args.placement}: {exc}") from None
+        why = "as the placement was made"
+    elif getattr(args, "symmetrise", False):
+        if pairs is None:
+            from solver.garment.symmetry import mirror_pairs, read_pairs_file
+
+            path = getattr(args, "pairs", None)
+            declared, vetoed = read_pairs_file(path, garment) if path else ([], [])
+            pairs = mirror_pairs(garment, declared=declared, vetoed=vetoed)
+        sym = symmetrise(garment, pairs)
+        why = "--symmetrise"
+    else:
+        return garment, None
+    kept = ", ".join(f"{p.first}~{p.second}" for p in sym.pairs) or "none"
+    print(f"station {args.command}: symmetrised pairs ({why}): {kept}", file=sys.stderr)
+    for line in sym.lines():
+        print(f"  {line}", file=sys.stderr)
+    return sym.garment, sym

@@ -116,7 +116,7 @@ class StationPipeline:
             Wallpaper.load(fabric)
         unknown = set(options) - {"units", "reshape", "method", "restarts", "seed",
                                   "grain_lines", "bias", "seam_allowance", "allowance",
-                                  "symmetry", "pairs"}
+                                  "symmetry", "pairs", "symmetrise"}
         if unknown:
             raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
         lines, bias = options.get("grain_lines", {}), options.get("bias", [])
@@ -132,8 +132,9 @@ class StationPipeline:
         from station.allowance import rules_for_job
 
         edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
-        if not isinstance(options.get("symmetry", True), bool):
-            raise ValueError("job option symmetry must be true or false")
+        for key in ("symmetry", "symmetrise"):
+            if not isinstance(options.get(key, key == "symmetry"), bool):
+                raise ValueError(f"job option {key} must be true or false")
         if "pairs" in options:
             from solver.garment.symmetry import pairs_from_dict
 
@@ -174,7 +175,7 @@ class StationPipeline:
             cv2.imwrite(str(workdir / "detection.png"), draw_overlay(rectified, detection))
             fabric = {**detection.fabric_json(), "source": "detected"}
             camera["detection"] = detection.summary()
-            if fabric["group"] is None and fabric.get("kind") != "plain":
+            if fabric["group"] is None and fabric.get("kind") not in ("plain", "stripes"):
                 raise ValueError("no periodic print found on the table "
                                  f"({detection.lattice.message or detection.lattice.kind}): "
                                  "give the job a FABRIC.json")
@@ -246,14 +247,16 @@ class StationPipeline:
         from station.render import draw_fit, photo_colours
 
         captured = fabric if isinstance(fabric, Captured) else Captured.read(fabric, workdir)
-        garment, garment_path = self._job_garment(job, workdir)
-        if captured.fabric.get("kind") == "plain":
+        garment, garment_path, symmetrised = self._job_garment(job, workdir)
+        if captured.fabric.get("kind") in ("plain", "stripes"):
             return self.plan_plain(job, captured, garment, garment_path, workdir, control)
         wallpaper = Wallpaper.from_dict(captured.fabric, captured.path)
         report: dict[str, Any] = {"job": job.id, "garment": job.garment,
                                   "fabric": {k: captured.fabric.get(k) for k in (
                                       "group", "w1", "w2", "origin", "source", "confidence")},
                                   "seconds": {}}
+        if symmetrised is not None:
+            report["symmetrise"] = symmetrised.to_dict()
         clock = time.perf_counter()
 
         def lap(step: str) -> None:
@@ -351,8 +354,9 @@ class StationPipeline:
 
     def plan_plain(self, job: Job, captured: Captured, garment, garment_path: Path,
                    workdir: Path, control: JobControl) -> Planned:
-        """Plain cloth (the camera found only the weave): nothing to align, so the pieces
-        are nested freely as drawn, then programmed; same files as :meth:`plan`."""
+        """Plain cloth (the camera found only the weave) or stripes: nothing to align in
+        2-D, so the pieces are nested on grain as drawn, then programmed; same files as
+        :meth:`plan`. Stripes set the grain (:func:`stripe_grain`)."""
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
 
@@ -361,15 +365,16 @@ class StationPipeline:
         # drops (plain nesting). The grain rule goes with it, so nesting keeps the grain.
         garment = grained(garment, self.config, job.options)
         a = self.config["align"]
+        cloth = stripe_grain(captured.fabric, a["fabric_grain_deg"])
         grain_deg = np.array([g.deg for g in garment.grains()])
-        placement = Placement(np.radians(grain_deg - a["fabric_grain_deg"]),
+        placement = Placement(np.radians(grain_deg - cloth["grain_deg"]),
                               np.zeros((garment.n_pieces, 2)), Wallpaper("p1", (1, 0), (0, 1)),
                               piece_names=list(garment.piece_names),
                               grains=[g.to_dict() for g in garment.grains()],
                               grain_rule={"tolerance_deg": a["grain_tolerance_deg"]
                                           if a["grain_tolerance_deg"] >= 0 else None,
                                           "nap": a["nap"],
-                                          "fabric_grain_deg": a["fabric_grain_deg"]})
+                                          "fabric_grain_deg": cloth["grain_deg"]})
         placement.garment = str(garment_path)
         placement.save(workdir / "placement.json")
         start_step(control, "nesting", 0.0)
@@ -379,23 +384,25 @@ class StationPipeline:
         control.checkpoint()
         planned = self._program(job, captured, garment_path, layout, workdir, control)
         self._write_report(workdir, {
-            "job": job.id, "garment": job.garment, "fabric": {"kind": "plain"},
+            "job": job.id, "garment": job.garment, "fabric": cloth,
             "nest": {"length_mm": layout.length, "width_mm": layout.width,
                      "density": layout.density, "pieces": len(layout.pieces)},
             "program": planned.program_summary})
         return planned
 
     def _job_garment(self, job: Job, workdir: Path):
-        """(garment, path of the job's copy): the submitted pattern loaded once, in mm, and
-        copied beside the job's files (with its licence note) for the operator and for a
-        job resumed by another process."""
+        """(garment, path of the job's copy, symmetrise report or None): the submitted
+        pattern loaded once, in mm, symmetrised if the job asks (:func:`symmetrise_job`),
+        and copied beside the job's files (with its licence note) for the operator and for
+        a job resumed by another process."""
         from solver.garment import load_garment, save_obj
 
         garment = load_garment(job.garment, units=job.options.get("units"))
+        garment, symmetrised = symmetrise_job(garment, job.options)
         garment_path = workdir / "garment.obj"
         save_obj(garment, garment_path)
         keep_licence_note(Path(job.garment), workdir)
-        return garment, garment_path
+        return garment, garment_path, symmetrised
 
     def _program(self, job: Job, captured: Captured, garment_path: Path, layout, workdir: Path,
                  control: JobControl, *, garment=None, report=None,
@@ -703,6 +710,19 @@ def align_garment(garment, wallpaper, config: Config, options: dict[str, Any],
     return align(garment, wallpaper, nap=a["nap"], fabric_grain_deg=fabric_grain, **common)
 
 
+def symmetrise_job(garment, options: dict[str, Any]):
+    """The job's garment with its left/right pairs (the job's ``pairs`` option heard) made
+    one pattern each when the job asks (``symmetrise``), and the record of it (or None)."""
+    if not options.get("symmetrise", False):
+        return garment, None
+    from solver.garment.symmetrise import symmetrise
+    from solver.garment.symmetry import mirror_pairs, pairs_from_dict
+
+    declared, vetoed = pairs_from_dict(options.get("pairs", {}), garment, "job option pairs")
+    sym = symmetrise(garment, mirror_pairs(garment, declared=declared, vetoed=vetoed))
+    return sym.garment, sym
+
+
 def grained(garment, config: Config, options: dict[str, Any]):
     """``garment`` with the job's grain lines and bias pieces and the station's up axis."""
     up = config["align"]["up"]
@@ -710,21 +730,44 @@ def grained(garment, config: Config, options: dict[str, Any]):
                               up=None if up == "auto" else up)
 
 
+def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
+    """The grain plain nesting keeps, with what the report says about the cloth.
+
+    Stripes (a 1-D repeat) are not matched across seams here: every piece is turned so
+    that its grain runs along the stripe axis nearest the roll's grain (stripes along
+    or across the grain), so the stripes cross every piece at the same angle; their
+    positions across the seams are left as they fall.
+    """
+    if fabric.get("kind") != "stripes" or fabric.get("direction_deg") is None:
+        return {"kind": "plain", "grain_deg": float(fabric_grain_deg)}
+    along = float(fabric["direction_deg"])
+    turn = (along - fabric_grain_deg + 45.0) % 90.0 - 45.0  # to the nearest stripe axis
+    grain = float(fabric_grain_deg + turn)
+    return {"kind": "stripes", "grain_deg": round(grain, 3),
+            "period_mm": fabric.get("period"), "direction_deg": round(along, 3),
+            "note": (f"stripes every {float(fabric.get('period') or 0):.3g} mm at "
+                     f"{along:.1f} deg: nested on grain as plain fabric with the pieces' "
+                     f"grain at {grain:.1f} deg (on the stripes); the stripes are not "
+                     "matched across the seams")}
+
+
 def nest_placement(garment, placement, config: Config, progress=None, options=None, *,
                    plain: bool = False):
     """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
     position (``plain``: on plain cloth, free of any print); ``options`` are the job's
     (its seam allowances)."""
+    from solver.nest.budget import Deadline
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
     from solver.nest.sources import placement_problem
     from station.allowance import rules_for_job
 
     n = config["nest"]
+    deadline = Deadline(n["seconds"])  # making the cut lines and verifying count too
     problem = placement_problem(garment, placement, width=n["width_mm"],
                                 length=n["length_mm"], gap=n["gap_mm"],
                                 allowance=rules_for_job(config, options or {}), plain=plain)
-    layout = nest(problem, time_limit=n["seconds"], seed=0, progress=progress)
+    layout = nest(problem, time_limit=deadline, seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")

@@ -10,7 +10,6 @@ global detection), so a tile needs only about three repeats across.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import cv2
@@ -18,7 +17,7 @@ import numpy as np
 
 from vision.lattice import LatticeResult, _refine, autocorrelation, prepare_image
 
-__all__ = ["Distortion", "measure_distortion"]
+__all__ = ["Distortion", "local_lattices", "measure_distortion"]
 
 
 @dataclass
@@ -32,10 +31,12 @@ class Distortion:
     bow_mm: float = 0.0
     max_strain: float = 0.0
     warning: str | None = None
+    perspective: dict | None = None  # vision.perspective.View.to_dict(), when one was found
 
     def to_dict(self) -> dict:
         return {"skew_deg": round(self.skew_deg, 3), "bow_mm": round(self.bow_mm, 3),
                 "max_strain": round(self.max_strain, 5), "warning": self.warning,
+                "perspective": self.perspective,
                 "grid": [{"centre": c.round(3).tolist(), "w1": a.round(4).tolist(),
                           "w2": b.round(4).tolist()}
                          for c, a, b in zip(self.centres, self.w1, self.w2, strict=True)]}
@@ -47,10 +48,42 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
+def local_lattices(flat: np.ndarray, basis: np.ndarray, *, grid: int = 3
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The lattice of each square tile of a ``grid x grid`` array over the working
+    image ``flat``, refined from the global ``basis`` (columns w1, w2, working (x, y) px).
+    Returns tile centres (K, 2) and bases (K, 2, 2) in working px, each vector's sign
+    that of the global one; tiles under about three repeats across are left out."""
+    h, w = flat.shape
+    longest = float(np.linalg.norm(basis, axis=0).max())
+    # Tiles of at least three repeats, overlapping where the image is too small for a
+    # grid of separate ones (a view's change shows only between distinct centres).
+    side = int(min(min(h, w), max(min(h, w) / grid, 3.0 * longest)))
+    ys = np.unique(np.linspace(0, h - side, grid).astype(int))
+    xs = np.unique(np.linspace(0, w - side, grid).astype(int))
+    centres, bases = [], []
+    rc_basis = basis[::-1]  # (row, col) rows for the peak fit
+    for y0 in ys:
+        for x0 in xs:
+            tile = flat[y0:y0 + side, x0:x0 + side]
+            if side < 2.5 * longest:
+                continue
+            acf, wacf = autocorrelation(cv2.GaussianBlur(tile, (0, 0), 1.0))
+            b, _, used = _refine(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
+            if used < 3:
+                continue
+            loc = b[::-1]  # back to (x, y)
+            loc = loc * np.sign(np.sum(loc * basis, axis=0))[None, :]
+            centres.append([x0 + (side - 1) / 2, y0 + (side - 1) / 2])
+            bases.append(loc)
+    return np.array(centres).reshape(-1, 2), np.array(bases).reshape(-1, 2, 2)
+
+
 def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int = 3,
                        ideal_angle: float | None = None, skew_tol_deg: float = 1.0,
                        bow_tol_mm: float = 3.0, work_side: int = 1024,
-                       prepared: tuple[np.ndarray, float] | None = None) -> Distortion:
+                       prepared: tuple[np.ndarray, float] | None = None,
+                       local: tuple[np.ndarray, np.ndarray] | None = None) -> Distortion:
     """Local lattice on a ``grid x grid`` array of tiles; skew, bow and a warning.
 
     Parameters
@@ -62,42 +95,22 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
         from it. Default: the global angle (skew then measures only its variation).
     skew_tol_deg, bow_tol_mm : float
         The operator's tolerances; above either, ``warning`` says what is wrong.
+    local : (centres, bases), optional
+        :func:`local_lattices` of the same working image, when already measured.
     """
     if not lattice.found:
         return Distortion()
     flat, scale = prepared or prepare_image(image, work_side=work_side)
     mm = lattice.mm_per_px
     px_mm = mm / scale
-    basis = lattice.basis / px_mm  # working (x, y) px
-    h, w = flat.shape
-    longest = float(np.linalg.norm(basis, axis=0).max())
-    g = int(max(1, min(grid, math.floor(min(h, w) / (3.0 * longest)))))
-    ys = np.linspace(0, h, g + 1).astype(int)
-    xs = np.linspace(0, w, g + 1).astype(int)
-    centres, l1, l2 = [], [], []
-    rc_basis = basis[::-1]  # (row, col) rows for the peak fit
-    for i in range(g):
-        for j in range(g):
-            tile = flat[ys[i]:ys[i + 1], xs[j]:xs[j + 1]]
-            if min(tile.shape) < 2.5 * longest:
-                continue
-            acf, wacf = autocorrelation(cv2.GaussianBlur(tile, (0, 0), 1.0))
-            b, _, used = _refine(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
-            if used < 3:
-                continue
-            loc = b[::-1] * px_mm  # back to (x, y) mm
-            centres.append([(xs[j] + xs[j + 1] - 1) / 2, (ys[i] + ys[i + 1] - 1) / 2])
-            l1.append(loc[:, 0])
-            l2.append(loc[:, 1])
-    if not centres:
+    if local is None:
+        local = local_lattices(flat, lattice.basis / px_mm, grid=grid)
+    centres, bases = local
+    if not len(centres):
         return Distortion(warning=None)
-    c = (np.array(centres) + 0.5) / scale - 0.5
-    c *= mm
-    l1, l2 = np.array(l1), np.array(l2)
+    c = ((np.asarray(centres) + 0.5) / scale - 0.5) * mm
+    l1, l2 = bases[:, :, 0] * px_mm, bases[:, :, 1] * px_mm
     g1, g2 = lattice.w1, lattice.w2
-    # Fix each local vector's sign to the global one (a fit may return -w).
-    l1 *= np.sign(l1 @ g1)[:, None]
-    l2 *= np.sign(l2 @ g2)[:, None]
     angles = _angle(l1, l2)
     ideal = _angle(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
     skew = float(np.median(angles) - ideal)

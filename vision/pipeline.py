@@ -15,8 +15,9 @@ import numpy as np
 
 from solver.wallpaper import GROUPS, Wallpaper
 from vision.classify import Classification, classify, symmetry_elements
-from vision.distortion import Distortion, measure_distortion
+from vision.distortion import Distortion, local_lattices, measure_distortion
 from vision.lattice import LatticeResult, detect_lattice, prepare_image
+from vision.perspective import View, fit_view
 
 __all__ = ["CONFIRM_BELOW", "FabricDetection", "confirm_fabric", "detect_fabric",
            "draw_overlay"]
@@ -102,18 +103,35 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
     stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
-    tolerances are named in ``distortion.warning``."""
+    tolerances are named in ``distortion.warning``. Perspective left in the image
+    (:mod:`vision.perspective`) is undone before the group is read, and reported."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm)
-    cls = classify(image, lat, flat=flat, scale=scale)
+    local, view, cls = None, None, None
+    seed = lat
+    if distortion and lat.kind == "plain":
+        # A steep view changes the repeat so much across the frame that no one lattice
+        # holds over it all; the central part may still show one.
+        seed = _central_lattice(flat, scale, mm_per_px, min_repeat_mm)
+    if distortion and seed.found:
+        local = local_lattices(flat, seed.basis / mm_per_px * scale)
+        view = fit_view(*local, flat.shape, scale)
+    if view is not None:
+        found = _decide_rectified(view, flat, scale, mm_per_px, min_repeat_mm)
+        if found is not None:
+            lat, cls = found
+    if cls is None:
+        view, local = None, local if lat.found else None
+        cls = classify(image, lat, flat=flat, scale=scale)
     dist = Distortion()
     if distortion and lat.found and cls.group is not None:
         dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
                                   bow_tol_mm=bow_tol_mm,
                                   ideal_angle=_ideal_angle(cls.group, lat),
-                                  prepared=(flat, scale))
+                                  prepared=(flat, scale), local=local)
+        dist.perspective = None if view is None else view.to_dict()
         if cls.strain > stretch_tol:
             # The print was designed on the group's lattice; the cloth (or the camera)
             # stretches it: pieces cut now come out of the print by this much.
@@ -121,8 +139,57 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                      f"(tolerance {100 * stretch_tol:g} %)")
             dist.warning = (f"{dist.warning}; {fault}" if dist.warning
                             else f"fabric lies distorted: {fault} (straighten the cloth)")
+        if view is not None:
+            fault = (f"seen in perspective (the lattice changes {100 * view.change:.0f} % "
+                     "across the view; the group was read on the rectified image)")
+            dist.warning = (f"{dist.warning}; {fault}" if dist.warning
+                            else f"fabric lies distorted: {fault}")
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0)
+
+
+def _central_lattice(flat: np.ndarray, scale: float, mm_per_px: float,
+                     min_repeat_mm: float) -> LatticeResult:
+    """The lattice of the central half (each way) of the working image, else of its
+    central quarter: a steep view changes the repeat less over a smaller part."""
+    h, w = flat.shape
+    lat = LatticeResult("plain")
+    for frac in (0.5, 0.25):
+        ch, cw = int(h * frac), int(w * frac)
+        crop = flat[(h - ch) // 2:(h - ch) // 2 + ch, (w - cw) // 2:(w - cw) // 2 + cw]
+        if min(crop.shape) < 32:
+            break
+        crop = crop - np.float32(crop.mean())
+        frame = np.zeros((max(16, round(crop.shape[0] / scale)),
+                          max(16, round(crop.shape[1] / scale))), np.uint8)
+        lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(crop, scale),
+                             min_repeat_mm=min_repeat_mm)
+        if lat.found:
+            break
+    return lat
+
+
+def _decide_rectified(view: View, flat: np.ndarray, scale: float, mm_per_px: float,
+                      min_repeat_mm: float) -> tuple[LatticeResult, Classification] | None:
+    """Lattice and group on the image with the perspective undone, in the input
+    image's millimetres (the rectification keeps the frame at the centre); None when
+    the rectified image shows no lattice."""
+    rflat, (x0, y0) = view.rectify(flat)
+    # The rectified crop as an input-sized frame (calloc: no memory is touched); only
+    # its shape is read.
+    shape = (max(16, round(rflat.shape[0] / scale)), max(16, round(rflat.shape[1] / scale)))
+    frame = np.zeros(shape, np.uint8)
+    lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(rflat, scale),
+                         min_repeat_mm=min_repeat_mm)
+    if not lat.found:
+        return None
+    cls = classify(frame, lat, flat=rflat, scale=scale, allowance=view.change)
+    if cls.wallpaper is not None:
+        wp = cls.wallpaper
+        shift = np.array([x0, y0], float) / scale * mm_per_px
+        cls.wallpaper = Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + shift, tol=1e-6,
+                                  motif=wp.motif)
+    return lat, cls
 
 
 def confirm_fabric(doc: dict, group: str | None = None) -> dict:

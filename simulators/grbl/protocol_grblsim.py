@@ -5,8 +5,11 @@ pyserial finds it as `<package>.protocol_grblsim` once `simulators.grbl` is in
 
     grblsim://?speed=20&name=cutter&error_at=12:20&alarm_at=30:1&drop_byte_at=500
               &flip_byte_at=77&reset_at=40&disconnect_at=50&power_cut_at=60&force_origin=1
+              &baud=115200
 
-speed: simulated seconds per wall second (default 1); name: share one machine between opens
+speed: simulated seconds per wall second (default 1); baud: model the serial line at that
+rate in both directions (default: none, bytes arrive at once; see `wire.SerialLine`);
+name: share one machine between opens
 (reopen after a disconnect or power cut); *_at: fault injection (lines and bytes count from 1,
 several values separated by commas); force_origin: homing sets the origin at the home switches
 (build option Z); settings: `$N` values stored before power-up, e.g. settings=22:1,20:1.
@@ -23,11 +26,12 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_
 
 from simulators.grbl.emulator import Faults, GrblEmulator
 from simulators.grbl.registry import get_or_create
+from simulators.grbl.wire import SerialLine
 
 EXPECTED = (
     '"grblsim://[?speed=S][&name=NAME][&error_at=LINE:CODE][&alarm_at=LINE:CODE]'
     "[&drop_byte_at=N][&flip_byte_at=N][&reset_at=LINE][&disconnect_at=LINE]"
-    '[&power_cut_at=LINE][&settings=N:V,...][&force_origin=0|1]'
+    '[&power_cut_at=LINE][&settings=N:V,...][&force_origin=0|1][&baud=BAUD]'
     '[&logging=debug|info|warning|error]"'
 )
 LOGGER_LEVELS = {"debug": logging.DEBUG, "info": logging.INFO,
@@ -51,6 +55,11 @@ def parse_url(url: str) -> tuple[dict, dict, str | None]:
             if not speed > 0:
                 raise ValueError(f"speed must be > 0, got {values[-1]!r}")
             options["speed"] = speed
+        elif option == "baud":
+            baud = int(values[-1])
+            if not baud > 0:
+                raise ValueError(f"baud must be > 0, got {values[-1]!r}")
+            options["baud"] = baud
         elif option == "name":
             options["name"] = values[-1]
         elif option == "settings":
@@ -94,6 +103,7 @@ class Serial(SerialBase):
         self._generation = -1
         self._owns_machine = False
         self._cancel = False
+        self.wire: SerialLine | None = None  # the modelled wire (`baud=`), else none
         super().__init__(*args, **kwargs)
 
     # -- pyserial contract --------------------------------------------------------------
@@ -116,6 +126,7 @@ class Serial(SerialBase):
             self.logger = logging.getLogger("pySerial.grblsim")
             self.logger.setLevel(LOGGER_LEVELS[level])
         name = options.pop("name", None)
+        baud = options.pop("baud", None)
         machine, created = get_or_create(name, faults=Faults(**faults), **options)
         if not created:
             for key, value in faults.items():
@@ -128,10 +139,34 @@ class Serial(SerialBase):
         self._owns_machine = name is None
         self.emulator = machine
         self._cancel = False
+        if baud is not None:
+            self.wire = SerialLine(baud, self._to_machine, self._from_machine)
+
+    def _alive(self, machine: GrblEmulator) -> bool:
+        return (self.is_open and machine.generation == self._generation
+                and machine.connected)
+
+    def _to_machine(self, data: bytes) -> bool:
+        """The wire delivers bytes to the controller (False: this connection is gone)."""
+        machine = self.emulator
+        if machine is None or not self._alive(machine):
+            return False
+        machine.receive(data)
+        return True
+
+    def _from_machine(self, timeout: float) -> bytes:
+        machine = self.emulator
+        if machine is None or not self._alive(machine):
+            time.sleep(timeout)
+            return b""
+        machine.wait_output(timeout)
+        return machine.take_output() if self._alive(machine) else b""
 
     def close(self) -> None:
         if self.is_open:
             self.is_open = False
+            if self.wire is not None:
+                self.wire.close()
             machine = self.emulator
             if machine is not None:
                 if self._owns_machine:
@@ -155,14 +190,16 @@ class Serial(SerialBase):
 
     @property
     def in_waiting(self) -> int:
-        return self._check().output_waiting()
+        machine = self._check()
+        return self.wire.waiting() if self.wire is not None else machine.output_waiting()
 
     def read(self, size: int = 1) -> bytes:
         machine = self._check()
         deadline = None if self._timeout is None else time.monotonic() + self._timeout
         data = bytearray()
         while len(data) < size:
-            data += machine.take_output(size - len(data))
+            data += (self.wire.take(size - len(data)) if self.wire is not None
+                     else machine.take_output(size - len(data)))
             if len(data) >= size or self._timeout == 0:
                 break
             if self._cancel:
@@ -171,7 +208,11 @@ class Serial(SerialBase):
             remaining = None if deadline is None else deadline - time.monotonic()
             if remaining is not None and remaining <= 0:
                 break
-            machine.wait_output(0.05 if remaining is None else min(remaining, 0.05))
+            wait = 0.05 if remaining is None else min(remaining, 0.05)
+            if self.wire is not None:
+                self.wire.wait(wait)
+            else:
+                machine.wait_output(wait)
             if not self.is_open:
                 break
             self._check()
@@ -189,11 +230,17 @@ class Serial(SerialBase):
         data = to_bytes(data)
         if self.logger:
             self.logger.debug("write %r", data)
-        machine.receive(data)
+        if self.wire is not None:
+            self.wire.send(data)
+        else:
+            machine.receive(data)
         return len(data)
 
     def reset_input_buffer(self) -> None:
-        self._check().take_output()
+        machine = self._check()
+        if self.wire is not None:
+            self.wire.take(1 << 30)
+        machine.take_output()
 
     def reset_output_buffer(self) -> None:
         self._check()

@@ -4,7 +4,7 @@ A cutter lays every piece with its grain line along the fabric's grain. The dire
 comes from the first source available, per piece:
 
 1. ``file``: a grain line in the pattern file (JSON ``grainline``; a DXF-AAMA piece's
-   layer 7 line sets its frame in `solver.dxf_aama` directly);
+   layer 7 line sets its frame in `solver.nest.dxf_aama` directly);
 2. ``operator``: ``--grain-line PIECE=DEG`` or a job option;
 3. ``drape``: the 3D drape. Per piece the linear map ``J`` (3x2) from pattern to 3D is
    fitted by least squares over the piece's triangles (the area-weighted mean of their

@@ -68,6 +68,30 @@ def _chain(rows: np.ndarray) -> np.ndarray:
     return rows[order] if len(order) == len(rows) else rows  # branching: keep file order
 
 
+def _reference_side_first(uv: np.ndarray, rows: np.ndarray, forward) -> np.ndarray:
+    """A seam line's twin rows chained, the longer side first: the stations are measured
+    along it. Which side a file lists first is arbitrary (vertex numbers, and a seam of a
+    piece with itself may list either side first row by row); the longer one is the same
+    on a seam and on its mirror image, so a pair's notches mirror. ``forward(u, v)``
+    tells whether edges u->v run as in their faces."""
+    from solver.garment.model import _components
+
+    verts, local = np.unique(rows, return_inverse=True)
+    local = local.reshape(rows.shape)
+    _, comp = _components(len(verts), np.concatenate([local[:, :2], local[:, 2:]]))
+    other = comp[local[:, 0]] != comp[local[0, 0]]  # a row listing the other side first
+    rows = np.where(other[:, None], rows[:, [2, 3, 0, 1]], rows)
+    as_in_face = forward(rows[:, 0], rows[:, 1])  # so that the first side chains
+    rows = np.where(as_in_face[:, None], rows, rows[:, [1, 0, 3, 2]])
+
+    def length(a: int, b: int) -> float:
+        return float(np.hypot(*(uv[rows[:, b]] - uv[rows[:, a]]).T).sum())
+
+    if length(2, 3) > length(0, 1) + 1e-6:
+        rows = rows[:, [2, 3, 0, 1]]
+    return _chain(rows)
+
+
 def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) -> np.ndarray:
     """(k,2) unit normals pointing away from the piece for edges a->b (forward: as in face)."""
     d = uv[b] - uv[a]
@@ -136,7 +160,8 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
                               a, b, np.array([f])))
             emit(line, sides)
             continue
-        rows = _chain(g.seam_edges[g.seam_line_of_edge == line])
+        rows = _reference_side_first(g.uv, g.seam_edges[g.seam_line_of_edge == line],
+                                     lambda u, v: lookup(u, v)[1])
         pa, pb = g.uv[rows[:, 0]], g.uv[rows[:, 1]]
         seg = np.hypot(*(pb - pa).T)
         s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -213,18 +238,37 @@ def print_stations(s: np.ndarray, f_start: np.ndarray, f_end: np.ndarray, inset:
         cross.append(s[edge] + t * (s[edge + 1] - s[edge]))
     cross = np.sort(np.concatenate(cross))
     cross = cross[(cross > inset + min_gap) & (cross < total - inset - min_gap)]
-    kept = [inset]
-    for c in cross:  # greedy: a crossing at least min_gap past the last kept station
-        if c - kept[-1] >= min_gap:
-            kept.append(float(c))
-    if total - inset - kept[-1] < min_gap and len(kept) > 1:
-        kept.pop()
-    kept.append(total - inset)
+    # Greedy from either end, the better spread kept: a seam and its mirror image (the
+    # left and right piece of a pair run their seams the opposite way) get the same notches.
+    forward = _greedy_stations(cross, inset, total, min_gap)
+    backward = [total - c for c in _greedy_stations(total - cross[::-1], inset, total,
+                                                    min_gap)[::-1]]
+    kept = min((forward, backward), key=_spread)
     out = [kept[0]]
     for a, b in zip(kept[:-1], kept[1:]):
         extra = int(np.ceil((b - a) / spacing_mm)) - 1 if spacing_mm > 0 else 0
         out += list(np.linspace(a, b, extra + 2)[1:])
     return np.asarray(out)
+
+
+def _greedy_stations(cross: np.ndarray, inset: float, total: float,
+                     min_gap: float) -> list[float]:
+    """Both ends and each crossing at least ``min_gap`` past the last one kept."""
+    kept = [inset]
+    for c in cross:
+        if c - kept[-1] >= min_gap:
+            kept.append(float(c))
+    if total - inset - kept[-1] < min_gap and len(kept) > 1:
+        kept.pop()
+    kept.append(total - inset)
+    return kept
+
+
+def _spread(stations: list[float]) -> tuple[int, float]:
+    """Order of preference, the same read from either end: more stations, then the more
+    even (smaller sum of squared gaps, to the micrometre)."""
+    gaps = np.diff(stations)
+    return -len(stations), round(float(np.sum(gaps ** 2)), 3)
 
 
 def _slits(point: np.ndarray, nrm: np.ndarray, w: np.ndarray, boundary, sew, depth_mm: float

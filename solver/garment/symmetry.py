@@ -33,6 +33,10 @@ SEAM_AGREEMENT = 0.85
 CENTRE_TOLERANCE = 0.03
 _SAMPLES = 256
 _ICP_STEPS = 4
+#: Largest vertex gap, as a fraction of the piece's size, at which a second piece counts
+#: as an exact mirrored copy of the first's mesh (a symmetrised pair, also after a file
+#: round trip that rounds coordinates).
+COPY_TOLERANCE = 1e-6
 
 FLIP = np.diag([-1.0, 1.0])
 
@@ -91,7 +95,7 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
             if abs(area[i] - area[j]) > 4 * tolerance * max(area[i], area[j]):
                 continue  # area differs more than a 1 % outline offset allows
             size = max(_size(outlines[i]), _size(outlines[j]))
-            rot, t, rms = _mirror_fit(outlines[i], outlines[j])
+            rot, t, rms = _exact_or(garment, i, j, *_mirror_fit(outlines[i], outlines[j]))
             if rms <= tolerance * size:
                 candidates.append(MirrorPair(i, j, rms, size, rot, t))
     for pair in sorted(candidates, key=lambda p: p.relative_rms):
@@ -121,7 +125,7 @@ def fit_pairs(garment: Garment, pairs: Iterable[Sequence[int]]) -> list[MirrorPa
         if i in taken or j in taken:
             raise ValueError(f"piece {i if i in taken else j} is in two mirror pairs")
         first, second = garment.piece_outline(i), garment.piece_outline(j)
-        rot, t, rms = _mirror_fit(first, second)
+        rot, t, rms = _exact_or(garment, i, j, *_mirror_fit(first, second))
         out.append(MirrorPair(i, j, rms, _size(first), rot, t, declared=True))
         taken.update((i, j))
     return out
@@ -147,6 +151,49 @@ def centre_seams(garment: Garment, pairs: Sequence[MirrorPair]) -> list[int]:
         if np.sqrt(np.mean(gap ** 2)) <= CENTRE_TOLERANCE * pair.size_mm:
             out.append(k)
     return out
+
+
+def mirror_correspondence(garment: Garment, pair: MirrorPair) -> np.ndarray | None:
+    """For a pair whose second piece is a mirrored copy of the first's mesh (as
+    `solver.garment.symmetrise` makes it): the first piece's vertex (global index) whose
+    image each second-piece vertex is, in ``flatnonzero`` order; None for any other pair.
+
+    The copy is recognised by its vertices, not trusted from a flag: a file round trip or
+    a midpoint subdivision keeps it, and a pair that merely looks alike is refused.
+    """
+    first = np.flatnonzero(garment.piece_of_vertex == pair.first)
+    second = np.flatnonzero(garment.piece_of_vertex == pair.second)
+    if len(first) != len(second) or len(first) == 0:
+        return None
+    from scipy.spatial import cKDTree
+
+    moved = pair.map_first_to_second(garment.uv[first])
+    gap, near = cKDTree(moved).query(garment.uv[second])
+    if gap.max() > COPY_TOLERANCE * pair.size_mm or len(np.unique(near)) != len(near):
+        return None
+    return first[near]
+
+
+def _exact_or(g: Garment, i: int, j: int, rot: np.ndarray, t: np.ndarray, rms: float
+              ) -> tuple[np.ndarray, np.ndarray, float]:
+    """The outline fit, replaced by the exact map when piece j is a mirrored copy of piece
+    i's mesh: the outline fit is only as good as its resampling (~1e-3 of the size), and a
+    symmetrised pair must map vertex onto vertex."""
+    first = np.flatnonzero(g.piece_of_vertex == i)
+    second = np.flatnonzero(g.piece_of_vertex == j)
+    if len(first) != len(second) or rms > MIRROR_TOLERANCE * _size(g.piece_outline(i)):
+        return rot, t, rms
+    from scipy.spatial import cKDTree
+
+    a = g.uv[first] @ FLIP.T
+    _, near = cKDTree(a @ rot.T + t).query(g.uv[second])
+    if len(np.unique(near)) != len(near):
+        return rot, t, rms
+    rot2, t2 = _procrustes(a[near], g.uv[second])
+    gap = np.linalg.norm(a[near] @ rot2.T + t2 - g.uv[second], axis=1)
+    if gap.max() > COPY_TOLERANCE * _size(g.piece_outline(i)):
+        return rot, t, rms
+    return rot2, t2, float(np.sqrt(np.mean(gap ** 2)))
 
 
 # ---------------------------------------------------------------------- fitting

@@ -3,440 +3,29 @@
 On a printed fabric a piece aligned to the print may still move by any whole lattice
 vector and by any operation of the print's group that keeps the grain (see
 :func:`solver.nest.instance.candidate_maps`); the positions of one piece therefore form
-a few *cosets* of the lattice. We search those positions directly:
+a few *cosets* of the lattice. Two searches compete (see :func:`nest_lattice`):
 
-- pieces and fabric are rasterised (each piece's mask eroded by a pixel, so the raster
-  test is optimistic at contact); for one piece and one operation the overlap with
-  everything already placed is, for every pixel offset at once, a cross-correlation
-  computed with real FFTs (the fabric's transform is shared by all candidates of a step);
-- it is read only at the piece's lattice coset, bottom-left first, and the best
-  candidates are verified exactly with shapely (vectorised), so rasterisation never
-  produces an overlap, only a missed opportunity;
-- several orderings (area, length, randomised) restart the greedy fill, and a
-  compaction pass re-inserts the right-most pieces while time remains;
-- besides, a free sparrow nest is snapped to the lattice and swept left to right onto the
-  nearest allowed positions ("resnap", see :func:`nest_lattice`); the shorter result wins.
-
-With ``lattice=None`` the same engine places pieces at any pixel offset (used to repair
-plain layouts around keep-out regions).
+- the bottom-left fill of :mod:`solver.nest.engine` reads its FFT collision maps only at
+  each piece's lattice coset, with restarts and compaction;
+- a free sparrow nest is snapped to the lattice and swept left to right onto the
+  nearest allowed positions ("resnap", :mod:`solver.nest.regions`); the shorter result wins.
 """
 
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import dataclass
-
-import cv2
-import numpy as np
-import scipy.fft as sfft
-import shapely
-
-from solver.nest.instance import Item, NestProblem, affine
+from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.engine import fill_search, first_fill_estimate, problem_density
+from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
-from solver.nest.plain import Progress
+from solver.nest.naive import naive_moves
+from solver.nest.regions import repair_snapped
 from solver.wallpaper import covering_radius
 
-# weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
-# single value wins everywhere (1 suits many small pieces, 0 a few large ones)
-LEANS = (0.1, 1.0, 0.0, 0.5)
-AREA_TOL = 1e-7  # overlap accepted by the exact check, fraction of area (verify allows 1e-6)
-
-
-@dataclass
-class _Shape:
-    """One item key under one candidate map, at translation zero."""
-
-    ring: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    ox: int
-    oy: int
-    mask: np.ndarray
-    spec: dict | None = None
-
-
-class Board:
-    """Occupancy grid (counts) of placed outlines grown by the gap, plus exact polygons."""
-
-    def __init__(self, width: float, length: float, gap: float, res: float) -> None:
-        self.width, self.length, self.gap, self.res = width, length, gap, res
-        self.rows = int(math.ceil(width / res)) + 1
-        self.cols = int(math.ceil(length / res)) + 1
-        self.count = np.zeros((self.rows, self.cols), np.int16)
-        self.polys: list[shapely.Polygon] = []
-        self.grown: list[tuple[int, int, np.ndarray]] = []
-        self._tree = None
-
-    def _raster(self, poly: shapely.Polygon) -> tuple[int, int, np.ndarray]:
-        lo = np.floor(np.asarray(poly.bounds[:2]) / self.res).astype(int) - 1
-        hi = np.ceil(np.asarray(poly.bounds[2:]) / self.res).astype(int) + 1
-        img = np.zeros((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.uint8)
-        pts = np.asarray(poly.exterior.coords) / self.res - 0.5 - lo
-        cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
-        return int(lo[0]), int(lo[1]), img
-
-    def add(self, poly: shapely.Polygon) -> int:
-        grown = poly.buffer(self.gap, quad_segs=4) if self.gap > 0 else poly
-        x0, y0, img = self._raster(grown)
-        self._stamp(x0, y0, img, +1)
-        self.polys.append(poly)
-        self.grown.append((x0, y0, img))
-        self._tree = None
-        return len(self.polys) - 1
-
-    def remove(self, k: int) -> None:
-        x0, y0, img = self.grown[k]
-        self._stamp(x0, y0, img, -1)
-        self.polys[k] = shapely.Polygon()
-        self.grown[k] = (0, 0, np.zeros((0, 0), np.uint8))
-        self._tree = None
-
-    def _stamp(self, x0: int, y0: int, img: np.ndarray, sign: int) -> None:
-        r0, c0 = max(y0, 0), max(x0, 0)
-        r1, c1 = min(y0 + img.shape[0], self.rows), min(x0 + img.shape[1], self.cols)
-        if r1 > r0 and c1 > c0:
-            patch = img[r0 - y0:r1 - y0, c0 - x0:c1 - x0].astype(np.int16)
-            self.count[r0:r1, c0:c1] += sign * patch
-
-    def frontier(self) -> float:
-        """Right-most x of the placed polygons (0 when empty)."""
-        xs = [p.bounds[2] for p in self.polys if not p.is_empty]
-        return max(xs, default=0.0)
-
-    def tree(self) -> shapely.STRtree:
-        if self._tree is None:
-            self._tree = shapely.STRtree(self.polys)
-        return self._tree
-
-    def clear_of(self, cands: np.ndarray, area: float) -> np.ndarray:
-        """(n,) bool: which candidate polygons keep the gap to every placed polygon."""
-        ok = np.ones(len(cands), bool)
-        if not self.polys:
-            return ok
-        tree = self.tree()
-        if self.gap > 0:
-            pairs = tree.query(cands, predicate="dwithin", distance=self.gap * (1 - 1e-7))
-            ok[pairs[0]] = False
-            return ok
-        pairs = tree.query(cands, predicate="intersects")
-        if pairs.shape[1]:
-            placed = np.asarray(self.polys, dtype=object)
-            inter = shapely.area(shapely.intersection(cands[pairs[0]], placed[pairs[1]]))
-            ok[pairs[0][inter > AREA_TOL * area]] = False
-        return ok
-
-
-class Filler:
-    """Bottom-left fill on lattice cosets with FFT collision maps (see module docstring)."""
-
-    def __init__(self, items: list[Item], width: float, length: float, gap: float,
-                 res: float, fixed: list[shapely.Polygon], score: str = "right") -> None:
-        self.items, self.width, self.length, self.gap, self.res = items, width, length, gap, res
-        self.fixed = fixed
-        self.score = score
-        self.lean = LEANS[0]
-        self.shapes: dict[tuple, list[_Shape]] = {}
-        for it in items:
-            if it.key not in self.shapes:
-                self.shapes[it.key] = [self._shape(affine(c, it.ref)) for c in it.candidates]
-        rows = int(math.ceil(width / res)) + 1
-        cols = int(math.ceil(length / res)) + 1
-        hmax = max(s.mask.shape[0] for v in self.shapes.values() for s in v)
-        wmax = max(s.mask.shape[1] for v in self.shapes.values() for s in v)
-        self.fshape = (sfft.next_fast_len(rows + hmax, real=True),
-                       sfft.next_fast_len(cols + wmax, real=True))
-        self.wmax = wmax
-        self.longest = max(float(s.hi[0] - s.lo[0]) for v in self.shapes.values() for s in v)
-        # the lattice step along x: the first free position right of the frontier lies within
-        self.step = max((float(np.abs(it.lattice).max()) for it in items
-                         if it.lattice is not None), default=0.0)
-        self.area = {k: shapely.Polygon(v[0].ring).area for k, v in self.shapes.items()}
-
-    def _shape(self, ring: np.ndarray) -> _Shape:
-        lo, hi = ring.min(0), ring.max(0)
-        o = np.floor(lo / self.res).astype(int) - 1
-        size = np.ceil(hi / self.res).astype(int) + 2 - o
-        img = np.zeros((size[1], size[0]), np.uint8)
-        pts = ring / self.res - 0.5 - o
-        cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
-        # eroded by a pixel: the raster test must stay optimistic at contact (touching
-        # pieces share boundary pixels after rounding); the exact check decides there
-        core = cv2.erode(img, np.ones((3, 3), np.uint8))
-        if core.any():
-            img = core
-        return _Shape(ring, lo, hi, int(o[0]), int(o[1]), img.astype(np.float32))
-
-    def _spec(self, s: _Shape, fshape: tuple[int, int]) -> np.ndarray:
-        if s.spec is None:
-            s.spec = {}
-        if fshape not in s.spec:
-            s.spec[fshape] = np.conj(sfft.rfft2(s.mask, fshape, workers=1))
-        return s.spec[fshape]
-
-    def window(self, board: Board, target: tuple | None = None,
-               ) -> tuple[int, tuple[int, int], float, float]:
-        """Columns to correlate: (first column, FFT shape, x range of left edges).
-
-        Bottom-left: a position right of the frontier is never better than the first one
-        there, so left edges up to the frontier (plus a lattice step) suffice. Near a
-        target: one piece length either side of it. Column counts grow in coarse steps
-        so that mask spectra are reused.
-        """
-        xlim = board.frontier() + self.gap + 2 * self.res + 2 * self.step
-        xlo = -math.inf
-        c0 = 0
-        if target is not None:
-            tx = float(target[1][0])
-            xlim = max(xlim, tx + self.longest)
-            xlo = tx - 2 * self.longest
-            c0 = max(0, int(math.floor(xlo / self.res)) - 2)
-        cols = int(math.ceil((xlim + self.longest + self.gap) / self.res)) + 3 - c0 + self.wmax
-        step = max(64, int(2 ** math.floor(math.log2(max(cols, 1)) - 2)))
-        cols = min(int(math.ceil(cols / step) * step), self.fshape[1])
-        return c0, (self.fshape[0], sfft.next_fast_len(cols, real=True)), xlo, xlim
-
-    def board(self) -> Board:
-        b = Board(self.width, self.length, self.gap, self.res)
-        for p in self.fixed:
-            b.add(p)
-        return b
-
-    def translations(self, item: Item, s: _Shape, xlo: float = -math.inf,
-                     xhi: float = math.inf) -> np.ndarray:
-        """(m, 2) allowed translations keeping the shape inside the fabric minus the gap.
-
-        Only those whose left edge lies in [xlo, xhi] (the search window).
-        """
-        g = self.gap
-        tlo = np.array([max(g, xlo), g]) - s.lo
-        thi = np.array([min(self.length - g - s.hi[0], xhi - s.lo[0]), self.width - g - s.hi[1]])
-        if np.any(thi < tlo):
-            return np.zeros((0, 2))
-        if item.lattice is None:
-            xs = (np.arange(math.ceil(tlo[0] / self.res), math.floor(thi[0] / self.res) + 1)
-                  * self.res)
-            ys = (np.arange(math.ceil(tlo[1] / self.res), math.floor(thi[1] / self.res) + 1)
-                  * self.res)
-            gx, gy = np.meshgrid(xs, ys, indexing="ij")
-            return np.column_stack([gx.ravel(), gy.ravel()])
-        basis = item.lattice
-        corners = np.array([[tlo[0], tlo[1]], [tlo[0], thi[1]], [thi[0], tlo[1]],
-                            [thi[0], thi[1]]])
-        f = corners @ np.linalg.inv(basis).T
-        a = np.arange(math.floor(f[:, 0].min()), math.ceil(f[:, 0].max()) + 1)
-        b = np.arange(math.floor(f[:, 1].min()), math.ceil(f[:, 1].max()) + 1)
-        ga, gb = np.meshgrid(a, b, indexing="ij")
-        t = np.column_stack([ga.ravel(), gb.ravel()]) @ basis.T
-        keep = np.all((t >= tlo - 1e-9) & (t <= thi + 1e-9), axis=1)
-        return t[keep]
-
-    def best_position(self, board: Board, item: Item, target: tuple | None = None,
-                      ) -> tuple[int, np.ndarray] | None:
-        """(candidate index, translation) with the best score that passes the exact check.
-
-        The score is bottom-left, or with ``target`` = (candidate index, translation) the
-        distance to that wished-for position (used to repair a snapped layout locally).
-        """
-        c0, fshape, xlo, xlim = self.window(board, target)
-        occ = (board.count[:, c0:c0 + fshape[1]] > 0).astype(np.float32)
-        focc = sfft.rfft2(occ, fshape, workers=1)
-        options = []
-        for ci, s in enumerate(self.shapes[item.key]):
-            t = self.translations(item, s, xlo, xlim)
-            if not len(t):
-                continue
-            corr = sfft.irfft2(focc * self._spec(s, fshape), fshape, workers=1)
-            col = np.clip(np.rint(s.ox + t[:, 0] / self.res).astype(int) - c0, 0, fshape[1] - 1)
-            row = np.clip(np.rint(s.oy + t[:, 1] / self.res).astype(int), 0, fshape[0] - 1)
-            free = corr[row, col] < 0.5
-            t = t[free]
-            if not len(t):
-                continue
-            if target is not None:
-                # push right rather than sideways: the sweep goes left to right
-                d = t - target[1]
-                sc = np.abs(d[:, 0]) + 2 * np.abs(d[:, 1]) + (0.0 if ci == target[0] else 1e6)
-            elif self.score == "left":
-                sc = (t[:, 0] + s.lo[0]) * 1e3 + t[:, 1] + s.lo[1]
-            else:
-                lean = self.lean * (s.hi[0] - s.lo[0]) / self.width
-                sc = (t[:, 0] + s.hi[0]) + lean * (t[:, 1] + s.hi[1])
-            options.append((sc, np.full(len(t), ci), t))
-        if not options:
-            return None
-        sc = np.concatenate([o[0] for o in options])
-        ci = np.concatenate([o[1] for o in options])
-        t = np.concatenate([o[2] for o in options])
-        order = np.argsort(sc, kind="stable")
-        area = self.area[item.key]
-        for start in range(0, min(len(order), 2048), 32):
-            idx = order[start:start + 32]
-            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
-            # all candidate maps of one item share the ring length
-            polys = shapely.polygons(rings + t[idx][:, None, :])
-            ok = board.clear_of(polys, area)
-            if ok.any():
-                k = idx[np.argmax(ok)]
-                return int(ci[k]), t[k]
-        return None
-
-    def fill(self, order: list[int], board: Board, sol: list, index: list[int],
-             targets: list | None = None) -> bool:
-        """Greedy fill of the items in ``order`` (``sol``/``index`` updated); False if stuck."""
-        for k in order:
-            pos = self.best_position(board, self.items[k], None if targets is None else targets[k])
-            if pos is None:
-                return False
-            sol[k] = pos
-            index[k] = board.add(self.polygon(k, pos))
-        return True
-
-    def pose(self, k: int, move: np.ndarray) -> tuple[int, np.ndarray]:
-        """(candidate index, translation) of a given move of item ``k``."""
-        cands = self.items[k].candidates
-        ci = int(np.argmin([np.abs(c[:, :2] - move[:, :2]).max() for c in cands]))
-        return ci, move[:, 2] - cands[ci][:, 2]
-
-    def polygon(self, k: int, pos: tuple[int, np.ndarray]) -> shapely.Polygon:
-        return shapely.Polygon(self.shapes[self.items[k].key][pos[0]].ring + pos[1])
-
-    def left(self, k: int, pos: tuple[int, np.ndarray]) -> float:
-        return float(self.shapes[self.items[k].key][pos[0]].lo[0] + pos[1][0])
-
-    def right(self, k: int, pos: tuple[int, np.ndarray]) -> float:
-        return float(self.shapes[self.items[k].key][pos[0]].hi[0] + pos[1][0])
-
-    def compact(self, sol: list, board: Board, deadline: float, board_index: list[int]) -> list:
-        """Re-insert pieces right-most first while that shortens the marker or frees room."""
-        improved = True
-        while improved and time.monotonic() < deadline:
-            improved = False
-            order = np.argsort([-self.right(k, p) for k, p in enumerate(sol)])
-            for k in order[: max(4, len(order) // 4)]:
-                if time.monotonic() > deadline:
-                    break
-                old = sol[k]
-                board.remove(board_index[k])
-                pos = self.best_position(board, self.items[k])
-                if pos is not None and self.right(k, pos) < self.right(k, old) - 1e-9:
-                    sol[k] = pos
-                    improved = True
-                else:
-                    pos = old
-                board_index[k] = board.add(self.polygon(k, pos))
-        return sol
-
-
-def orderings(items: list[Item], rng: np.random.Generator):
-    """Area, length and width orders first, then randomised area orders, forever."""
-    area = np.array([shapely.Polygon(it.ref).area for it in items])
-    ext = np.array([np.ptp(it.ref, axis=0) for it in items])
-    yield list(np.argsort(-area, kind="stable"))
-    yield list(np.argsort(-ext[:, 0] * 1e6 - area, kind="stable"))
-    yield list(np.argsort(-ext[:, 1] * 1e6 - area, kind="stable"))
-    while True:
-        yield list(np.argsort(-area * rng.uniform(0.6, 1.4, len(items)), kind="stable"))
-
-
-def moves_of(filler: Filler, sol: list) -> list[np.ndarray]:
-    out = []
-    for it, (ci, t) in zip(filler.items, sol):
-        g = it.candidates[ci].copy()
-        g[:, 2] += t
-        out.append(g)
-    return out
-
-
-def default_resolution(problem: NestProblem, items: list[Item]) -> float:
-    """Pixel size: fine enough for the smallest piece and the lattice, small enough to be fast."""
-    small = min(float(np.min(np.ptp(it.ref, axis=0))) for it in items)
-    return max(min(problem.width / 256.0, small / 8.0), problem.width / 1000.0)
-
-
-def estimate_length(problem: NestProblem, items: list[Item]) -> float:
-    area = sum(shapely.Polygon(it.ref).area for it in items)
-    longest = max(float(np.ptp(it.ref[:, 0])) for it in items)
-    return 2.0 * area / problem.width + 2 * longest + 4 * problem.gap
-
-
-def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float, seed: int | None,
-                progress: Progress | None = None, res: float | None = None,
-                start: list[np.ndarray | None] | None = None,
-                targets: list[np.ndarray | None] | None = None,
-                ) -> tuple[list[np.ndarray], float] | None:
-    """Best greedy fill + compaction over several orderings within ``time_limit``.
-
-    ``start`` optionally gives the moves of items that are already placed (None for the
-    items to insert); they stay put during the fill and may move during compaction.
-    ``targets`` optionally gives, for the items to insert, where they would like to be:
-    the first run inserts them as close to it as possible instead of bottom-left.
-    """
-    t0 = time.monotonic()
-    deadline = t0 + time_limit
-    n = len(items)
-    res = res or default_resolution(problem, items)
-    fixed = [shapely.Polygon(k) for k in problem.keepouts]
-    length = problem.length or estimate_length(problem, items)
-    if start is not None and problem.length is None:
-        placed = [shapely.Polygon(affine(m, it.ref)).bounds[2]
-                  for it, m in zip(items, start) if m is not None]
-        length += max(placed, default=0.0)
-    rng = np.random.default_rng(seed)
-    best, best_len, runs = None, math.inf, 0
-    for _ in range(8):
-        filler = Filler(items, problem.width, length, problem.gap, res, fixed)
-        pre = [None] * n if start is None else [
-            None if m is None else filler.pose(k, m) for k, m in enumerate(start)]
-        wish = None if targets is None else [
-            None if m is None else filler.pose(k, m) for k, m in enumerate(targets)]
-        stuck = False
-        for order in orderings(items, rng):
-            if best is not None and time.monotonic() > deadline:
-                break
-            board, sol, index = filler.board(), list(pre), [0] * n
-            for k in range(n):
-                if sol[k] is not None:
-                    index[k] = board.add(filler.polygon(k, sol[k]))
-            runs += 1
-            filler.lean = LEANS[(runs - 1) % len(LEANS)]
-            if wish is not None and runs == 1:  # nearest to the wished positions, left first
-                todo = [k for k in range(n) if pre[k] is None]
-                todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
-                ok = filler.fill(todo, board, sol, index, wish)
-            else:
-                ok = filler.fill([k for k in order if pre[k] is None], board, sol, index)
-            if not ok:
-                stuck = True
-                break
-            # each ordering compacts within a share of the time
-            sol = filler.compact(sol, board, min(deadline, time.monotonic() + time_limit / 4),
-                                 index)
-            used = max(filler.right(k, p) for k, p in enumerate(sol)) + problem.gap
-            if used < best_len:
-                best, best_len = moves_of(filler, sol), used
-                if progress:
-                    progress(f"lattice fill: {time.monotonic() - t0:5.1f} s  run {runs}  "
-                             f"length {used:.4g}  "
-                             f"density {problem_density(items, problem, used):.1%}")
-        if not stuck or best is not None:
-            break
-        if problem.length is not None:
-            return None
-        length *= 1.6  # the estimate was too short for a greedy fill: widen the board
-    return (best, best_len) if best is not None else None
-
-
-def problem_density(items: list[Item], problem: NestProblem, length: float) -> float:
-    area = sum(shapely.Polygon(it.ref).area for it in items)
-    return area / (problem.width * length)
-
-
-SHARES = {"resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4}
+SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
-def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                  progress: Progress | None = None,
                  strategies: tuple[str, ...] | None = None) -> Layout:
     """Nest on a printed fabric; every strategy runs and the shortest marker wins.
@@ -452,27 +41,45 @@ def nest_lattice(problem: NestProblem, *, time_limit: float = 30.0, seed: int | 
 
     By default: fill, and resnap for many pieces (from ``MANY``) or resnap-margin for few
     (a collision after snapping costs a whole large piece's move; many small pieces lose
-    more to the margin than to collisions).
+    more to the margin than to collisions). When the time left is shorter than a fill
+    that must finish would take, the naive baseline (:mod:`solver.nest.naive`) gives the
+    first marker, and the searches improve on it until the deadline.
     """
     if problem.fabric is None:
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
-    from solver.nest.regions import repair_snapped
-
     items = problem.items()
+    deadline = deadline_of(time_limit)
     if strategies is None:
         strategies = ("resnap" if len(items) >= MANY else "resnap-margin", "fill")
+        first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
+        if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
+            # too short for a fill that must finish: the naive marker is certain and
+            # quick; the searches then improve on it while time remains
+            strategies = ("naive", *strategies)
     results = []
-    total = sum(SHARES.get(s, 0.0) for s in strategies) or 1.0
-    for strategy in strategies:
-        share = time_limit * SHARES.get(strategy, 0.0) / total
-        if strategy == "fill":
-            r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress)
+    for i, strategy in enumerate(strategies):
+        # a share of what is left, so an overrun shrinks the later strategies; once one
+        # marker exists the others may be cut short by the deadline
+        rest = sum(SHARES.get(s, 0.0) for s in strategies[i:]) or 1.0
+        share = deadline.share(SHARES.get(strategy, 0.0) / rest)
+        late = bool(results)
+        if strategy == "naive":
+            try:
+                r = naive_moves(problem, items, time_limit=share, seed=seed,
+                                progress=progress)
+            except ValueError as exc:  # a piece too wide with the margin: the others may do
+                if progress:
+                    progress(f"naive: {exc}")
+                r = None
+        elif strategy == "fill":
+            r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                            interruptible=late)
         elif strategy in ("resnap", "resnap-margin", "repair"):
             extra = 0.5 * covering_radius(problem.lattice) if strategy == "resnap-margin" else 0.0
             try:
                 r = repair_snapped(problem, items, time_limit=share, seed=seed,
                                    progress=progress, everything=strategy != "repair",
-                                   extra=extra)
+                                   extra=extra, interruptible=late)
             except ValueError as exc:  # sparrow gave up; the other strategies may not
                 if progress:
                     progress(f"{strategy}: {exc}")

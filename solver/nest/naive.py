@@ -9,20 +9,34 @@ piece, which is what the lattice-aware search (:mod:`solver.nest.lattice`) wins 
 
 from __future__ import annotations
 
-from solver.nest.instance import NestProblem
+import numpy as np
+
+from solver.nest.budget import Deadline, Progress
+from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.layout import Layout, build_layout
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.plain import plain_moves
 from solver.nest.regions import snap_to_lattice
 from solver.wallpaper import covering_radius
 
 
-def nest_naive(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest_naive(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                progress: Progress | None = None) -> Layout:
     """The baseline on a printed fabric (see module docstring)."""
+    items = problem.items()
+    moves, _ = naive_moves(problem, items, time_limit=time_limit, seed=seed, progress=progress)
+    return build_layout(problem, items, moves)
+
+
+def naive_moves(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
+                seed: int | None, progress: Progress | None = None,
+                ) -> tuple[list[np.ndarray], float]:
+    """Moves and marker length of the baseline: valid without any search after sparrow,
+    hence also the certain first marker when the budget is too short for a fill."""
     if problem.fabric is None:
         raise ValueError("the naive print baseline needs a fabric")
-    items = problem.items()
     r = covering_radius(problem.lattice) * (1 + 1e-9)
     moves, _ = plain_moves(problem, items, extra=r, time_limit=time_limit, seed=seed,
                            progress=progress)
-    return build_layout(problem, items, snap_to_lattice(problem, items, moves))
+    moves = snap_to_lattice(problem, items, moves)
+    right = max(float(affine(m, it.ref)[:, 0].max()) for it, m in zip(items, moves))
+    return moves, right + problem.gap

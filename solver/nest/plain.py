@@ -11,19 +11,38 @@ become demands; a mirrored copy is its own item; the allowed orientations pass t
 
 from __future__ import annotations
 
+import atexit
 import sys
 import threading
 import time
-from collections.abc import Callable
+from datetime import timedelta
 
 import numpy as np
 import shapely
 import spyrrow
 
+from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose, rotation
 from solver.nest.layout import Layout, build_layout
 
-Progress = Callable[[str], None]
+#: sparrow's constructive start plus how far it runs past its own clock, about this much
+#: (s) on the benchmark inputs under load: its search is asked to end this much earlier
+SPARROW_RESERVE = 0.1
+FEASIBLE = (spyrrow.ReportType.ExplFeas, spyrrow.ReportType.CmprFeas, spyrrow.ReportType.Final)
+POLL = 0.02  # s between looks at sparrow's progress queue
+_RUNNING: set[threading.Thread] = set()  # sparrow runs left behind at their deadline
+
+
+@atexit.register
+def _join_sparrow() -> None:
+    """Let sparrow runs left behind finish (within their own time) before the interpreter
+    goes: a daemon thread killed inside Rust aborts the process."""
+    for thread in list(_RUNNING):
+        thread.join()
+
+
+class Late(ValueError):
+    """A search that may be cut short found nothing before its deadline."""
 
 
 def stderr_progress(msg: str) -> None:
@@ -53,46 +72,69 @@ def narrowest(ring: np.ndarray, orientations) -> float:
     return float((y.max(axis=1) - y.min(axis=1)).min())
 
 
-def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | None,
-                 workers: int = 1, progress: Progress | None = None,
-                 label: str = "spyrrow") -> tuple[dict, float]:
-    """Run sparrow on ``{key: (ring, demand, orientations|None)}``.
+def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
+                 seed: int | None, workers: int = 1, progress: Progress | None = None,
+                 label: str = "spyrrow", interruptible: bool = False) -> tuple[dict, float]:
+    """Run sparrow on ``{key: (ring, demand, orientations|None)}`` until the deadline.
 
     Returns ``{key: [(angle_deg, (tx, ty)), ...]}`` (one entry per copy) and the strip
     length found. Rotations are about the shape's own origin, then the translation.
+    sparrow's clock is not ours (it overruns by up to a second on hard instances), so its
+    progress reports are watched and, at the deadline, the best feasible one is the
+    answer; sparrow then ends on its own in the background, shortly after.
+    Without a feasible one by then it is waited for, unless ``interruptible`` (the caller
+    has another marker): then :class:`Late` is raised.
     """
+    deadline = deadline_of(time_limit)
     items = [spyrrow.Item(str(k), [tuple(map(float, p)) for p in ring], int(n),
                           None if orient is None else [float(a) for a in orient])
              for k, (ring, n, orient) in shapes.items()]
     inst = spyrrow.StripPackingInstance("nest", float(height), items)
-    cfg = spyrrow.StripPackingConfig(early_termination=True,
-                                     total_computation_time=max(1, int(round(time_limit))),
+    cfg = spyrrow.StripPackingConfig(early_termination=True, total_computation_time=1,
                                      num_workers=workers, seed=seed)
-    queue = spyrrow.ProgressQueue() if progress else None
+    # whole seconds only in the constructor; the attributes take any duration
+    search = max(0.0, deadline.left() - SPARROW_RESERVE)
+    cfg.exploration_time = timedelta(seconds=0.8 * search)
+    cfg.compression_time = timedelta(seconds=0.2 * search)
+    queue = spyrrow.ProgressQueue()
     result: dict = {}
 
     def work() -> None:
         try:
-            result["sol"] = inst.solve(cfg, progress=queue) if queue else inst.solve(cfg)
+            result["sol"] = inst.solve(cfg, progress=queue)
         except BaseException as exc:  # a panic in sparrow surfaces here, not as a lost thread
             result["error"] = exc
+        finally:
+            _RUNNING.discard(threading.current_thread())
 
     thread = threading.Thread(target=work, daemon=True)
     t0 = time.monotonic()
     thread.start()
-    last = 0.0
+    last, best = 0.0, None
     while thread.is_alive():
-        thread.join(0.5)
-        if queue is not None:
-            reports = queue.drain()
-            if reports and time.monotonic() - last > 2.0:
-                _, sol = reports[-1]
-                progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
-                         f"density {sol.density:.1%}")
-                last = time.monotonic()
-    if "sol" not in result:
-        raise ValueError(f"the strip packer failed: {result.get('error')!r}")
-    sol = result["sol"]
+        thread.join(POLL)
+        reports = queue.drain()
+        for kind, sol in reports:
+            if kind in FEASIBLE and (best is None or sol.width < best.width):
+                best = sol
+        if progress and reports and time.monotonic() - last > 2.0:
+            _, sol = reports[-1]
+            progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
+                     f"density {sol.density:.1%}")
+            last = time.monotonic()
+        if interruptible and best is None and deadline.expired() and thread.is_alive():
+            _RUNNING.add(thread)
+            raise Late(f"{label}: no marker before the deadline")
+        if best is not None and deadline.expired() and thread.is_alive():
+            if progress:
+                progress(f"{label}: deadline; sparrow's best feasible marker is the answer")
+            _RUNNING.add(thread)
+            break
+    else:
+        if "sol" not in result:
+            raise ValueError(f"the strip packer failed: {result.get('error')!r}")
+        best = result["sol"]
+    sol = best
     keys = {str(k): k for k in shapes}
     out: dict = {k: [] for k in shapes}
     for pi in sol.placed_items:
@@ -101,8 +143,9 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float, seed: int | 
 
 
 def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
-                time_limit: float = 30.0, seed: int | None = 0,
-                progress: Progress | None = None) -> tuple[list[np.ndarray], float]:
+                time_limit: float | Deadline = 30.0, seed: int | None = 0,
+                progress: Progress | None = None, interruptible: bool = False,
+                ) -> tuple[list[np.ndarray], float]:
     """Per item the map ``G`` (reference frame -> fabric) of a free nest by sparrow.
 
     ``extra`` is added to every side of every shape (the naive print baseline uses it).
@@ -128,7 +171,7 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
     # buffered shapes lie in [0, L] x [0, W - g]; true outlines keep ``grow`` inside that,
     # so shifting by g/2 leaves g + extra to every fabric edge and g + 2 extra between pieces
     placed, length = spyrrow_pack(shapes, problem.width - g, time_limit=time_limit, seed=seed,
-                                  progress=progress)
+                                  progress=progress, interruptible=interruptible)
     shift = np.array([g / 2, g / 2])
     moves = []
     used: dict = {k: 0 for k in placed}
@@ -141,7 +184,7 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
     return moves, length + g
 
 
-def nest_plain(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest_plain(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                progress: Progress | None = None) -> Layout:
     """Free strip packing of the problem's pieces (no print) with sparrow."""
     items = problem.items()

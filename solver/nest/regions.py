@@ -4,7 +4,7 @@ A free sparrow nest knows nothing of flaws marked by the operator nor of a print
 lattice. Both are handled the same way: find the pieces in conflict (outside the
 window, on a flaw, overlapping after snapping to the lattice), take out as few as a
 greedy vertex cover allows, and re-insert them with the bottom-left filler of
-:mod:`solver.nest.lattice` around the pieces that stay.
+:mod:`solver.nest.engine` around the pieces that stay.
 """
 
 from __future__ import annotations
@@ -17,8 +17,10 @@ import shapely
 
 import untrusted
 from solver.jsonfile import read_json
+from solver.nest.budget import Deadline, Progress, deadline_of
+from solver.nest.engine import fill_search, first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.plain import plain_moves
 
 
 def load_keepouts(path: str | Path) -> list[np.ndarray]:
@@ -71,15 +73,15 @@ def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:
 
 
 def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
-           time_limit: float, seed: int | None, progress: Progress | None = None,
-           everything: bool = False) -> tuple[list[np.ndarray], float] | None:
+           time_limit: float | Deadline, seed: int | None, progress: Progress | None = None,
+           everything: bool = False, interruptible: bool = False,
+           ) -> tuple[list[np.ndarray], float] | None:
     """Take out the conflicting pieces of ``moves``, re-insert them around the rest, compact.
 
     Re-inserted pieces go to the allowed position nearest to where they were, left-most
     first. ``everything`` re-inserts all pieces that way (a global re-snap).
+    ``interruptible``: the caller has another result, give up (None) at the deadline.
     """
-    from solver.nest.lattice import fill_search
-
     polys = np.array([shapely.Polygon(affine(m, it.ref)) for it, m in zip(items, moves)],
                      dtype=object)
     bad = np.ones(len(items), bool) if everything else conflicting(problem, polys)
@@ -88,7 +90,7 @@ def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
     start = [None if b else m for m, b in zip(moves, bad)]
     wish = [m if b else None for m, b in zip(moves, bad)]
     return fill_search(problem, items, time_limit=time_limit, seed=seed, progress=progress,
-                       start=start, targets=wish)
+                       start=start, targets=wish, interruptible=interruptible)
 
 
 def snap_to_lattice(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
@@ -109,12 +111,20 @@ def snap_to_lattice(problem: NestProblem, items: list[Item], moves: list[np.ndar
     return out
 
 
-def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float,
+def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                    seed: int | None, progress: Progress | None = None, extra: float = 0.0,
-                   everything: bool = False) -> tuple[list[np.ndarray], float] | None:
-    """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted."""
-    moves, _ = plain_moves(problem, items, extra=extra, time_limit=0.8 * time_limit, seed=seed,
-                           progress=progress)
+                   everything: bool = False, interruptible: bool = False,
+                   ) -> tuple[list[np.ndarray], float] | None:
+    """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted.
+
+    Sparrow stops early enough to leave the re-insertion its estimated time (it must
+    finish unless ``interruptible``, and is wasted if cut).
+    """
+    deadline = deadline_of(time_limit)
+    fill = first_fill_estimate(items)
+    moves, _ = plain_moves(problem, items, extra=extra,
+                           time_limit=deadline.before(fill).share(0.8), seed=seed,
+                           progress=progress, interruptible=interruptible)
     snapped = snap_to_lattice(problem, items, moves)
-    return repair(problem, items, snapped, time_limit=0.2 * time_limit, seed=seed,
-                  progress=progress, everything=everything)
+    return repair(problem, items, snapped, time_limit=deadline, seed=seed,
+                  progress=progress, everything=everything, interruptible=interruptible)

@@ -4,44 +4,45 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.nest.instance import NestProblem
+from solver.nest.budget import Deadline, Progress, deadline_of, finish_reserve
+from solver.nest.instance import NestProblem, affine
+from solver.nest.lattice import nest_lattice
 from solver.nest.layout import Layout, build_layout
-from solver.nest.plain import Progress, plain_moves
+from solver.nest.naive import nest_naive
+from solver.nest.plain import plain_moves
+from solver.nest.regions import repair
 
 METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "naive")
 
 
-def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0,
+def nest(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
          progress: Progress | None = None, method: str = "auto") -> Layout:
     """Nest ``problem``; on a print ``method`` picks the search (auto: best of all).
 
     Plain fabric goes to sparrow; when the operator marked keep-outs or the table is
     shorter than sparrow's marker, the offending pieces are re-inserted around the rest.
+    ``time_limit`` (seconds from now, or the caller's Deadline) covers everything up to a
+    verified layout: the searches stop early enough to leave building and verifying it.
     """
     if method not in METHODS:
         raise ValueError(f"unknown nesting method {method!r}; expected one of {METHODS}")
     _check_widths(problem)
+    items = problem.items()
+    deadline = deadline_of(time_limit).before(finish_reserve(len(items)))
     if problem.fabric is not None:
         if method == "naive":
-            from solver.nest.naive import nest_naive
-
-            layout = nest_naive(problem, time_limit=time_limit, seed=seed, progress=progress)
+            layout = nest_naive(problem, time_limit=deadline, seed=seed, progress=progress)
         else:
-            from solver.nest.lattice import nest_lattice
-
             strategies = None if method == "auto" else (method,)
-            layout = nest_lattice(problem, time_limit=time_limit, seed=seed, progress=progress,
+            layout = nest_lattice(problem, time_limit=deadline, seed=seed, progress=progress,
                                   strategies=strategies)
     else:
-        items = problem.items()
         regions = bool(problem.keepouts) or problem.length is not None
         share = 0.7 if regions else 1.0
-        moves, length = plain_moves(problem, items, time_limit=share * time_limit, seed=seed,
-                                    progress=progress)
+        moves, length = plain_moves(problem, items, time_limit=deadline.share(share),
+                                    seed=seed, progress=progress)
         if regions and (problem.keepouts or length > problem.length):
-            from solver.nest.regions import repair
-
-            r = repair(problem, items, moves, time_limit=(1 - share) * time_limit, seed=seed,
+            r = repair(problem, items, moves, time_limit=deadline, seed=seed,
                        progress=progress)
             if r is None:
                 raise ValueError(_no_fit(problem))
@@ -55,8 +56,6 @@ def nest(problem: NestProblem, *, time_limit: float = 30.0, seed: int | None = 0
 def _check_widths(problem: NestProblem) -> None:
     """Refuse, naming the piece, one that is wider than the fabric at every allowed angle
     (the searches would only give up, sparrow with a panic)."""
-    from solver.nest.instance import affine
-
     room = problem.width - 2 * problem.gap
     seen = set()
     for item in problem.items():

@@ -1,4 +1,9 @@
-"""Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json."""
+"""Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json.
+
+Each reader's stack is imported where that kind of input is read, a measured start-up
+cost against ``--time``: ezdxf 0.6 s, the garment stack 0.3 s on top of the nesting
+imports (load ~9 on 2 cores), paid only by the inputs that need them.
+"""
 
 from __future__ import annotations
 
@@ -86,6 +91,13 @@ def pieces_from_placement(path: str | Path, *, orientations=None,
     if garment.n_pieces != placement.n_pieces:
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
+    if placement.report.get("symmetrise"):  # aligned on the symmetrised pattern: cut that
+        from solver.garment.symmetrise import symmetrise_as_recorded
+
+        try:
+            garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
     return placed_pieces(garment, placement, orientations=orientations, allowance=allowance,
                          fabric=fabric, plain=plain)
 
@@ -165,7 +177,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             pieces += inst.pieces
             found_width = found_width or inst.width
         elif kind == "dxf":
-            from solver.dxf_aama import read_dxf_aama
+            from solver.nest.dxf_aama import read_dxf_aama
 
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)

@@ -12,7 +12,8 @@ subspace by projecting gradients and directions orthogonally onto it,
     (I + B^T B) D_i = A_i + B^T A_j L,       D_j = B D_i L^T,
 
 one small sparse factorisation per pair. A symmetrised pair (j a mirrored copy of i's
-mesh) has B a permutation, and stays exactly one pattern.
+mesh, `solver.garment.symmetrise`) has B the permutation that pairs each vertex with its
+image, not an interpolation, so it stays exactly one pattern.
 """
 
 from __future__ import annotations
@@ -23,12 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from scipy.spatial import cKDTree
 
+from solver.garment.barycentric import barycentric_matrix
 from solver.garment.model import Garment
-from solver.garment.symmetry import FLIP, MirrorPair
-
-_CANDIDATES = 12  # nearest triangles (by centroid) tried for each interpolated point
+from solver.garment.symmetry import FLIP, MirrorPair, mirror_correspondence
 
 
 @dataclass
@@ -38,38 +37,6 @@ class _Tie:
     interp: sp.csr_matrix  # B, (n_j, n_i)
     mirror: np.ndarray  # L, (2, 2)
     solve: object  # factorised I + B^T B
-
-
-def barycentric_matrix(points: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
-    """(len(points), len(uv)) sparse rows interpolating at each point from the mesh's
-    vertices: inside a triangle its barycentric weights, outside the nearest triangle's
-    weights clamped onto it (points just beyond the outline)."""
-    tri = uv[faces]  # (F,3,2)
-    tree = cKDTree(tri.mean(axis=1))
-    k = min(_CANDIDATES, len(faces))
-    _, cand = tree.query(points, k=k)
-    cand = cand.reshape(len(points), k)
-    a, b, c = (tri[cand, m] for m in range(3))  # (N,k,2)
-    v0, v1, v2 = b - a, c - a, points[:, None, :] - a
-    d00 = (v0 * v0).sum(-1)
-    d01 = (v0 * v1).sum(-1)
-    d11 = (v1 * v1).sum(-1)
-    d20 = (v2 * v0).sum(-1)
-    d21 = (v2 * v1).sum(-1)
-    den = np.where(np.abs(d00 * d11 - d01 ** 2) > 1e-300, d00 * d11 - d01 ** 2, 1e-300)
-    w1 = (d11 * d20 - d01 * d21) / den
-    w2 = (d00 * d21 - d01 * d20) / den
-    w = np.stack([1.0 - w1 - w2, w1, w2], -1)  # (N,k,3)
-    clamped = np.clip(w, 0.0, None)
-    clamped /= clamped.sum(-1, keepdims=True)
-    proj = np.einsum("nkm,nkmj->nkj", clamped, tri[cand])
-    gap = np.linalg.norm(proj - points[:, None, :], axis=-1)  # 0 inside the triangle
-    best = np.argmin(gap, axis=1)
-    rows = np.arange(len(points))
-    weights = clamped[rows, best]
-    cols = faces[cand[rows, best]]
-    return sp.csr_matrix((weights.ravel(), (np.repeat(rows, 3), cols.ravel())),
-                         shape=(len(points), len(uv)))
 
 
 class PairTie:
@@ -84,8 +51,13 @@ class PairTie:
             local = np.full(garment.n_vertices, -1)
             local[first] = np.arange(len(first))
             faces = local[garment.faces[piece_of_face == p.first]]
-            back = (garment.uv[second] - p.translation) @ p.rotation @ FLIP  # M^-1 q
-            interp = barycentric_matrix(back, garment.uv[first], faces)
+            copy = mirror_correspondence(garment, p)
+            if copy is not None:  # a symmetrised pair: j's vertex k is the image of one of i's
+                interp = sp.csr_matrix((np.ones(len(second)), (np.arange(len(second)),
+                                        local[copy])), shape=(len(second), len(first)))
+            else:
+                back = (garment.uv[second] - p.translation) @ p.rotation @ FLIP  # M^-1 q
+                interp = barycentric_matrix(back, garment.uv[first], faces)
             normal = (sp.identity(len(first)) + interp.T @ interp).tocsc()
             self.ties.append(_Tie(first, second, interp, p.rotation @ FLIP, splu(normal)))
 

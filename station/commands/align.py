@@ -10,11 +10,13 @@ from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
+    add_symmetrise_argument,
     fabric_grain_deg,
     garment_with_grain,
     grain_tolerance,
     load_fabric,
     load_garment_arg,
+    symmetrised_garment,
 )
 
 
@@ -57,6 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="align every piece on its own (default: left/right pairs mirror the "
                    "print, or keep the same print position where the print has no mirror "
                    "along the grain)")
+    add_symmetrise_argument(p)
     p.add_argument("-o", "--output", required=True, metavar="PLACEMENT.json",
                    help="where to write the placement (angles in degrees, mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -86,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
         raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     tol = grain_tolerance(args.grain)
-    garment = garment_with_grain(load_garment_arg(args), args)
+    garment, symmetrised = symmetrised_garment(args, load_garment_arg(args))
+    garment = garment_with_grain(garment, args)
     fabric = load_fabric(args.fabric)
     weights = _load_weights(args.weights) if args.weights else None
     init = Placement.load(args.init) if args.init else None
@@ -109,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
                                     **options)
     else:
         placement = align(garment, fabric, nap=args.nap, fabric_grain_deg=grain_deg, **options)
+    if symmetrised is not None:  # later commands rebuild the same pattern from this
+        placement.report["symmetrise"] = symmetrised.to_dict()
     placement.garment = str(args.garment)
     placement.garment_units = args.units or placement.garment_units
     placement.save(args.output)

@@ -41,6 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
     p.add_argument("--pairs", metavar="P.json",
                    help="declare or veto left/right pairs for this job (sent by value)")
+    p.add_argument("--symmetrise", action="store_true",
+                   help="cut each near left/right pair as one pattern, the average of the two")
     p.add_argument("--no-symmetry", action="store_true",
                    help="align every piece on its own (default: pairs mirror the print)")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
@@ -180,6 +182,8 @@ def run_submit(args: argparse.Namespace) -> int:
         options["bias"] = list(args.bias)
     if args.no_symmetry:
         options["symmetry"] = False
+    if args.symmetrise:
+        options["symmetrise"] = True
     if args.pairs:
         from solver.jsonfile import read_json
 

@@ -51,7 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--units", default="m", choices=("m", "cm", "mm", "in"))
     p.add_argument("--restarts", type=int, help="alignment restarts (default 8; fleet 2)")
     p.add_argument("--nest-seconds", type=float,
-                   help="time for nesting (default 20; fleet 3)")
+                   help="time for nesting, loading and verifying included (default 4; "
+                   "fleet 3)")
     p.add_argument("--no-reshape", action="store_true", help="skip reshaping (a fleet "
                    "demo always does)")
     p.add_argument("--speed", type=float, default=20.0,
@@ -79,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     fleet = args.fleet > 0
     args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
     args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
-                         else (3.0 if fleet else 20.0))
+                         else 3.0 if fleet else 4.0)
     if fleet:
         from station.fleetdemo import run as run_fleet
 

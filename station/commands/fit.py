@@ -14,10 +14,12 @@ from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
+    add_symmetrise_argument,
     allowance_rules,
     garment_with_grain,
     load_fabric,
     load_garment_arg,
+    symmetrised_garment,
 )
 
 
@@ -33,6 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--placement", metavar="PLACEMENT.json",
                    help="per-piece rotation and translation of the print (default: identity)")
     add_grain_arguments(p)
+    add_symmetrise_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--png", metavar="OUT.png",
                    help="draw the pieces over the print, seams coloured by mismatch, with "
@@ -47,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     fabric = load_fabric(args.fabric)  # the small file first: fail fast
-    garment = garment_with_grain(load_garment_arg(args), args)
+    garment = load_garment_arg(args)
     if args.placement:
         placement = Placement.load(args.placement)
         if placement.n_pieces != garment.n_pieces:
@@ -56,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
         placement.fabric = fabric
     else:
         placement = Placement.identity(garment.n_pieces, fabric)
+    garment, symmetrised = symmetrised_garment(args, garment, placement)
+    garment = garment_with_grain(garment, args)
     report = fit_report(garment, placement)
     result = {
         "garment": str(args.garment),
@@ -66,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
         **report.summary(),
         "seconds": time.perf_counter() - start,
     }
+    if symmetrised is not None:
+        result["symmetrise"] = symmetrised.to_dict()
     if args.png:
         from solver.garment.notches import cut_ready
         from station.render import draw_fit
@@ -77,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         from solver.garment.symmetry import mirror_pairs
         from station.front_view import draw_front_view
 
-        draw_front_view(garment, placement, mirror_pairs(garment), args.front_view)
+        draw_front_view(garment, placement, symmetrised.pairs if symmetrised is not None
+                        else mirror_pairs(garment), args.front_view)
         result["front_view"] = str(args.front_view)
     if args.json:
         print(json.dumps(result))

@@ -27,6 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pairs", metavar="P.json",
                    help='declare or veto mirror pairs: {"pairs": [[i, j]], "not_pairs": [[k, l]]} '
                    "(indices or piece names)")
+    p.add_argument("--symmetrise", action="store_true",
+                   help="also say what --symmetrise would do: the pairs made one pattern and "
+                   "how far each piece moves")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -151,6 +154,15 @@ def _print_text(s: dict, out) -> None:
         print("  mirror pairs: none", file=out)
     names = [s["seam_line_list"][k]["name"] for k in s["centre_seams"]]
     print(f"  centre seams: {', '.join(names) if names else 'none'}", file=out)
+    if "symmetrise" in s:
+        print("  --symmetrise would make one pattern of pairs "
+              f"{', '.join(f'{i}~{j}' for i, j in s['symmetrise']['pairs']) or 'none'}:",
+              file=out)
+        for m in s["symmetrise"]["moves"]:
+            print(f"    piece {m['piece']:3d} moves {m['max_mm']:.2f} mm at most, "
+                  f"{m['rms_mm']:.2f} mm RMS, area {m['area_change_pct']:+.2f} %", file=out)
+        for i, j, why in s["symmetrise"]["skipped"]:
+            print(f"    pair {i}~{j} left as it is: {why}", file=out)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -165,6 +177,10 @@ def run(args: argparse.Namespace) -> int:
     pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
+    if args.symmetrise:
+        from solver.garment.symmetrise import symmetrise
+
+        summary["symmetrise"] = symmetrise(g, pairs).to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))

@@ -14,10 +14,12 @@ from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
+    add_symmetrise_argument,
     allowance_rules,
     garment_with_grain,
     load_fabric,
     load_garment_arg,
+    symmetrised_garment,
 )
 
 FORMATS = (".obj", ".json", ".dxf")
@@ -44,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="no pattern vertex moves farther than MM (default 10); each piece's "
                    "area also stays within 1 %%")
     add_grain_arguments(p)
+    add_symmetrise_argument(p)
     p.add_argument("--no-symmetry", action="store_true",
                    help="reshape every piece on its own (default: the placement's left/right "
                    "pairs move as mirror images)")
@@ -85,7 +88,7 @@ def write_garment(garment, path: Path, rules=None) -> None:
 
         save_spec(garment, path)
     elif suffix == ".dxf":
-        from solver.dxf_aama import write_dxf_aama
+        from solver.nest.dxf_aama import write_dxf_aama
         from solver.nest.sources import garment_pieces
 
         # layer 1 the cut line (it follows the reshaped sew line), layer 14 the sew line
@@ -112,17 +115,25 @@ def run(args: argparse.Namespace) -> int:
                         f"(expected one of {', '.join(FORMATS)})")
     if not args.max_move > 0 or args.max_move == float("inf"):
         raise ValueError(f"--max-move must be a positive number of mm, got {args.max_move}")
-    garment = garment_with_grain(load_garment_arg(args), args)
+    garment = load_garment_arg(args)
     fabric = load_fabric(args.fabric)
     placement = Placement.load(args.placement)
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"{args.placement}: placement has {placement.n_pieces} pieces, "
                          f"{args.garment} has {garment.n_pieces}")
+    garment, symmetrised = symmetrised_garment(args, garment, placement, pairs=fit_pairs(
+        garment, [p[:2] for p in placement.pairs]) if placement.pairs else None)
+    garment = garment_with_grain(garment, args)
     placement.fabric = fabric
     fixed = _fixed_mask(garment, args.fix)
     print(f"station reshape: {garment.n_pieces} pieces, {len(garment.faces)} faces, "
           f"{len(garment.seam_edges)} seam edges under {fabric.group}", file=sys.stderr)
-    pairs = [] if args.no_symmetry else fit_pairs(garment, [p[:2] for p in placement.pairs])
+    tied = [tuple(p[:2]) for p in placement.pairs]
+    if symmetrised is not None:  # one pattern stays one pattern, whatever the print did
+        taken = {k for p in tied for k in p}
+        tied += [(p.first, p.second) for p in symmetrised.pairs
+                 if not {p.first, p.second} & taken]
+    pairs = [] if args.no_symmetry else fit_pairs(garment, tied)
     if pairs:
         print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
               "(from the placement) move as mirror images", file=sys.stderr)
@@ -135,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
     write_garment(new, out, allowance_rules(args) if out.suffix.lower() == ".dxf" else None)
     result = {"garment": str(args.garment), "output": str(out), "group": fabric.group,
               **report.to_dict()}
+    if symmetrised is not None:
+        result["symmetrise"] = symmetrised.to_dict()
     if args.png:
         from solver.fit import fit_report
         from station.render import draw_fit

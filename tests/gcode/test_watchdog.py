@@ -139,3 +139,108 @@ def test_a_resumed_job_re_cuts_the_piece_the_head_stopped_on():
         assert np.allclose([burnt[0].x0, burnt[0].y0], start, atol=1e-3)
     finally:
         port.close()
+
+
+def short_segment_lines(seg: float = 0.1, length: float = 40.0) -> list[str]:
+    """A straight cut from (20, 20) along +X in ``seg`` mm lines, as a polyline job
+    without arcs sends it."""
+    xs = 20.0 + seg * np.arange(1, int(round(length / seg)) + 1)
+    return ["G21", "G90", "G0 X20 Y20", f"M4 S{POWER:g}", f"G1 X{xs[0]:.3f} Y20 F{FEED:g}",
+            *(f"G1 X{x:.3f} Y20" for x in xs[1:]), "M5", "G0 X0 Y0"]
+
+
+def crawl(wd: Watchdog, feed: float, planner_free: int, seconds: float = 2.0) -> Breach | None:
+    """Reports of a head cutting along the line at ``feed`` with ``planner_free`` free
+    planner blocks, every 0.1 mm (from x = 20.5 on), for ``seconds`` of machine time."""
+    v = feed / 60.0
+    t = 0.0
+    for x in np.arange(20.5, 59.0, 0.1):
+        t = (x - 20.5) / v
+        if t > seconds:
+            break
+        st = Status("Run", wpos=(x, 20.0, 0.0), feed=feed, speed=POWER,
+                    planner_free=planner_free)
+        breach = wd.check(st, np.array([x, 20.0]), t, t)
+        if breach is not None:
+            return breach
+    return None
+
+
+def test_a_planner_the_line_cannot_fill_may_run_as_slow_as_its_look_ahead_and_no_slower():
+    """GRBL plans so that the last queued block can stop: with n blocks of 0.1 mm queued
+    the head goes no faster than sqrt(2 a n 0.1 mm). A job of short lines on a line that
+    cannot keep the planner full runs that slow, and was stopped as a corrupted feed; a
+    machine slower than its queue allows is still stopped (a corrupted F word)."""
+    lines = short_segment_lines()
+    a = MACHINE.acceleration
+    for queued in (3, 4, 5):
+        wd = watchdog(lines, (20.0, 20.0))
+        assert crawl(wd, FEED, 0, seconds=0.0) is None  # one report: the head is at 20.5
+        reach = float(np.sqrt(2.0 * a * queued * 0.1)) * 60.0  # mm/min
+        assert reach < 0.9 * FEED
+        assert wd.lookahead_feed(queued) > 0.8 * reach  # half a line is left of the first
+        # the bound errs short (never above what the queued lines allow)
+        assert wd.lookahead_feed(queued) <= reach * 1.001
+        assert crawl(wd, 0.95 * wd.lookahead_feed(queued), 15 - queued) is None, queued
+        wd = watchdog(lines, (20.0, 20.0))
+        breach = crawl(wd, 0.5 * reach, 15 - queued)
+        assert breach is not None and breach.reason == StopReason.FEED, (queued, breach)
+    # a full planner (what F1 does: the line fills it) leaves the programmed feed due
+    wd = watchdog(lines, (20.0, 20.0))
+    breach = crawl(wd, 0.6 * FEED, 0)
+    assert breach is not None and breach.reason == StopReason.FEED
+
+
+def test_a_line_limited_job_cuts_through_a_real_time_115200_baud_line_with_the_watchdog():
+    """End to end: 0.1 mm lines at 6000 mm/min ask for 1000 lines/s, the 115200-baud line
+    carries ~680: the planner runs short and the machine slows to its look-ahead. Before
+    the fix every such run stopped 'beam on at F3954 ... (corrupted F word?)'. The polls
+    are spaced for the receive line: the reports leave room for the `ok`s."""
+    from gcode.watchdog import report_spacing
+
+    t = np.linspace(0.0, 2 * np.pi, int(round(2 * np.pi * 8 / 0.1)), endpoint=False)
+    ring = np.c_[60 + 8 * np.cos(t), 60 + 8 * np.sin(t)]
+    data = {"version": 1, "units": "mm", "pieces": [{"id": "o", "outline": ring.tolist()}]}
+    m = MACHINE.with_cut(arcs=False, kerf=0.0, feed=6000.0, tolerance=0.001)
+    prog = build_program(build_toolpaths(layout_from_dict(data, "ring"), m), m)
+    assert sum(ln.startswith("G1") for ln in prog.lines) > 450
+    port = serial.serial_for_url(f"grblsim://?speed=1&baud=115200&{SETTINGS},10:3",
+                                 timeout=0.02)
+    try:
+        st = Streamer(port)
+        st.connect(quiet=0.05)
+        assert st.line_baud == 115200
+        rx0 = port.wire.bytes_to_host
+        res = st.run(prog)
+        assert res.completed and res.reason == "done", res.fault
+        assert res.pieces_cut == 1
+        assert st.watchdog.interval >= report_spacing(115200) > 0
+        assert (port.wire.bytes_to_host - rx0) / res.seconds < 0.85 * 11520
+        # at 6000 mm/min the 115200-baud line cannot show a deviation within 2 mm: said
+        assert st.watchdog.catch_mm > 2.0
+        assert any("before a report shows it" in msg for msg in res.messages)
+        burnt = [s for s in port.emulator.trace if s.power > 0]
+        assert burnt and min(s.feed for s in burnt) == 6000.0
+    finally:
+        port.close()
+
+
+def test_the_travel_before_a_deviation_shows_counts_the_line():
+    """Polls every watch_mm of travel; on a real line the `?` may wait behind a buffer of
+    lines and the report takes its own time: at 115200 baud 3000 mm/min is caught within
+    2 mm, 6000 is not (the streamer says so). The emulator's instant link adds nothing, at
+    any speed."""
+    from gcode.watchdog import CATCH_MM, catch_travel_mm, poll_interval
+
+    lines = square_program()
+    check = validate(lines, MACHINE)
+    for feed, baud, within in ((3000.0, 115200, True), (6000.0, 115200, False),
+                               (6000.0, 250000, True)):
+        wd = Watchdog(check.path, check.path_line, check.line_power, (feed,),
+                      check.cut_powers, MACHINE.acceleration, 12000.0, watch_mm=1.0,
+                      baud=baud)
+        assert (wd.catch_mm <= CATCH_MM) == within, (feed, baud, wd.catch_mm)
+        assert wd.catch_mm > 1.0  # never less than the polls' own spacing
+    for speed in (1.0, 50.0):
+        interval = poll_interval(6000.0, speed, watch_mm=1.0)
+        assert abs(catch_travel_mm(6000.0, interval, None, time_scale=speed) - 1.0) < 1e-9

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import shapely
 
-from solver.dxf_aama import dxf_sizes, read_dxf_aama, write_dxf_aama
 from solver.nest import NestProblem, Piece, verify_layout
+from solver.nest.dxf_aama import dxf_sizes, read_dxf_aama, write_dxf_aama
 from solver.nest.instance import affine
 from station.cli import main
 

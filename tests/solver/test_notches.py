@@ -115,7 +115,11 @@ def test_on_a_print_balance_notches_sit_where_lattice_lines_cross_the_seam(data_
     lattice = placement_lattice(placement)
     notches = seam_notches(g, cuts, spacing_mm=100, depth_mm=3,
                            lattice_coords=lattice)
-    first_side = {tuple(e) for e in g.seam_edges[:, :2].tolist()}  # stations measured here
+    first_side = set()  # stations are measured along each seam line's longer side
+    for line in range(len(g.seam_lines)):
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        a, b = (np.hypot(*(g.uv[rows[:, k + 1]] - g.uv[rows[:, k]]).T).sum() for k in (0, 2))
+        first_side |= {tuple(e) for e in rows[:, :2 if a >= b - 1e-6 else 4][:, -2:].tolist()}
     side_a = defaultdict(list)
     for per_piece in notches:
         for q in per_piece:

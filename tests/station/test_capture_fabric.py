@@ -62,3 +62,30 @@ def test_an_uncertain_print_pauses_at_confirm_fabric(tmp_path, monkeypatch):
     assert f"station confirm {job.id}" in exc.value.reason
     assert json.loads((tmp_path / "fabric.json").read_text())["group"] == "p4m"
     assert cv2.imread(str(tmp_path / "detection.png")) is not None
+
+
+def test_stripes_go_on_nested_on_grain_along_the_stripes(tmp_path, monkeypatch):
+    """A 1-D stripe print does not stop the job: it is nested as plain fabric with every
+    piece's grain on the stripe axis nearest the roll's grain, and the report says so."""
+    image = render_print(classic_print("stripes", 12.0, rotation=4.0), (320, 240), 0.5)
+    pipeline = _pipeline(monkeypatch, image, 0.5)
+    store = JobStore(tmp_path / "jobs.db")
+    job = store.submit(str(GARMENT), None, {"units": "m"})
+    control = JobControl(job.id)
+    fabric = pipeline.capture(job, tmp_path, control)
+    doc = json.loads(Path(fabric).read_text())
+    assert doc["group"] is None and doc["kind"] == "stripes"
+    plan = pipeline.plan(job, fabric, tmp_path, control)
+    store.close()
+    cloth = json.loads(Path(plan["report"]).read_text())["fabric"]
+    assert cloth["kind"] == "stripes" and "not matched across the seams" in cloth["note"]
+    # the grain is a stripe axis (along or across the stripes), the one nearest the roll
+    off = (cloth["grain_deg"] - doc["direction_deg"]) % 90.0
+    assert min(off, 90.0 - off) < 1e-6 and abs(cloth["grain_deg"]) <= 45.0
+    assert 2.0 < abs(cloth["grain_deg"]) < 6.0  # the print was turned by 4 degrees
+    placed = json.loads(Path(plan["placement"]).read_text())
+    turn = np.array([p["angle_deg"] - p["grain_deg"] + cloth["grain_deg"]
+                     for p in placed["pieces"]]) % 180.0
+    assert np.all(np.minimum(turn, 180.0 - turn) <= 1e-6)
+    layout = json.loads(Path(plan["layout"]).read_text())
+    assert len(layout["pieces"]) == len(plan["pieces"]) >= 2

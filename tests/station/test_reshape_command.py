@@ -118,7 +118,7 @@ def test_reshape_errors_name_the_fault(tmp_path, inputs, capsys):
 
 
 def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
-    from solver.dxf_aama import read_dxf_aama
+    from solver.nest.dxf_aama import read_dxf_aama
     from solver.reshape import reshape
 
     garment, fabric, placement = inputs
@@ -138,7 +138,7 @@ def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
 
 
 def test_dxf_carries_grain_lines_and_notches_with_the_reshaped_outline(tmp_path, inputs):
-    from solver.dxf_aama import read_dxf_aama
+    from solver.nest.dxf_aama import read_dxf_aama
     from solver.reshape import reshape
     from station.commands.reshape import write_garment
 

@@ -58,7 +58,7 @@ def _program(path: Path) -> Any:
 
 
 def _dxf(path: Path) -> Any:
-    from solver.dxf_aama import read_dxf_aama
+    from solver.nest.dxf_aama import read_dxf_aama
 
     return read_dxf_aama(path, units="mm")
 
@@ -67,7 +67,7 @@ def _dxf_text() -> str:
     """A small DXF-AAMA file of two pieces, written by the station itself."""
     import tempfile
 
-    from solver.dxf_aama import write_dxf_aama
+    from solver.nest.dxf_aama import write_dxf_aama
     from solver.nest.instance import Piece
 
     pieces = [Piece("front", [[0, 0], [100, 0], [100, 80], [0, 80]]),
