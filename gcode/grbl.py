@@ -11,6 +11,7 @@ References: gnea/grbl ``doc/markdown/interface.md``, ``doc/csv/error_codes_en_US
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -30,6 +31,7 @@ __all__ = [
     "parse_response",
     "parse_settings",
     "parse_status",
+    "time_scale_of",
 ]
 
 #: error:N -> (short name, description), GRBL 1.1 doc/csv/error_codes_en_US.csv.
@@ -321,6 +323,21 @@ def parse_response(line: str) -> Response:
             kind = "param" if key in _PARAM_KEYS else "feedback"
         return Response(kind, line, text=body if kind != "param" else f"{key}:{body}")
     return Response("unknown", line)
+
+
+_TIME_SCALE = re.compile(r"(?:^|[\s:])grblsim speed=([0-9.]+(?:[eE][-+]?[0-9]+)?)(?:\s|$)")
+
+
+def time_scale_of(ver: str) -> float:
+    """Machine seconds per wall second, from the build info of ``$I``'s ``[VER:...]`` line:
+    the emulator (``simulators.grbl``) ends it with ``grblsim speed=S``; a real GRBL, whose
+    machine runs on the wall clock, says nothing of it (1)."""
+    found = _TIME_SCALE.findall(ver)
+    try:
+        scale = float(found[-1]) if found else 1.0
+    except ValueError:
+        return 1.0
+    return scale if math.isfinite(scale) and scale > 0 else 1.0
 
 
 def parse_settings(lines: list[str]) -> dict[int, float]:

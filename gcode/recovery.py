@@ -5,7 +5,8 @@ flight may finish after the last answer anybody read. The program carries marker
 controller stores in EEPROM around each piece's final move (`with_markers`), the geometry
 those markers refer to is saved before streaming (`save_final_moves`), and on the next start
 the machine is asked (`wait_at_rest`, `read_params`) before anything moves or resets it;
-`station.pipeline.StationPipeline.reconcile` decides from that.
+`read_marker` and `piece_finished` judge its answer, and
+`station.pipeline.StationPipeline.reconcile` records the verdict in the job store.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +24,9 @@ from gcode.program import Program, ProgramError, parse_pieces, program_moves
 from gcode.session import ResponseReader
 from gcode.stream import Streamer
 
-__all__ = ["FINAL_MOVES", "MARKER_SYSTEM", "distance_to_path", "final_moves",
-           "load_final_moves", "read_params", "save_final_moves", "wait_at_rest",
-           "with_markers"]
+__all__ = ["FINAL_MOVES", "MARKER_SYSTEM", "Marker", "distance_to_path", "final_moves",
+           "head_position", "load_final_moves", "piece_finished", "read_marker",
+           "read_params", "save_final_moves", "wait_at_rest", "with_markers"]
 
 #: The work coordinate system (G54 + n - 1) the station writes its piece markers into:
 #: programs run in G54 and never select G59, so its offsets are free for bookkeeping.
@@ -130,6 +132,62 @@ def distance_to_path(p: np.ndarray, path: np.ndarray) -> float:
     t = np.clip(np.einsum("ij,ij->i", p - a, d) / np.maximum(np.einsum("ij,ij->i", d, d),
                                                              1e-12), 0.0, 1.0)
     return float(np.hypot(*(a + t[:, None] * d - p).T).min())
+
+
+@dataclass(frozen=True)
+class Marker:
+    """What the marker system (G59) says: the job, the piece (store index) whose final move
+    was reached, and the phase (1: every move but the final one finished, 2: all did)."""
+
+    job: int
+    piece: int
+    phase: int
+
+
+def read_marker(params: dict[str, tuple[float, ...]]) -> Marker | None:
+    """The marker in ``$#``'s answer (None when cleared or absent)."""
+    m = params.get(f"G{53 + MARKER_SYSTEM}")
+    if m is None or len(m) < 3 or round(m[0]) == 0:
+        return None
+    return Marker(int(round(m[0])), int(round(m[1])) - 1, int(round(m[2])))
+
+
+def head_position(rest: Status | None, alarm: bool,
+                  params: dict[str, tuple[float, ...]]) -> np.ndarray | None:
+    """Where the head rests in the program's (G54) coordinates; None when the position is
+    not to be trusted (an alarm: reset, power cut) or was not reported."""
+    if rest is None or alarm or rest.mpos is None:
+        return None
+    g54 = params.get("G54", (0.0, 0.0, 0.0))
+    return np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
+
+
+def piece_finished(phase: int, path: np.ndarray | None, here: np.ndarray | None
+                   ) -> tuple[bool, str]:
+    """(cut?, why) of the piece a marker names, from its final move ``path`` and the
+    trusted rest position ``here``.
+
+    Phase 2 is written only after the final move (GRBL syncs before an EEPROM write). The
+    one contradiction a trusted position can show is a head stopped on the final move
+    short of its end: then believe the head (an emulator that stores the offset when it
+    parses the line, not when it runs it, gets this right too). Phase 1 proves the final
+    move ran only with the head at rest at its end, not its start.
+    """
+    if path is None or len(path) < 2:
+        path = np.zeros((0, 2))
+        start = end = np.full(2, np.inf)  # unknown geometry: nothing is proven by it
+    else:
+        start, end = path[0], path[-1]
+    at_end = here is not None and float(np.hypot(*(here - end))) < 0.02
+    on_move = here is not None and distance_to_path(here, path) < 0.05
+    if phase == 2:
+        done = not (on_move and not at_end)
+        return done, ("its sync point executed (marker written after its final move)" if done
+                      else "the marker says finished but the head stopped on its final move")
+    done = at_end and float(np.hypot(*(start - end))) > 0.05
+    return done, ("the head rests at the end of its final move" if done else
+                  "its final move may not have run (head elsewhere or position lost): "
+                  "cut again in full")
 
 
 def wait_at_rest(port, timeout: float = 120.0, stop=None) -> Status | None:

@@ -28,7 +28,7 @@ from enum import Enum
 
 import numpy as np
 
-from gcode.grbl import Response, Status, error_message, parse_settings
+from gcode.grbl import Response, Status, error_message, parse_settings, time_scale_of
 from gcode.program import Program, strip_comment
 from gcode.session import PortLost, ResponseReader
 from gcode.watchdog import CATCH_MM, StopReason, Watchdog
@@ -332,15 +332,18 @@ class Streamer:
         self.watch_mm = watch_mm
         self.acceleration = acceleration
         self.rapid_feed = rapid_feed
-        # machine seconds per wall second: 1 on a real GRBL, `speed` on the emulator
-        self.time_scale = float(time_scale if time_scale is not None else getattr(
-            getattr(port, "emulator", None), "speed", 1.0))
-        self.watchdog: Watchdog | None = None
         self.line_baud = line_baud(port)
-        # machine seconds: the emulator's simulated clock, else the wall clock
+        # machine seconds per wall second: 1 on a real GRBL, `speed` on the emulator; the
+        # machine tells it (`$I`) on connecting unless given or the emulator is in-process
         emulator = getattr(port, "emulator", None)
+        self.time_scale = float(time_scale if time_scale is not None else getattr(
+            emulator, "speed", 1.0))
+        self._ask_time_scale = time_scale is None and emulator is None
+        self.watchdog: Watchdog | None = None
+        # machine seconds: the emulator's simulated clock, else the wall clock scaled
         self._clock: Callable[[], float] = (
-            (lambda: emulator.sim_time) if hasattr(emulator, "sim_time") else time.monotonic)
+            (lambda: emulator.sim_time) if hasattr(emulator, "sim_time")
+            else lambda: time.monotonic() * self.time_scale)
         self._status_wall = 0.0
         self._status_asked = 0.0
         self._status_machine = (0.0, 0.0)  # machine time asked, received
@@ -443,6 +446,12 @@ class Streamer:
 
         with self.reader.handlers(feedback=on_feedback):
             st = self.query_status(0.3) or self.query_status()
+        if self._ask_time_scale:
+            self.time_scale = self.read_time_scale()
+            if self.line_baud and self.time_scale != 1.0:
+                # an emulator behind a pty: no wire is modelled there, its simulated line
+                # runs in machine time, so it carries time_scale times the reports
+                self.line_baud *= self.time_scale
         if alarm_boot or (st is not None and st.state == "Alarm"):
             raise StreamError(f"{self.prefix}controller is in ALARM after start-up: home ($H) or "
                               "unlock ($X) it first (station stream --unlock)")
@@ -494,6 +503,18 @@ class Streamer:
             if self.reader.wait(lambda: bool(answer), timeout):
                 return answer[0], got
         raise StreamError(f"{self.prefix}no answer to {line!r} within {timeout:g} s")
+
+    def read_time_scale(self) -> float:
+        """Machine seconds per wall second, as the controller's ``$I`` build info says
+        (``gcode.grbl.time_scale_of``): the watchdogs' polls are paced by it. Status reports
+        asked before this are forgotten: their machine times were on the old scale."""
+        r, pushed = self.command("$I")
+        ver = next((p.text or "" for p in pushed if p.kind == "ver"), "")
+        scale = time_scale_of(ver) if r.kind == "ok" else 1.0
+        if scale != 1.0:
+            log.info("%smachine time runs x%g the wall clock ($I: %s)", self.prefix, scale, ver)
+        self._asked.clear()
+        return scale
 
     def read_settings(self) -> dict[int, float]:
         """``$$`` -> {n: value}."""

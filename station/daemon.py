@@ -87,10 +87,11 @@ class JobControl:
 class Pipeline(Protocol):
     """The work of one job; `station.pipeline.StationPipeline` is the real one."""
 
-    def capture(self, job: Job, workdir: Path, control: JobControl) -> str: ...
+    def capture(self, job: Job, workdir: Path, control: JobControl
+                ) -> str | os.PathLike[str]: ...
 
-    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl
-             ) -> dict[str, Any]: ...
+    def plan(self, job: Job, fabric: str | os.PathLike[str], workdir: Path,
+             control: JobControl) -> dict[str, Any]: ...
 
     def cut(self, job: Job, plan: dict[str, Any], store: JobStore, control: JobControl,
             resuming: bool) -> None: ...
@@ -230,14 +231,18 @@ class Daemon:
         workdir.mkdir(parents=True, exist_ok=True)
         try:
             resuming = job.state == "cutting"
+            # Each step hands the next what it made (objects, inside this process); the
+            # store keeps the paths of the files, from which another process resumes.
+            fabric, plan = None, None
             if job.state in ("submitted", "capturing"):
                 job = self.store.transition(job.id, "capturing")
                 fabric = self.pipeline.capture(job, workdir, control)
                 control.checkpoint()
-                self.store.set_plan(job.id, {"fabric": fabric})
+                self.store.set_plan(job.id, {"fabric": os.fspath(fabric)})
                 job = self.store.transition(job.id, "planning")
             if job.state == "planning":
-                fabric = (job.plan or {}).get("fabric") or self.store.job(job.id).plan["fabric"]
+                fabric = (fabric or (job.plan or {}).get("fabric")
+                          or self.store.job(job.id).plan["fabric"])
                 plan = self.pipeline.plan(job, fabric, workdir, control)
                 self.store.set_plan(job.id, plan)
                 self.store.set_pieces(job.id, plan["pieces"])
@@ -246,8 +251,8 @@ class Daemon:
             if job.state == "ready":
                 job = self.store.transition(job.id, "cutting")
             if job.state == "cutting":
-                self.pipeline.cut(job, self.store.job(job.id).plan, self.store, control,
-                                  resuming)
+                self.pipeline.cut(job, plan or self.store.job(job.id).plan, self.store,
+                                  control, resuming)
                 control.checkpoint()
                 self.store.transition(job.id, "done")
                 log.info("job %d done", job.id)

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from station.commands.demo import copy_job_files, read_json_or_empty
 from station.errors import UserError
 
 
@@ -114,7 +115,7 @@ def fleet_report(store, ids: list[int], daemons: dict[str, Any]) -> dict[str, An
                       and e["message"].split(": ")[0].endswith(f"-> {job.state}")), None)
         pieces = store.pieces(job_id)
         plan = job.plan or {}
-        fabric = _read_json(Path(plan["fabric"])) if plan.get("fabric") else {}
+        fabric = read_json_or_empty(Path(plan["fabric"])) if plan.get("fabric") else {}
         jobs.append({
             "id": job_id, "station": job.owner, "state": job.state, "reason": job.reason,
             "requirements": job.requirements.to_dict(),
@@ -160,27 +161,15 @@ def machine_work(port: str) -> dict[str, Any]:
 def keep_job_files(report: dict[str, Any], out: Path) -> None:
     """Copy each job's marker, G-code and print into DIR/job-N (the store's folders are
     temporary); the report names the copies."""
-    import shutil
-
     for job in report["jobs"]:
         layout = job.pop("layout")
         if not layout:
             continue
-        source = Path(layout).parent
         target = out / f"job-{job['id']}"
         target.mkdir(exist_ok=True)
-        job["files"] = []
-        for name in ("layout.json", "job.nc", "fabric.json", "marker.png", "frame.png"):
-            if (source / name).is_file():
-                shutil.copyfile(source / name, target / name)
-                job["files"].append(f"{target.name}/{name}")
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
-        return {}
+        copied = copy_job_files(Path(layout).parent, target, (
+            "layout.json", "job.nc", "fabric.json", "marker.png", "frame.png"))
+        job["files"] = [f"{target.name}/{name}" for name in copied]
 
 
 def print_summary(report: dict[str, Any], out: Path) -> None:

@@ -1,8 +1,10 @@
 """The work of one job: capture the fabric, plan the cut, stream it, record every piece.
 
-Each step writes its results into the job's folder (frame, FABRIC.json, placement,
-layout, G-code, pictures) and returns their paths, which the daemon stores as the job's
-plan: a job interrupted after planning resumes from the files, not by recomputing.
+Each step hands the next the objects it made (`Captured`, the garment, the placement, the
+layout in `Planned`), loading the garment once per plan, and writes them into the job's
+folder for the operator (frame, FABRIC.json, placement, layout, G-code, pictures). The
+daemon stores their paths as the job's plan: a job interrupted after planning resumes in
+a new process from the files, not by recomputing; one process never reads them back.
 Pieces are known to the job store by their layout id, so a resumed job rebuilds its
 program for the pieces not yet cut and can never cut one twice.
 
@@ -18,9 +20,11 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -29,19 +33,60 @@ import numpy as np
 from gcode.recovery import (
     FINAL_MOVES,
     MARKER_SYSTEM,
-    distance_to_path,
     final_moves,
+    head_position,
     load_final_moves,
+    piece_finished,
+    read_marker,
     read_params,
     save_final_moves,
     wait_at_rest,
     with_markers,
 )
+from solver.jsonfile import read_json
 from station.config import Config
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
 
 log = logging.getLogger("station.pipeline")
+
+HELD_PLANS = 16  # plans a daemon keeps in memory for jobs paused and resumed in it
+
+
+@dataclass
+class Captured:
+    """What capture hands to planning: the FABRIC.json document (written at ``path`` for
+    the operator) and the rectified photo of the table, if one was taken."""
+
+    path: str
+    fabric: dict[str, Any]
+    photo: np.ndarray | None = None
+    mm_per_px: float = 1.0
+
+    def __fspath__(self) -> str:
+        return self.path
+
+    @classmethod
+    def read(cls, path: str | os.PathLike[str], workdir: Path) -> Captured:
+        """The capture of a job planned in another process than the one that captured it
+        (or after the operator confirmed its print): from the job's files."""
+        import cv2
+
+        camera = workdir / "camera.json"
+        photo = cv2.imread(str(workdir / "rectified.png")) if camera.is_file() else None
+        mm_per_px = float(read_json(camera)["mm_per_px"]) if photo is not None else 1.0
+        return cls(os.fspath(path), read_json(path), photo, mm_per_px)
+
+
+class Planned(dict):
+    """The plan as the job store keeps it (the paths of the job's files) and, for the cut
+    in the same process, the layout they were written from (``layout_doc``)."""
+
+    def __init__(self, files: dict[str, Any], *, layout_doc: dict[str, Any],
+                 program_summary: dict[str, Any]):
+        super().__init__(files)
+        self.layout_doc = layout_doc
+        self.program_summary = program_summary
 
 
 class StationPipeline:
@@ -55,6 +100,10 @@ class StationPipeline:
         profile = config["machine"]["profile"]
         machine = load_machine(config.resolve(profile)) if profile else default_machine()
         self.machine = with_station_cut(machine, config)
+        # Plans made in this process by job id, so that a job paused and resumed here cuts
+        # from the objects too; used only while the store's plan is still this one (another
+        # station may have planned the job again since).
+        self._planned: dict[int, Planned] = {}
 
     # ------------------------------------------------------------------ checks
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
@@ -92,12 +141,14 @@ class StationPipeline:
             pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
 
     # ------------------------------------------------------------------ capture
-    def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
-        """FABRIC.json of the job: the operator's file, or detected from a photograph."""
+    def capture(self, job: Job, workdir: Path, control: JobControl) -> Captured:
+        """FABRIC.json of the job: the operator's file, or detected from a photograph;
+        handed to :meth:`plan` with the rectified photo, written for the operator."""
         target = workdir / "fabric.json"
         if job.fabric is not None:
+            fabric = read_json(job.fabric)
             shutil.copyfile(job.fabric, target)
-            return str(target)
+            return Captured(str(target), fabric)
         import cv2
 
         start_step(control, "photographing")
@@ -137,7 +188,7 @@ class StationPipeline:
                                  f"confidence {fabric['confidence']:.2f} (below {below:g}); "
                                  f"see detection.png, then `station confirm {job.id} "
                                  "[--group G]`")
-        return str(target)
+        return Captured(str(target), fabric, rectified, float(mm_per_px))
 
     def _photograph(self):
         """(frame, rectified fabric area, mm per pixel, truth or None).
@@ -176,34 +227,32 @@ class StationPipeline:
         return frame, rectified, mm_per_px, truth
 
     # ------------------------------------------------------------------ plan
-    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl) -> dict[str, Any]:
-        """Align, optionally reshape, nest and program; every result is a file in workdir.
+    def plan(self, job: Job, fabric: str | Captured, workdir: Path, control: JobControl
+             ) -> Planned:
+        """Align, optionally reshape, nest and program; every result is also a file in workdir.
 
+        ``fabric`` is what :meth:`capture` handed over in this process, or the path of the
+        job's FABRIC.json when it was captured by another process or confirmed by the
+        operator. Each step takes the objects of the step before; the files are written
+        for the operator and for a job resumed by another process, never read back here.
         Pictures for people go beside them: the pattern over the print before alignment,
         aligned and reshaped (seams coloured by mismatch), the marker on the fabric photo
         and the toolpath; report.json holds the numbers and the time of each step.
         """
-        import cv2
-
         from solver.fit import fit_report
-        from solver.garment import load_garment, save_obj
+        from solver.garment.notches import cut_ready
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
-        from station.render import draw_fit, draw_marker, draw_toolpath, garment_credit
+        from station.allowance import rules_for_job
+        from station.render import draw_fit, photo_colours
 
-        if json.loads(Path(fabric).read_text()).get("kind") in ("plain", "stripes"):
-            return self.plan_plain(job, fabric, workdir, control)
-        garment = load_garment(job.garment, units=job.options.get("units"))
-        garment, symmetrised = symmetrise_job(garment, job.options)
-        wallpaper = Wallpaper.load(fabric)
-        # The job's own copy of the pattern, in mm: later steps need no units.
-        garment_path = workdir / "garment.obj"
-        save_obj(garment, garment_path)
-        keep_licence_note(Path(job.garment), workdir)
-        garment = load_garment(garment_path)
-        fabric_doc = json.loads(Path(fabric).read_text())
+        captured = fabric if isinstance(fabric, Captured) else Captured.read(fabric, workdir)
+        garment, garment_path, symmetrised = self._job_garment(job, workdir)
+        if captured.fabric.get("kind") in ("plain", "stripes"):
+            return self.plan_plain(job, captured, garment, garment_path, workdir, control)
+        wallpaper = Wallpaper.from_dict(captured.fabric, captured.path)
         report: dict[str, Any] = {"job": job.id, "garment": job.garment,
-                                  "fabric": {k: fabric_doc.get(k) for k in (
+                                  "fabric": {k: captured.fabric.get(k) for k in (
                                       "group", "w1", "w2", "origin", "source", "confidence")},
                                   "seconds": {}}
         if symmetrised is not None:
@@ -219,7 +268,7 @@ class StationPipeline:
         before = Placement.identity(garment.n_pieces, wallpaper)
         identity = fit_report(garment, before)
         report["e_fit_identity_mm2"] = identity.e_fit_mm2
-        colour_of = photo_colours(workdir, wallpaper)
+        colour_of = photo_colours(captured.photo, captured.mm_per_px, wallpaper)
         draw_fit(garment, before, identity, workdir / "fit-before.png",
                  title=f"before alignment on {wallpaper.group}", colour_of=colour_of)
         start_step(control, "aligning", 0.0)
@@ -230,14 +279,11 @@ class StationPipeline:
 
         garment = grained(garment, self.config, job.options)
         placement = align_garment(garment, wallpaper, self.config, job.options, on_restart,
-                                  fabric_grain_deg=fabric_doc.get("grain_deg"))
+                                  fabric_grain_deg=captured.fabric.get("grain_deg"))
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
         final_fit = aligned
-        from solver.garment.notches import cut_ready
-        from station.allowance import rules_for_job
-
         rules = rules_for_job(self.config, job.options)
         report["allowance"] = rules.to_dict()
         cuts, notches = cut_ready(garment, rules, placement)
@@ -250,6 +296,7 @@ class StationPipeline:
         aligned_garment, aligned_path = garment, garment_path
         if job.options.get("reshape", self.config["reshape"]["enabled"]):
             start_step(control, "reshaping")
+            from solver.garment import save_obj
             from solver.garment.symmetry import fit_pairs
             from solver.reshape import ReshapeOptions, reshape
 
@@ -278,8 +325,7 @@ class StationPipeline:
                 1.0, (time.monotonic() - t_nest) / seconds))
 
         try:
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
-                                    job.options)
+            layout = nest_placement(garment, placement, self.config, on_nest, job.options)
         except ValueError as exc:
             if garment is aligned_garment:
                 raise
@@ -292,55 +338,34 @@ class StationPipeline:
             placement.garment = str(garment_path)
             placement.save(workdir / "placement.json")
             t_nest = time.monotonic()
-            layout = nest_placement(workdir / "placement.json", self.config, on_nest,
-                                    job.options)
+            layout = nest_placement(garment, placement, self.config, on_nest, job.options)
         layout.save(workdir / "layout.json")
         report["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                           "density": layout.density, "pieces": len(layout.pieces)}
         lap("nest")
         self._write_report(workdir, report)
         control.checkpoint()
-        start_step(control, "programming")
-        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
-        program.write(workdir / "job.nc")
-        report["program"] = program.summary()
-        credit = garment_credit(garment_path)
-        draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
-        photo = cv2.imread(str(workdir / "rectified.png"))
-        mm_per_px = 1.0
-        if photo is not None:
-            mm_per_px = json.loads((workdir / "camera.json").read_text())["mm_per_px"]
-        draw_marker(layout.to_dict(), workdir / "marker.png", garment=garment, report=final_fit,
-                    photo=photo, photo_mm_per_px=mm_per_px, credit=credit)
+        planned = self._program(job, captured, garment_path, layout, workdir, control,
+                                garment=garment, report=final_fit, photo=captured)
+        report["program"] = planned.program_summary
         lap("program")
         self._write_report(workdir, report)
-        return {"fabric": fabric, "garment": str(garment_path),
-                "placement": str(workdir / "placement.json"),
-                "layout": str(workdir / "layout.json"), "program": str(workdir / "job.nc"),
-                "report": str(workdir / "report.json"),
-                "pieces": [p.id for p in layout.pieces]}
+        return planned
 
-    def plan_plain(self, job: Job, fabric: str, workdir: Path, control: JobControl
-                   ) -> dict[str, Any]:
+    def plan_plain(self, job: Job, captured: Captured, garment, garment_path: Path,
+                   workdir: Path, control: JobControl) -> Planned:
         """Plain cloth (the camera found only the weave) or stripes: nothing to align in
         2-D, so the pieces are nested on grain as drawn, then programmed; same files as
         :meth:`plan`. Stripes set the grain (:func:`stripe_grain`)."""
-        from solver.garment import load_garment, save_obj
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
-        from station.render import draw_marker, draw_toolpath, garment_credit
 
-        garment, _ = symmetrise_job(load_garment(job.garment, units=job.options.get("units")),
-                                    job.options)
-        garment_path = workdir / "garment.obj"
-        save_obj(garment, garment_path)
-        keep_licence_note(Path(job.garment), workdir)
         # Each piece turned so that its grain runs along the cloth's (the roll, unless the
         # station says otherwise); the placement's print is a stand-in that nest_placement
         # drops (plain nesting). The grain rule goes with it, so nesting keeps the grain.
         garment = grained(garment, self.config, job.options)
         a = self.config["align"]
-        cloth = stripe_grain(json.loads(Path(fabric).read_text()), a["fabric_grain_deg"])
+        cloth = stripe_grain(captured.fabric, a["fabric_grain_deg"])
         grain_deg = np.array([g.deg for g in garment.grains()])
         placement = Placement(np.radians(grain_deg - cloth["grain_deg"]),
                               np.zeros((garment.n_pieces, 2)), Wallpaper("p1", (1, 0), (0, 1)),
@@ -353,26 +378,60 @@ class StationPipeline:
         placement.garment = str(garment_path)
         placement.save(workdir / "placement.json")
         start_step(control, "nesting", 0.0)
-        layout = nest_placement(workdir / "placement.json", self.config, None, job.options,
+        layout = nest_placement(garment, placement, self.config, None, job.options,
                                 plain=True)
         layout.save(workdir / "layout.json")
         control.checkpoint()
-        start_step(control, "programming")
-        program = self.program_for(layout.to_dict(), None, job_dir=workdir)
-        program.write(workdir / "job.nc")
-        credit = garment_credit(garment_path)
-        draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
-        draw_marker(layout.to_dict(), workdir / "marker.png", credit=credit)
+        planned = self._program(job, captured, garment_path, layout, workdir, control)
         self._write_report(workdir, {
             "job": job.id, "garment": job.garment, "fabric": cloth,
             "nest": {"length_mm": layout.length, "width_mm": layout.width,
                      "density": layout.density, "pieces": len(layout.pieces)},
-            "program": program.summary()})
-        return {"fabric": fabric, "garment": str(garment_path),
-                "placement": str(workdir / "placement.json"),
-                "layout": str(workdir / "layout.json"), "program": str(workdir / "job.nc"),
-                "report": str(workdir / "report.json"),
-                "pieces": [p.id for p in layout.pieces]}
+            "program": planned.program_summary})
+        return planned
+
+    def _job_garment(self, job: Job, workdir: Path):
+        """(garment, path of the job's copy, symmetrise report or None): the submitted
+        pattern loaded once, in mm, symmetrised if the job asks (:func:`symmetrise_job`),
+        and copied beside the job's files (with its licence note) for the operator and for
+        a job resumed by another process."""
+        from solver.garment import load_garment, save_obj
+
+        garment = load_garment(job.garment, units=job.options.get("units"))
+        garment, symmetrised = symmetrise_job(garment, job.options)
+        garment_path = workdir / "garment.obj"
+        save_obj(garment, garment_path)
+        keep_licence_note(Path(job.garment), workdir)
+        return garment, garment_path, symmetrised
+
+    def _program(self, job: Job, captured: Captured, garment_path: Path, layout, workdir: Path,
+                 control: JobControl, *, garment=None, report=None,
+                 photo: Captured | None = None) -> Planned:
+        """Program the nested layout (job.nc) and draw the toolpath and the marker (on the
+        photo when there is one); the plan's files, with the layout for :meth:`cut`."""
+        from station.render import draw_marker, draw_toolpath, garment_credit
+
+        start_step(control, "programming")
+        doc = layout.to_dict()
+        program = self.program_for(doc, None, job_dir=workdir)
+        program.write(workdir / "job.nc")
+        credit = garment_credit(job.garment)  # the submitted file's licence, not the copy's
+        draw_toolpath(program, self.machine, workdir / "toolpath.png", credit=credit)
+        draw_marker(doc, workdir / "marker.png", garment=garment, report=report,
+                    photo=None if photo is None else photo.photo,
+                    photo_mm_per_px=1.0 if photo is None else photo.mm_per_px, credit=credit)
+        planned = Planned({"fabric": captured.path, "garment": str(garment_path),
+                           "placement": str(workdir / "placement.json"),
+                           "layout": str(workdir / "layout.json"),
+                           "program": str(workdir / "job.nc"),
+                           "report": str(workdir / "report.json"),
+                           "pieces": [p.id for p in layout.pieces]},
+                          layout_doc=doc, program_summary=program.summary())
+        self._planned.pop(job.id, None)
+        self._planned[job.id] = planned
+        while len(self._planned) > HELD_PLANS:  # the oldest go: they resume from files
+            self._planned.pop(next(iter(self._planned)))
+        return planned
 
     @staticmethod
     def _write_report(workdir: Path, report: dict[str, Any]) -> None:
@@ -471,7 +530,12 @@ class StationPipeline:
             if cleared.kind != "ok":
                 raise RuntimeError(f"the controller refused to clear the piece marker: "
                                    f"{cleared.raw}")
-            program = with_markers(self.program_for(plan["layout"], todo), job.id, index)
+            # the layout planned in this process, else (resumed after a restart) LAYOUT.json
+            held = plan if isinstance(plan, Planned) else self._planned.get(job.id)
+            layout = held.layout_doc if held is not None and held == plan else plan["layout"]
+            program = with_markers(self.program_for(layout, todo,
+                                                    job_dir=Path(plan["layout"]).parent),
+                                   job.id, index)
             # The geometry a marker refers to, saved before a line goes out: the toolpath
             # order (and so where each contour starts and ends) depends on which pieces
             # are left, so the next start must judge by this program, not a fresh one.
@@ -514,6 +578,7 @@ class StationPipeline:
         if not result.completed:
             raise RuntimeError(f"cut stopped: {result.reason} "
                                f"{(result.fault or {}).get('detail', '')}".strip())
+        self._planned.pop(job.id, None)  # every piece cut: nothing left to resume
 
     def reconcile(self, job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool,
                   params: dict[str, tuple[float, ...]]) -> None:
@@ -527,38 +592,15 @@ class StationPipeline:
         ``rest`` is the status read before anything reset the controller, ``alarm`` says
         whether its position can be trusted, ``params`` is ``$#``.
         """
-        marker = params.get(f"G{53 + MARKER_SYSTEM}")
-        if marker is None or len(marker) < 3 or round(marker[0]) != job.id:
+        marker = read_marker(params)
+        if marker is None or marker.job != job.id:
             return
-        piece, phase = int(round(marker[1])) - 1, int(round(marker[2]))
+        piece = marker.piece
         record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
-        if record is None or record["state"] == "cut" or phase not in (1, 2):
+        if record is None or record["state"] == "cut" or marker.phase not in (1, 2):
             return
         path = load_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id).get(piece)
-        if path is None or len(path) < 2:
-            path = np.zeros((0, 2))
-            start = end = np.full(2, np.inf)  # unknown geometry: nothing is proven by it
-        else:
-            start, end = path[0], path[-1]
-        here = None
-        if rest is not None and not alarm and rest.mpos is not None:
-            g54 = params.get("G54", (0.0, 0.0, 0.0))
-            here = np.asarray(rest.mpos[:2], float) - np.asarray(g54[:2], float)
-        at_end = here is not None and float(np.hypot(*(here - end))) < 0.02
-        on_move = here is not None and distance_to_path(here, path) < 0.05
-        if phase == 2:
-            # Written only after the final move (GRBL syncs before an EEPROM write). The
-            # one contradiction a trusted position can show is a head stopped on the final
-            # move short of its end: then believe the head (an emulator that stores the
-            # offset when it parses the line, not when it runs it, gets this right too).
-            done = not (on_move and not at_end)
-            why = ("its sync point executed (marker written after its final move)" if done
-                   else "the marker says finished but the head stopped on its final move")
-        else:
-            done = at_end and float(np.hypot(*(start - end))) > 0.05
-            why = ("the head rests at the end of its final move" if done else
-                   "its final move may not have run (head elsewhere or position lost): "
-                   "cut again in full")
+        done, why = piece_finished(marker.phase, path, head_position(rest, alarm, params))
         if done:
             store.set_piece_state(job.id, piece, "cut")
         store.log(job.id, "recovery", f"piece {piece} ({record['name']}): the machine "
@@ -623,37 +665,6 @@ def start_step(control: JobControl, step: str, fraction: float | None = None) ->
     ``fraction`` only where the step can measure how far it is."""
     control.progress.clear()
     control.progress.update(step=step, **({} if fraction is None else {"fraction": fraction}))
-
-
-def photo_colours(workdir: Path, wallpaper):
-    """Colours of the print as photographed (None without a photo): any fabric point is
-    moved by whole lattice vectors into the middle of the photo and sampled there, so
-    the pictures show the real cloth rather than a stand-in print."""
-    import cv2
-
-    photo = cv2.imread(str(workdir / "rectified.png"))
-    camera = workdir / "camera.json"
-    if photo is None or not camera.is_file():
-        return None
-    s = float(json.loads(camera.read_text())["mm_per_px"])
-    h, w = photo.shape[:2]
-    centre = np.array([w, h], float) * s / 2
-    base = wallpaper.to_fractional(centre[None])[0]
-
-    def colour_of(points: np.ndarray) -> np.ndarray:
-        f = wallpaper.to_fractional(np.asarray(points, float))
-        f = base - 0.5 + (f - base + 0.5) % 1.0
-        px = wallpaper.to_cartesian(f) / s
-        n, width = len(px), 4096
-        rows = -(-n // width)
-        grid = np.zeros((rows * width, 2), np.float32)
-        grid[:n] = px
-        grid = grid.reshape(rows, width, 2)
-        out = cv2.remap(photo, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REFLECT)
-        return out.reshape(-1, 3)[:n]
-
-    return colour_of
 
 
 def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float = 80.0,
@@ -740,7 +751,7 @@ def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
                      "matched across the seams")}
 
 
-def nest_placement(placement_path: Path, config: Config, progress=None, options=None, *,
+def nest_placement(garment, placement, config: Config, progress=None, options=None, *,
                    plain: bool = False):
     """Nest the aligned pieces' cut lines on the fabric in view, each kept on its print
     position (``plain``: on plain cloth, free of any print); ``options`` are the job's
@@ -748,14 +759,14 @@ def nest_placement(placement_path: Path, config: Config, progress=None, options=
     from solver.nest.budget import Deadline
     from solver.nest.layout import verify_layout
     from solver.nest.solve import nest
-    from solver.nest.sources import load_problem
+    from solver.nest.sources import placement_problem
     from station.allowance import rules_for_job
 
     n = config["nest"]
-    deadline = Deadline(n["seconds"])  # loading the cut lines and verifying count too
-    problem = load_problem([placement_path], width=n["width_mm"], length=n["length_mm"],
-                           gap=n["gap_mm"], allowance=rules_for_job(config, options or {}),
-                           plain=plain)
+    deadline = Deadline(n["seconds"])  # making the cut lines and verifying count too
+    problem = placement_problem(garment, placement, width=n["width_mm"],
+                                length=n["length_mm"], gap=n["gap_mm"],
+                                allowance=rules_for_job(config, options or {}), plain=plain)
     layout = nest(problem, time_limit=deadline, seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:

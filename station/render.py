@@ -46,6 +46,33 @@ def default_print_colours(wallpaper, pixel_mm: float, seed: int = 7) -> ColourOf
     return colour_of
 
 
+def photo_colours(photo: np.ndarray | None, mm_per_px: float, wallpaper) -> ColourOf | None:
+    """Colours of the print as photographed (None without a photo): any fabric point is
+    moved by whole lattice vectors into the middle of the photo and sampled there, so
+    the pictures show the real cloth rather than a stand-in print."""
+    if photo is None:
+        return None
+    s = float(mm_per_px)
+    h, w = photo.shape[:2]
+    centre = np.array([w, h], float) * s / 2
+    base = wallpaper.to_fractional(centre[None])[0]
+
+    def colour_of(points: np.ndarray) -> np.ndarray:
+        f = wallpaper.to_fractional(np.asarray(points, float))
+        f = base - 0.5 + (f - base + 0.5) % 1.0
+        px = wallpaper.to_cartesian(f) / s
+        n, width = len(px), 4096
+        rows = -(-n // width)
+        grid = np.zeros((rows * width, 2), np.float32)
+        grid[:n] = px
+        grid = grid.reshape(rows, width, 2)
+        out = cv2.remap(photo, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REFLECT)
+        return out.reshape(-1, 3)[:n]
+
+    return colour_of
+
+
 def garment_credit(source: str | Path) -> str | None:
     """The acknowledgement a garment's licence asks for on every image made with it.
 

@@ -773,7 +773,10 @@ class GrblEmulator:
         if cmd == "I":
             if line == "$I":
                 opts = "V" + ("Z" if self.force_origin else "")
-                self._emit(f"[VER:{C.VERSION}.{C.BUILD_DATE}:{self.build_info}]")
+                # the build info (what `$I=` stored) ends with the simulator's time scale,
+                # which a sender on a pty can learn no other way (gcode.grbl.time_scale_of)
+                info = " ".join(filter(None, (self.build_info, f"grblsim speed={self.speed:g}")))
+                self._emit(f"[VER:{C.VERSION}.{C.BUILD_DATE}:{info}]")
                 self._emit(f"[OPT:{opts},{C.PLANNER_BLOCKS},{C.RX_BUFFER_SIZE}]")
             elif line.startswith("$I="):
                 self.build_info = line[3:]

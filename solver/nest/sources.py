@@ -90,17 +90,11 @@ def pieces_from_placement(path: str | Path, **options):
 
 def placement_input(path: str | Path, *, orientations=None, units: str | None = None,
                     allowance=None, fabric=None, plain: bool = False):
-    """Garment pieces at their aligned position on the print, and that print.
+    """Garment pieces at their aligned position on the print, that print and the pieces'
+    left/right pairs, read from a PLACEMENT.json and the garment file it names (see
+    :func:`placed_pieces`).
 
-    PLACEMENT.json gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
-    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``: the same rigid map carries
-    the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
-    ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so);
-    ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
-    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
-    balance notches follow (``plain``: no print, notches by spacing alone). The turns
-    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
-    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
+    ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so).
     """
     from solver.garment import load_garment
     from solver.placement import Placement
@@ -123,13 +117,32 @@ def placement_input(path: str | Path, *, orientations=None, units: str | None = 
             garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+    return placed_pieces(garment, placement, orientations=orientations, allowance=allowance,
+                         fabric=fabric, plain=plain)
+
+
+def placed_pieces(garment, placement, *, orientations=None, allowance=None, fabric=None,
+                  plain: bool = False):
+    """Garment pieces at their aligned position on the print, that print, and the pieces'
+    left/right pairs (:func:`placement_pairs`).
+
+    The placement gives per piece ``p2D = R p_wp + t``; the piece's reference frame is
+    wallpaper (= fabric) space, so ``base = [R^T | -R^T t]``: the same rigid map carries
+    the sew line and the cut line, so the print along the sew lines (E_fit) is unchanged.
+    ``allowance`` (:class:`solver.garment.allowance.AllowanceRules`, default: the defaults)
+    makes the cut lines; ``fabric`` (a Wallpaper) replaces the placement's print, which the
+    balance notches follow (``plain``: no print, notches by spacing alone). The turns
+    allowed on the fabric follow the placement's grain rule: 0 and 180 degrees (keeps the
+    grain), 0 only with a nap, any with the grain off; ``orientations`` overrides it.
+    ``placement`` is not changed.
+    """
     if orientations is None:
         rule = placement.grain_rule
         orientations = ((0.0,) if rule.get("nap") else
                         None if "tolerance_deg" in rule and rule["tolerance_deg"] is None
                         else (0.0, 180.0))
     if fabric is not None:
-        placement.fabric = fabric
+        placement = dataclasses.replace(placement, fabric=fabric)
     pieces = garment_pieces(garment, allowance, placement.piece_names or None,
                             None if plain else placement)
     for i, piece in enumerate(pieces):
@@ -146,6 +159,19 @@ def placement_input(path: str | Path, *, orientations=None, units: str | None = 
             if piece.grainline is None:
                 piece.grainline = lines[i]
     return pieces, placement.fabric, placement_pairs(garment, placement)
+
+
+def placement_problem(garment, placement, *, width: float, length: float | None = None,
+                      gap: float = 0.0, allowance=None, plain: bool = False) -> NestProblem:
+    """The marker problem of one aligned garment, from the objects alignment handed over
+    (the station's plan: no trip through PLACEMENT.json and the garment file)."""
+    from solver.garment.allowance import AllowanceRules
+
+    pieces, fabric, pairs = placed_pieces(garment, placement, allowance=allowance, plain=plain)
+    return assemble_problem(pieces, width=width, length=length, gap=gap,
+                            fabric=None if plain else fabric, what="the garment",
+                            allowance=(allowance or AllowanceRules()).to_dict(),
+                            piece_pairs=pairs)
 
 
 def load_problem(paths: list[str | Path], *, width: float | None = None,
@@ -183,17 +209,6 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
                             for p in got_pairs]
             pieces += got
             found_fabric = found_fabric or wp
-    for p in pieces:
-        p.quantity *= quantity
-        p.mirrored_pair = p.mirrored_pair or pairs
-    copies = sum(p.quantity * (2 if p.mirrored_pair else 1) for p in pieces)
-    if copies > limits.MAX_DEMAND:
-        raise ValueError(f"{', '.join(map(str, paths))}: {copies:,} copies to nest; at most "
-                         f"{limits.MAX_DEMAND:,} are nested at once")
-    names = [p.name for p in pieces]
-    for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
-        if names.count(p.name) > 1:
-            p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
     width = width if width is not None else found_width or default_width
     if width is None:
         raise ValueError("give the fabric width with --width (the input does not say it)")
@@ -202,6 +217,30 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         from solver.garment.allowance import AllowanceRules
 
         rules = (allowance or AllowanceRules()).to_dict()
-    return NestProblem(pieces, float(width), length, gap,
-                       None if plain else fabric or found_fabric, list(keepouts or []),
-                       allowance=rules, pairs=piece_pairs)
+    return assemble_problem(pieces, width=width, length=length, gap=gap,
+                            fabric=None if plain else fabric or found_fabric,
+                            quantity=quantity, pairs=pairs, keepouts=keepouts, allowance=rules,
+                            what=", ".join(map(str, paths)), piece_pairs=piece_pairs)
+
+
+def assemble_problem(pieces: list[Piece], *, width: float, length: float | None, gap: float,
+                     fabric, quantity: int = 1, pairs: bool = False,
+                     keepouts: list[np.ndarray] | None = None, allowance: dict | None = None,
+                     what: str = "the input",
+                     piece_pairs: list[PiecePair] | None = None) -> NestProblem:
+    """One marker problem from pieces gathered from any inputs: copies counted against the
+    demand limit (``what`` names the inputs in the refusal), names made unique;
+    ``piece_pairs`` are the left/right pairs a layout must keep (indices into ``pieces``)."""
+    for p in pieces:
+        p.quantity *= quantity
+        p.mirrored_pair = p.mirrored_pair or pairs
+    copies = sum(p.quantity * (2 if p.mirrored_pair else 1) for p in pieces)
+    if copies > limits.MAX_DEMAND:
+        raise ValueError(f"{what}: {copies:,} copies to nest; at most "
+                         f"{limits.MAX_DEMAND:,} are nested at once")
+    names = [p.name for p in pieces]
+    for k, p in enumerate(pieces):  # several inputs may reuse names: keep ids unique
+        if names.count(p.name) > 1:
+            p.name = f"{p.name}.{names[:k].count(names[k]) + 1}"
+    return NestProblem(pieces, float(width), length, gap, fabric, list(keepouts or []),
+                       allowance=allowance, pairs=list(piece_pairs or []))

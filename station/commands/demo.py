@@ -122,12 +122,10 @@ def run(args: argparse.Namespace) -> int:
             worker.join(30)
             daemon.control.stop()
         workdir = Path(tmp) / "jobs" / f"job-{job}"
-        copied = [name for name in FILES if (workdir / name).is_file()]
-        for name in copied:
-            shutil.copyfile(workdir / name, out / name)
-        plan_report = _read_json(workdir / "report.json")
-        camera = _read_json(workdir / "camera.json")
-        fabric = _read_json(workdir / "fabric.json")
+        copied = copy_job_files(workdir, out, FILES)
+        plan_report = read_json_or_empty(workdir / "report.json")
+        camera = read_json_or_empty(workdir / "camera.json")
+        fabric = read_json_or_empty(workdir / "fabric.json")
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
@@ -140,10 +138,20 @@ def run(args: argparse.Namespace) -> int:
     return 0 if status["state"] == "done" else 1
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def copy_job_files(workdir: Path, target: Path, names) -> list[str]:
+    """Copy the job's files ``names`` that exist out of its folder (the store's folders
+    are temporary) into ``target``; returns the names copied, in the order given."""
+    copied = [name for name in names if (workdir / name).is_file()]
+    for name in copied:
+        shutil.copyfile(workdir / name, target / name)
+    return copied
+
+
+def read_json_or_empty(path: Path) -> dict[str, Any]:
+    """A job's JSON file for the demo's report; {} when the job did not get to write it."""
     try:
         return json.loads(path.read_text())
-    except (FileNotFoundError, json.JSONDecodeError):
+    except (OSError, json.JSONDecodeError):
         return {}
 
 

@@ -44,6 +44,8 @@ def test_the_daemon_nests_a_job_with_its_own_allowances(tmp_path, data_dir):
 
     import numpy as np
 
+    from solver.garment import load_garment
+    from solver.placement import Placement
     from station.cli import main
     from station.pipeline import nest_placement
 
@@ -53,7 +55,8 @@ def test_the_daemon_nests_a_job_with_its_own_allowances(tmp_path, data_dir):
     assert main(["align", str(garment), "--fabric", str(fabric), "--restarts", "1",
                  "-o", str(tmp_path / "P.json")]) == 0
     config = load_config(None, {"nest": {"seconds": 1.0}})
-    layout = nest_placement(tmp_path / "P.json", config, None,
+    placement = Placement.load(tmp_path / "P.json")
+    layout = nest_placement(load_garment(garment), placement, config, None,
                             {"seam_allowance": 14, "allowance": {"hem": 26}})
     assert layout.allowance["seam_mm"] == 14.0 and layout.allowance["hem_mm"] == 26.0
     used = set(np.concatenate([p.allowance for p in layout.pieces]).tolist())

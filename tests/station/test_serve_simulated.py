@@ -182,16 +182,32 @@ def test_progress_bar_redraws_in_place_with_the_time_left():
     assert text.rstrip().endswith("done")
 
 
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """`station demo` with small settings, its printout and what its job read and loaded
+    (one run shared by the tests below: it takes most of a minute)."""
+    import contextlib
+    import io
+
+    sys.path.insert(0, str(Path(__file__).parent))  # job_io (importlib mode)
+    from job_io import JobIO
+
+    out = tmp_path_factory.mktemp("demo") / "demo-out"
+    printed = io.StringIO()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(printed):
+        job_io = JobIO(mp, threads=("daemon", "stream"))
+        code = main(["demo", "--out", str(out), "--restarts", "1", "--nest-seconds", "1",
+                     "--speed", "400"])
+    return code, out, printed.getvalue(), job_io
+
+
 @pytest.mark.slow
-def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, capsys):
-    """`station demo` with small settings: the print is detected (not the truth), every
-    file the README lists is written, and the summary agrees with the report."""
+def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(demo):
+    """The print is detected (not the truth), every file the README lists is written, and
+    the summary agrees with the report."""
     from station.commands.demo import FILES
 
-    out = tmp_path / "demo-out"
-    code = main(["demo", "--out", str(out), "--restarts", "1", "--nest-seconds", "1",
-                 "--speed", "400"])
-    printed = capsys.readouterr().out
+    code, out, printed, _ = demo
     assert code == 0, printed
     report = json.loads((out / "report.json").read_text())
     summary = report["summary"]
@@ -215,6 +231,21 @@ def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(tmp_path, cap
     assert frame is not None and frame.shape[:2] == (960, 1280)
     nc = (out / "job.nc").read_text()
     assert nc.count("G4 P0.01") == 6
+
+
+@pytest.mark.slow
+def test_one_job_loads_its_garment_once_and_reads_back_none_of_its_files(demo):
+    """Inside the daemon's process each step hands the next its objects (issue 16): the
+    garment is loaded once per plan, however many steps use it (align, reshape, seam
+    allowance, nesting, pictures), and no file the job wrote for the operator (FABRIC.json,
+    the photo, PLACEMENT.json, LAYOUT.json, the reshaped pattern) is read back."""
+    code, out, printed, job_io = demo
+    assert code == 0, printed
+    report = json.loads((out / "report.json").read_text())
+    assert report["plan"]["reshape"].get("rejected") is None  # the reshaped pattern was cut
+    assert job_io.written, "the counters saw no file written: they are not installed"
+    assert (len(job_io.garment_loads), dict(job_io.read_back)) == (1, {}), (
+        job_io.garment_loads, dict(job_io.read_back))
 
 
 def test_capture_uses_the_simulators_truth_only_when_vision_is_missing(tmp_path, monkeypatch):
