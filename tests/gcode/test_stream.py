@@ -401,7 +401,7 @@ def test_stream_command_through_a_pty_from_another_process(job, tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     sets = [a for kv in ("32=1", "130=1600", "131=1000", "110=12000", "111=12000", "120=1500",
                          "121=1500") for a in ("--setting", kv)]
-    sim = subprocess.Popen(station + ["sim-grbl", "--pty", "--speed", "200", *sets],
+    sim = subprocess.Popen(station + ["sim-grbl", "--pty", "--speed", "50", *sets],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         path = sim.stdout.readline().strip()
