@@ -541,7 +541,14 @@ class Streamer:
         wd = self._make_watchdog(program) if not check else None
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
-        if wd is not None and wd.catch_mm > CATCH_MM:
+        if wd is not None and wd.catch_mm > CATCH_MM and not self.line_baud:
+            # an emulator's instant link: the host's own polling pace is the limit, and a
+            # paced emulator waits for the host; said, not refused (no beam is at stake)
+            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm "
+                    f"before a report shows it ({CATCH_MM:g} mm asked) at this emulator speed")
+            log.warning("%s%s", self.prefix, note)
+            job.res.messages.append(note)
+        elif wd is not None and wd.catch_mm > CATCH_MM:
             fastest = max(wd.feeds)
             # travel before a report is proportional to the feed: the fastest watchable one
             watchable = fastest * CATCH_MM / wd.catch_mm

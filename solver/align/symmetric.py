@@ -260,6 +260,10 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         report["ratio_aligned_random"] = fit.e_fit_mm2 / report["e_fit_random_mm2"]
     symmetry = {
         "pairs": [[r.first, r.second, r.mode] for r in rules],
+        # the pattern mirror each pair was kept by (p_second = M [p_first; 1]): reshaping
+        # moves the second piece by it, and a layout's check of the print must use it
+        "mirror_maps": [np.column_stack([r.pair.rotation @ FLIP, r.pair.translation]).tolist()
+                        for r in rules],
         "unknowns_pieces": int(quotient.n_pieces),
         "pair_print_mismatch_mm": [pair_mismatch_mm(garment, placement, r) for r in rules],
         "e_fit_symmetric_mm2": fit.e_fit_mm2,

@@ -72,10 +72,16 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
 
 def placement_pairs(garment, placement) -> list[PiecePair]:
     """The placement's left/right pairs with their mirror maps (pattern coordinates), so
-    that a layout can be checked to keep each "mirror" pair's print mirrored."""
+    that a layout can be checked to keep each "mirror" pair's print mirrored: the maps
+    the alignment recorded, else fitted on ``garment``."""
     from solver.garment.symmetry import FLIP, fit_pairs
 
     modes = {(int(i), int(j)): str(m) for i, j, m in placement.pairs}
+    maps = (placement.report.get("symmetry") or {}).get("mirror_maps")
+    if maps is not None and len(maps) == len(placement.pairs):
+        # the maps the alignment kept the pairs by (a refit on a reshaped pattern differs)
+        return [PiecePair(int(i), int(j), str(m), np.asarray(mm, float).reshape(2, 3))
+                for (i, j, m), mm in zip(placement.pairs, maps)]
     return [PiecePair(p.first, p.second,
                       modes.get((p.first, p.second), modes.get((p.second, p.first), "same")),
                       np.column_stack([p.rotation @ FLIP, p.translation]))
