@@ -53,6 +53,18 @@ def fabric(group: str, a: float):
     return Wallpaper(group, *w, origin=(0.0, 0.0))
 
 
+def pairs_run_start() -> tuple[Path | None, list[str]]:
+    """The Berkeley library's root (None, said, when ../shared is absent), the garments
+    BENCH_ALIGN_ONLY keeps, and the run's header line: shared by the pair benchmarks."""
+    root = SHARED / "berkeley_garment_library" / "Garments"
+    if not root.is_dir():
+        print(f"skipped: {root} is absent")
+        return None, []
+    print(f"# {date.today()}  {platform.processor() or platform.machine()}  "
+          f"load {os.getloadavg()[0]:.1f}  global method, grain 1 deg, 15 restarts, seed 0")
+    return root, [w for w in os.environ.get("BENCH_ALIGN_ONLY", "").split(",") if w]
+
+
 def garments():
     from solver.garment import load_garment
 

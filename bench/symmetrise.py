@@ -12,14 +12,11 @@ the time of each, how many pairs were symmetrised and the largest outline move.
 
 from __future__ import annotations
 
-import os
-import platform
 import time
-from datetime import date
 
 import numpy as np
 
-from bench.align import BERKELEY, SHARED, fabric
+from bench.align import BERKELEY, fabric, pairs_run_start
 
 PRINTS = {"p1": 30.0, "pmm": 45.0, "p4m": 90.0}
 
@@ -30,13 +27,9 @@ def main() -> None:
     from solver.garment.symmetrise import symmetrise
     from solver.garment.symmetry import mirror_pairs
 
-    root = SHARED / "berkeley_garment_library" / "Garments"
-    if not root.is_dir():
-        print(f"skipped: {root} is absent")
+    root, only = pairs_run_start()
+    if root is None:
         return
-    only = [w for w in os.environ.get("BENCH_ALIGN_ONLY", "").split(",") if w]
-    print(f"# {date.today()}  {platform.processor() or platform.machine()}  "
-          f"load {os.getloadavg()[0]:.1f}  global method, grain 1 deg, 15 restarts, seed 0")
     print("| garment | print | pairs symmetrised | largest move mm | s symmetrise "
           "| E_fit as is cm² | E_fit symmetrised cm² | ratio | s as is | s symmetrised |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -12,15 +12,12 @@ of each, measured in the same run (aim: the symmetric search at least as fast).
 
 from __future__ import annotations
 
-import os
-import platform
 import time
-from datetime import date
 from pathlib import Path
 
 import numpy as np
 
-from bench.align import BERKELEY, PRINTS, SHARED, fabric
+from bench.align import BERKELEY, PRINTS, fabric, pairs_run_start
 
 
 def main() -> None:
@@ -30,13 +27,9 @@ def main() -> None:
     from solver.garment.grain import paired_grains
     from solver.garment.symmetry import mirror_pairs
 
-    root = SHARED / "berkeley_garment_library" / "Garments"
-    if not root.is_dir():
-        print(f"skipped: {root} is absent")
+    root, only = pairs_run_start()
+    if root is None:
         return
-    only = [w for w in os.environ.get("BENCH_ALIGN_ONLY", "").split(",") if w]
-    print(f"# {date.today()}  {platform.processor() or platform.machine()}  "
-          f"load {os.getloadavg()[0]:.1f}  global method, grain 1 deg, 15 restarts, seed 0")
     print("| garment | print | pairs | E_fit free cm² | E_fit symmetric cm² | sym/free "
           "| CPU s free | CPU s symmetric | time sym/free |")
     print("|---|---|---|---|---|---|---|---|---|")
