@@ -448,10 +448,15 @@ class Wallpaper:
         # numba costs ~0.35 s to import: loaded on the first query, not with the CLI
         from solver._closest import closest_equivalent
 
-        p, q = np.broadcast_arrays(np.asarray(p, float), np.asarray(q, float))
-        shape = p.shape[:-1]
-        p2 = np.ascontiguousarray(p.reshape(-1, 2))
-        q2 = np.ascontiguousarray(q.reshape(-1, 2))
+        p, q = np.asarray(p, float), np.asarray(q, float)
+        full = np.broadcast_shapes(p.shape, q.shape)
+        shape = full[:-1]
+        # contiguous and writeable (numba warns on read-only views): broadcast_to's stride-0
+        # views are copied, arrays of the full shape are passed as they are
+        p2 = np.require((p if p.shape == full else np.broadcast_to(p, full)).reshape(-1, 2),
+                        float, ["C", "W"])
+        q2 = np.require((q if q.shape == full else np.broadcast_to(q, full)).reshape(-1, 2),
+                        float, ["C", "W"])
         d = np.empty_like(p2)
         op = np.empty(len(p2), np.int64)
         closest_equivalent(p2, q2, lin, shift, self._reduced, self._reduced_inv, d, op)

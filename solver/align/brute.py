@@ -60,7 +60,7 @@ def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
             i = ia if ia is not None else ib
             ta = cands[i] if ia is not None else t_ref[pa][None]
             tb = cands[i] if ib is not None else t_ref[pb][None]
-            d, _ = problem.mismatch(*np.broadcast_arrays(q(pa, ma, ta), q(pb, mb, tb)))
+            d, _ = problem.mismatch(q(pa, ma, ta), q(pb, mb, tb))  # broadcast there
             unary[i] += np.hypot(d[..., 0], d[..., 1]) @ ws
             continue
         key = (min(ia, ib), max(ia, ib))

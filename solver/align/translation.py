@@ -96,10 +96,11 @@ def polish(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
     d, op = problem.seam_mismatch(angles, t, rec)
     w = np.broadcast_to(problem.record_weight[rec][None, :] if weight is None else weight,
                         (len(t), len(rec)))
+    w = np.require(w, float, ["C", "W"])  # numba warns on broadcasting's read-only views
     h = np.zeros((len(t), 2 * p, 2 * p))
     g = np.zeros((len(t), 2 * p))
     translation_normal_equations(np.cos(angles), np.sin(angles), rec, fr.piece, fr.other, d,
-                                 op, problem.wp.cartesian_tables[0], np.ascontiguousarray(w), h, g)
+                                 op, problem.wp.cartesian_tables[0], w, h, g)
     fixed = np.repeat(problem.fix_trans, 2)
     scale = float(np.mean(np.abs(np.diagonal(h, axis1=1, axis2=2)))) or 1.0
     h = h + 1e-10 * scale * np.eye(2 * p)  # the pattern may slide freely (p1): pick the
