@@ -9,8 +9,8 @@ the autocorrelation with lag, so a candidate is ranked by its shortest repeats (
 only at well-overlapped lags: a sparse lattice seen at two long lags wins there by
 chance), and its index-2/3/4 refinements are tested by the lags they add against
 what its own lags carry at the same lag. Then fit both vectors by weighted least
-squares on many sub-pixel peaks ``p = i w1 + j w2`` at once, which gives precision and an uncertainty well beyond
-the position error of any single peak.
+squares on many sub-pixel peaks ``p = i w1 + j w2`` at once, which gives precision
+and an uncertainty well beyond the position error of any single peak.
 
 Stripes (1-D repeats, a frieze across the cloth) show as a ridge of high autocorrelation
 along the stripes; they are reported with their period and direction, never as a
