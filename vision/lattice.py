@@ -112,7 +112,11 @@ def _gray(image: np.ndarray) -> np.ndarray:
 
 def to_gray_float(image: np.ndarray) -> np.ndarray:
     """BGR/gray uint8/float image -> float32 gray in [0, 1]-ish."""
-    img = _gray(image)
+    return _unit_float(_gray(image))
+
+
+def _unit_float(img: np.ndarray) -> np.ndarray:
+    """uint8/uint16/float pixels -> float32 in [0, 1]-ish."""
     if img.dtype == np.uint8:
         return img.astype(np.float32) / 255.0
     if img.dtype == np.uint16:
@@ -160,12 +164,14 @@ def prepare_colour(image: np.ndarray, shape: tuple[int, int]) -> np.ndarray | No
         img = img.astype(np.float32)
     if img.shape[:2] != shape:
         img = cv2.resize(img, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
-    out = np.empty((3, *shape), np.float32)
-    for ch in range(3):
-        gray = to_gray_float(np.ascontiguousarray(img[:, :, ch]))
-        flat = gray / np.maximum(_light_surface(gray), 1e-3) - 1.0
-        out[ch] = flat - float(flat.mean())
-    return out
+    chans = np.moveaxis(_unit_float(img), 2, 0)
+    # The light (gain ramp, vignetting) is the same for every ink: one surface, fitted
+    # on the channels' mean, divides all three.
+    light = np.maximum(_light_surface(chans.mean(axis=0)), 1e-3)
+    out = chans / light
+    out /= np.maximum(out.mean(axis=(1, 2), keepdims=True), 1e-3)
+    out -= 1.0
+    return (out - out.mean(axis=(1, 2), keepdims=True)).astype(np.float32)
 
 
 def to_gray_shape(image: np.ndarray) -> tuple[int, int]:
