@@ -405,7 +405,7 @@ def detect_lattice(
         return LatticeResult("plain", mm_per_px=mm_per_px, strength=float(vals.max()),
                              message="no 2-D lattice explains the autocorrelation peaks")
     basis, sig, n_used = _refine(acf, valid, basis)
-    b1, b2, _ = gauss_reduce(basis[:, 0], basis[:, 1], obtuse=True)
+    b1, b2 = _right_handed(*gauss_reduce(basis[:, 0], basis[:, 1], obtuse=True)[:2])
     if weave_peak > support:
         # Cloth whose yarn repeats more strongly than the coarser lattice does over its
         # points: that "lattice" is a beat of the weave with the pixels (moire).
@@ -431,6 +431,15 @@ def _same_view_colour(image: np.ndarray, flat: np.ndarray,
     if np.ndim(image) != 3 or np.abs(shape - flat.shape).max() > 1.5:
         return None
     return prepare_colour(image, flat.shape)
+
+
+def _right_handed(b1: np.ndarray, b2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reduced basis (row, col) turned right-handed in (x, y) where the reduction
+    leaves the choice to noise: at a right angle ``-b2`` is as reduced as ``b2``."""
+    det = b1[1] * b2[0] - b1[0] * b2[1]  # x1 y2 - y1 x2
+    if det < 0 and abs(float(b1 @ b2)) <= 0.02 * float(np.hypot(*b1) * np.hypot(*b2)):
+        return b1, -b2
+    return b1, b2
 
 
 def _weave_check(res: LatticeResult, min_repeat_mm: float) -> LatticeResult:
