@@ -24,12 +24,11 @@ from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.naive import naive_moves
 from solver.nest.regions import repair_snapped
-from solver.nest.ruin import ruin_search
 from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
-          "coset": 0.3, "joint": 0.6, "ruin": 0.3}
+          "coset": 0.3, "joint": 0.6}
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -52,8 +51,6 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
       (:mod:`solver.nest.snapjoint`).
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
-    - ``ruin``: ruin and recreate on the cosets from the best marker so far
-      (:mod:`solver.nest.ruin`); from a lattice fill if it runs alone.
 
     By default: joint, fill, then coset on the better of them. When the time left is
     shorter than a fill that must finish would take, the naive baseline
@@ -106,11 +103,10 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
             extra = 0.0 if len(items) >= MANY else 0.25 * covering_radius(problem.lattice)
             r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress,
                              extra=extra, interruptible=late)
-        elif strategy in ("coset", "ruin"):
+        elif strategy == "coset":
             start = min(results, key=lambda r: r[1])[0] if results else None
-            search = coset_search if strategy == "coset" else ruin_search
-            r = search(problem, items, time_limit=share, seed=seed, progress=progress,
-                       start=start)
+            r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
+                             start=start)
         else:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         if r is not None:

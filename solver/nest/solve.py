@@ -12,8 +12,7 @@ from solver.nest.naive import nest_naive
 from solver.nest.plain import plain_moves
 from solver.nest.regions import repair
 
-METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "coset", "joint", "naive",
-           "ruin")
+METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "coset", "joint", "naive")
 
 
 def nest(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
