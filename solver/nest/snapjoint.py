@@ -156,8 +156,7 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
 # (reach, push) in lattice steps, tried in turn: no one setting wins everywhere (a wider
 # reach finds more combinations, and takes longer to exhaust)
 REACHES = ((1.5, 4.0), (2.0, 6.0), (1.0, 2.0))
-FREE_SHARE = 0.6  # of the time, for sparrow's free nest
-SNAP_SHARE = 0.7  # of the time after it, for the joint snaps; the sweep has the rest
+FREE_SHARE = 0.6  # of the time, for sparrow's free nest; the snaps have the rest but the sweep's
 FINAL_SHARE = 0.5  # of the snaps' time, for sparrow's final nest; its earlier ones share the rest
 LOOSER = 1.1  # earlier nests up to this times the final length are snapped
 SPACINGS = (1.0, 0.5, 0.25, 0.125)  # lattice steps between the earlier nests, coarse first
@@ -232,8 +231,8 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     :func:`solver.nest.regions.repair` (what ``resnap`` does), and its earlier feasible
     nests (:func:`earlier_nests`) snapped jointly while time remains; the shortest wins.
 
-    Unless ``interruptible``, the sweep must finish: sparrow stops early enough to leave
-    it its estimated time.
+    Unless ``interruptible``, the sweep must finish: sparrow and the snaps stop early
+    enough to leave it its estimated time (it has what they leave, too).
     """
     budget = deadline_of(time_limit)
     sweep = 0.0 if interruptible else first_fill_estimate(items)
@@ -246,9 +245,8 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
         if progress:
             progress(f"joint snap: {exc}")
         return None
-    snaps = budget.before(sweep).share(SNAP_SHARE)
     best = snap_nests(problem, items, free, free_len, others,
-                      deadline=time.monotonic() + snaps.left(), progress=progress)
+                      deadline=time.monotonic() + budget.before(sweep).left(), progress=progress)
     r = repair(problem, items, snap_to_lattice(problem, items, free), time_limit=budget,
                seed=seed, progress=progress, everything=True,
                interruptible=interruptible or best is not None)
