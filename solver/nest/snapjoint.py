@@ -156,8 +156,9 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
 # (reach, push) in lattice steps, tried in turn: no one setting wins everywhere (a wider
 # reach finds more combinations, and takes longer to exhaust)
 REACHES = ((1.5, 4.0), (2.0, 6.0), (1.0, 2.0))
-FREE_SHARE = 0.6  # of the time, for sparrow's free nest; the snaps have the rest but the sweep's
-FINAL_SHARE = 0.5  # of the snaps' time, for sparrow's final nest; its earlier ones share the rest
+FREE_SHARE = 0.7  # of the time, for sparrow's free nest
+SNAP_SHARE = 0.5  # of the time after it, for the final nest's joint snaps; the earlier
+# nests' snaps have the rest but the sweep's estimate (the sweep, what they leave)
 LOOSER = 1.1  # earlier nests up to this times the final length are snapped
 SPACINGS = (1.0, 0.5, 0.25, 0.125)  # lattice steps between the earlier nests, coarse first
 SNAP_MAX = 0.3  # s, at most, for one earlier nest's snap
@@ -187,14 +188,13 @@ def earlier_nests(others: list, final: float, step: float) -> list:
 
 
 def snap_nests(problem: NestProblem, items: list[Item], free: list[np.ndarray],
-               free_len: float, others: list, *, deadline: float,
+               free_len: float, others: list, *, final: float, deadline: float,
                progress: Progress | None = None) -> tuple[list[np.ndarray], float] | None:
     """The shortest joint snap of sparrow's final nest ``free`` (every setting of
-    ``REACHES``, within ``FINAL_SHARE`` of the time) and of its earlier nests ``others``
-    ((moves, length) pairs, see :func:`earlier_nests`) until ``deadline`` (monotonic s)."""
+    ``REACHES``, until ``final``) and of its earlier nests ``others`` ((moves, length)
+    pairs, see :func:`earlier_nests`) until ``deadline`` (both monotonic s)."""
     t0 = time.monotonic()
     step = float(np.abs(problem.lattice).max())
-    final = t0 + FINAL_SHARE * max(0.0, deadline - t0)
     best = None
     for reach, push in REACHES:
         if time.monotonic() > final:
@@ -232,7 +232,8 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     nests (:func:`earlier_nests`) snapped jointly while time remains; the shortest wins.
 
     Unless ``interruptible``, the sweep must finish: sparrow and the snaps stop early
-    enough to leave it its estimated time (it has what they leave, too).
+    enough to leave it its estimated time (it has what they leave, too; once a snap
+    exists it is only a fallback, and its restarts gave way to the earlier nests).
     """
     budget = deadline_of(time_limit)
     sweep = 0.0 if interruptible else first_fill_estimate(items)
@@ -245,7 +246,8 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
         if progress:
             progress(f"joint snap: {exc}")
         return None
-    best = snap_nests(problem, items, free, free_len, others,
+    final = time.monotonic() + budget.before(sweep).share(SNAP_SHARE).left()
+    best = snap_nests(problem, items, free, free_len, others, final=final,
                       deadline=time.monotonic() + budget.before(sweep).left(), progress=progress)
     r = repair(problem, items, snap_to_lattice(problem, items, free), time_limit=budget,
                seed=seed, progress=progress, everything=True,

@@ -210,7 +210,8 @@ def test_snapping_earlier_nests_gives_a_valid_marker_no_longer_than_the_final_sn
     step = 50.0
     reach, push = REACHES[0]
     final = joint_snap(problem, items, free, reach=reach * step, push=push * step)
-    got = snap_nests(problem, items, free, free_len, others, deadline=time.monotonic() + 4.0)
+    t0 = time.monotonic()
+    got = snap_nests(problem, items, free, free_len, others, final=t0 + 2.0, deadline=t0 + 4.0)
     assert got is not None and final is not None
     assert got[1] <= final[1] + 1e-9
     layout = build_layout(problem, items, got[0])
@@ -223,10 +224,12 @@ def test_snapping_earlier_nests_stops_at_its_deadline(sparrow_run):
     problem, items, free, free_len, others = sparrow_run
     assert len(earlier_nests(others, free_len, 50.0)) >= 2  # more work than the time given
     t0 = time.monotonic()
-    assert snap_nests(problem, items, free, free_len, others, deadline=t0 - 1.0) is None
+    assert snap_nests(problem, items, free, free_len, others, final=t0 - 1.0,
+                      deadline=t0 - 1.0) is None
     for limit in (0.2, 0.5):
         t0 = time.monotonic()
-        got = snap_nests(problem, items, free, free_len, others, deadline=t0 + limit)
+        got = snap_nests(problem, items, free, free_len, others, final=t0 + limit / 2,
+                         deadline=t0 + limit)
         assert time.monotonic() - t0 < limit + 0.25  # one step of the search past it at most
         if got is not None:
             assert verify_layout(build_layout(problem, items, got[0]), problem) == []
