@@ -248,13 +248,17 @@ class StationPipeline:
 
         captured = fabric if isinstance(fabric, Captured) else Captured.read(fabric, workdir)
         garment, garment_path, symmetrised = self._job_garment(job, workdir)
-        if captured.fabric.get("kind") in ("plain", "stripes"):
+        kind = captured.fabric.get("kind")
+        if kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes", True)):
             return self.plan_plain(job, captured, garment, garment_path, workdir, control)
-        wallpaper = Wallpaper.from_dict(captured.fabric, captured.path)
+        fabric = (stripe_print(captured.fabric, self.config["align"]["fabric_grain_deg"])
+                  if kind == "stripes" else captured.fabric)
+        wallpaper = Wallpaper.from_dict(fabric, captured.path)
         report: dict[str, Any] = {"job": job.id, "garment": job.garment,
-                                  "fabric": {k: captured.fabric.get(k) for k in (
-                                      "group", "w1", "w2", "origin", "source", "confidence")},
-                                  "seconds": {}}
+                                  "fabric": {k: fabric.get(k) for k in (
+                                      "group", "w1", "w2", "origin", "source", "confidence",
+                                      "kind", "period_mm", "direction_deg", "grain_deg",
+                                      "note") if k in fabric}, "seconds": {}}
         if symmetrised is not None:
             report["symmetrise"] = symmetrised.to_dict()
         clock = time.perf_counter()
@@ -279,7 +283,7 @@ class StationPipeline:
 
         garment = grained(garment, self.config, job.options)
         placement = align_garment(garment, wallpaper, self.config, job.options, on_restart,
-                                  fabric_grain_deg=captured.fabric.get("grain_deg"))
+                                  fabric_grain_deg=fabric.get("grain_deg"))
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
@@ -354,9 +358,10 @@ class StationPipeline:
 
     def plan_plain(self, job: Job, captured: Captured, garment, garment_path: Path,
                    workdir: Path, control: JobControl) -> Planned:
-        """Plain cloth (the camera found only the weave) or stripes: nothing to align in
-        2-D, so the pieces are nested on grain as drawn, then programmed; same files as
-        :meth:`plan`. Stripes set the grain (:func:`stripe_grain`)."""
+        """Plain cloth (the camera found only the weave), or stripes the job does not
+        match (option ``match_stripes`` false): nothing to align, so the pieces are nested
+        on grain as drawn, then programmed; same files as :meth:`plan`. Stripes set the
+        grain (:func:`stripe_grain`)."""
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
 
@@ -731,12 +736,12 @@ def grained(garment, config: Config, options: dict[str, Any]):
 
 
 def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
-    """The grain plain nesting keeps, with what the report says about the cloth.
+    """The grain stripes set, with what the report says about the cloth.
 
-    Stripes (a 1-D repeat) are not matched across seams here: every piece is turned so
-    that its grain runs along the stripe axis nearest the roll's grain (stripes along
-    or across the grain), so the stripes cross every piece at the same angle; their
-    positions across the seams are left as they fall.
+    Every piece is turned so that its grain runs along the stripe axis nearest the roll's
+    grain (stripes along or across the grain), so the stripes cross every piece at the
+    same angle. Here (plain nesting) their positions across the seams are left as they
+    fall; :func:`stripe_print` matches them.
     """
     if fabric.get("kind") != "stripes" or fabric.get("direction_deg") is None:
         return {"kind": "plain", "grain_deg": float(fabric_grain_deg)}
@@ -749,6 +754,44 @@ def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
                      f"{along:.1f} deg: nested on grain as plain fabric with the pieces' "
                      f"grain at {grain:.1f} deg (on the stripes); the stripes are not "
                      "matched across the seams")}
+
+
+#: Step along the stripes of the lattice that stands for a stripe print (mm, at most an
+#: eighth of the period): a stripe runs on without end, so a piece may slide along the
+#: stripes by any amount; this step is the finest the nesting and the check distinguish.
+STRIPE_SLIDE_MM = 1.0
+
+
+def stripe_print(fabric: dict, fabric_grain_deg: float) -> dict:
+    """FABRIC.json content that matches a 1-D stripe print across the seams.
+
+    A stripe print repeats every ``period`` across the stripes and not at all along them:
+    as a lattice it is ``w1`` = an arbitrarily short step along the stripes
+    (:data:`STRIPE_SLIDE_MM`) and ``w2`` = the period across them. Its group is pm with
+    the mirror across the stripes (the reflection along them), the one symmetry every
+    stripe sequence has besides translations: a mirror along the stripes or a half turn
+    needs a symmetric sequence and is not assumed. So a left/right pair on stripes across
+    its grain (horizontal stripes on a garment) mirrors its print. The same alignment,
+    reshaping and print-aware nesting as for a 2-D print then put the stripes of every
+    seam's two sides at one height, and let each piece slide along its stripes freely;
+    the grain runs along the stripe axis (:func:`stripe_grain`). The stripes' phase is
+    not measured: every piece sees the same print, so a common shift of the pieces across
+    the stripes changes nothing at the seams (pm's mirror concerns the along direction).
+    """
+    cloth = stripe_grain(fabric, fabric_grain_deg)
+    period = float(fabric["period"])
+    along = np.radians(float(fabric["direction_deg"]))
+    unit = np.array([np.cos(along), np.sin(along)])
+    normal = np.array([-unit[1], unit[0]])
+    slide = min(STRIPE_SLIDE_MM, period / 8.0)
+    note = cloth["note"].replace("nested on grain as plain fabric with the pieces'",
+                                 "matched across the seams, the pieces'")
+    note = note.replace("; the stripes are not matched across the seams",
+                        f", free to slide along them ({slide:g} mm steps)")
+    return {**fabric, **cloth, "note": note, "group": "pm",
+            "w1": [float(v) for v in unit * slide],
+            "w2": [float(v) for v in normal * period], "origin": [0.0, 0.0],
+            "units": "mm"}
 
 
 def nest_placement(garment, placement, config: Config, progress=None, options=None, *,
