@@ -47,6 +47,7 @@ from solver.jsonfile import read_json
 from station.config import Config
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
+from station.stripes import stripe_grain, stripe_print
 
 log = logging.getLogger("station.pipeline")
 
@@ -733,65 +734,6 @@ def grained(garment, config: Config, options: dict[str, Any]):
     up = config["align"]["up"]
     return garment.with_grain(lines=options.get("grain_lines"), bias=options.get("bias", ()),
                               up=None if up == "auto" else up)
-
-
-def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
-    """The grain stripes set, with what the report says about the cloth.
-
-    Every piece is turned so that its grain runs along the stripe axis nearest the roll's
-    grain (stripes along or across the grain), so the stripes cross every piece at the
-    same angle. Here (plain nesting) their positions across the seams are left as they
-    fall; :func:`stripe_print` matches them.
-    """
-    if fabric.get("kind") != "stripes" or fabric.get("direction_deg") is None:
-        return {"kind": "plain", "grain_deg": float(fabric_grain_deg)}
-    along = float(fabric["direction_deg"])
-    turn = (along - fabric_grain_deg + 45.0) % 90.0 - 45.0  # to the nearest stripe axis
-    grain = float(fabric_grain_deg + turn)
-    return {"kind": "stripes", "grain_deg": round(grain, 3),
-            "period_mm": fabric.get("period"), "direction_deg": round(along, 3),
-            "note": (f"stripes every {float(fabric.get('period') or 0):.3g} mm at "
-                     f"{along:.1f} deg: nested on grain as plain fabric with the pieces' "
-                     f"grain at {grain:.1f} deg (on the stripes); the stripes are not "
-                     "matched across the seams")}
-
-
-#: Step along the stripes of the lattice that stands for a stripe print (mm, at most an
-#: eighth of the period): a stripe runs on without end, so a piece may slide along the
-#: stripes by any amount; this step is the finest the nesting and the check distinguish.
-STRIPE_SLIDE_MM = 1.0
-
-
-def stripe_print(fabric: dict, fabric_grain_deg: float) -> dict:
-    """FABRIC.json content that matches a 1-D stripe print across the seams.
-
-    A stripe print repeats every ``period`` across the stripes and not at all along them:
-    as a lattice it is ``w1`` = an arbitrarily short step along the stripes
-    (:data:`STRIPE_SLIDE_MM`) and ``w2`` = the period across them. Its group is pm with
-    the mirror across the stripes (the reflection along them), the one symmetry every
-    stripe sequence has besides translations: a mirror along the stripes or a half turn
-    needs a symmetric sequence and is not assumed. So a left/right pair on stripes across
-    its grain (horizontal stripes on a garment) mirrors its print. The same alignment,
-    reshaping and print-aware nesting as for a 2-D print then put the stripes of every
-    seam's two sides at one height, and let each piece slide along its stripes freely;
-    the grain runs along the stripe axis (:func:`stripe_grain`). The stripes' phase is
-    not measured: every piece sees the same print, so a common shift of the pieces across
-    the stripes changes nothing at the seams (pm's mirror concerns the along direction).
-    """
-    cloth = stripe_grain(fabric, fabric_grain_deg)
-    period = float(fabric["period"])
-    along = np.radians(float(fabric["direction_deg"]))
-    unit = np.array([np.cos(along), np.sin(along)])
-    normal = np.array([-unit[1], unit[0]])
-    slide = min(STRIPE_SLIDE_MM, period / 8.0)
-    note = cloth["note"].replace("nested on grain as plain fabric with the pieces'",
-                                 "matched across the seams, the pieces'")
-    note = note.replace("; the stripes are not matched across the seams",
-                        f", free to slide along them ({slide:g} mm steps)")
-    return {**fabric, **cloth, "note": note, "group": "pm",
-            "w1": [float(v) for v in unit * slide],
-            "w2": [float(v) for v in normal * period], "origin": [0.0, 0.0],
-            "units": "mm"}
 
 
 def nest_placement(garment, placement, config: Config, progress=None, options=None, *,
