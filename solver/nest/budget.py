@@ -51,8 +51,37 @@ class Deadline:
         """This deadline moved ``seconds`` earlier (a reserve for what follows)."""
         return Deadline(0.0, clock=self.clock, end=self.end - seconds)
 
+    def allows(self, seconds: float) -> bool:
+        """Whether a step of ``seconds`` started now still ends before the deadline."""
+        return self.clock() + seconds <= self.end
+
     def __repr__(self) -> str:
         return f"Deadline(left={self.left():.3f} s)"
+
+
+class Pace:
+    """The measured duration of a step that cannot be cut, so that one starts only when it
+    fits in what is left (the worst of the last ``MEMORY`` steps: the load changes)."""
+
+    MEMORY = 8
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self.clock = clock
+        self.recent: list[float] = []
+        self._start = 0.0
+
+    def start(self) -> None:
+        self._start = self.clock()
+
+    def stop(self) -> None:
+        self.recent = [*self.recent[1 - self.MEMORY:], self.clock() - self._start]
+
+    def step(self) -> float:
+        """Seconds one step takes (0 before the first was measured)."""
+        return max(self.recent, default=0.0)
+
+    def fits(self, deadline: Deadline) -> bool:
+        return deadline.allows(self.step())
 
 
 def deadline_of(limit: float | Deadline) -> Deadline:
