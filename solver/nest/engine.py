@@ -406,7 +406,9 @@ class Filler:
         item = self.items[k]
         options = []
         for ci, s in enumerate(self.shapes[item.key]):
-            t = self.translations(item, s, col, col + 2 * self.step + 2 * self.res)
+            # a narrow strip: made directly, not as chunks of the roll that only a fill
+            # reuses (they made shelving albano's 24 pieces take 3 ms a piece)
+            t = self._grid(item, s, col, col + 2 * self.step + 2 * self.res)
             t = t[t[:, 1] + s.lo[1] >= bottom - 1e-9]
             top = t[:, 1] + s.hi[1] + 1e-3 * (t[:, 0] + s.hi[0])
             options.append((top, np.full(len(t), ci), t))
@@ -491,9 +493,10 @@ FILL_PER_CANDIDATE = 0.012
 COARSE = 2.0
 
 
-#: measured cost of shelving one item (:meth:`Filler.shelve`), the high end under load:
-#: a fill that must give a result starts shelving this long per item left before its end
-SHELF_PER_ITEM = 0.004
+#: measured cost of shelving one item (:meth:`Filler.shelve`): 0.4-1 ms on the shirts and
+#: albano at load 7, 1.5-6 ms at load 10-11 on 2 cores; a fill that must give a result
+#: starts shelving this long per item left before its end
+SHELF_PER_ITEM = 0.005
 
 
 def first_fill_estimate(items: list[Item]) -> float:
@@ -525,17 +528,21 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | 
     ``targets`` optionally gives, for the items to insert, where they would like to be:
     the first run inserts them as close to it as possible instead of bottom-left.
     Every fill after the first stops at the deadline (its partial layout is dropped);
-    the first one gives a result, shelving the items left at the deadline
-    (:meth:`Filler.shelve`), unless ``interruptible`` (the caller has another result):
-    then None when the deadline comes first.
+    the first one gives a result on time, shelving the items left at the deadline
+    (:meth:`Filler.shelve`): a greedy fill cut short and shelved beats the naive marker
+    on many small pieces (shirts under a 0.5 p1 print). ``interruptible`` (the caller
+    has another result): None at once when not even shelving every item fits.
     """
     t0 = time.monotonic()
     deadline = deadline_of(time_limit)
     total = deadline.left()
     n = len(items)
+    missing = n if start is None else sum(m is None for m in start)
+    if interruptible and not deadline.allows(SHELF_PER_ITEM * missing):
+        return None
     if res is None:
         res = default_resolution(problem, items)
-        if not interruptible and deadline.left() < first_fill_estimate(items):
+        if deadline.left() < first_fill_estimate(items):
             res *= COARSE  # a fill that must finish in less than it needs: fewer pixels
     fixed = [shapely.Polygon(k) for k in problem.keepouts]
     length = problem.length or estimate_length(problem, items)
@@ -553,7 +560,7 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | 
             None if m is None else filler.pose(k, m) for k, m in enumerate(targets)]
         stuck = False
         for order in orderings(items, rng):
-            if (best is not None or interruptible) and deadline.expired():
+            if best is not None and deadline.expired():
                 break
             board, sol, index = filler.board(), list(pre), [0] * n
             for k in range(n):
@@ -561,7 +568,7 @@ def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | 
                     index[k] = board.add(filler.polygon(k, sol[k]))
             runs += 1
             filler.lean = LEANS[(runs - 1) % len(LEANS)]
-            complete = best is None and not interruptible
+            complete = best is None
             if wish is not None and runs == 1:  # nearest to the wished positions, left first
                 todo = [k for k in range(n) if pre[k] is None]
                 todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
