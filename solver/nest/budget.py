@@ -14,10 +14,12 @@ from collections.abc import Callable
 
 Progress = Callable[[str], None]
 
-#: measured cost of building and verifying a layout, per placed piece (s); with a floor
-#: for the fixed part. Nesting stops this much before the deadline to leave room for it.
+#: measured cost of building and verifying a layout, per placed piece (s), on plain and
+#: printed fabric (the print adds the lattice and grain checks); with a floor for the
+#: fixed part. Nesting stops this much before the deadline to leave room for it.
 #: verify_layout took 1.2 ms a piece on the 99 shirts, 2.2 ms under a print, at load ~7.
-FINISH_PER_PIECE = 0.0025
+FINISH_PER_PIECE = 0.0015
+FINISH_PER_PRINTED_PIECE = 0.0025
 FINISH_MIN = 0.05
 
 
@@ -90,6 +92,6 @@ def deadline_of(limit: float | Deadline) -> Deadline:
     return limit if isinstance(limit, Deadline) else Deadline(float(limit))
 
 
-def finish_reserve(pieces: int) -> float:
+def finish_reserve(pieces: int, printed: bool = False) -> float:
     """Seconds to keep for building and verifying a layout of ``pieces`` pieces."""
-    return FINISH_MIN + FINISH_PER_PIECE * pieces
+    return FINISH_MIN + (FINISH_PER_PRINTED_PIECE if printed else FINISH_PER_PIECE) * pieces
