@@ -64,12 +64,15 @@ class Deadline:
 
 class Pace:
     """The measured duration of a step that cannot be cut, so that one starts only when it
-    fits in what is left (the worst of the last ``MEMORY`` steps: the load changes)."""
+    fits in what is left (the worst of the last ``MEMORY`` steps: the load changes).
+    Before the first is measured, ``prior`` (s) stands for it."""
 
     MEMORY = 8
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, prior: float = 0.0, clock: Callable[[], float] = time.monotonic,
+                 ) -> None:
         self.clock = clock
+        self.prior = prior
         self.recent: list[float] = []
         self._start = 0.0
 
@@ -80,8 +83,8 @@ class Pace:
         self.recent = [*self.recent[1 - self.MEMORY:], self.clock() - self._start]
 
     def step(self) -> float:
-        """Seconds one step takes (0 before the first was measured)."""
-        return max(self.recent, default=0.0)
+        """Seconds one step takes (``prior`` before the first was measured)."""
+        return max(self.recent, default=self.prior)
 
     def fits(self, deadline: Deadline) -> bool:
         return deadline.allows(self.step())

@@ -8,7 +8,10 @@ the piece's allowed translations (a lattice coset on a print, every pixel on pla
 cloth), bottom-left first, and the best candidates are verified exactly with shapely
 (vectorised), so rasterisation never produces an overlap, only a missed opportunity.
 Several orderings (area, length, randomised) restart the greedy fill, and a compaction
-pass re-inserts the right-most pieces while time remains.
+pass re-inserts the right-most pieces while time remains. Every placement reads the
+deadline between candidate maps and between batches of exact checks; the first fill,
+which must give a marker, shelves the pieces it has not placed when only the time to
+shelve them is left (columns right of its marker, no raster), so it ends on time.
 
 The strategies (:mod:`solver.nest.lattice`, :mod:`solver.nest.regions`, ...) import this
 module; it imports none of them.

@@ -159,7 +159,9 @@ def test_a_coset_move_that_does_not_fit_is_not_started(printed_tshirt):
     k = int(np.argmax([search.right(j, p) for j, p in enumerate(sol)]))
     before = list(sol)
     assert not search.move(k, sol, polys, r[1] * 0.9, Deadline(0.0))
-    assert sol == before and search.pace.step() == 0.0  # not started, so not measured
+    assert sol == before and not search.pace.recent  # not started, so not measured
+    assert not search.move(k, sol, polys, r[1] * 0.9, Deadline(search.pace.prior / 2))
+    assert sol == before and not search.pace.recent  # a first move needs its prior
     assert search.move(k, sol, polys, r[1] * 0.9, Deadline(60.0))  # moved inside
     assert search.pace.step() > 0.0
     clock = Clock(0.0)
