@@ -187,8 +187,8 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     with each setting of ``REACHES``, and by the nearest-first sweep of
     :func:`solver.nest.regions.repair` (what ``resnap`` does); the shortest wins.
 
-    Unless ``interruptible``, the sweep must finish: sparrow stops early enough to leave
-    it its estimated time.
+    Unless ``interruptible``, sparrow stops early enough to leave the sweep its estimated
+    time (cut at the deadline, the sweep shelves the pieces left).
     """
     budget = deadline_of(time_limit)
     t0 = time.monotonic()
