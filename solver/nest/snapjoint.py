@@ -25,6 +25,7 @@ from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice
 
 AREA_TOL = 1e-7  # overlap accepted at gap 0, fraction of the smaller area (verify: 1e-6)
+CLASH_BLOCK = 4096  # option pairs checked exactly between two looks at the clock
 
 
 def snap_options(problem: NestProblem, item: Item, move: np.ndarray, reach: float,
@@ -76,6 +77,23 @@ def _collide(a, b, gap: float) -> np.ndarray:
     return inter > AREA_TOL * np.minimum(shapely.area(a), shapely.area(b))
 
 
+def _clash_table(a: np.ndarray, b: np.ndarray, gap: float, deadline: float,
+                 ) -> np.ndarray | None:
+    """(len(a), len(b)) bool: which options of two pieces collide; None at the deadline.
+
+    In blocks of about ``CLASH_BLOCK`` pairs with the deadline read between them: on a
+    stripe print (1 mm steps along the stripes) a piece has hundreds of options, and one
+    pair's table took seconds.
+    """
+    out = np.zeros((len(a), len(b)), bool)
+    rows = max(1, CLASH_BLOCK // max(1, len(b)))
+    for r in range(0, len(a), rows):
+        if time.monotonic() > deadline:
+            return None
+        out[r:r + rows] = _collide(a[r:r + rows, None], b[None, :], gap)
+    return out
+
+
 def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
                reach: float, push: float, deadline: float = math.inf,
                ) -> tuple[list[np.ndarray], float] | None:
@@ -104,7 +122,9 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
         near = np.flatnonzero((box[:, 0] <= box[i, 2] + g) & (box[:, 2] >= box[i, 0] - g)
                               & (box[:, 1] <= box[i, 3] + g) & (box[:, 3] >= box[i, 1] - g))
         for j in near[near > i]:
-            m = _collide(opts[i][1][:, None], opts[j][1][None, :], problem.gap)
+            m = _clash_table(opts[i][1], opts[j][1], problem.gap, deadline)
+            if m is None:
+                return None
             if m.any():
                 clash[i, j] = m
                 clash[j, i] = m.T
@@ -232,9 +252,10 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     :func:`solver.nest.regions.repair` (what ``resnap`` does), and its earlier feasible
     nests (:func:`earlier_nests`) snapped jointly while time remains; the shortest wins.
 
-    Unless ``interruptible``, the sweep must finish: sparrow and the snaps stop early
-    enough to leave it its estimated time (it has what they leave, too; once a snap
-    exists it is only a fallback, and its restarts gave way to the earlier nests).
+    Unless ``interruptible``, sparrow and the snaps stop early enough to leave the sweep
+    its estimated time (cut at the deadline, the sweep shelves the pieces left); it also
+    has what they leave, and once a snap exists it is only a fallback (its restarts gave
+    way to the earlier nests).
     """
     budget = deadline_of(time_limit)
     sweep = 0.0 if interruptible else first_fill_estimate(items)

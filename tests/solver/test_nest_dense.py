@@ -15,6 +15,7 @@ import shapely
 
 from solver.garment import load_garment
 from solver.nest import NestProblem, Piece, verify_layout
+from solver.nest.budget import Deadline
 from solver.nest.coset import CosetSearch, coset_search
 from solver.nest.instance import affine, compose, invert
 from solver.nest.layout import build_layout
@@ -160,7 +161,7 @@ def test_separation_resolves_collisions_on_the_cosets(printed, gap):
         sol[k] = (0, problem.lattice @ np.ceil(np.linalg.solve(problem.lattice, 100.0 - lo)))
     polys = np.array([search.polygon(k, p) for k, p in enumerate(sol)], dtype=object)
     assert len(search.collisions(polys)[0]) == 1
-    assert search.separate(sol, 1500.0, time.monotonic() + 3)
+    assert search.separate(sol, 1500.0, Deadline(3.0))
     polys = np.array([search.polygon(k, p) for k, p in enumerate(sol)], dtype=object)
     assert len(search.collisions(polys)[0]) == 0 and search.inside(polys, 1500.0).all()
     layout = build_layout(problem, items, [np.column_stack([it.candidates[c][:, :2],
