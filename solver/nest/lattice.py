@@ -48,7 +48,8 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``joint``: a free nest with a quarter of the covering radius of margin (none from
       ``MANY`` pieces) snapped both by the sweep and jointly, each piece to one of the
       allowed positions around its free one, none colliding, the shortest such choice
-      (:mod:`solver.nest.snapjoint`).
+      (:mod:`solver.nest.snapjoint`); sparrow's earlier, looser nests are snapped
+      jointly too while time remains (one of them often snaps shorter).
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
