@@ -21,6 +21,12 @@ Sources (each reported on its own; never pooled into one number):
   stretched, woven cloth.
 - ``plain``: unprinted cloth (plain weave, twill, rib knit; threads 0.2-0.6 mm): must
   never give a 2-D lattice.
+- ``npm-wallpaper-groups``: an outside reference, line drawings replicated by the npm
+  package ``wallpaper-groups`` under its 16 types and drawn by OpenCV (colours, widths,
+  scale, turn, blur, noise, JPEG; ``bench.npm_wallpaper``). The truth is the group and
+  lattice measured on the package's own segments, not its label. Evaluation only: the
+  classifier's constants are never picked on it. Skipped, saying so, without node or
+  the package (``make bench`` installs it).
 - ``photos-tc``, ``photos-pj``, ``photos-lyn``, ``photos-ms``: the ten hand-labelled real
   photographs of ``../shared/data/fabric_photos`` (SOURCE.md there), grouped by origin,
   read in place (never copied; skipped when absent). A group is right when it is the
@@ -54,6 +60,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
 from simulators.classics import CLASSICS, classic_print
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
@@ -68,6 +75,7 @@ from vision.subgroups import error_kind
 
 PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "fabric_photos"
 FAMILIES = ("rotation-scale", "perspective", "blur", "noise", "jpeg", "light", "fold")
+OUTSIDE = ("npm-wallpaper-groups",)
 THRESHOLDS = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95)
 CV_GRID = tuple((band, tau) for band in (float("inf"), 24.0, 12.0, 6.0)
                 for tau in (0.80, 0.86))
@@ -287,6 +295,18 @@ def plain(per_weave: int = 3, seed: int = 0):
             yield Sample("plain", f"{weave}/{thread:.2f}mm", img, mm, "plain")
 
 
+def npm(per_type: int, seed: int = 0):
+    """The npm package's line drawings (see ``bench.npm_wallpaper``); none, saying
+    why, when node or the package is missing."""
+    why = npm_wallpaper.unavailable()
+    if why:
+        print(f"source npm-wallpaper-groups skipped: {why}", flush=True)
+        return
+    for kind, group, img, basis in npm_wallpaper.patterns(per_type, seed=seed):
+        yield Sample("npm-wallpaper-groups", f"{kind}->{group}", img,
+                     npm_wallpaper.MM_PER_PX, group, basis=basis)
+
+
 def photos(root: Path = PHOTOS):
     """The hand-labelled photographs, cropped to their labelled region (pixels = mm)."""
     labels = root / "labels.csv"
@@ -479,7 +499,7 @@ def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "plain", "photos")
+                                    "plain", "photos", "npm")
         ) -> dict:
     makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
               "tilted": lambda: tilted(per_group, seed=seed),
@@ -487,7 +507,8 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
               "cloth": lambda: cloth(per_group, seed=seed),
               "classics": lambda: classics(max(2, per_group), seed=seed),
               "plain": lambda: plain(max(2, per_group), seed=seed),
-              "photos": photos}
+              "photos": photos,
+              "npm": lambda: npm(per_group, seed=seed)}
     samples = []
     for name in sources:
         for s in makers[name]():
@@ -502,9 +523,11 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
                       flush=True)
     text = (f"## Vision (`python -m bench vision`, {date.today().isoformat()}, "
             f"{platform.machine()}, {per_group} per group)\n\n" + report(samples))
-    text += "\n\nConfidence calibration: " + fit_temperature(samples)
+    # Outside references are evaluation only: no constant is fitted or picked on them.
+    own = [s for s in samples if s.source not in OUTSIDE]
+    text += "\n\nConfidence calibration: " + fit_temperature(own)
     if cv:
-        text += "\n\nLeave-one-source-out cross-validation:\n\n" + cross_validate(samples)
+        text += "\n\nLeave-one-source-out cross-validation:\n\n" + cross_validate(own)
     print(text)
     return {"samples": samples, "markdown": text}
 
