@@ -112,6 +112,17 @@ def _garment_problem(rel: str, repeat: float | None):
     return NestProblem(pieces, 1500.0, gap=2.0, fabric=fabric)
 
 
+def _stripes_problem(rel: str, period: float):
+    """A garment under a stripe print: pm, free to slide along the stripes in 1 mm steps
+    (``station.stripes``), the period across them."""
+    from solver.wallpaper import Wallpaper
+    from station.stripes import STRIPE_SLIDE_MM
+
+    problem = _garment_problem(rel, None)
+    problem.fabric = Wallpaper("pm", (STRIPE_SLIDE_MM, 0.0), (0.0, period))
+    return problem
+
+
 def _esicup_problem(name: str, repeat: float | None):
     from solver.nest import load_esicup
     from solver.wallpaper import Wallpaper
@@ -129,6 +140,7 @@ BUDGET_CASES = {  # name: (problem maker, argument, print repeat or None for pla
     "pants-p2-50": (_garment_problem, GARMENTS[1], 50.0),
     "skirt": (_garment_problem, GARMENTS[2], None),
     "skirt-p2-50": (_garment_problem, GARMENTS[2], 50.0),
+    "pants-stripes-30": (_stripes_problem, GARMENTS[1], 30.0),
     "shirts": (_esicup_problem, "shirts", None),
     "shirts-p1-0.5": (_esicup_problem, "shirts", 0.5),
     "swim": (_esicup_problem, "swim", None),

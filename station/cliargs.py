@@ -53,10 +53,18 @@ def load_garment_arg(args: argparse.Namespace, **options):
 
 
 def load_fabric(path: str | Path) -> Wallpaper:
+    """The print of a FABRIC.json; a stripe print (``kind: stripes``, as `station detect`
+    writes it) as the 1-D lattice that matches stripes across the seams."""
+    from solver.jsonfile import read_json
+    from station.stripes import stripe_print
+
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such fabric file")
-    return Wallpaper.load(path)
+    doc = read_json(path)
+    if isinstance(doc, dict) and doc.get("kind") == "stripes" and doc.get("group") is None:
+        doc = stripe_print(doc, 0.0, str(path))
+    return Wallpaper.from_dict(doc, str(path))
 
 
 def add_config_argument(parser: argparse.ArgumentParser) -> None:

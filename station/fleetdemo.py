@@ -18,17 +18,19 @@ import time
 from pathlib import Path
 from typing import Any
 
-from station.commands.demo import copy_job_files, read_json_or_empty
+from station.commands.demo import (
+    copy_job_files,
+    read_json_or_empty,
+    start_simulated_station,
+)
 from station.errors import UserError
 
 
 def run(args) -> int:
-    from station.config import SCHEMA, load_config
     from station.daemon import Daemon
     from station.fleetconsole import FleetConsole
     from station.jobstore import FINAL, JobStore
     from station.localpg import LocalPostgres, PostgresUnavailable
-    from station.pipeline import StationPipeline
 
     if args.fleet < 1 or args.jobs < 1:
         raise ValueError("--fleet and --jobs must be at least 1")
@@ -46,26 +48,13 @@ def run(args) -> int:
             url = server.create_database("fleet")
             print(f"station demo: PostgreSQL server at {url}, {args.fleet} stations",
                   file=sys.stderr)
-            port = SCHEMA["serial"]["port"].default.replace("speed=50",
-                                                            f"speed={args.speed:g}")
             for i in range(args.fleet):
                 name = f"table-{i + 1}"
-                config = load_config(None, {
-                    "serial": {"port": port.replace("name=station",
-                                                    f"name=fleet-{name}-{id(args)}")},
+                stations.append(start_simulated_station(args, f"fleet-{name}-{id(args)}", {
                     "store": {"url": url, "work_dir": f"{tmp}/{name}/jobs"},
                     "control": {"socket": f"{tmp}/{name}/station.sock"},
                     "station": {"name": name},
-                    "align": {"restarts": args.restarts},
-                    "reshape": {"enabled": not args.no_reshape},
-                    "nest": {"seconds": args.nest_seconds},
-                })
-                daemon = Daemon(config, StationPipeline(config, simulate=True))
-                daemon.recover()
-                daemon.control.start()
-                worker = threading.Thread(target=daemon.run_loop, name=name, daemon=True)
-                worker.start()
-                stations.append((daemon, worker))
+                }, thread=name))
             store = JobStore(url)
             console = FleetConsole(store)
             for k in range(args.jobs):

@@ -47,6 +47,7 @@ from solver.jsonfile import read_json
 from station.config import Config
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
+from station.stripes import stripe_grain, stripe_print
 
 log = logging.getLogger("station.pipeline")
 
@@ -248,13 +249,17 @@ class StationPipeline:
 
         captured = fabric if isinstance(fabric, Captured) else Captured.read(fabric, workdir)
         garment, garment_path, symmetrised = self._job_garment(job, workdir)
-        if captured.fabric.get("kind") in ("plain", "stripes"):
+        kind = captured.fabric.get("kind")
+        if kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes", True)):
             return self.plan_plain(job, captured, garment, garment_path, workdir, control)
-        wallpaper = Wallpaper.from_dict(captured.fabric, captured.path)
+        fabric = (stripe_print(captured.fabric, self.config["align"]["fabric_grain_deg"])
+                  if kind == "stripes" else captured.fabric)
+        wallpaper = Wallpaper.from_dict(fabric, captured.path)
         report: dict[str, Any] = {"job": job.id, "garment": job.garment,
-                                  "fabric": {k: captured.fabric.get(k) for k in (
-                                      "group", "w1", "w2", "origin", "source", "confidence")},
-                                  "seconds": {}}
+                                  "fabric": {k: fabric.get(k) for k in (
+                                      "group", "w1", "w2", "origin", "source", "confidence",
+                                      "kind", "period_mm", "direction_deg", "grain_deg",
+                                      "note") if k in fabric}, "seconds": {}}
         if symmetrised is not None:
             report["symmetrise"] = symmetrised.to_dict()
         clock = time.perf_counter()
@@ -279,7 +284,7 @@ class StationPipeline:
 
         garment = grained(garment, self.config, job.options)
         placement = align_garment(garment, wallpaper, self.config, job.options, on_restart,
-                                  fabric_grain_deg=captured.fabric.get("grain_deg"))
+                                  fabric_grain_deg=fabric.get("grain_deg"))
         placement.garment = str(garment_path)
         report["align"] = placement.report
         aligned = fit_report(garment, placement)
@@ -354,9 +359,10 @@ class StationPipeline:
 
     def plan_plain(self, job: Job, captured: Captured, garment, garment_path: Path,
                    workdir: Path, control: JobControl) -> Planned:
-        """Plain cloth (the camera found only the weave) or stripes: nothing to align in
-        2-D, so the pieces are nested on grain as drawn, then programmed; same files as
-        :meth:`plan`. Stripes set the grain (:func:`stripe_grain`)."""
+        """Plain cloth (the camera found only the weave), or stripes the job does not
+        match (option ``match_stripes`` false): nothing to align, so the pieces are nested
+        on grain as drawn, then programmed; same files as :meth:`plan`. Stripes set the
+        grain (:func:`stripe_grain`)."""
         from solver.placement import Placement
         from solver.wallpaper import Wallpaper
 
@@ -728,27 +734,6 @@ def grained(garment, config: Config, options: dict[str, Any]):
     up = config["align"]["up"]
     return garment.with_grain(lines=options.get("grain_lines"), bias=options.get("bias", ()),
                               up=None if up == "auto" else up)
-
-
-def stripe_grain(fabric: dict, fabric_grain_deg: float) -> dict:
-    """The grain plain nesting keeps, with what the report says about the cloth.
-
-    Stripes (a 1-D repeat) are not matched across seams here: every piece is turned so
-    that its grain runs along the stripe axis nearest the roll's grain (stripes along
-    or across the grain), so the stripes cross every piece at the same angle; their
-    positions across the seams are left as they fall.
-    """
-    if fabric.get("kind") != "stripes" or fabric.get("direction_deg") is None:
-        return {"kind": "plain", "grain_deg": float(fabric_grain_deg)}
-    along = float(fabric["direction_deg"])
-    turn = (along - fabric_grain_deg + 45.0) % 90.0 - 45.0  # to the nearest stripe axis
-    grain = float(fabric_grain_deg + turn)
-    return {"kind": "stripes", "grain_deg": round(grain, 3),
-            "period_mm": fabric.get("period"), "direction_deg": round(along, 3),
-            "note": (f"stripes every {float(fabric.get('period') or 0):.3g} mm at "
-                     f"{along:.1f} deg: nested on grain as plain fabric with the pieces' "
-                     f"grain at {grain:.1f} deg (on the stripes); the stripes are not "
-                     "matched across the seams")}
 
 
 def nest_placement(garment, placement, config: Config, progress=None, options=None, *,

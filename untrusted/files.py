@@ -30,14 +30,7 @@ def read_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
     except OSError as exc:
         raise InputError(path, f"cannot open the {what} ({exc.strerror})") from None
     try:
-        st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise InputError(path, f"is a folder, expected a {what}")
-        if not stat.S_ISREG(st.st_mode):
-            raise InputError(path, f"is not a regular file, expected a {what}")
-        if st.st_size > max_bytes:
-            raise InputError(path, f"{what} of {st.st_size:,} bytes exceeds the limit of "
-                             f"{max_bytes:,}")
+        _check_stat(path, os.fstat(fd), what=what, max_bytes=max_bytes)
         with os.fdopen(os.dup(fd), "rb") as fh:
             data = fh.read(max_bytes + 1)
     except OSError as exc:
@@ -59,6 +52,12 @@ def check_file(path: str | Path, *, what: str, max_bytes: int) -> Path:
         raise MissingInput(path, f"{what} not found") from None
     except OSError as exc:
         raise InputError(path, f"cannot open the {what} ({exc.strerror})") from None
+    _check_stat(path, st, what=what, max_bytes=max_bytes)
+    return path
+
+
+def _check_stat(path: Path, st: os.stat_result, *, what: str, max_bytes: int) -> None:
+    """A folder, a device or FIFO, or a file over ``max_bytes`` is an InputError."""
     if stat.S_ISDIR(st.st_mode):
         raise InputError(path, f"is a folder, expected a {what}")
     if not stat.S_ISREG(st.st_mode):
@@ -66,7 +65,6 @@ def check_file(path: str | Path, *, what: str, max_bytes: int) -> Path:
     if st.st_size > max_bytes:
         raise InputError(path, f"{what} of {st.st_size:,} bytes exceeds the limit of "
                          f"{max_bytes:,}")
-    return path
 
 
 def decode_text(data: bytes, source: str | Path, what: str) -> str:

@@ -29,14 +29,14 @@ def nest_naive(problem: NestProblem, *, time_limit: float | Deadline = 30.0, see
 
 def naive_moves(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                 seed: int | None, progress: Progress | None = None,
-                ) -> tuple[list[np.ndarray], float]:
-    """Moves and marker length of the baseline: valid without any search after sparrow,
-    hence also the certain first marker when the budget is too short for a fill."""
+                interruptible: bool = False) -> tuple[list[np.ndarray], float]:
+    """Moves and marker length of the baseline: valid without any search after sparrow.
+    ``interruptible`` (the caller has another marker): sparrow late is given up (Late)."""
     if problem.fabric is None:
         raise ValueError("the naive print baseline needs a fabric")
     r = covering_radius(problem.lattice) * (1 + 1e-9)
     moves, _ = plain_moves(problem, items, extra=r, time_limit=time_limit, seed=seed,
-                           progress=progress)
+                           progress=progress, interruptible=interruptible)
     moves = snap_to_lattice(problem, items, moves)
     right = max(float(affine(m, it.ref)[:, 0].max()) for it, m in zip(items, moves))
     return moves, right + problem.gap

@@ -74,7 +74,8 @@ def narrowest(ring: np.ndarray, orientations) -> float:
 
 def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
                  seed: int | None, workers: int = 1, progress: Progress | None = None,
-                 label: str = "spyrrow", interruptible: bool = False) -> tuple[dict, float]:
+                 label: str = "spyrrow", interruptible: bool = False,
+                 others: list | None = None) -> tuple[dict, float]:
     """Run sparrow on ``{key: (ring, demand, orientations|None)}`` until the deadline.
 
     Returns ``{key: [(angle_deg, (tx, ty)), ...]}`` (one entry per copy) and the strip
@@ -83,7 +84,9 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
     progress reports are watched and, at the deadline, the best feasible one is the
     answer; sparrow then ends on its own in the background, shortly after.
     Without a feasible one by then it is waited for, unless ``interruptible`` (the caller
-    has another marker): then :class:`Late` is raised.
+    has another marker): then :class:`Late` is raised. ``others``, if given, receives the
+    placements and lengths of the other feasible markers sparrow reported on the way
+    (different nests, for searches that start from several).
     """
     deadline = deadline_of(time_limit)
     items = [spyrrow.Item(str(k), [tuple(map(float, p)) for p in ring], int(n),
@@ -110,11 +113,13 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
     thread = threading.Thread(target=work, daemon=True)
     t0 = time.monotonic()
     thread.start()
-    last, best = 0.0, None
+    last, best, feasible = 0.0, None, []
     while thread.is_alive():
         thread.join(POLL)
         reports = queue.drain()
         for kind, sol in reports:
+            if kind in FEASIBLE:
+                feasible.append(sol)
             if kind in FEASIBLE and (best is None or sol.width < best.width):
                 best = sol
         if progress and reports and time.monotonic() - last > 2.0:
@@ -134,21 +139,30 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
         if "sol" not in result:
             raise ValueError(f"the strip packer failed: {result.get('error')!r}")
         best = result["sol"]
-    sol = best
+    if others is not None:
+        others.extend((_placements(shapes, s), float(s.width)) for s in feasible
+                      if s is not best)
+    return _placements(shapes, best), float(best.width)
+
+
+def _placements(shapes: dict, sol) -> dict:
+    """``{key: [(angle_deg, (tx, ty)), ...]}`` of a sparrow solution."""
     keys = {str(k): k for k in shapes}
     out: dict = {k: [] for k in shapes}
     for pi in sol.placed_items:
         out[keys[pi.id]].append((float(pi.rotation) % 360.0, tuple(map(float, pi.translation))))
-    return out, float(sol.width)
+    return out
 
 
 def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
                 time_limit: float | Deadline = 30.0, seed: int | None = 0,
                 progress: Progress | None = None, interruptible: bool = False,
-                ) -> tuple[list[np.ndarray], float]:
+                others: list | None = None) -> tuple[list[np.ndarray], float]:
     """Per item the map ``G`` (reference frame -> fabric) of a free nest by sparrow.
 
     ``extra`` is added to every side of every shape (the naive print baseline uses it).
+    ``others``, if given, receives (moves, length) of the other feasible nests sparrow
+    reported on the way.
     """
     g = problem.gap
     grow = g / 2 + extra
@@ -170,8 +184,17 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
                              "orientation: it cannot be nested")
     # buffered shapes lie in [0, L] x [0, W - g]; true outlines keep ``grow`` inside that,
     # so shifting by g/2 leaves g + extra to every fabric edge and g + 2 extra between pieces
+    found: list | None = None if others is None else []
     placed, length = spyrrow_pack(shapes, problem.width - g, time_limit=time_limit, seed=seed,
-                                  progress=progress, interruptible=interruptible)
+                                  progress=progress, interruptible=interruptible,
+                                  others=found)
+    if others is not None:
+        others.extend((_moves(items, p, g), w + g) for p, w in found)
+    return _moves(items, placed, g), length + g
+
+
+def _moves(items: list[Item], placed: dict, g: float) -> list[np.ndarray]:
+    """Per item its map from sparrow's placements of the shapes grown by ``g / 2``."""
     shift = np.array([g / 2, g / 2])
     moves = []
     used: dict = {k: 0 for k in placed}
@@ -181,7 +204,7 @@ def plain_moves(problem: NestProblem, items: list[Item], extra: float = 0.0, *,
         m = rotation(ang)
         m[:, 2] = np.asarray(t) + shift
         moves.append(compose(m, MIRROR_X) if it.mirrored else m)
-    return moves, length + g
+    return moves
 
 
 def nest_plain(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,

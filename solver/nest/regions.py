@@ -80,7 +80,9 @@ def repair(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
 
     Re-inserted pieces go to the allowed position nearest to where they were, left-most
     first. ``everything`` re-inserts all pieces that way (a global re-snap).
-    ``interruptible``: the caller has another result, give up (None) at the deadline.
+    ``interruptible``: the caller has another result, give up (None) when not even the
+    time to shelve the pieces is left; otherwise those not re-inserted by the deadline
+    are shelved (:meth:`solver.nest.engine.Filler.shelve`).
     """
     polys = np.array([shapely.Polygon(affine(m, it.ref)) for it, m in zip(items, moves)],
                      dtype=object)
@@ -117,8 +119,8 @@ def repair_snapped(problem: NestProblem, items: list[Item], *, time_limit: float
                    ) -> tuple[list[np.ndarray], float] | None:
     """Sparrow on plain fabric, snapped to the print's lattice, conflicts re-inserted.
 
-    Sparrow stops early enough to leave the re-insertion its estimated time (it must
-    finish unless ``interruptible``, and is wasted if cut).
+    Sparrow stops early enough to leave the re-insertion its estimated time (cut at the
+    deadline, it shelves the pieces left: a marker, but a poor one).
     """
     deadline = deadline_of(time_limit)
     fill = first_fill_estimate(items)

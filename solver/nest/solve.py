@@ -28,7 +28,8 @@ def nest(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int
         raise ValueError(f"unknown nesting method {method!r}; expected one of {METHODS}")
     _check_widths(problem)
     items = problem.items()
-    deadline = deadline_of(time_limit).before(finish_reserve(len(items)))
+    deadline = deadline_of(time_limit).before(
+        finish_reserve(len(items), printed=problem.fabric is not None))
     if problem.fabric is not None:
         if method == "naive":
             layout = nest_naive(problem, time_limit=deadline, seed=seed, progress=progress)

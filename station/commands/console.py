@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="cut each near left/right pair as one pattern, the average of the two")
     p.add_argument("--no-symmetry", action="store_true",
                    help="align every piece on its own (default: pairs mirror the print)")
+    p.add_argument("--no-stripe-matching", action="store_true",
+                   help="on a stripe print, nest on the stripes' grain without matching the "
+                   "stripes across the seams (default: matched, as a 1-D print)")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -182,6 +185,8 @@ def run_submit(args: argparse.Namespace) -> int:
         options["bias"] = list(args.bias)
     if args.no_symmetry:
         options["symmetry"] = False
+    if args.no_stripe_matching:
+        options["match_stripes"] = False
     if args.symmetrise:
         options["symmetrise"] = True
     if args.pairs:

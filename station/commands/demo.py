@@ -68,10 +68,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import logging
 
-    from station.config import SCHEMA, load_config
     from station.control import request
-    from station.daemon import Daemon, setup_logging
-    from station.pipeline import StationPipeline
+    from station.daemon import setup_logging
     from station.progress import follow
 
     garment = Path(args.garment)
@@ -94,21 +92,11 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     setup_logging(logging.WARNING)
     t0 = time.monotonic()
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
     with tempfile.TemporaryDirectory(prefix="station-demo-") as tmp:
-        config = load_config(None, {
-            "serial": {"port": port.replace("name=station", f"name=demo-{id(args)}")},
+        daemon, worker = start_simulated_station(args, f"demo-{id(args)}", {
             "store": {"path": f"{tmp}/jobs.db", "work_dir": f"{tmp}/jobs"},
             "control": {"socket": f"{tmp}/station.sock"},
-            "align": {"restarts": args.restarts},
-            "reshape": {"enabled": not args.no_reshape},
-            "nest": {"seconds": args.nest_seconds},
         })
-        daemon = Daemon(config, StationPipeline(config, simulate=True))
-        daemon.recover()
-        daemon.control.start()
-        worker = threading.Thread(target=daemon.run_loop, name="daemon", daemon=True)
-        worker.start()
         sock = daemon.control.path
         try:
             job = request(sock, "submit", garment=str(garment.resolve()), fabric=None,
@@ -136,6 +124,32 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
+
+
+def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: dict[str, Any],
+                            *, thread: str = "daemon") -> tuple[Any, threading.Thread]:
+    """A daemon on its own simulated camera and GRBL (the emulator named ``emulator``), with
+    the demo's alignment, reshaping and nesting settings, recovered and running in the
+    thread ``thread``: the one start of both demos. ``overrides``: its store, socket and
+    station sections."""
+    from station.config import SCHEMA, load_config
+    from station.daemon import Daemon
+    from station.pipeline import StationPipeline
+
+    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
+    config = load_config(None, {
+        "serial": {"port": port.replace("name=station", f"name={emulator}")},
+        "align": {"restarts": args.restarts},
+        "reshape": {"enabled": not args.no_reshape},
+        "nest": {"seconds": args.nest_seconds},
+        **overrides,
+    })
+    daemon = Daemon(config, StationPipeline(config, simulate=True))
+    daemon.recover()
+    daemon.control.start()
+    worker = threading.Thread(target=daemon.run_loop, name=thread, daemon=True)
+    worker.start()
+    return daemon, worker
 
 
 def copy_job_files(workdir: Path, target: Path, names) -> list[str]:

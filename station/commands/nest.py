@@ -49,8 +49,9 @@ def register(sub) -> None:
     p.add_argument("--method", default="auto",
                    choices=("auto", "resnap", "resnap-margin", "fill", "repair", "joint",
                             "coset", "naive"),
-                   help="search on a print (default auto: resnap (many pieces) or "
-                   "resnap-margin (few), joint, fill, then coset shrinks the best)")
+                   help="search on a print (default auto: joint (sparrow's nests snapped "
+                   "jointly to the print), fill, then coset shrinks the best; naive first "
+                   "when the time is short)")
     p.add_argument("--nap", action="store_true",
                    help="one-way print or napped fabric: no piece turns by 180 degrees")
     p.add_argument("--grain", choices=("on", "off"),

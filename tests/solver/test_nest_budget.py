@@ -11,11 +11,23 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+import shapely
+import shapely.affinity
 
 from solver.nest import NestProblem, Piece, load_esicup, verify_layout
 from solver.nest.budget import Deadline, deadline_of, finish_reserve
-from solver.nest.engine import fill_search
+from solver.nest.coset import CosetSearch
+from solver.nest.engine import (
+    Board,
+    Filler,
+    default_resolution,
+    estimate_length,
+    fill_search,
+    moves_of,
+)
+from solver.nest.layout import build_layout
 from solver.nest.plain import Late, spyrrow_pack
 from solver.nest.solve import nest
 from solver.wallpaper import Wallpaper
@@ -55,7 +67,7 @@ def test_deadline_shares_come_from_what_is_left():
     clock.now = 18.5
     assert d.expired() and d.left() == 0.0 and d.share(0.5).left() == 0.0
     assert deadline_of(d) is d and deadline_of(3).left() == pytest.approx(3, abs=0.5)
-    assert finish_reserve(100) > finish_reserve(1) > 0
+    assert finish_reserve(100, printed=True) > finish_reserve(100) > finish_reserve(1) > 0
 
 
 @pytest.fixture(scope="module")
@@ -67,15 +79,114 @@ def printed_tshirt():
     return NestProblem(pieces, 1500.0, gap=2.0, fabric=Wallpaper("p2", (50.0, 0.0), (0.0, 50.0)))
 
 
-def test_the_first_fill_finishes_past_the_deadline_and_no_other_starts(printed_tshirt):
+def test_a_fill_out_of_time_shelves_what_it_has_not_placed(printed_tshirt):
+    """The first fill gives a marker on time: at an expired deadline every piece is
+    shelved (columns right of the marker, exact-checked), and no second run starts."""
     problem, items = printed_tshirt, printed_tshirt.items()
     said: list[str] = []
     r = fill_search(problem, items, time_limit=Deadline(0.0), seed=0, progress=said.append)
     assert r is not None and len(r[0]) == len(items)
+    assert verify_layout(build_layout(problem, items, r[0]), problem) == []
     assert [m for m in said if "run" in m] and all("run 1 " in m for m in said)
     # a caller that holds another result gets nothing rather than a late fill
     assert fill_search(problem, items, time_limit=Deadline(0.0), seed=0,
                        interruptible=True) is None
+
+
+@pytest.fixture(scope="module")
+def printed_shirts():
+    """99 small pieces under a fine print: the input whose greedy fill took longest."""
+    problem = load_esicup(DATA / "nesting" / "shirts.json")
+    problem.fabric = Wallpaper("p1", (0.5, 0.0), (0.0, 0.5))
+    return problem
+
+
+def _filler(problem):
+    items = problem.items()
+    res = default_resolution(problem, items)
+    return items, Filler(items, problem.width, estimate_length(problem, items), problem.gap,
+                         res, [])
+
+
+def test_a_fill_cut_midway_shelves_the_rest_right_of_its_marker(printed_shirts):
+    problem = printed_shirts
+    items, filler = _filler(problem)
+    n = len(items)
+    shelved: list[int] = []
+    shelve = filler.shelve
+    filler.shelve = lambda order, *rest: shelved.extend(order) or shelve(order, *rest)
+    board, sol, index = filler.board(), [None] * n, [0] * n
+    # the clock passes the deadline after some 40 readings: part greedy, part shelved
+    late = Deadline(1.0, clock=ExpiresAfter(40))
+    assert filler.fill(list(range(n)), board, sol, index, deadline=late, complete=True)
+    assert all(p is not None for p in sol) and 0 < len(shelved) < n
+    layout = build_layout(problem, items, moves_of(filler, sol))
+    assert verify_layout(layout, problem) == []  # on the print's lattice, no overlap
+    greedy = sorted(set(range(n)) - set(shelved))
+    # the shelved pieces stand in columns right of everything the greedy fill placed
+    assert (min(filler.left(k, sol[k]) for k in shelved)
+            >= max(filler.right(k, sol[k]) for k in greedy) + problem.gap - 1e-9)
+    # without a deadline the same call would have to finish greedily; cut, it reports it
+    board2, sol2, index2 = filler.board(), [None] * n, [0] * n
+    assert not filler.fill(list(range(n)), board2, sol2, index2,
+                           deadline=Deadline(1.0, clock=ExpiresAfter(40)))
+    assert any(p is None for p in sol2)
+
+
+def test_a_placement_reads_the_deadline_between_candidate_maps_and_exact_checks(
+        printed_tshirt):
+    problem = printed_tshirt
+    items, filler = _filler(problem)
+    board = filler.board()
+    assert filler.best_position(board, items[0]) is not None
+    assert len(items[0].candidates) == 2  # p2: the piece and its half turn
+    # the Deadline reads the clock once; then: before either map, between them, and
+    # before the first exact check
+    for readings in range(3):
+        pos = filler.best_position(board, items[0],
+                                   deadline=Deadline(1.0, clock=ExpiresAfter(1 + readings)))
+        assert pos is None
+
+
+def test_a_coset_move_that_does_not_fit_is_not_started(printed_tshirt):
+    problem = printed_tshirt
+    items = problem.items()
+    r = fill_search(problem, items, time_limit=Deadline(0.0), seed=0)
+    search = CosetSearch(problem, items, r[1], default_resolution(problem, items),
+                         np.random.default_rng(0))
+    sol = [search.filler.pose(k, m) for k, m in enumerate(r[0])]
+    polys = np.array([search.polygon(k, p) for k, p in enumerate(sol)], dtype=object)
+    k = int(np.argmax([search.right(j, p) for j, p in enumerate(sol)]))
+    before = list(sol)
+    assert not search.move(k, sol, polys, r[1] * 0.9, Deadline(0.0))
+    assert sol == before and not search.pace.recent  # not started, so not measured
+    assert not search.move(k, sol, polys, r[1] * 0.9, Deadline(search.pace.prior / 2))
+    assert sol == before and not search.pace.recent  # a first move needs its prior
+    assert search.move(k, sol, polys, r[1] * 0.9, Deadline(60.0))  # moved inside
+    assert search.pace.step() > 0.0
+    clock = Clock(0.0)
+    pace = search.pace
+    assert not pace.fits(Deadline(pace.step() / 2, clock=clock))
+    assert pace.fits(Deadline(pace.step() * 2, clock=clock))
+
+
+def test_the_board_footprint_covers_the_outline(printed_tshirt):
+    board = Board(1500.0, 2000.0, 2.0, 2.0)
+    poly = shapely.Polygon(printed_tshirt.items()[0].ref).buffer(0)
+    poly = shapely.affinity.translate(poly, 300.0 - poly.bounds[0], 200.0 - poly.bounds[1])
+    x0, y0, img = board.footprint(poly)
+    rows, cols = np.nonzero(img)
+    # pixels of the footprint touch the outline (its edges are drawn: boundary pixels
+    # count), and every point inside the outline lies in a footprint pixel
+    centres = shapely.points((cols + x0 + 0.5) * 2.0, (rows + y0 + 0.5) * 2.0)
+    assert shapely.distance(poly, centres).max() <= 1.5 * 2.0
+    inside = np.asarray(poly.buffer(-2.0).exterior.coords)
+    pix = np.floor(inside / 2.0).astype(int) - [x0, y0]
+    assert img[pix[:, 1], pix[:, 0]].all()
+    assert abs(img.sum() * 4.0 - poly.area) < 0.05 * poly.area
+    board.add(poly)
+    assert board.count.sum() > img.sum()  # stamped grown by the gap
+    assert board.frontier() == pytest.approx(poly.bounds[2])
 
 
 def test_an_expired_budget_still_gives_a_verified_printed_marker(printed_tshirt):
@@ -126,3 +237,22 @@ def test_a_search_that_may_be_cut_does_not_wait_for_sparrow_past_its_deadline():
     with pytest.raises(Late):
         spyrrow_pack(shapes, problem.width, seed=0, interruptible=True,
                      time_limit=Deadline(0.0, clock=ExpiresAfter(0)))
+
+
+@pytest.mark.parametrize("case", ["tshirt-p2-50", "shirts-plain", "shirts-p1-0.5"])
+def test_nest_returns_a_verified_marker_within_its_time(case, printed_tshirt, printed_shirts):
+    """``--time T`` is a promise (issue 18): nest plus verification end within T. On a
+    loaded machine the 10 % are measured by ``python -m bench.nest --only budget``; a
+    deadline is behaviour, so here a generous 1.5 x T."""
+    if case == "tshirt-p2-50":
+        problem = printed_tshirt
+    elif case == "shirts-plain":
+        problem = load_esicup(DATA / "nesting" / "shirts.json")
+    else:
+        problem = printed_shirts
+    t0 = time.monotonic()
+    layout = nest(problem, time_limit=1.0, seed=0)
+    faults = verify_layout(layout, problem)
+    took = time.monotonic() - t0
+    assert faults == [] and len(layout.pieces) == len(problem.items())
+    assert took < 1.5, f"nest --time 1 took {took:.2f} s"

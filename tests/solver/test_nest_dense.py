@@ -1,4 +1,4 @@
-"""Denser printed markers: joint snapping of a free nest, strip shrinking on the cosets.
+"""Denser printed markers: joint snapping of free nests, strip shrinking on the cosets.
 
 Real pieces (the bundled Berkeley t-shirt's cut lines) on a 50 mm print; every layout
 passes the exact verifier and keeps the print under every piece (sampled points).
@@ -15,13 +15,22 @@ import shapely
 
 from solver.garment import load_garment
 from solver.nest import NestProblem, Piece, verify_layout
+from solver.nest.budget import Deadline
 from solver.nest.coset import CosetSearch, coset_search
 from solver.nest.instance import affine, compose, invert
 from solver.nest.layout import build_layout
+from solver.nest.plain import plain_moves
 from solver.nest.regions import conflicting, snap_to_lattice
-from solver.nest.snapjoint import _collide, joint_snap, snap_options
+from solver.nest.snapjoint import (
+    REACHES,
+    _collide,
+    earlier_nests,
+    joint_snap,
+    snap_nests,
+    snap_options,
+)
 from solver.nest.sources import garment_pieces
-from solver.wallpaper import Wallpaper
+from solver.wallpaper import Wallpaper, covering_radius
 from tests.conftest import DATA
 
 
@@ -152,7 +161,7 @@ def test_separation_resolves_collisions_on_the_cosets(printed, gap):
         sol[k] = (0, problem.lattice @ np.ceil(np.linalg.solve(problem.lattice, 100.0 - lo)))
     polys = np.array([search.polygon(k, p) for k, p in enumerate(sol)], dtype=object)
     assert len(search.collisions(polys)[0]) == 1
-    assert search.separate(sol, 1500.0, time.monotonic() + 3)
+    assert search.separate(sol, 1500.0, Deadline(3.0))
     polys = np.array([search.polygon(k, p) for k, p in enumerate(sol)], dtype=object)
     assert len(search.collisions(polys)[0]) == 0 and search.inside(polys, 1500.0).all()
     layout = build_layout(problem, items, [np.column_stack([it.candidates[c][:, :2],
@@ -160,3 +169,68 @@ def test_separation_resolves_collisions_on_the_cosets(printed, gap):
                                            for it, (c, t) in zip(items, sol)])
     assert verify_layout(layout, problem) == []
     _assert_on_print(layout, problem)
+
+
+@pytest.fixture(scope="module")
+def sparrow_run(tshirt):
+    """One short sparrow run on the t-shirt under a p1 print (a quarter covering radius
+    of margin, as the joint strategy nests): its final nest and the earlier ones."""
+    problem = NestProblem(tshirt, 1500.0, gap=2.0,
+                          fabric=Wallpaper("p1", (50.0, 0.0), (0.0, 50.0), origin=(7.0, 3.0)))
+    items = problem.items()
+    others: list = []
+    free, free_len = plain_moves(problem, items, extra=0.25 * covering_radius(problem.lattice),
+                                 time_limit=1.0, seed=0, others=others)
+    return problem, items, free, free_len, others
+
+
+def test_sparrow_reports_its_earlier_nests_as_valid_free_markers(tshirt):
+    plain = NestProblem(tshirt, 1500.0, gap=2.0)
+    items = plain.items()
+    others: list = []
+    _, length = plain_moves(plain, items, time_limit=1.0, seed=0, others=others)
+    assert len(others) >= 2
+    for moves, other_len in others[:: max(1, len(others) // 8)]:
+        layout = build_layout(plain, items, moves)
+        assert verify_layout(layout, plain) == []
+        assert layout.length <= other_len + 1e-6 and other_len >= length - 1e-6
+
+
+def test_earlier_nests_go_coarse_to_fine_within_reach():
+    lengths = [800.0, 801.0, 806.0, 812.0, 826.0, 851.0, 875.0, 899.0, 1000.0]
+    picked = [L for _, L in earlier_nests([(None, L) for L in lengths], 800.0, 50.0)]
+    # a lattice step (50 mm) from the final nest first, then 25, 12.5 and 6.25 mm apart;
+    # beyond 10 % longer (899, 1000) and within 6.25 mm of the final (801, 806) never
+    assert picked == [851.0, 826.0, 875.0, 812.0]
+    assert len(picked) == len(set(picked))
+
+
+def test_snapping_earlier_nests_gives_a_valid_marker_no_longer_than_the_final_snap(
+        sparrow_run):
+    problem, items, free, free_len, others = sparrow_run
+    step = 50.0
+    reach, push = REACHES[0]
+    final = joint_snap(problem, items, free, reach=reach * step, push=push * step)
+    t0 = time.monotonic()
+    got = snap_nests(problem, items, free, free_len, others, final=t0 + 2.0, deadline=t0 + 4.0)
+    assert got is not None and final is not None
+    assert got[1] <= final[1] + 1e-9
+    layout = build_layout(problem, items, got[0])
+    assert verify_layout(layout, problem) == []
+    _assert_on_print(layout, problem)
+    assert layout.length == pytest.approx(got[1])
+
+
+def test_snapping_earlier_nests_stops_at_its_deadline(sparrow_run):
+    problem, items, free, free_len, others = sparrow_run
+    assert len(earlier_nests(others, free_len, 50.0)) >= 2  # more work than the time given
+    t0 = time.monotonic()
+    assert snap_nests(problem, items, free, free_len, others, final=t0 - 1.0,
+                      deadline=t0 - 1.0) is None
+    for limit in (0.2, 0.5):
+        t0 = time.monotonic()
+        got = snap_nests(problem, items, free, free_len, others, final=t0 + limit / 2,
+                         deadline=t0 + limit)
+        assert time.monotonic() - t0 < limit + 0.25  # one step of the search past it at most
+        if got is not None:
+            assert verify_layout(build_layout(problem, items, got[0]), problem) == []
