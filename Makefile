@@ -19,7 +19,14 @@ test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -n 2
 
-bench: $(STAMP)
+# The outside reference of `python -m bench vision` (npm `wallpaper-groups`, evaluation
+# only, git-ignored); without npm the benchmark skips that source and says so.
+bench/.npm/node_modules/wallpaper-groups:
+	@if command -v npm >/dev/null; then \
+	  npm install --prefix bench/.npm --no-save --no-package-lock wallpaper-groups@1.0.3; \
+	else echo "npm not found: bench vision will skip source npm-wallpaper-groups"; fi
+
+bench: $(STAMP) bench/.npm/node_modules/wallpaper-groups
 	$(BIN)/python -m bench
 
 lint: $(STAMP)

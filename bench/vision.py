@@ -19,8 +19,18 @@ Sources (each reported on its own; never pooled into one number):
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
+- ``lineart``: near-symmetric line prints (``simulators.lineart.layered_print``): a
+  bold layer of each group, a faint layer (30-60 % contrast, thin) of a random subgroup
+  of it, camera blur, noise and JPEG; the truth is measured on the drawn segments.
+  Training data for the failure the npm source showed (a p1 print read as p2).
 - ``plain``: unprinted cloth (plain weave, twill, rib knit; threads 0.2-0.6 mm): must
   never give a 2-D lattice.
+- ``npm-wallpaper-groups``: an outside reference, line drawings replicated by the npm
+  package ``wallpaper-groups`` under its 16 types and drawn by OpenCV (colours, widths,
+  scale, turn, blur, noise, JPEG; ``bench.npm_wallpaper``). The truth is the group and
+  lattice measured on the package's own segments, not its label. Evaluation only: the
+  classifier's constants are never picked on it. Skipped, saying so, without node or
+  the package (``make bench`` installs it).
 - ``photos-tc``, ``photos-pj``, ``photos-lyn``, ``photos-ms``: the ten hand-labelled real
   photographs of ``../shared/data/fabric_photos`` (SOURCE.md there), grouped by origin,
   read in place (never copied; skipped when absent). A group is right when it is the
@@ -54,10 +64,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
 from simulators.classics import CLASSICS, classic_print
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
 from simulators.fabric import random_print, render_print
+from simulators.lineart import degrade, layered_print
 from solver.wallpaper import GROUP_NAMES, gauss_reduce
 from vision.calibration import Calibration
 from vision.classify import BAND, TAU, classify
@@ -68,6 +80,7 @@ from vision.subgroups import error_kind
 
 PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "fabric_photos"
 FAMILIES = ("rotation-scale", "perspective", "blur", "noise", "jpeg", "light", "fold")
+OUTSIDE = ("npm-wallpaper-groups",)
 THRESHOLDS = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95)
 CV_GRID = tuple((band, tau) for band in (float("inf"), 24.0, 12.0, 6.0)
                 for tau in (0.80, 0.86))
@@ -275,6 +288,17 @@ def blurred(per_group: int, seed: int = 0):
                          group, basis=pr.wallpaper.basis)
 
 
+def lineart(per_group: int, seed: int = 0):
+    """Near-symmetric line prints of every group (see the module text)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 100 * gi + k + 7)
+            img, truth, basis = layered_print(group, rng.uniform(30, 70),
+                                              seed=seed + 100 * gi + k)
+            yield Sample("lineart", f"{group}/{truth}/{k}", degrade(img, rng), 0.25, truth,
+                         basis=basis)
+
+
 def plain(per_weave: int = 3, seed: int = 0):
     """Unprinted cloth close up: the weave is all there is."""
     for wi, weave in enumerate(("plain", "twill", "rib")):
@@ -285,6 +309,18 @@ def plain(per_weave: int = 3, seed: int = 0):
             img = plain_cloth((1200, 900), thread / mm, weave=weave,
                               seed=int(rng.integers(1 << 30)))
             yield Sample("plain", f"{weave}/{thread:.2f}mm", img, mm, "plain")
+
+
+def npm(per_type: int, seed: int = 0):
+    """The npm package's line drawings (see ``bench.npm_wallpaper``); none, saying
+    why, when node or the package is missing."""
+    why = npm_wallpaper.unavailable()
+    if why:
+        print(f"source npm-wallpaper-groups skipped: {why}", flush=True)
+        return
+    for kind, group, img, basis in npm_wallpaper.patterns(per_type, seed=seed):
+        yield Sample("npm-wallpaper-groups", f"{kind}->{group}", img,
+                     npm_wallpaper.MM_PER_PX, group, basis=basis)
 
 
 def photos(root: Path = PHOTOS):
@@ -479,15 +515,17 @@ def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "plain", "photos")
+                                    "lineart", "plain", "photos", "npm")
         ) -> dict:
     makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
               "tilted": lambda: tilted(per_group, seed=seed),
               "blurred": lambda: blurred(3 * per_group, seed=seed),
               "cloth": lambda: cloth(per_group, seed=seed),
               "classics": lambda: classics(max(2, per_group), seed=seed),
+              "lineart": lambda: lineart(per_group, seed=seed),
               "plain": lambda: plain(max(2, per_group), seed=seed),
-              "photos": photos}
+              "photos": photos,
+              "npm": lambda: npm(per_group, seed=seed)}
     samples = []
     for name in sources:
         for s in makers[name]():
@@ -502,9 +540,12 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
                       flush=True)
     text = (f"## Vision (`python -m bench vision`, {date.today().isoformat()}, "
             f"{platform.machine()}, {per_group} per group)\n\n" + report(samples))
-    text += "\n\nConfidence calibration: " + fit_temperature(samples)
-    if cv:
-        text += "\n\nLeave-one-source-out cross-validation:\n\n" + cross_validate(samples)
+    # Outside references are evaluation only: no constant is fitted or picked on them.
+    own = [s for s in samples if s.source not in OUTSIDE]
+    if own:
+        text += "\n\nConfidence calibration: " + fit_temperature(own)
+    if cv and own:
+        text += "\n\nLeave-one-source-out cross-validation:\n\n" + cross_validate(own)
     print(text)
     return {"samples": samples, "markdown": text}
 
