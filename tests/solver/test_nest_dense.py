@@ -205,16 +205,18 @@ def test_earlier_nests_go_coarse_to_fine_within_reach():
     assert len(picked) == len(set(picked))
 
 
-def test_snapping_earlier_nests_gives_a_valid_marker_no_longer_than_the_final_snap(
+def test_snapping_earlier_nests_gives_a_valid_marker_no_longer_than_the_final_snaps(
         sparrow_run):
     problem, items, free, free_len, others = sparrow_run
     step = 50.0
-    reach, push = REACHES[0]
-    final = joint_snap(problem, items, free, reach=reach * step, push=push * step)
+    # sparrow's run is timed, so which reach snaps its final nest varies: take them all
+    finals = [joint_snap(problem, items, free, reach=reach * step, push=push * step)
+              for reach, push in REACHES]
     t0 = time.monotonic()
-    got = snap_nests(problem, items, free, free_len, others, final=t0 + 2.0, deadline=t0 + 4.0)
-    assert got is not None and final is not None
-    assert got[1] <= final[1] + 1e-9
+    got = snap_nests(problem, items, free, free_len, others, final=t0 + 30.0,
+                     deadline=t0 + 4.0)
+    assert got is not None  # the looser earlier nests snap even when the final one does not
+    assert got[1] <= min([f[1] for f in finals if f is not None], default=np.inf) + 1e-9
     layout = build_layout(problem, items, got[0])
     assert verify_layout(layout, problem) == []
     _assert_on_print(layout, problem)
