@@ -149,6 +149,22 @@ LAG_SPREAD = 1.0
 #: Confidence ceiling of an answer drawn from fewer than three whole repeats.
 FEW_REPEATS_CONFIDENCE = 0.5
 
+#: An operation leaves the print's own asymmetry, not the cloth's, when the residual
+#: the two outer thirds of the cloth share is more than this much of the motif (about
+#: 1 - the motif's correlation with its image, noise and local distortion removed):
+#: picked by leave-one-source-out over 0.004-0.04 (every held-out source's pick);
+#: true operations on stretched, wrinkled, misregistered cloth reach 0.015, a faint
+#: layer of a subgroup leaves 0.006-0.12 (BENCHMARKS.md) ...
+OWN_ASYMMETRY = 0.006
+#: ... and more than this part of a single repeat's residual, i.e. what every repeat
+#: shares outweighs what noise, wrinkles and local stretch add (set a priori; lower
+#: values cost stretched and misregistered cloth its group).
+SHARED_ASYMMETRY = 0.5
+#: Harmonics per repeat where the consistency test's whitening rolls off: below
+#: ``BAND``, as anti-aliased strokes leave pixel-scale residuals (line caps, widths
+#: rounded to pixels) of a few per cent even under their true mirrors.
+CONSISTENCY_BAND = 6.0
+
 
 def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
                    ) -> np.ndarray:
@@ -438,8 +454,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
              strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
              temperature: float = TEMPERATURE, allowance: float = 0.0,
-             lag: float = ADDED_OPERATION_LAG, consistency: bool = True
-             ) -> Classification:
+             lag: float = ADDED_OPERATION_LAG, consistency: bool = True,
+             own_asymmetry: float = OWN_ASYMMETRY,
+             shared_asymmetry: float = SHARED_ASYMMETRY) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -468,9 +485,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         measured perspective makes across the frame (:mod:`vision.perspective`): the
         print's lattice cannot be read to better than that, so the snap tolerance and
         the strain prior widen by it.
-    consistency : bool
+    consistency, own_asymmetry, shared_asymmetry
         Refuse a group one of whose operations leaves the same residual all over the
-        cloth (:func:`invents`); off only to measure what it changes.
+        cloth (:func:`invents`, with its two thresholds); off only to measure what it
+        changes.
 
     Returns
     -------
@@ -508,10 +526,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     holo = holohedry(basis, tol=holohedry_tol * (1.0 + allowance / HOLOHEDRY_STRAIN))
     snap_tol = SNAP_TOL + allowance
     strain_sigma = math.hypot(strain_sigma, allowance)
-    weight = None
+    metric = _symmetric_metric(basis, holo)
+    spectra = None
+    if consistency:
+        spectra = repeat_spectra(cells - cells.mean(axis=(1, 2), keepdims=True), ij,
+                                 _whitening(cell_n, metric, whiten, min(band,
+                                                                        CONSISTENCY_BAND)))
     if whiten:
-        metric = _symmetric_metric(basis, holo)
-        weight = _whitening(cell_n, metric, whiten, band)
         motif = _whiten(motif, metric, whiten, band)
         halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
         cells = _whiten(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten,
@@ -609,7 +630,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
     win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
                             - LAG_SPREAD * spread, lag=lag,
-                            spectra=repeat_spectra(cells, ij, weight) if consistency else None)
+                            spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
     _, u, o, _, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ u
@@ -635,7 +656,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
 def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray,
                       scores: dict, *, translation: float = 1.0,
                       lag: float = ADDED_OPERATION_LAG,
-                      spectra: RepeatSpectra | None = None) -> str:
+                      spectra: RepeatSpectra | None = None,
+                      asym: tuple[float, float] | None = None) -> str:
     """The likeliest group whose added operations hold like its subgroups', that holds
     on the single repeats and none of whose operations leaves a consistent residual;
     else its likeliest subgroup that does (the safe side).
@@ -657,37 +679,26 @@ def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.nd
         ops = best[name][3]
         if len(cells) >= 3 and ops and repeat_support(cells, ops).min() < REPEAT_SUPPORT:
             continue
-        if spectra is not None and invents(ops, spectra, seen):
+        if spectra is not None and invents(ops, spectra, seen, *(asym or ())):
             continue
         return name
     return order[0]
 
 
-#: An operation leaves the print's own asymmetry, not the cloth's, when the residual
-#: the two outer thirds of the cloth share is more than this much of the motif (about
-#: 1 - the motif's correlation with its image, noise and local distortion removed):
-#: picked by leave-one-source-out over 0.004-0.04 (every held-out source's pick);
-#: true operations on stretched, wrinkled, misregistered cloth reach 0.015, a faint
-#: layer of a subgroup leaves 0.006-0.12 (BENCHMARKS.md) ...
-OWN_ASYMMETRY = 0.006
-#: ... and more than this part of a single repeat's residual, i.e. what every repeat
-#: shares outweighs what noise, wrinkles and local stretch add (set a priori; lower
-#: values cost stretched and misregistered cloth its group).
-SHARED_ASYMMETRY = 0.5
-
-
 def invents(ops: list[tuple[np.ndarray, np.ndarray]], spectra: RepeatSpectra,
-            seen: dict | None = None) -> bool:
+            seen: dict | None = None, own: float = OWN_ASYMMETRY,
+            shared: float = SHARED_ASYMMETRY) -> bool:
     """True when some operation (A, s) leaves the same residual all over the cloth
     (:func:`vision.consistency.asymmetry`): a faint stroke of the print that the
-    operation does not map onto itself, however small its lag. ``seen`` caches
+    operation does not map onto itself, however small its lag: more than ``own`` of
+    the motif, more than ``shared`` of a single repeat's residual. ``seen`` caches
     operations shared by several groups."""
     seen = {} if seen is None else seen
     for a, s in ops:
         key = (_key(a), int(s[0]), int(s[1]))
         if key not in seen:
             asym = asymmetry(spectra, a, s)
-            seen[key] = asym.own > OWN_ASYMMETRY and asym.share > SHARED_ASYMMETRY
+            seen[key] = asym.own > own and asym.share > shared
         if seen[key]:
             return True
     return False

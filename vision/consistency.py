@@ -42,7 +42,7 @@ class RepeatSpectra:
     half_a: np.ndarray
     half_b: np.ndarray
     single: np.ndarray
-    weight: np.ndarray | None = None  # real filter (n, n) the cells were weighted with
+    weight: np.ndarray | None = None  # real filter (n, n) the spectra are weighted by
 
     @property
     def shared(self) -> float:
@@ -65,9 +65,9 @@ class Asymmetry:
 def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = None,
                    sample: int = SAMPLE) -> RepeatSpectra | None:
     """The spectra of ``cells`` (R, n, n) with repeat indices ``ij`` (R, 2) that
-    :func:`asymmetry` reads; None with fewer than three repeats. ``weight``: the real,
-    non-negative filter (n, n) the cells' spectra were multiplied by, if any (a
-    whitening); :func:`asymmetry` undoes what of it an operation does not keep."""
+    :func:`asymmetry` reads, weighted by ``weight`` (n, n), a real, non-negative filter
+    (a whitening) if any; None with fewer than three repeats. :func:`asymmetry` undoes
+    what of the weighting an operation does not keep."""
     r = len(cells)
     if r < 3:
         return None
@@ -76,8 +76,9 @@ def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None 
     order = np.argsort(c @ vt[0], kind="stable")
     a, _, b = np.array_split(order, 3)
     pick = np.linspace(0, r - 1, min(r, sample)).round().astype(int)
-    return RepeatSpectra(*(np.fft.fft2(cells[k].mean(0)) for k in (slice(None), a, b)),
-                         np.fft.fft2(cells[pick]), weight)
+    w = 1.0 if weight is None else weight
+    return RepeatSpectra(*(np.fft.fft2(cells[k].mean(0)) * w for k in (slice(None), a, b)),
+                         np.fft.fft2(cells[pick]) * w, weight)
 
 
 def _perm(a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
