@@ -152,14 +152,16 @@ FEW_REPEATS_CONFIDENCE = 0.5
 #: An operation leaves the print's own asymmetry, not the cloth's, when the residual
 #: the two outer thirds of the cloth share is more than this much of the motif (about
 #: 1 - the motif's correlation with its image, noise and local distortion removed):
-#: picked by leave-one-source-out over 0.004-0.04 (every held-out source's pick);
-#: true operations on stretched, wrinkled, misregistered cloth reach 0.015, a faint
-#: layer of a subgroup leaves 0.006-0.12 (BENCHMARKS.md) ...
+#: the pick of leave-one-source-out over 0.002-0.04 on every held-out source; a faint
+#: layer of a subgroup leaves 0.004-0.1, true operations on stretched, wrinkled,
+#: misregistered cloth up to 0.006 (BENCHMARKS.md) ...
 OWN_ASYMMETRY = 0.006
 #: ... and more than this part of a single repeat's residual, i.e. what every repeat
-#: shares outweighs what noise, wrinkles and local stretch add (set a priori; lower
-#: values cost stretched and misregistered cloth its group).
-SHARED_ASYMMETRY = 0.5
+#: shares clearly outweighs what noise, wrinkles and local stretch add (the training
+#: sources are indifferent between 0.5 and 0.6; lower values cost stretched and
+#: misregistered cloth its group, printed fabrics carry up to ~0.56 under their true
+#: mirrors).
+SHARED_ASYMMETRY = 0.6
 #: Harmonics per repeat where the consistency test's whitening rolls off: below
 #: ``BAND``, as anti-aliased strokes leave pixel-scale residuals (line caps, widths
 #: rounded to pixels) of a few per cent even under their true mirrors.
