@@ -160,8 +160,7 @@ OWN_ASYMMETRY = 0.004
 #: ... and more than this part of a single repeat's residual, i.e. what every repeat
 #: shares clearly outweighs what noise, wrinkles and local stretch add (the training
 #: sources are indifferent between 0.5 and 0.6; lower values cost stretched and
-#: misregistered cloth its group, printed fabrics carry up to ~0.56 under their true
-#: mirrors).
+#: misregistered cloth its group; a labelled photograph's true mirror has 0.56).
 SHARED_ASYMMETRY = 0.6
 #: Harmonics per repeat where the consistency test's whitening rolls off: below
 #: ``BAND``, as anti-aliased strokes leave pixel-scale residuals (line caps, widths
@@ -672,7 +671,7 @@ def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.nd
     (best per class, ``scores``) below every operation of that subgroup by more than
     ``ADDED_OPERATION_LAG``. Single repeats: see :func:`repeat_support` (needs three
     repeats; with fewer the mean cell decides). Consistent residuals: see
-    :func:`invents` (needs ``spectra``, two repeats or more)."""
+    :func:`invents` (needs ``spectra``, three repeats or more)."""
     order = [names[k] for k in np.argsort(-ll)]
     top = order[0]
     seen: dict = {}
