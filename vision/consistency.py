@@ -4,16 +4,19 @@ An operation g of the lattice (an integer matrix ``A`` with a translation ``t`` 
 grid units) leaves a residual ``c - g c`` on every repeat's cell ``c``. Noise, wrinkles
 and local stretch make that residual differ from repeat to repeat and from one part of
 the cloth to another; a faint stroke of the print that g does not map onto itself leaves
-the *same* residual in every repeat. So the residual's means over two disjoint, spatially
-separated halves of the repeats are compared: their inner product estimates the energy of
-the residual the halves share (noise and local distortion average to zero in it), and
-divided by the energy of the motif the halves share it is the print's own asymmetry under
-g, 0 for a symmetry of the print however noisy the image.
+the *same* residual in every repeat. So the residual's means over the two outer thirds of
+the repeats (far apart on the cloth) are compared: their inner product estimates the
+energy of the residual both share (noise and local distortion average to zero in it), and
+divided by the energy of the motif both share it is the print's own asymmetry under g, 0
+for a symmetry of the print however noisy the image.
 
-The translation part is refined to sub-grid precision first (Newton steps on the mean
-cell's correlation in Fourier space): on a 96-point grid a centre of rotation or a mirror
-axis half a grid step off leaves a residual of a few per cent that is the same in every
-repeat and would read as asymmetry.
+Three things that are the same in every repeat without being the print's are divided out
+first: the translation part is refined below the grid (Newton steps on the mean cell's
+correlation; a rotation centre or mirror axis half a step off a 96-point grid leaves a
+residual of a few per cent), a weighting of the harmonics that the operation does not
+keep (a whitening by a metric that is not its isometry), and the different damping of a
+harmonic and its image by a blur that is isotropic in the image but an ellipse in
+lattice coordinates.
 
 All in Fourier space on the cells' spectra: an integer matrix ``A`` permutes the
 frequencies (``c(A f)`` has spectrum ``C(A^-T k)``), and a translation is a phase ramp, so
