@@ -52,6 +52,7 @@ import numpy as np
 from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
+from vision.consistency import RepeatSpectra, asymmetry, repeat_spectra
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
@@ -147,6 +148,24 @@ LAG_SPREAD = 1.0
 
 #: Confidence ceiling of an answer drawn from fewer than three whole repeats.
 FEW_REPEATS_CONFIDENCE = 0.5
+
+#: An operation leaves the print's own asymmetry, not the cloth's, when the residual
+#: the two outer thirds of the cloth share is more than this much of the motif (about
+#: 1 - the motif's correlation with its image, noise and local distortion removed):
+#: the pick of leave-one-source-out over 0.002-0.04 for every held-out source; a faint
+#: layer of a subgroup leaves 0.004-0.07, true operations on stretched, wrinkled,
+#: misregistered cloth up to 0.0036 where their residual is shared at all (share >
+#: 0.4; BENCHMARKS.md) ...
+OWN_ASYMMETRY = 0.004
+#: ... and more than this part of a single repeat's residual, i.e. what every repeat
+#: shares clearly outweighs what noise, wrinkles and local stretch add (the training
+#: sources are indifferent between 0.5 and 0.6; lower values cost stretched and
+#: misregistered cloth its group; a labelled photograph's true mirror has 0.56).
+SHARED_ASYMMETRY = 0.6
+#: Harmonics per repeat where the consistency test's whitening rolls off: below
+#: ``BAND``, as anti-aliased strokes leave pixel-scale residuals (line caps, widths
+#: rounded to pixels) of a few per cent even under their true mirrors.
+CONSISTENCY_BAND = 6.0
 
 
 def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
@@ -437,7 +456,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
              strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
              temperature: float = TEMPERATURE, allowance: float = 0.0,
-             lag: float = ADDED_OPERATION_LAG) -> Classification:
+             lag: float = ADDED_OPERATION_LAG, consistency: bool = True,
+             own_asymmetry: float = OWN_ASYMMETRY,
+             shared_asymmetry: float = SHARED_ASYMMETRY) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -466,6 +487,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         measured perspective makes across the frame (:mod:`vision.perspective`): the
         print's lattice cannot be read to better than that, so the snap tolerance and
         the strain prior widen by it.
+    consistency, own_asymmetry, shared_asymmetry
+        Refuse a group one of whose operations leaves the same residual all over the
+        cloth (:func:`invents`, with its two thresholds); off only to measure what it
+        changes.
 
     Returns
     -------
@@ -493,8 +518,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     if spacing > 1.0:
         flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
     try:
-        motif, halves, nrep, _, _, cells = mean_cell(flat, basis, anchor, n=cell_n,
-                                                     max_repeats=max_repeats)
+        motif, halves, nrep, ij, _, cells = mean_cell(flat, basis, anchor, n=cell_n,
+                                                      max_repeats=max_repeats)
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()
@@ -503,8 +528,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     holo = holohedry(basis, tol=holohedry_tol * (1.0 + allowance / HOLOHEDRY_STRAIN))
     snap_tol = SNAP_TOL + allowance
     strain_sigma = math.hypot(strain_sigma, allowance)
+    metric = _symmetric_metric(basis, holo)
+    spectra = None
+    if consistency:
+        spectra = repeat_spectra(cells - cells.mean(axis=(1, 2), keepdims=True), ij,
+                                 _whitening(cell_n, metric, whiten, min(band,
+                                                                        CONSISTENCY_BAND)))
     if whiten:
-        metric = _symmetric_metric(basis, holo)
         motif = _whiten(motif, metric, whiten, band)
         halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
         cells = _whiten(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten,
@@ -601,7 +631,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # not, so on real cloth they fall short of the translations by about as much.
     spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
     win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
-                            - LAG_SPREAD * spread, lag=lag)
+                            - LAG_SPREAD * spread, lag=lag,
+                            spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
     _, u, o, _, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ u
@@ -626,9 +657,12 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
 
 def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray,
                       scores: dict, *, translation: float = 1.0,
-                      lag: float = ADDED_OPERATION_LAG) -> str:
-    """The likeliest group whose added operations hold like its subgroups' and that
-    holds on the single repeats; else its likeliest subgroup that does (the safe side).
+                      lag: float = ADDED_OPERATION_LAG,
+                      spectra: RepeatSpectra | None = None,
+                      asym: tuple[float, float] | None = None) -> str:
+    """The likeliest group whose added operations hold like its subgroups', that holds
+    on the single repeats and none of whose operations leaves a consistent residual;
+    else its likeliest subgroup that does (the safe side).
 
     Added operations: blur, noise and distortion lower every symmetry of a print
     together (blur not at all), while one that blur has half-made (the chiral detail of
@@ -636,16 +670,40 @@ def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.nd
     A group is not taken when every operation it adds to a maximal subgroup scores
     (best per class, ``scores``) below every operation of that subgroup by more than
     ``ADDED_OPERATION_LAG``. Single repeats: see :func:`repeat_support` (needs three
-    repeats; with fewer the mean cell decides)."""
+    repeats; with fewer the mean cell decides). Consistent residuals: see
+    :func:`invents` (needs ``spectra``, three repeats or more)."""
     order = [names[k] for k in np.argsort(-ll)]
     top = order[0]
+    seen: dict = {}
     for name in order:
         if not is_subgroup(name, top) or _lags(name, best, scores, translation, lag):
             continue
         ops = best[name][3]
-        if len(cells) < 3 or not ops or repeat_support(cells, ops).min() >= REPEAT_SUPPORT:
-            return name
+        if len(cells) >= 3 and ops and repeat_support(cells, ops).min() < REPEAT_SUPPORT:
+            continue
+        if spectra is not None and invents(ops, spectra, seen, *(asym or ())):
+            continue
+        return name
     return order[0]
+
+
+def invents(ops: list[tuple[np.ndarray, np.ndarray]], spectra: RepeatSpectra,
+            seen: dict | None = None, own: float = OWN_ASYMMETRY,
+            shared: float = SHARED_ASYMMETRY) -> bool:
+    """True when some operation (A, s) leaves the same residual all over the cloth
+    (:func:`vision.consistency.asymmetry`): a faint stroke of the print that the
+    operation does not map onto itself, however small its lag: more than ``own`` of
+    the motif, more than ``shared`` of a single repeat's residual. ``seen`` caches
+    operations shared by several groups."""
+    seen = {} if seen is None else seen
+    for a, s in ops:
+        key = (_key(a), int(s[0]), int(s[1]))
+        if key not in seen:
+            asym = asymmetry(spectra, a, s)
+            seen[key] = asym.own > own and asym.share > shared
+        if seen[key]:
+            return True
+    return False
 
 
 def _lags(name: str, best: dict, scores: dict, translation: float = 1.0,
