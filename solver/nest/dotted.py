@@ -249,7 +249,10 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
                         offsets[key] = clash_offsets(rings[a.key, ca], rings[b.key, cb],
                                                      basis, g)
                     table[ca, cb] = offsets[key]
-            for row, clashing in zip(ids[i], clash_lists(opts[i], opts[j], table, ids[j])):
+            for n, (row, clashing) in enumerate(zip(ids[i], clash_lists(opts[i], opts[j],
+                                                                         table, ids[j]))):
+                if n % 256 == 255 and deadline.expired():
+                    return None
                 if len(clashing):
                     model.add_at_most_one([x[row], *(x[c] for c in clashing)])
     right = model.new_int_var(0, int(math.ceil(limit * SCALE)) + 1, "right")
