@@ -261,19 +261,29 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     for i in range(len(items)):
         ends = np.ceil(opts[i].right * SCALE).astype(np.int64)
         model.add(right >= sum(int(e) * x[j] for e, j in zip(ends, ids[i])))
-    # interchangeable copies in the order of their option ids
+    # interchangeable copies (same options, adjacent in ``items``) in the order of their
+    # options, so the solver does not explore their permutations
     for i in range(len(items) - 1):
         if items[i].key == items[i + 1].key:
-            model.add(sum(int(j) * x[j] for j in ids[i]) < sum(int(j) * x[j] for j in ids[i + 1]))
+            model.add(sum(n * x[j] for n, j in enumerate(ids[i]))
+                      < sum(n * x[j] for n, j in enumerate(ids[i + 1])))
     up = [v for v in basis.T if abs(v[0]) < 1e-9]
-    if up:  # a shift across the roll by a period keeps everything: start near the bottom
+    if up and not problem.keepouts:
+        # a shift across the roll by a period keeps everything: start near the bottom
         low = np.concatenate([ids[i][o.bottom < g + abs(up[0][1]) - EDGE_EPS]
                               for i, o in enumerate(opts)])
         model.add_bool_or([x[j] for j in low])
     model.minimize(right)
     if hint is not None:  # complete (every boolean): CP-SAT then starts from it at once
-        chosen = {int(ids[i][j]) for i, (it, m) in enumerate(zip(items, hint))
-                  if (j := _option_of(it, m, opts[i])) is not None}
+        local = [_option_of(it, m, o) for it, m, o in zip(items, hint, opts)]
+        runs: dict = {}  # interchangeable copies take their positions in the order above
+        for i, it in enumerate(items):
+            runs.setdefault(it.key, []).append(i)
+        for run in runs.values():
+            got = sorted((local[i] for i in run), key=lambda v: (v is None, v or 0))
+            for i, v in zip(run, got):
+                local[i] = v
+        chosen = {int(ids[i][j]) for i, j in enumerate(local) if j is not None}
         for j, v in enumerate(x):
             model.add_hint(v, j in chosen)
     build = time.monotonic() - t0
