@@ -193,8 +193,9 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
 
     The plain marker (sparrow, 0 and 180 degrees), and per print the default strategies
-    before the dotted-board model (``BEFORE``) and ``method`` (aligned position = pattern coordinates, moves = lattice
-    vectors and the print's grain-keeping operations) get the same time, in one process.
+    before the dotted-board model (``BEFORE``) and ``method`` (aligned position = pattern
+    coordinates, moves = lattice vectors and the print's grain-keeping operations) get the
+    same time, in one process.
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
