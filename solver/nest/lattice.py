@@ -32,6 +32,9 @@ from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
+# s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
+# that before CP-SAT reads the hint; with less the model only costs time
+DOTTED_MIN = 1.0
 LIKELY = 0.6  # printed density for the dotted model's size estimate (Berkeley: 0.45-0.70)
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
@@ -57,7 +60,8 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     - ``dotted``: the dotted-board model (:mod:`solver.nest.dotted`) on every allowed
       position up to the best marker so far, which it starts from; CP-SAT finds shorter
       markers and may prove the shortest (then nothing is left to shrink). Steps aside
-      without an earlier marker or beyond ``MAX_OPTIONS`` positions.
+      without an earlier marker, with less than ``DOTTED_MIN`` s, or beyond
+      ``MAX_OPTIONS`` positions.
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
@@ -119,7 +123,7 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
                              extra=extra, interruptible=late)
         elif strategy == "dotted":
             r = None
-            if results:
+            if results and share.left() >= DOTTED_MIN:
                 d = dotted_nest(problem, items, time_limit=share, progress=progress,
                                 hint=min(results, key=lambda r: r[1])[0],
                                 max_options=MAX_OPTIONS)
