@@ -25,7 +25,8 @@ minimise the marker length. Here:
   start within a period of the bottom edge.
 
 CP-SAT (OR-tools) proves a lower bound as it goes, so the answer says how far the
-marker is from the best possible on this print, not only how long it is.
+marker is from the best possible on this print, not only how long it is;
+:func:`narrow_bound` tightens that bound by feasibility probes where minimising does not.
 """
 
 from __future__ import annotations
@@ -46,12 +47,12 @@ SCALE = 100  # objective units per mm (0.01 mm)
 # CP-SAT search workers: one proved the t-shirt's p1 optimum in 4.6 s, two in 8 s, four in
 # 11 s on the station's two cores (the portfolio's helpers steal the main search's time)
 WORKERS = 1
-EDGE_EPS = 1e-9
+EDGE_EPS = 1e-9  # mm of slack at the fabric's edges (verify_layout allows 1e-6)
 # above this many allowed positions in all the model does not fit a nest's budget (the
 # strategy steps aside): the Berkeley dresses' p1 (11 pieces, 3475-3740) built in 1 s and
 # solved from 1-2 s on; the shirt's p2 (14 pieces, 11167, 12 M literals) took 4.2 s to
 # build and more than 4 s to presolve
-MAX_OPTIONS = 4000  # mm of slack at the fabric's edges (verify_layout allows 1e-6)
+MAX_OPTIONS = 4000
 
 
 @dataclass
