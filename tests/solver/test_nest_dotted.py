@@ -152,4 +152,4 @@ def test_nest_lattice_runs_the_model_on_few_pieces_and_keeps_the_budget(shorts):
     layout = nest_lattice(problem, time_limit=4.0, seed=0, progress=said.append)
     assert time.monotonic() - t0 <= 4.4
     assert verify_layout(layout, problem) == []
-    assert any(s.startswith("dotted: length") for s in said)
+    assert any("allowed positions, model built" in s for s in said)  # it ran, on time
