@@ -243,10 +243,12 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
 
 
+PHASE = "; the marker may start at any phase of the print along the roll"
 OPTIMUM_MAX_PIECES = 6  # by default, garments nested to a proven bound (the issue's 4-6)
 
 
-def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: float) -> None:
+def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: float,
+            any_phase: bool = False) -> None:
     """Issue 18 part 3: how dense can a printed marker be at all? Per garment and print:
     the default nest (``t`` s) hints the dotted-board model (:mod:`solver.nest.dotted`),
     which runs up to ``solve_s`` s; without a proof, feasibility probes (``probe_s`` s
@@ -254,6 +256,8 @@ def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: flo
     then bisecting, narrow [bound, best]. plain = sparrow's marker of the same pieces
     (0/180 degree turns), a heuristic: the best plain marker is at least that dense, so a
     printed bound below 0.95 of it is below 0.95 of the best plain marker too.
+    ``any_phase``: the marker may start at any phase of the print along the roll (its
+    length is its span plus the gaps, see :func:`solver.nest.dotted.dotted_nest`).
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
@@ -267,7 +271,7 @@ def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: flo
     print(f"\n### The best printed marker: dotted-board model to a proven bound, Berkeley "
           f"garments' cut lines (at most {OPTIMUM_MAX_PIECES} pieces), 1500 mm roll, gap 2 mm; "
           f"default nest {t:g} s as the hint, CP-SAT {solve_s:g} s, probes {probe_s:g} s "
-          f"(another {solve_s:g} s)\n")
+          f"(another {solve_s:g} s){PHASE if any_phase else ''}\n")
     print("Cells: best found mm (proven bound mm; printed/plain of the best, at most "
           "plain/bound; wall s). `opt`: the best is proven shortest (within 0.5 mm).\n")
     heads = " | ".join(f"{g} {a:g} mm" for g, a in DENSITY_PRINTS)
@@ -291,17 +295,17 @@ def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: flo
             layout, _ = _run(problem, "auto", t, seed)
             hint = [compose(p.transform, invert(problem.pieces[it.piece].base))
                     for p, it in zip(layout.pieces, items)]
-            r = dotted_nest(problem, items, time_limit=solve_s, hint=hint)
+            r = dotted_nest(problem, items, time_limit=solve_s, hint=hint, any_phase=any_phase)
             if r is not None and not r.optimal:
                 r = narrow_bound(problem, items, r, time_limit=solve_s, probe=probe_s,
-                                 first=plain.length / 0.95)
+                                 first=plain.length / 0.95, any_phase=any_phase)
             if r is None:
                 cells.append(f"{layout.length:.0f} (no bound; {time.monotonic() - t0:.0f} s)")
                 continue
             best = build_layout(problem, items, r.moves)
             if verify_layout(best, problem):
                 raise RuntimeError(f"invalid layout (dotted): {verify_layout(best, problem)[0]}")
-            cells.append(f"{best.length:.1f} ({r.bound:.1f}; {plain.length / best.length:.3f}, "
+            cells.append(f"{r.length:.1f} ({r.bound:.1f}; {plain.length / r.length:.3f}, "
                          f"at most {plain.length / r.bound:.3f}; {time.monotonic() - t0:.0f} s"
                          f"{'; opt' if r.optimal else ''})")
         print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
@@ -321,6 +325,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--solve", type=float, default=60.0,
                     help="optimum: CP-SAT seconds, and as many for the bound's probes")
     ap.add_argument("--probe", type=float, default=20.0, help="optimum: seconds per probe")
+    ap.add_argument("--any-phase", action="store_true",
+                    help="optimum: the marker may start at any phase of the print")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -334,7 +340,7 @@ def main(argv: list[str] | None = None) -> None:
                    args.cases.split(","))
         elif part == "optimum":
             optimum(args.time, args.seed, [w for w in args.garments.split(",") if w],
-                    args.solve, args.probe)
+                    args.solve, args.probe, args.any_phase)
         elif part == "density":
             density(args.time, args.seed, [w for w in args.garments.split(",") if w],
                     args.method)

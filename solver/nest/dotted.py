@@ -61,6 +61,7 @@ class Options:
 
     cand: np.ndarray  # (m,) int
     k: np.ndarray  # (m, 2) int
+    left: np.ndarray  # (m,) left edge, mm
     right: np.ndarray  # (m,) right edge, mm
     bottom: np.ndarray  # (m,) lower edge, mm
 
@@ -100,7 +101,7 @@ def item_options(problem: NestProblem, item: Item, limit: float) -> Options:
     """
     g, basis = problem.gap, item.lattice
     end = limit if problem.length is None else min(limit, problem.length)
-    cands, ks, rights, bottoms = [], [], [], []
+    cands, ks, lefts, rights, bottoms = [], [], [], [], []
     for c in range(len(item.candidates)):
         ring = shape_at_zero(item, c)
         lo, hi = ring.min(0), ring.max(0)
@@ -115,10 +116,11 @@ def item_options(problem: NestProblem, item: Item, limit: float) -> Options:
             k, t = k[ok], t[ok]
         cands.append(np.full(len(k), c))
         ks.append(k)
+        lefts.append(lo[0] + t[:, 0])
         rights.append(hi[0] + t[:, 0])
         bottoms.append(lo[1] + t[:, 1])
     return Options(np.concatenate(cands), np.concatenate(ks).reshape(-1, 2).astype(np.int64),
-                   np.concatenate(rights), np.concatenate(bottoms))
+                   np.concatenate(lefts), np.concatenate(rights), np.concatenate(bottoms))
 
 
 def positions(problem: NestProblem, items: list[Item], length: float) -> float:
@@ -191,7 +193,8 @@ def clash_lists(opts_a: Options, opts_b: Options, offsets: dict, ids_b: np.ndarr
 
 
 def _reporter(cp_model, progress: Progress | None, gap: float, t0: float):
-    """A CP-SAT solution callback giving a progress line per better marker."""
+    """A CP-SAT solution callback giving a progress line per better marker (``gap``: mm
+    the marker has beyond the objective)."""
 
     class Reporter(cp_model.CpSolverSolutionCallback):
         def on_solution_callback(self) -> None:
@@ -206,7 +209,8 @@ def _reporter(cp_model, progress: Progress | None, gap: float, t0: float):
 def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                 hint: list[np.ndarray] | None = None, limit: float | None = None,
                 progress: Progress | None = None, workers: int = WORKERS,
-                max_options: int | None = None) -> DottedResult | None:
+                max_options: int | None = None, any_phase: bool = False,
+                ) -> DottedResult | None:
     """The shortest marker on the allowed positions, or the best found by the deadline.
 
     ``hint``: the best marker known (its moves); it bounds the length (no option ends
@@ -216,6 +220,13 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     built, or when the search ends without a marker and without a proof, or when the
     pieces have more than ``max_options`` allowed positions in all (a stripe print's
     1 mm steps, many pieces: the model would not be built in time).
+
+    ``any_phase``: the marker may start at any phase of the print along the roll (the
+    fabric laid out to suit it), so its length is its span plus the gap at both ends,
+    minimised with the leftmost piece within the first period (needs a lattice vector
+    along the roll); the moves stay on the print as given, starting up to a period in.
+    The station's layouts start at the roll's start (the default); this answers how
+    dense a printed marker can be at all.
     """
     # imported here: 0.4-0.6 s (load 6 on 2 cores) that every `station nest`, plain
     # fabric and large inputs included, would otherwise pay before its clock starts
@@ -224,16 +235,25 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     deadline = deadline_of(time_limit)
     t0 = time.monotonic()
     g = problem.gap
+    period = 0.0
+    if any_phase:
+        along = [abs(v[0]) for v in items[0].lattice.T if abs(v[1]) < 1e-9]
+        if not along:
+            raise ValueError("any_phase needs a lattice vector along the roll")
+        period = along[0]
     if hint is not None:
-        limit = max(float(affine(m, it.ref)[:, 0].max()) for it, m in zip(items, hint)) + g
+        rings = [affine(m, it.ref)[:, 0] for it, m in zip(items, hint)]
+        start = min(float(r.min()) for r in rings) - g if any_phase else 0.0
+        limit = max(float(r.max()) for r in rings) - start + g
     if limit is None:
         raise ValueError("the dotted-board model needs a hint or a length limit")
-    if max_options is not None and (n := positions(problem, items, limit)) > max_options:
+    reach = limit + period  # any phase: a marker starting up to a period in
+    if max_options is not None and (n := positions(problem, items, reach)) > max_options:
         if progress:
             progress(f"dotted: about {n:.0f} allowed positions, more than {max_options}: "
                      "skipped")
         return None
-    opts = [item_options(problem, it, limit) for it in items]
+    opts = [item_options(problem, it, reach) for it in items]
     if any(len(o.cand) == 0 for o in opts):  # a piece alone does not fit
         return DottedResult(None, math.inf, limit, True, 0, time.monotonic() - t0, 0.0)
     total = sum(len(o.cand) for o in opts)
@@ -270,7 +290,7 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
                     return None
                 if len(clashing):
                     model.add_at_most_one([x[row], *(x[c] for c in clashing)])
-    right = model.new_int_var(0, int(math.ceil(limit * SCALE)) + 1, "right")
+    right = model.new_int_var(0, int(math.ceil(reach * SCALE)) + 1, "right")
     area = sum(shapely.Polygon(it.ref).area for it in items)
     model.add(right >= int(math.floor((g + area / (problem.width - 2 * g)) * SCALE)))
     for i in range(len(items)):
@@ -288,7 +308,16 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
         low = np.concatenate([ids[i][o.bottom < g + abs(up[0][1]) - EDGE_EPS]
                               for i, o in enumerate(opts)])
         model.add_bool_or([x[j] for j in low])
-    model.minimize(right)
+    if any_phase:
+        left = model.new_int_var(0, int(math.floor((g + period) * SCALE)), "left")
+        for i in range(len(items)):
+            starts_i = np.floor(opts[i].left * SCALE).astype(np.int64)
+            model.add(left <= sum(int(e) * x[j] for e, j in zip(starts_i, ids[i])))
+        model.add(right - left <= int(math.ceil((limit - 2 * g) * SCALE)) + 2)
+        model.add(right - left >= int(math.floor(area / (problem.width - 2 * g) * SCALE)))
+        model.minimize(right - left)
+    else:
+        model.minimize(right)
     if hint is not None:  # complete (every boolean): CP-SAT then starts from it at once
         local = [_option_of(it, m, o) for it, m, o in zip(items, hint, opts)]
         runs: dict = {}  # interchangeable copies take their positions in the order above
@@ -316,7 +345,7 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     solver.parameters.max_presolve_iterations = 1
     solver.parameters.cp_model_probing_level = 0
     solver.parameters.symmetry_level = 0
-    status = solver.solve(model, _reporter(cp_model, progress, g, t0))
+    status = solver.solve(model, _reporter(cp_model, progress, 2 * g if any_phase else g, t0))
     if progress:
         progress(f"dotted: {solver.status_name(status)} after {time.monotonic() - t0:.1f} s")
     build_and_solve = (int(starts[-1]), build, time.monotonic() - t0 - build)
@@ -328,8 +357,12 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     for i, it in enumerate(items):
         j = next(j for j in range(len(ids[i])) if solver.boolean_value(x[ids[i][j]]))
         moves.append(_move(it, opts[i], j))
-    length = max(float(affine(m, it.ref)[:, 0].max()) for it, m in zip(items, moves)) + g
-    bound = (solver.best_objective_bound - 1) / SCALE + g  # right edges were rounded up
+    xs = [affine(m, it.ref)[:, 0] for it, m in zip(items, moves)]
+    start = min(float(r.min()) for r in xs) - g if any_phase else 0.0
+    length = max(float(r.max()) for r in xs) - start + g
+    # edges were rounded outwards by up to one unit each
+    bound = ((solver.best_objective_bound - 2) / SCALE + 2 * g if any_phase
+             else (solver.best_objective_bound - 1) / SCALE + g)
     return DottedResult(moves, length, min(bound, length), status == cp_model.OPTIMAL,
                         *build_and_solve)
 
@@ -355,7 +388,8 @@ def _option_of(item: Item, move: np.ndarray, opts: Options) -> int | None:
 
 def narrow_bound(problem: NestProblem, items: list[Item], best: DottedResult, *,
                  time_limit: float | Deadline, probe: float, first: float | None = None,
-                 progress: Progress | None = None, tol: float = 0.5) -> DottedResult:
+                 progress: Progress | None = None, tol: float = 0.5,
+                 any_phase: bool = False) -> DottedResult:
     """Narrow ``best``'s interval [bound, length] by bisection on the marker length.
 
     Each probe asks for a marker no longer than a target, within ``probe`` seconds: none
@@ -374,7 +408,7 @@ def narrow_bound(problem: NestProblem, items: list[Item], best: DottedResult, *,
         if target is None:
             target = 0.5 * (lo + min(hi, top))
         r = dotted_nest(problem, items, time_limit=deadline.within(probe), limit=target,
-                        progress=progress)
+                        progress=progress, any_phase=any_phase)
         if r is None:
             top = target
         elif r.moves is None:

@@ -80,18 +80,21 @@ def _tiny(w2: tuple, origin: tuple) -> NestProblem:
                        fabric=Wallpaper("p2", (11.0, 0.0), w2, origin=origin))
 
 
-def _brute_force(problem: NestProblem, items, limit: float) -> float:
+def _brute_force(problem: NestProblem, items, limit: float, period: float = 0.0) -> float:
     """The shortest marker up to ``limit``, by enumerating every combination of positions
-    (each made here from the lattice and the print's operations, independently)."""
+    (each made here from the lattice and the print's operations, independently); with a
+    ``period`` along the roll, the marker may start at any phase (span plus the gaps)."""
     g, basis = problem.gap, problem.lattice
-    polys, rights = [], []
+    polys, lefts, rights = [], [], []
     k = np.stack(np.meshgrid(np.arange(-30, 31), np.arange(-30, 31)), -1).reshape(-1, 2)
-    inner = shapely.box(g - 1e-9, g - 1e-9, limit - g + 1e-9, problem.width - g + 1e-9)
+    inner = shapely.box(g - 1e-9, g - 1e-9, limit + period - g + 1e-9,
+                        problem.width - g + 1e-9)
     for it in items:
         p = np.concatenate([shapely.polygons(affine(c, it.ref)[None] + (k @ basis.T)[:, None])
                             for c in it.candidates])
         p = p[shapely.contains(inner, p)]
         polys.append(p)
+        lefts.append(shapely.bounds(p)[:, 0])
         rights.append(shapely.bounds(p)[:, 2])
     pairs = {}
     for a, b in itertools.combinations(range(len(items)), 2):
@@ -102,6 +105,9 @@ def _brute_force(problem: NestProblem, items, limit: float) -> float:
     ok = ~(pairs[0, 1][:, :, None] | pairs[0, 2][:, None, :] | pairs[1, 2][None, :, :])
     ends = np.maximum(np.maximum(rights[0][:, None, None], rights[1][None, :, None]),
                       rights[2][None, None, :])
+    if period:
+        ends = ends - np.minimum(np.minimum(lefts[0][:, None, None], lefts[1][None, :, None]),
+                                 lefts[2][None, None, :]) + g
     return float(ends[ok].min()) + g if ok.any() else math.inf
 
 
@@ -153,3 +159,24 @@ def test_nest_lattice_runs_the_model_on_few_pieces_and_keeps_the_budget(shorts):
     assert time.monotonic() - t0 <= 4.4
     assert verify_layout(layout, problem) == []
     assert any("allowed positions, model built" in s for s in said)  # it ran, on time
+
+
+@pytest.mark.parametrize("origin", [(0.0, 0.0), (3.0, 1.0)])
+def test_dotted_any_phase_equals_brute_force(origin):
+    """A marker that may start at any phase of the print is never longer, and its
+    optimum (span plus the gaps) is brute force's over every start, whatever the print's
+    phase at the roll's start."""
+    problem = _tiny((0.0, 9.0), origin)
+    items = problem.items()
+    fixed = _brute_force(problem, items, 90.0)
+    best = _brute_force(problem, items, 90.0, period=11.0)
+    assert best < fixed and best == pytest.approx(59.0)  # (the two origins' fixed: 67, 62)
+    r = dotted_nest(problem, items, time_limit=10.0, limit=90.0, any_phase=True)
+    assert r is not None and r.optimal and r.moves is not None
+    assert r.length == pytest.approx(best, abs=1e-6)
+    assert r.bound == pytest.approx(best, abs=0.021)
+    layout = build_layout(problem, items, r.moves)
+    assert verify_layout(layout, problem) == []  # on the print, starting up to a period in
+    assert layout.length - r.length < 11.0 + 1e-6
+    none = dotted_nest(problem, items, time_limit=10.0, limit=best - 0.05, any_phase=True)
+    assert none is not None and none.moves is None and none.optimal
