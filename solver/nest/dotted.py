@@ -238,8 +238,9 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     period = 0.0
     if any_phase:
         along = [abs(v[0]) for v in items[0].lattice.T if abs(v[1]) < 1e-9]
-        if not along:
-            raise ValueError("any_phase needs a lattice vector along the roll")
+        if not along or problem.keepouts or problem.length is not None:
+            raise ValueError("any_phase needs a lattice vector along the roll, and a roll "
+                             "without keep-outs or a table length (they fix the phase)")
         period = along[0]
     if hint is not None:
         rings = [affine(m, it.ref)[:, 0] for it, m in zip(items, hint)]
