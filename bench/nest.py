@@ -1,14 +1,16 @@
 """Nesting benchmark: ESICUP instances, shirts under square prints, Berkeley garments on a roll.
 
-    python -m bench.nest [--time SECONDS] [--only esicup,shirts,garments,budget,density]
+    python -m bench.nest [--time SECONDS]
+                         [--only esicup,shirts,garments,budget,density,optimum]
                          [--seed S] [--budgets 1,3,10] [--cases tshirt,tshirt-p2,...]
-                         [--garments tshirt,pants] [--method auto]
+                         [--garments tshirt,pants] [--method auto] [--solve S] [--probe S]
 
 ``make bench`` runs it with the time from $BENCH_NEST_TIME (default 30 s per run, the
 issue's setting). Every layout is verified with ``verify_layout`` before it is counted.
 ``budget`` checks the ``--time T`` promise: wall time from the call to a verified layout,
 over T, on plain and printed inputs (issue 18: within 10 %). The garments table gives
-printed density / plain density (plain = the same pieces on grain, ``nest --plain``).
+printed density / plain density (plain = the same pieces on grain, ``nest --plain``);
+``optimum`` the best printed marker's proven bound (the dotted-board model, minutes).
 Needs ../shared/data (skips, saying so, when absent).
 """
 
@@ -184,15 +186,16 @@ def budget(budgets: list[float], seed: int, cases: list[str]) -> None:
 # p4m keeps the grain with the same operations as p2 (the half turns about the half
 # lattice points; its quarter turns and mirrors turn or flip the grain): same markers
 DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0))
-BEFORE = ("resnap-margin", "fill")  # nest_lattice's strategies before issue 18
+BEFORE = ("joint", "fill", "coset")  # nest_lattice's default before the dotted-board model
 
 
 def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
 
-    The plain marker (sparrow, 0 and 180 degrees), and per print the strategies before
-    issue 18 and ``method`` (aligned position = pattern coordinates, moves = lattice
-    vectors and the print's grain-keeping operations) get the same time, in one process.
+    The plain marker (sparrow, 0 and 180 degrees), and per print the default strategies
+    before the dotted-board model (``BEFORE``) and ``method`` (aligned position = pattern
+    coordinates, moves = lattice vectors and the print's grain-keeping operations) get the
+    same time, in one process.
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
@@ -240,6 +243,75 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
 
 
+PHASE = "; the marker may start at any phase of the print along the roll"
+OPTIMUM_MAX_PIECES = 6  # by default, garments nested to a proven bound (the issue's 4-6)
+
+
+def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: float,
+            any_phase: bool = False) -> None:
+    """Issue 18 part 3: how dense can a printed marker be at all? Per garment and print:
+    the default nest (``t`` s) hints the dotted-board model (:mod:`solver.nest.dotted`),
+    which runs up to ``solve_s`` s; without a proof, feasibility probes (``probe_s`` s
+    each, another ``solve_s`` in all) first at the length that would be 0.95 of plain,
+    then bisecting, narrow [bound, best]. plain = sparrow's marker of the same pieces
+    (0/180 degree turns), a heuristic: the best plain marker is at least that dense, so a
+    printed bound below 0.95 of it is below 0.95 of the best plain marker too.
+    ``any_phase``: the marker may start at any phase of the print along the roll (its
+    length is its span plus the gaps, see :func:`solver.nest.dotted.dotted_nest`).
+    """
+    from bench.reshape import GARMENTS as LIBRARY
+    from bench.reshape import berkeley_garments
+    from solver.nest import NestProblem, verify_layout
+    from solver.nest.dotted import dotted_nest, narrow_bound
+    from solver.nest.instance import compose, invert
+    from solver.nest.layout import build_layout
+    from solver.nest.sources import garment_pieces
+    from solver.wallpaper import Wallpaper
+
+    print(f"\n### The best printed marker: dotted-board model to a proven bound, Berkeley "
+          f"garments' cut lines (at most {OPTIMUM_MAX_PIECES} pieces), 1500 mm roll, gap 2 mm; "
+          f"default nest {t:g} s as the hint, CP-SAT {solve_s:g} s, probes {probe_s:g} s "
+          f"(another {solve_s:g} s){PHASE if any_phase else ''}\n")
+    print("Cells: best found mm (proven bound mm; printed/plain of the best, at most "
+          "plain/bound; wall s). `opt`: the best is proven shortest (within 0.5 mm).\n")
+    heads = " | ".join(f"{g} {a:g} mm" for g, a in DENSITY_PRINTS)
+    print(f"| garment | pieces | plain | {heads} |")
+    print("|---|---|---|" + "---|" * len(DENSITY_PRINTS))
+    if not LIBRARY.is_dir():
+        print(f"(skipped: {LIBRARY} absent)")
+        return
+    cases, _ = berkeley_garments()
+    for name, g in cases:
+        if not any(w in name for w in wanted) if wanted else g.n_pieces > OPTIMUM_MAX_PIECES:
+            continue  # named garments run whatever their size
+        pieces = garment_pieces(g)
+        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        cells = [f"{plain.density:.1%} ({plain.length:.0f} mm)"]
+        for group, a in DENSITY_PRINTS:
+            problem = NestProblem(pieces, 1500.0, gap=2.0,
+                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+            items = problem.items()
+            t0 = time.monotonic()
+            layout, _ = _run(problem, "auto", t, seed)
+            hint = [compose(p.transform, invert(problem.pieces[it.piece].base))
+                    for p, it in zip(layout.pieces, items)]
+            r = dotted_nest(problem, items, time_limit=solve_s, hint=hint, any_phase=any_phase)
+            if r is not None and not r.optimal:
+                r = narrow_bound(problem, items, r, time_limit=solve_s, probe=probe_s,
+                                 first=plain.length / 0.95, any_phase=any_phase)
+            if r is None:
+                cells.append(f"{layout.length:.0f} (no bound; {time.monotonic() - t0:.0f} s)")
+                continue
+            best = build_layout(problem, items, r.moves)
+            if verify_layout(best, problem):
+                raise RuntimeError(f"invalid layout (dotted): {verify_layout(best, problem)[0]}")
+            cells.append(f"{r.length:.1f} ({r.bound:.1f}; {plain.length / r.length:.3f}, "
+                         f"at most {plain.length / r.bound:.3f}; {time.monotonic() - t0:.0f} s"
+                         f"{'; opt' if r.optimal else ''})")
+        print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
+    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="bench.nest")
     ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 30)))
@@ -250,6 +322,11 @@ def main(argv: list[str] | None = None) -> None:
                     help="inputs of the budget table")
     ap.add_argument("--garments", default="", help="density: names containing one of these")
     ap.add_argument("--method", default="auto", help="density: the printed nesting method")
+    ap.add_argument("--solve", type=float, default=60.0,
+                    help="optimum: CP-SAT seconds, and as many for the bound's probes")
+    ap.add_argument("--probe", type=float, default=20.0, help="optimum: seconds per probe")
+    ap.add_argument("--any-phase", action="store_true",
+                    help="optimum: the marker may start at any phase of the print")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -261,6 +338,9 @@ def main(argv: list[str] | None = None) -> None:
         if part == "budget":
             budget([float(t) for t in args.budgets.split(",")], args.seed,
                    args.cases.split(","))
+        elif part == "optimum":
+            optimum(args.time, args.seed, [w for w in args.garments.split(",") if w],
+                    args.solve, args.probe, args.any_phase)
         elif part == "density":
             density(args.time, args.seed, [w for w in args.garments.split(",") if w],
                     args.method)

@@ -11,6 +11,8 @@ a few *cosets* of the lattice. Several searches compete (see :func:`nest_lattice
   nearest allowed positions ("resnap", :mod:`solver.nest.regions`), or jointly onto
   allowed positions around the free ones that do not collide ("joint",
   :mod:`solver.nest.snapjoint`);
+- the exact dotted-board model on every allowed position (:mod:`solver.nest.dotted`,
+  CP-SAT), hinted with the best marker so far, on inputs small enough to build it;
 - the best of those is shortened by strip shrinking on the cosets (:mod:`solver.nest.coset`).
 The shortest marker wins.
 """
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
+from solver.nest.dotted import MAX_OPTIONS, dotted_nest, positions
 from solver.nest.engine import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
@@ -28,7 +31,11 @@ from solver.nest.snapjoint import joint_search
 from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
-          "coset": 0.3, "joint": 0.6}
+          "coset": 0.3, "joint": 0.6, "dotted": 0.8}
+# s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
+# that before CP-SAT reads the hint; with less the model only costs time
+DOTTED_MIN = 1.0
+LIKELY = 0.6  # printed density for the dotted model's size estimate (Berkeley: 0.45-0.70)
 MANY = 30  # pieces from which a free nest is resnapped without margin
 
 
@@ -50,11 +57,17 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
       allowed positions around its free one, none colliding, the shortest such choice
       (:mod:`solver.nest.snapjoint`); sparrow's earlier, looser nests are snapped
       jointly too while time remains (one of them often snaps shorter).
+    - ``dotted``: the dotted-board model (:mod:`solver.nest.dotted`) on every allowed
+      position up to the best marker so far, which it starts from; CP-SAT finds shorter
+      markers and may prove the shortest (then nothing is left to shrink). Steps aside
+      without an earlier marker, with less than ``DOTTED_MIN`` s, or beyond
+      ``MAX_OPTIONS`` positions.
     - ``coset``: shrinks the best marker so far with sparrow's strip shrinking on the
       lattice cosets (:mod:`solver.nest.coset`); from a snapped free nest if it runs alone.
 
-    By default: joint, fill, then coset on the better of them. When the time left is
-    shorter than a whole fill would take, the naive baseline (:mod:`solver.nest.naive`)
+    By default: joint, fill, dotted (when the pieces have at most ``MAX_OPTIONS`` allowed
+    positions on a marker of density ``LIKELY``), then coset on the best of them. When the
+    time left is shorter than a whole fill would take, the naive baseline (:mod:`solver.nest.naive`)
     gives the first marker, then the fill (cut at the deadline, it shelves the pieces
     left: on many small pieces that beats the naive marker, 67.5 % against 59 % on the
     shirts under a 0.5 p1 print) and coset on the better one.
@@ -64,13 +77,16 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     items = problem.items()
     deadline = deadline_of(time_limit)
     if strategies is None:
-        strategies = ("joint", "fill", "coset")
+        small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
+        strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
+            "joint", "fill", "coset")
         first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
         if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
             # too short for a whole fill: the naive marker is certain and quick, a fill
             # cut short and shelved may beat it, strip shrinking improves the better one
             strategies = ("naive", "fill", "coset")
     results = []
+    proven = False  # the dotted model proved the best marker shortest
     for i, strategy in enumerate(strategies):
         # a share of what is left, so an overrun shrinks the later strategies; once one
         # marker exists the others may be cut short by the deadline
@@ -105,7 +121,19 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
             extra = 0.0 if len(items) >= MANY else 0.25 * covering_radius(problem.lattice)
             r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress,
                              extra=extra, interruptible=late)
+        elif strategy == "dotted":
+            r = None
+            if results and share.left() >= DOTTED_MIN:
+                d = dotted_nest(problem, items, time_limit=share, progress=progress,
+                                hint=min(results, key=lambda r: r[1])[0],
+                                max_options=MAX_OPTIONS)
+                if d is not None and d.moves is not None:
+                    r, proven = (d.moves, d.length), d.optimal
+                    if progress:
+                        progress(f"dotted: bound {d.bound:.4g}{' (optimal)' if proven else ''}")
         elif strategy == "coset":
+            if proven:
+                continue
             start = min(results, key=lambda r: r[1])[0] if results else None
             r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
                              start=start)
