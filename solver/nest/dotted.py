@@ -41,7 +41,7 @@ import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.instance import Item, NestProblem, affine
-from solver.nest.snapjoint import _collide
+from solver.nest.snapjoint import collide
 
 SCALE = 100  # objective units per mm (0.01 mm)
 # CP-SAT search workers: one proved the t-shirt's p1 optimum in 4.6 s, two in 8 s, four in
@@ -112,7 +112,7 @@ def item_options(problem: NestProblem, item: Item, limit: float) -> Options:
             polys = shapely.polygons(ring[None] + t[:, None])
             ok = np.ones(len(k), bool)
             for ring_k in problem.keepouts:
-                ok &= ~_collide(polys, shapely.Polygon(ring_k), g)
+                ok &= ~collide(polys, shapely.Polygon(ring_k), g)
             k, t = k[ok], t[ok]
         cands.append(np.full(len(k), c))
         ks.append(k)
@@ -143,7 +143,7 @@ def clash_offsets(ring_a: np.ndarray, ring_b: np.ndarray, basis: np.ndarray,
     """(d, 2) int lattice offsets ``k_b - k_a`` at which outline B collides with outline A.
 
     Only offsets whose boxes come within the gap can collide; those are checked exactly
-    (``_collide``: closer than the gap, or overlapping at gap 0), all at once.
+    (``collide``: closer than the gap, or overlapping at gap 0), all at once.
     """
     lo_a, hi_a = ring_a.min(0), ring_a.max(0)
     lo_b, hi_b = ring_b.min(0), ring_b.max(0)
@@ -151,7 +151,7 @@ def clash_offsets(ring_a: np.ndarray, ring_b: np.ndarray, basis: np.ndarray,
     if len(d) == 0:
         return d.reshape(0, 2)
     polys = shapely.polygons(ring_b[None] + (d @ basis.T)[:, None])
-    return d[_collide(shapely.Polygon(ring_a), polys, gap)]
+    return d[collide(shapely.Polygon(ring_a), polys, gap)]
 
 
 def _index_grid(k: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -65,11 +65,11 @@ def snap_options(problem: NestProblem, item: Item, move: np.ndarray, reach: floa
     if problem.length is not None:
         ok &= b[:, 2] <= problem.length - g + 1e-9
     for k in problem.keepouts:
-        ok &= ~_collide(polys, shapely.Polygon(k), g)
+        ok &= ~collide(polys, shapely.Polygon(k), g)
     return maps[ok], polys[ok]
 
 
-def _collide(a, b, gap: float) -> np.ndarray:
+def collide(a, b, gap: float) -> np.ndarray:
     """Elementwise (broadcast): closer than the gap, or overlapping at gap 0."""
     if gap > 0:
         return shapely.dwithin(a, b, gap * (1 - 1e-7))
@@ -90,7 +90,7 @@ def _clash_table(a: np.ndarray, b: np.ndarray, gap: float, deadline: float,
     for r in range(0, len(a), rows):
         if time.monotonic() > deadline:
             return None
-        out[r:r + rows] = _collide(a[r:r + rows, None], b[None, :], gap)
+        out[r:r + rows] = collide(a[r:r + rows, None], b[None, :], gap)
     return out
 
 

@@ -23,7 +23,7 @@ from solver.nest.plain import plain_moves
 from solver.nest.regions import conflicting, snap_to_lattice
 from solver.nest.snapjoint import (
     REACHES,
-    _collide,
+    collide,
     earlier_nests,
     joint_snap,
     snap_nests,
@@ -111,7 +111,7 @@ def test_joint_snap_finds_the_shortest_choice_by_brute_force(printed, free):
     got = joint_snap(printed, sub_items, sub_moves, reach=reach, push=push)
     opts = [snap_options(printed, it, m, reach, push) for it, m in zip(sub_items, sub_moves)]
     # every combination at once: pairwise collisions broadcast over the three choices
-    clash = {(a, b): _collide(opts[a][1][:, None], opts[b][1][None, :], printed.gap)
+    clash = {(a, b): collide(opts[a][1][:, None], opts[b][1][None, :], printed.gap)
              for a, b in itertools.combinations(range(3), 2)}
     ok = ~(clash[0, 1][:, :, None] | clash[0, 2][:, None, :] | clash[1, 2][None, :, :])
     right = [shapely.bounds(p)[:, 2] for _, p in opts]
