@@ -199,10 +199,8 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
-    from solver.nest import NestProblem, verify_layout
+    from solver.nest import verify_layout
     from solver.nest.lattice import nest_lattice
-    from solver.nest.sources import garment_pieces
-    from solver.wallpaper import Wallpaper
 
     print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
           f"square prints, {t:g} s each\n")
@@ -220,12 +218,9 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
     for name, g in cases:
         if wanted and not any(w in name for w in wanted):
             continue
-        pieces = garment_pieces(g)
-        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        pieces, plain, printed = _garment_problems(g, t, seed)
         cells = [f"{plain.density:.1%}"]
-        for group, a in DENSITY_PRINTS:
-            problem = NestProblem(pieces, 1500.0, gap=2.0,
-                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+        for problem in printed:
             t0 = time.monotonic()
             old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
             sec = time.monotonic() - t0
@@ -241,6 +236,20 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
             print(f"\nprinted/plain {when}: median {np.median(r):.3f}, min {min(r):.3f}, "
                   f"{sum(x >= 0.95 for x in r)} of {len(r)} at least 0.95")
     print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cpus at the end")
+
+
+def _garment_problems(g, t: float, seed: int):
+    """A garment's cut lines, their plain marker (``t`` s) and the printed problems of
+    ``DENSITY_PRINTS``: the setting of the density and optimum tables."""
+    from solver.nest import NestProblem
+    from solver.nest.sources import garment_pieces
+    from solver.wallpaper import Wallpaper
+
+    pieces = garment_pieces(g)
+    plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+    return pieces, plain, [NestProblem(pieces, 1500.0, gap=2.0,
+                                       fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+                           for group, a in DENSITY_PRINTS]
 
 
 PHASE = "; the marker may start at any phase of the print along the roll"
@@ -261,12 +270,10 @@ def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: flo
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
-    from solver.nest import NestProblem, verify_layout
+    from solver.nest import verify_layout
     from solver.nest.dotted import dotted_nest, narrow_bound
     from solver.nest.instance import compose, invert
     from solver.nest.layout import build_layout
-    from solver.nest.sources import garment_pieces
-    from solver.wallpaper import Wallpaper
 
     print(f"\n### The best printed marker: dotted-board model to a proven bound, Berkeley "
           f"garments' cut lines (at most {OPTIMUM_MAX_PIECES} pieces), 1500 mm roll, gap 2 mm; "
@@ -284,12 +291,9 @@ def optimum(t: float, seed: int, wanted: list[str], solve_s: float, probe_s: flo
     for name, g in cases:
         if not any(w in name for w in wanted) if wanted else g.n_pieces > OPTIMUM_MAX_PIECES:
             continue  # named garments run whatever their size
-        pieces = garment_pieces(g)
-        plain, _ = _run(NestProblem(pieces, 1500.0, gap=2.0), "auto", t, seed)
+        pieces, plain, printed = _garment_problems(g, t, seed)
         cells = [f"{plain.density:.1%} ({plain.length:.0f} mm)"]
-        for group, a in DENSITY_PRINTS:
-            problem = NestProblem(pieces, 1500.0, gap=2.0,
-                                  fabric=Wallpaper(group, (a, 0.0), (0.0, a)))
+        for problem in printed:
             items = problem.items()
             t0 = time.monotonic()
             layout, _ = _run(problem, "auto", t, seed)
