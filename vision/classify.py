@@ -146,6 +146,15 @@ ADDED_OPERATION_LAG = 0.045
 #: repeats alike to 0.01 (BENCHMARKS.md).
 LAG_SPREAD = 1.0
 
+#: How much the lag allowed behind a subgroup's operations widens per unit of
+#: single-repeat disagreement. Local stretch that differs from repeat to repeat
+#: (drape, wrinkles) lowers an operation that maps one thread direction onto the other
+#: (a check's quarter turn) more than one that keeps them (its mirrors along the
+#: threads): on a wrinkled gingham photographed in crops the quarter turn lagged the
+#: mirrors by up to 0.051 where repeats disagreed by 0.13-0.18. Measured on every
+#: source at 0.1, 0.2, 0.3: only those crops change (BENCHMARKS.md).
+ADDED_LAG_SPREAD = 0.1
+
 #: Confidence ceiling of an answer drawn from fewer than three whole repeats.
 FEW_REPEATS_CONFIDENCE = 0.5
 
@@ -456,7 +465,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              prefilter: float = 1.0, holohedry_tol: float = HOLOHEDRY_TOL,
              strain_sigma: float = STRAIN_SIGMA, band: float = BAND,
              temperature: float = TEMPERATURE, allowance: float = 0.0,
-             lag: float = ADDED_OPERATION_LAG, consistency: bool = True,
+             lag: float = ADDED_OPERATION_LAG, lag_spread: float = ADDED_LAG_SPREAD,
+             consistency: bool = True,
              own_asymmetry: float = OWN_ASYMMETRY,
              shared_asymmetry: float = SHARED_ASYMMETRY) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
@@ -479,9 +489,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     band : float
         Harmonics per repeat where the whitened motif rolls off (thread-scale texture
         above it does not share the print's symmetry).
-    lag : float
+    lag, lag_spread : float
         How far the operations a group adds to a subgroup (or to the translations) may
-        all score below the subgroup's before the group is not taken.
+        all score below the subgroup's before the group is not taken, and how much
+        that widens per unit of the single repeats' disagreement.
     allowance : float
         Distortion the image is known to carry (relative), e.g. the lattice change a
         measured perspective makes across the frame (:mod:`vision.perspective`): the
@@ -631,7 +642,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # not, so on real cloth they fall short of the translations by about as much.
     spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
     win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
-                            - LAG_SPREAD * spread, lag=lag,
+                            - LAG_SPREAD * spread, lag=lag + lag_spread * spread,
                             spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
     _, u, o, _, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
