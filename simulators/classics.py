@@ -21,6 +21,11 @@ clearly less). Facts that surprise:
 - ``gingham`` (a two-colour even check) is **p4m**; polka dots on a square grid are p4m,
   on a hexagonal grid p6m; uniform ``diamonds`` (harlequin) on a rhombic lattice are
   **cmm**.
+- A *woven* gingham (``woven_check``: yarn-dyed, each crossing shows the warp or the
+  weft thread's colour in plain-weave order) is not p4m at thread scale: a quarter
+  turn or a diagonal mirror swaps warp-up and weft-up crossings where a coloured
+  thread crosses a white one, so its exact group is pmm (odd threads per band) or p4
+  (even). It was designed p4m, and reads so once the yarn is smoothed away.
 - ``stripes`` repeat in one direction only: a frieze, reported as
   :class:`~simulators.fabric.Frieze` (p11m for an asymmetric colour order), never as a
   lattice.
@@ -36,7 +41,7 @@ import numpy as np
 from simulators.fabric import Frieze, Print
 from solver.wallpaper import Wallpaper
 
-__all__ = ["CLASSICS", "CLASSIC_GROUPS", "classic_print"]
+__all__ = ["CLASSICS", "CLASSIC_GROUPS", "classic_print", "woven_check"]
 
 CLASSIC_GROUPS: dict[str, str] = {
     "stripes": "p11m (frieze)",
@@ -238,3 +243,32 @@ def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
                         np.where((d < 0.41)[..., None], ground, line))
 
     return Print(name, wallpaper("cmm", w1, w2), lambda m: _supersampled(fn, m))
+
+
+def woven_check(repeat: float = 10.0, threads: int = 10, *, weft_threads: int | None = None,
+                rotation: float = 0.0, shade: float = 0.0,
+                colour: tuple[float, float, float] = _RED) -> Print:
+    """A yarn-dyed check woven in plain weave: ``threads`` coloured then ``threads``
+    white threads repeat in the warp, and ``weft_threads`` coloured (default: as many)
+    in the weft's repeat of the same ``2 * threads`` picks; each crossing shows the
+    thread on top. ``shade`` makes the warp that much brighter and the weft darker
+    (their sheen differs). The truth is the group it was designed with: a gingham
+    (p4m) when warp and weft bands match, else an uneven check (pmm); at thread scale
+    it has less (see the module's notes)."""
+    n = 2 * threads
+    weft_threads = threads if weft_threads is None else int(weft_threads)
+    if threads < 1 or not 0 < weft_threads < n:
+        raise ValueError(f"need 1 <= threads and 0 < weft_threads < {n}, got "
+                         f"{threads}, {weft_threads}")
+    col, white = np.array(colour), np.array(_WHITE)
+    warp = np.where((np.arange(n) < threads)[:, None], col, white) * (1.0 + shade)
+    weft = np.where((np.arange(n) < weft_threads)[:, None], col, white) * (1.0 - shade)
+    i, j = np.meshgrid(np.arange(n), np.arange(n))
+    cell = np.clip(_weave(warp, weft, (i + j) % 2 == 0), 0.0, 1.0)
+    rot = _rot(rotation)
+    group = "p4m" if weft_threads == threads else "pmm"
+    wp = Wallpaper(group, rot @ np.array([repeat, 0.0]), rot @ np.array([0.0, repeat]),
+                   np.zeros(2))
+    # The designed mirrors run through the middle of each band.
+    return Print(f"woven-{group}", wp,
+                 _thread_texture(cell, shift=(threads / (2 * n), weft_threads / (2 * n))))

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from simulators.classics import CLASSIC_GROUPS, CLASSICS, classic_print
+from simulators.classics import CLASSIC_GROUPS, CLASSICS, classic_print, woven_check
 from simulators.fabric import Frieze, lattice_for, random_print, render_print
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
 from station.cli import main as station
@@ -132,6 +132,23 @@ def test_random_print_has_exactly_its_group(group):
         assert p.truth.group == group
         img = render_print(p, (SIZE_PX * MM_PER_PX,) * 2, MM_PER_PX)
         assert_exact_symmetry(img, p.truth, RANDOM_OFF)
+
+
+@pytest.mark.parametrize(("threads", "weft", "exact_at_thread_scale"),
+                         [(9, 9, False), (8, 8, False), (9, 5, True), (8, 5, False)])
+def test_woven_check_has_its_designed_group_above_the_yarn(threads, weft,
+                                                           exact_at_thread_scale):
+    """A woven gingham is not p4m thread by thread (quarter turns or mirrors swap warp-up
+    and weft-up crossings), an uneven check is pmm there only with odd bands; every
+    designed operation holds once the yarn's two-thread repeat is smoothed away."""
+    p = woven_check(32.0, threads, weft_threads=weft, rotation=12.0)
+    assert p.truth.group == ("p4m" if weft == threads else "pmm")
+    img = render_print(p, (SIZE_PX * MM_PER_PX,) * 2, MM_PER_PX)
+    wp = _to_pixels(p.truth, MM_PER_PX)
+    assert (op_correlations(img, wp).min() >= IN_GROUP) == exact_at_thread_scale
+    thread_px = 32.0 / (2 * threads) / MM_PER_PX
+    smooth = cv2.GaussianBlur(img.astype(np.float32), (0, 0), 0.75 * math.sqrt(2) * thread_px)
+    assert op_correlations(smooth, wp).min() >= IN_GROUP
 
 
 @pytest.mark.parametrize("name", [c for c in CLASSICS if c != "stripes"])
@@ -263,3 +280,9 @@ def test_simulate_fabric_command_classic_and_errors(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert station(["simulate-fabric", "--group", "p1", "--mm-per-px", "0",
                     "-o", str(tmp_path / "x.png")]) == 2
+
+
+def test_woven_check_refuses_impossible_setts():
+    for threads, weft in ((0, None), (5, 0), (5, 10)):
+        with pytest.raises(ValueError, match="threads"):
+            woven_check(10.0, threads, weft_threads=weft)
