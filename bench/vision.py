@@ -19,6 +19,10 @@ Sources (each reported on its own; never pooled into one number):
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
+- ``woven``: yarn-dyed woven checks (``simulators.classics.woven_check``), whose
+  threads show: each crossing has the colour of the thread on top, so at thread scale
+  a gingham is pmm or p4; the truth is the group it was designed with (p4m, or pmm for
+  an uneven check), read once the yarn is smoothed away.
 - ``lineart``: near-symmetric line prints (``simulators.lineart.layered_print``): a
   bold layer of each group, a faint layer (30-60 % contrast, thin) of a random subgroup
   of it, camera blur, noise and JPEG; the truth is measured on the drawn segments.
@@ -35,6 +39,8 @@ Sources (each reported on its own; never pooled into one number):
   photographs of ``../shared/data/fabric_photos`` (SOURCE.md there), grouped by origin,
   read in place (never copied; skipped when absent). A group is right when it is the
   label's group or its labelled alternative.
+- ``photo-crops``: each photograph cropped, rescaled and turned eight ways (the truth
+  unchanged): how stable the answers are, a stand-in for other photographs.
 
 Reported per source: group accuracy; lattice success (found = labelled lattice up to a
 unimodular change of basis, vectors within max(3 %, twice the label's uncertainty)) and
@@ -67,7 +73,7 @@ import numpy as np
 
 from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
-from simulators.classics import CLASSICS, classic_print
+from simulators.classics import CLASSICS, classic_print, woven_check
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
 from simulators.fabric import random_print, render_print
 from simulators.lineart import degrade, layered_print
@@ -237,6 +243,30 @@ def classics(per_name: int = 2, seed: int = 0):
                          truth, basis=basis)
 
 
+def woven(per_kind: int = 4, seed: int = 0):
+    """Yarn-dyed woven checks (``simulators.classics.woven_check``), each crossing the
+    colour of the thread on top: ginghams (designed p4m) and, one in three, uneven
+    checks (pmm, whose quarter turn the yarn must not invent), 6-24 threads per band,
+    5-15 mm repeats at 0.06-0.15 mm per pixel, alternately clean and on cloth."""
+    for k in range(3 * per_kind):
+        rng = np.random.default_rng(seed + 4099 * k + 17)
+        threads = int(rng.integers(6, 25))
+        weft = threads
+        if k % 3 == 2:
+            weft = int(np.clip(round(threads * rng.choice([rng.uniform(0.4, 0.7),
+                                                          rng.uniform(1.3, 1.6)])),
+                               1, 2 * threads - 1))
+        mm = rng.uniform(0.06, 0.15)
+        pr = woven_check(rng.uniform(5, 15), threads, weft_threads=weft,
+                         rotation=rng.uniform(0, 90), shade=rng.uniform(0, 0.08))
+        img = render_print(pr, (640 * mm, 480 * mm), mm)
+        jac = np.eye(2)
+        if k % 2:
+            img, jac = _on_cloth(img, mm, rng)
+        yield Sample("woven", f"{pr.truth.group}/{threads}:{weft}", img, mm,
+                     pr.truth.group, basis=jac @ pr.wallpaper.basis)
+
+
 def tilted_frame(group: str, tilt: float, seed: int, size: tuple[int, int] = (480, 360),
                  height: float = 600.0) -> tuple[np.ndarray, float, np.ndarray]:
     """A frame straight from a camera looking ``tilt`` degrees off the vertical (in a
@@ -350,6 +380,29 @@ def photos(root: Path = PHOTOS):
             tol = max(0.03, 2 * float(r["lattice_unc_pct"] or 0) / 100)
             yield Sample("photos-" + r["file"].split("_")[0], r["file"], img, 1.0, truth,
                          alt=r["alt_group"] or None, basis=basis, tol=tol)
+
+
+def photo_crops(per_photo: int = 8, seed: int = 0, root: Path = PHOTOS):
+    """Each labelled photograph cropped to 60-90 % of its region each way at a random
+    place, rescaled 0.6-1.4 times and turned by a random number of quarter turns: the
+    group does not change and the labelled lattice turns and scales with the image. A
+    stand-in for other photographs of the same cloths: how stable each answer is."""
+    rng = np.random.default_rng(seed)
+    turns = (np.eye(2), np.array([[0, 1], [-1, 0]]), -np.eye(2), np.array([[0, -1], [1, 0]]))
+    for s in photos(root):
+        for k in range(per_photo):
+            h, w = s.image.shape[:2]
+            f = rng.uniform(0.6, 0.9)
+            ch, cw = int(h * f), int(w * f)
+            y0, x0 = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
+            zoom = rng.uniform(0.6, 1.4)
+            img = cv2.resize(s.image[y0:y0 + ch, x0:x0 + cw], None, fx=zoom, fy=zoom,
+                             interpolation=cv2.INTER_AREA)
+            turn = int(rng.integers(0, 4))  # np.rot90: counter-clockwise as displayed
+            img = np.ascontiguousarray(np.rot90(img, turn))
+            basis = None if s.basis is None else turns[turn] @ s.basis * zoom
+            yield Sample("photo-crops", f"{s.name}#{k}", img, 1.0, s.truth, alt=s.alt,
+                         basis=basis, tol=s.tol)
 
 
 # ---------------------------------------------------------------- scoring
@@ -524,16 +577,18 @@ def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "lineart", "plain", "photos", "npm")
+                                    "woven", "lineart", "plain", "photos", "crops", "npm")
         ) -> dict:
     makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
               "tilted": lambda: tilted(per_group, seed=seed),
               "blurred": lambda: blurred(3 * per_group, seed=seed),
               "cloth": lambda: cloth(per_group, seed=seed),
               "classics": lambda: classics(max(2, per_group), seed=seed),
+              "woven": lambda: woven(2 * per_group, seed=seed),
               "lineart": lambda: lineart(per_group, seed=seed),
               "plain": lambda: plain(max(2, per_group), seed=seed),
               "photos": photos,
+              "crops": photo_crops,
               "npm": lambda: npm(per_group, seed=seed)}
     samples = []
     for name in sources:

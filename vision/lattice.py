@@ -44,7 +44,12 @@ from skimage.feature import peak_local_max
 
 from solver.wallpaper import gauss_reduce
 
-__all__ = ["LatticeResult", "detect_lattice", "prepare_colour", "prepare_image"]
+__all__ = ["LatticeResult", "detect_lattice", "prepare_colour", "prepare_image",
+           "yarn_repeat"]
+
+#: Autocorrelation of the image's fine detail at which a 2-D repeat finer than any
+#: print counts as the yarn showing (a weave's interlacing, a knit's stitches).
+YARN_SEEN = 0.3
 
 #: Largest side of the working image: the lattice is fitted on many peaks, so a
 #: moderate resolution keeps sub-pixel precision while the FFT stays fast.
@@ -329,6 +334,7 @@ def detect_lattice(
     max_ripple: float = 0.04,
     work_side: int = WORK_SIDE,
     prepared: tuple[np.ndarray, float] | None = None,
+    smooth_px: float = 1.0,
 ) -> LatticeResult:
     """Two shortest translation vectors of the print in ``image`` (a rectified photo).
 
@@ -351,6 +357,10 @@ def detect_lattice(
         1-D stripes, provided it does not dip periodically by more than ``max_ripple``.
     prepared : (flat, scale), optional
         :func:`prepare_image`'s answer for this image, to share it between steps.
+    smooth_px : float
+        Gaussian blur (working pixels) of the image before its autocorrelation: one
+        pixel against noise; more to find the print above the yarn
+        (:func:`yarn_repeat`).
 
     Returns
     -------
@@ -363,7 +373,7 @@ def detect_lattice(
     flat, scale = prepared or prepare_image(image, work_side=work_side)
     colour = _same_view_colour(image, flat, scale)
     chans = flat[None] if colour is None else colour
-    chans = np.stack([cv2.GaussianBlur(c, (0, 0), 1.0) for c in chans])
+    chans = np.stack([cv2.GaussianBlur(c, (0, 0), max(1.0, smooth_px)) for c in chans])
     acf, wacf = autocorrelation(chans)
     h2, w2 = acf.shape
     center = np.array([h2 // 2, w2 // 2], float)
@@ -421,6 +431,43 @@ def detect_lattice(
     return _weave_check(LatticeResult("lattice", w1=w1, w2=w2, sigma_w1=np.full(2, s),
                                       sigma_w2=np.full(2, s), mm_per_px=mm_per_px,
                                       strength=support, n_peaks=n_used), min_repeat_mm)
+
+
+def yarn_repeat(flat: np.ndarray, px_mm: float, min_repeat_mm: float = 3.0) -> float:
+    """Side (mm) of the yarn's repeat where the image shows the yarn as a 2-D lattice
+    finer than any print (``min_repeat_mm``); NaN where it does not.
+
+    A yarn-dyed check's colours sit on the threads that cross at each point, warp here
+    and weft there in the weave's order, and a knit shows its stitches: at thread scale
+    a woven gingham is not even p4m. Only the image's fine detail is searched (the
+    print's shapes smoothed away at a sixth of the smallest print repeat), for two
+    independent lags d1, d2 whose autocorrelation, and that at d1 + d2 and d1 - d2 (a
+    lattice, not the ridges of a print's straight edges), reach ``YARN_SEEN``. The
+    side is the longer of the two shortest such lags: a plain weave's two-thread
+    diagonal, a twill's four-thread one.
+    """
+    reach = min_repeat_mm / px_mm
+    fine = flat - cv2.GaussianBlur(flat, (0, 0), reach / 6.0)
+    acf, _ = autocorrelation(fine)
+    center = np.array(acf.shape) // 2
+    r = int(min(reach, *(center - 2)))
+    near = acf[center[0] - r:center[0] + r + 1, center[1] - r:center[1] + r + 1]
+    coords = peak_local_max(near, min_distance=1, threshold_abs=YARN_SEEN,
+                            exclude_border=1, num_peaks=60)
+    d = (coords - r).astype(float)
+    n = np.hypot(d[:, 0], d[:, 1])
+    keep = (n >= 2.0) & (n < reach)
+    d, n = d[keep], n[keep]
+    if not len(n):
+        return float("nan")
+    d1 = d[np.argmin(n)]
+    cross = np.abs(d[:, 0] * d1[1] - d[:, 1] * d1[0]) / np.maximum(n * n.min(), 1e-9)
+    for j in sorted(np.flatnonzero(cross > 0.3), key=lambda k: n[k]):
+        ends = np.round(center + np.stack([d1 + d[j], d1 - d[j]])).astype(int)
+        if (ends >= 0).all() and (ends < acf.shape).all() and \
+                acf[ends[:, 0], ends[:, 1]].min() >= YARN_SEEN:
+            return float(n[j]) * px_mm
+    return float("nan")  # the shortest lag has no partner: no 2-D yarn lattice
 
 
 def _same_view_colour(image: np.ndarray, flat: np.ndarray,
