@@ -6,9 +6,10 @@ a supergroup; plain cloth and stripes never a 2-D lattice; labelled lattices are
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from bench.vision import PHOTOS, evaluate, photos
+from bench.vision import PHOTOS, evaluate, photo_crops, photos
 from vision.pipeline import CONFIRM_BELOW
 
 pytestmark = pytest.mark.skipif(not (PHOTOS / "labels.csv").is_file(),
@@ -47,3 +48,31 @@ def test_labelled_lattices_are_found(results):
     for s, f in results:
         if f["lattice_ok"] is not None:
             assert f["lattice_ok"], (s.name, f)
+
+
+@pytest.fixture(scope="module")
+def crops():
+    return [(s, evaluate(s, with_baseline=False)) for s in photo_crops(per_photo=8, seed=0)]
+
+
+def _repeats_across(s) -> float:
+    """How many labelled repeats fit across the crop's shorter side, along the longer
+    lattice vector: below three no lattice can be told from the image."""
+    return min(s.image.shape[:2]) / float(np.linalg.norm(s.basis, axis=0).max())
+
+
+def test_cropped_rescaled_turned_photos_keep_their_answers(crops):
+    """Each photograph cropped to 60-90 %, rescaled 0.6-1.4 times and turned: the same
+    cloth, so the same answer, or a safe one that goes to the operator."""
+    assert len(crops) >= 80
+    for s, f in crops:
+        assert f["outcome"] not in ("supergroup", "false lattice", "other"), (s.name, f)
+        if f["outcome"] == "subgroup":
+            assert f["conf"] < CONFIRM_BELOW, (s.name, f)
+    right = sum(f["outcome"] == "right" for _, f in crops)
+    assert right >= 0.8 * len(crops)
+    # The lattice, where three repeats fit (a label holds at its region's centre only:
+    # a crop of a photograph in perspective sees another part of it).
+    seen = [f for s, f in crops if s.basis is not None and _repeats_across(s) >= 3]
+    assert all(f["outcome"] != "missed" for f in seen)
+    assert sum(bool(f["lattice_ok"]) for f in seen) >= 0.9 * len(seen)
