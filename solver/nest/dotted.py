@@ -48,6 +48,9 @@ SCALE = 100  # objective units per mm (0.01 mm)
 # 11 s on the station's two cores (the portfolio's helpers steal the main search's time)
 WORKERS = 1
 EDGE_EPS = 1e-9  # mm of slack at the fabric's edges (verify_layout allows 1e-6)
+# share of the model's build time kept back for handing it to the solver (twice what was
+# measured, as machines under load pay more)
+HANDOVER = 0.2
 # above this many allowed positions in all the model does not fit a nest's budget (the
 # strategy steps aside): the Berkeley dresses' p1 (11 pieces, 3475-3740) built in 1 s and
 # solved from 1-2 s on; the shirt's p2 (14 pieces, 11167, 12 M literals) took 4.2 s to
@@ -228,12 +231,12 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     The station's layouts start at the roll's start (the default); this answers how
     dense a printed marker can be at all.
     """
-    # imported here: 0.4-0.6 s (load 6 on 2 cores) that every `station nest`, plain
-    # fabric and large inputs included, would otherwise pay before its clock starts
-    from ortools.sat.python import cp_model
-
     deadline = deadline_of(time_limit)
     t0 = time.monotonic()
+    # imported here, within the budget: 0.4-0.6 s (load 6 on 2 cores) on first use, that
+    # every `station nest`, plain fabric and large inputs included, would otherwise pay
+    from ortools.sat.python import cp_model
+
     g = problem.gap
     period = 0.0
     if any_phase:
@@ -295,6 +298,8 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     area = sum(shapely.Polygon(it.ref).area for it in items)
     model.add(right >= int(math.floor((g + area / (problem.width - 2 * g)) * SCALE)))
     for i in range(len(items)):
+        if deadline.expired():
+            return None
         ends = np.ceil(opts[i].right * SCALE).astype(np.int64)
         model.add(right >= sum(int(e) * x[j] for e, j in zip(ends, ids[i])))
     # interchangeable copies (same options, adjacent in ``items``) in the order of their
@@ -334,10 +339,13 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     build = time.monotonic() - t0
     if progress:
         progress(f"dotted: {total} allowed positions, model built in {build:.2f} s")
-    if deadline.left() <= 0:
+    # Handing the model over costs about a tenth of building it, outside the solver's own
+    # time limit (0.08 s after a 0.92 s build of the shorts' 4940 positions): kept back.
+    left = deadline.left() - HANDOVER * build
+    if left <= 0:
         return None
     solver = cp_model.CpSolver()
-    solver.parameters.max_time_in_seconds = deadline.left()
+    solver.parameters.max_time_in_seconds = left
     solver.parameters.num_workers = max(1, min(workers, os.cpu_count() or 1))
     # one presolve pass, no probing, no symmetry detection: the model is already tight and
     # its at-most-ones are large, so the default presolve took 2.8 s of a t-shirt p2 nest

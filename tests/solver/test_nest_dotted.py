@@ -139,6 +139,8 @@ def test_dotted_optimum_equals_brute_force(w2, origin):
 
 
 def test_dotted_respects_its_deadline(shorts):
+    import ortools.sat.python.cp_model  # noqa: F401  (a process pays its import once)
+
     problem = NestProblem(shorts, 1500.0, gap=2.0,
                           fabric=Wallpaper("p2", (50.0, 0.0), (0.0, 50.0)))
     items = problem.items()
