@@ -58,7 +58,8 @@ def test_dotted_shortens_a_loose_marker_and_keeps_the_print(shorts, group):
     hint = _columns(problem, items)
     loose = build_layout(problem, items, hint)
     assert verify_layout(loose, problem) == []
-    r = dotted_nest(problem, items, time_limit=4.0, hint=hint)
+    # proven optimal after 1.4 s (p1) and 3.0 s (p2) on an idle machine: room for load
+    r = dotted_nest(problem, items, time_limit=8.0, hint=hint)
     assert r is not None and r.moves is not None
     layout = build_layout(problem, items, r.moves)
     assert verify_layout(layout, problem) == []
