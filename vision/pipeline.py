@@ -116,16 +116,17 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
                   distortion: bool = True, min_repeat_mm: float = 3.0,
-                  stretch_tol: float = 0.03) -> FabricDetection:
+                  stretch_tol: float = 0.03, above_yarn: bool = True) -> FabricDetection:
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
     stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
     tolerances are named in ``distortion.warning``. Perspective left in the image
     (:mod:`vision.perspective`) is undone before the group is read, and reported; yarn
-    the image resolves (:func:`vision.lattice.yarn_repeat`) is smoothed away first."""
+    the image resolves (:func:`vision.lattice.yarn_repeat`) is smoothed away first
+    (``above_yarn``; off only to measure what it changes)."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
-    yarn_mm = yarn_repeat(flat, mm_per_px / scale, min_repeat_mm)
+    yarn_mm = yarn_repeat(flat, mm_per_px / scale, min_repeat_mm) if above_yarn else np.nan
     sigma = 1.0
     if np.isfinite(yarn_mm):
         yarn_px = YARN_SMOOTHING * yarn_mm / mm_per_px * scale
