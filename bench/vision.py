@@ -244,7 +244,7 @@ def classics(per_name: int = 2, seed: int = 0):
                          truth, basis=basis)
 
 
-def woven(per_kind: int = 4, seed: int = 0):
+def woven(per_kind: int = 4, seed: int = 0, weave: str = "plain"):
     """Yarn-dyed woven checks (``simulators.classics.woven_check``), each crossing the
     colour of the thread on top: ginghams (designed p4m) and, one in three, uneven
     checks (pmm, whose quarter turn the yarn must not invent), 6-24 threads per band,
@@ -258,13 +258,14 @@ def woven(per_kind: int = 4, seed: int = 0):
                                                           rng.uniform(1.3, 1.6)])),
                                1, 2 * threads - 1))
         mm = rng.uniform(0.06, 0.15)
-        pr = woven_check(rng.uniform(5, 15), threads, weft_threads=weft,
+        pr = woven_check(rng.uniform(5, 15), threads, weft_threads=weft, weave=weave,
                          rotation=rng.uniform(0, 90), shade=rng.uniform(0, 0.08))
         img = render_print(pr, (640 * mm, 480 * mm), mm)
         jac = np.eye(2)
         if k % 2:
             img, jac = _on_cloth(img, mm, rng)
-        yield Sample("woven", f"{pr.truth.group}/{threads}:{weft}", img, mm,
+        yield Sample("woven" if weave == "plain" else f"woven-{weave}",
+                     f"{pr.truth.group}/{threads}:{weft}", img, mm,
                      pr.truth.group, basis=jac @ pr.wallpaper.basis)
 
 
@@ -631,6 +632,7 @@ def yarn_effect(per_group: int = 2, seed: int = 0,
               "cloth": lambda: cloth(per_group, seed=seed),
               "classics": lambda: classics(max(2, per_group), seed=seed),
               "woven": lambda: woven(2 * per_group, seed=seed),
+              "twill": lambda: woven(2 * per_group, seed=seed, weave="twill"),
               "plain": lambda: plain(max(2, per_group), seed=seed),
               "photos": photos, "crops": photo_crops}
     rows, changed = [], []

@@ -246,25 +246,28 @@ def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
 
 
 def woven_check(repeat: float = 10.0, threads: int = 10, *, weft_threads: int | None = None,
-                rotation: float = 0.0, shade: float = 0.0,
+                rotation: float = 0.0, shade: float = 0.0, weave: str = "plain",
                 colour: tuple[float, float, float] = _RED) -> Print:
-    """A yarn-dyed check woven in plain weave: ``threads`` coloured then ``threads``
-    white threads repeat in the warp, and ``weft_threads`` coloured (default: as many)
-    in the weft's repeat of the same ``2 * threads`` picks; each crossing shows the
-    thread on top. ``shade`` makes the warp that much brighter and the weft darker
-    (their sheen differs). The truth is the group it was designed with: a gingham
-    (p4m) when warp and weft bands match, else an uneven check (pmm); at thread scale
-    it has less (see the module's notes)."""
+    """A yarn-dyed check: ``threads`` coloured then ``threads`` white threads repeat in
+    the warp, and ``weft_threads`` coloured (default: as many) in the weft's repeat of
+    the same ``2 * threads`` picks, woven in ``weave`` ("plain", or "twill": 2/2); each
+    crossing shows the thread on top. ``shade`` makes the warp that much brighter and
+    the weft darker (their sheen differs). The truth is the group it was designed with:
+    a gingham (p4m) when warp and weft bands match, else an uneven check (pmm); at
+    thread scale it has less (see the module's notes)."""
     n = 2 * threads
     weft_threads = threads if weft_threads is None else int(weft_threads)
     if threads < 1 or not 0 < weft_threads < n:
         raise ValueError(f"need 1 <= threads and 0 < weft_threads < {n}, got "
                          f"{threads}, {weft_threads}")
+    if weave not in ("plain", "twill"):
+        raise ValueError(f"unknown weave {weave!r}; expected plain or twill")
     col, white = np.array(colour), np.array(_WHITE)
     warp = np.where((np.arange(n) < threads)[:, None], col, white) * (1.0 + shade)
     weft = np.where((np.arange(n) < weft_threads)[:, None], col, white) * (1.0 - shade)
     i, j = np.meshgrid(np.arange(n), np.arange(n))
-    cell = np.clip(_weave(warp, weft, (i + j) % 2 == 0), 0.0, 1.0)
+    up = (i + j) % 2 == 0 if weave == "plain" else (i + j) % 4 < 2
+    cell = np.clip(_weave(warp, weft, up), 0.0, 1.0)
     rot = _rot(rotation)
     group = "p4m" if weft_threads == threads else "pmm"
     wp = Wallpaper(group, rot @ np.array([repeat, 0.0]), rot @ np.array([0.0, repeat]),

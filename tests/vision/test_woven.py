@@ -79,6 +79,17 @@ def test_read_at_thread_scale_the_same_checks_lose_their_group(woven_samples, mo
     assert sum(kind == "right" for kind, _, _ in outcomes) <= len(outcomes) // 2, outcomes
 
 
+def test_twill_woven_checks_never_gain_symmetry_and_unsure_ones_go_to_the_operator():
+    """2/2 twill breaks every mirror thread by thread; above the yarn most read as
+    designed, and the rest as subgroups below the operator's threshold."""
+    outcomes = _outcomes(list(woven(2, seed=5, weave="twill")))
+    for kind, conf, found in outcomes:
+        assert found and kind in ("right", "subgroup"), outcomes
+        if kind == "subgroup":
+            assert conf < CONFIRM_BELOW, outcomes
+    assert sum(kind == "right" for kind, _, _ in outcomes) >= len(outcomes) // 2, outcomes
+
+
 @pytest.mark.parametrize("weave", ["plain", "twill"])
 def test_plain_cloth_whose_yarn_shows_stays_plain(weave):
     for seed, (mm, thread) in enumerate(((0.05, 0.3), (0.08, 0.45), (0.1, 0.6))):
