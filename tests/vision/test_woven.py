@@ -82,7 +82,7 @@ def test_read_at_thread_scale_the_same_checks_lose_their_group(woven_samples, mo
 def test_twill_woven_checks_never_gain_symmetry_and_unsure_ones_go_to_the_operator():
     """2/2 twill breaks every mirror thread by thread; above the yarn most read as
     designed, and the rest as subgroups below the operator's threshold."""
-    outcomes = _outcomes(list(woven(2, seed=5, weave="twill")))
+    outcomes = _outcomes(list(woven(4, seed=5, weave="twill")))
     for kind, conf, found in outcomes:
         assert found and kind in ("right", "subgroup"), outcomes
         if kind == "subgroup":
