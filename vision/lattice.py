@@ -462,7 +462,11 @@ def yarn_repeat(flat: np.ndarray, px_mm: float, min_repeat_mm: float = 3.0) -> f
         return float("nan")
     d1 = d[np.argmin(n)]
     cross = np.abs(d[:, 0] * d1[1] - d[:, 1] * d1[0]) / np.maximum(n * n.min(), 1e-9)
-    for j in sorted(np.flatnonzero(cross > 0.3), key=lambda k: n[k]):
+    partners = np.flatnonzero(cross > 0.3)
+    # only the shortest partners: a far one closing by chance (a moire of yarn finer than
+    # the pixels) would smooth the print away with it
+    partners = partners[n[partners] <= 1.5 * n[partners].min()] if len(partners) else partners
+    for j in sorted(partners, key=lambda k: n[k]):
         ends = np.round(center + np.stack([d1 + d[j], d1 - d[j]])).astype(int)
         if (ends >= 0).all() and (ends < acf.shape).all() and \
                 acf[ends[:, 0], ends[:, 1]].min() >= YARN_SEEN:
