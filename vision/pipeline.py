@@ -48,8 +48,8 @@ class FabricDetection:
     offset: np.ndarray
     mm_per_px: float
     seconds: float
-    #: Repeat of the yarn (mm) where the image shows it, smoothed away before the print
-    #: was read (:func:`vision.lattice.yarn_repeat`); NaN where it does not show.
+    #: Repeat of the yarn (mm) where the image shows it (:func:`vision.lattice.yarn_repeat`),
+    #: smoothed away before the print was read unless nothing was above it; else NaN.
     yarn_mm: float = float("nan")
 
     @property
@@ -127,15 +127,16 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     yarn_mm = yarn_repeat(flat, mm_per_px / scale, min_repeat_mm) if above_yarn else np.nan
-    sigma = 1.0
+    sigma, read = 1.0, flat
     if np.isfinite(yarn_mm):
         yarn_px = YARN_SMOOTHING * yarn_mm / mm_per_px * scale
         above = cv2.GaussianBlur(flat, (0, 0), yarn_px)
         if above.var() >= PRINT_ABOVE_YARN * flat.var():
             # The print was designed above the yarn: read it with the yarn smoothed away.
-            sigma, flat = yarn_px, above
+            sigma, read = yarn_px, above
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm, smooth_px=sigma)
+    flat = read
     local, view, cls = None, None, None
     seed = lat
     if distortion and lat.kind == "plain":
