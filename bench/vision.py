@@ -19,10 +19,11 @@ Sources (each reported on its own; never pooled into one number):
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
-- ``woven``: yarn-dyed woven checks (``simulators.classics.woven_check``), whose
-  threads show: each crossing has the colour of the thread on top, so at thread scale
-  a gingham is pmm or p4; the truth is the group it was designed with (p4m, or pmm for
-  an uneven check), read once the yarn is smoothed away.
+- ``woven``, ``woven-twill``: yarn-dyed checks woven in plain weave or 2/2 twill
+  (``simulators.classics.woven_check``), whose threads show: each crossing has the
+  colour of the thread on top, so at thread scale a gingham is not p4m; the truth is
+  the group it was designed with (p4m, or pmm for an uneven check), read once the yarn
+  is smoothed away.
 - ``lineart``: near-symmetric line prints (``simulators.lineart.layered_print``): a
   bold layer of each group, a faint layer (30-60 % contrast, thin) of a random subgroup
   of it, camera blur, noise and JPEG; the truth is measured on the drawn segments.
@@ -577,21 +578,28 @@ def fit_temperature(samples: list[Sample], grid=(0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 
             + "\n- ".join(cells))
 
 
+def _sources(per_group: int, seed: int) -> dict:
+    """Every source by name, as a function that yields its samples."""
+    return {"synthetic": lambda: synthetic(per_group, seed=seed),
+            "tilted": lambda: tilted(per_group, seed=seed),
+            "blurred": lambda: blurred(3 * per_group, seed=seed),
+            "cloth": lambda: cloth(per_group, seed=seed),
+            "classics": lambda: classics(max(2, per_group), seed=seed),
+            "woven": lambda: woven(2 * per_group, seed=seed),
+            "twill": lambda: woven(2 * per_group, seed=seed, weave="twill"),
+            "lineart": lambda: lineart(per_group, seed=seed),
+            "plain": lambda: plain(max(2, per_group), seed=seed),
+            "photos": photos,
+            "crops": photo_crops,
+            "npm": lambda: npm(per_group, seed=seed)}
+
+
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "woven", "lineart", "plain", "photos", "crops", "npm")
+                                    "woven", "twill", "lineart", "plain", "photos",
+                                    "crops", "npm")
         ) -> dict:
-    makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
-              "tilted": lambda: tilted(per_group, seed=seed),
-              "blurred": lambda: blurred(3 * per_group, seed=seed),
-              "cloth": lambda: cloth(per_group, seed=seed),
-              "classics": lambda: classics(max(2, per_group), seed=seed),
-              "woven": lambda: woven(2 * per_group, seed=seed),
-              "lineart": lambda: lineart(per_group, seed=seed),
-              "plain": lambda: plain(max(2, per_group), seed=seed),
-              "photos": photos,
-              "crops": photo_crops,
-              "npm": lambda: npm(per_group, seed=seed)}
+    makers = _sources(per_group, seed)
     samples = []
     for name in sources:
         for s in makers[name]():
@@ -628,13 +636,7 @@ def yarn_effect(per_group: int = 2, seed: int = 0,
     """Each sample read twice in one process, with and without the yarn smoothed away
     (``detect_fabric(above_yarn=...)``): outcomes per source, and every image whose
     answer changed."""
-    makers = {"synthetic": lambda: synthetic(per_group, seed=seed),
-              "cloth": lambda: cloth(per_group, seed=seed),
-              "classics": lambda: classics(max(2, per_group), seed=seed),
-              "woven": lambda: woven(2 * per_group, seed=seed),
-              "twill": lambda: woven(2 * per_group, seed=seed, weave="twill"),
-              "plain": lambda: plain(max(2, per_group), seed=seed),
-              "photos": photos, "crops": photo_crops}
+    makers = _sources(per_group, seed)
     rows, changed = [], []
     for name in sources:
         counts = {False: {}, True: {}}
