@@ -22,10 +22,11 @@ clearly less). Facts that surprise:
   on a hexagonal grid p6m; uniform ``diamonds`` (harlequin) on a rhombic lattice are
   **cmm**.
 - A *woven* gingham (``woven_check``: yarn-dyed, each crossing shows the warp or the
-  weft thread's colour in plain-weave order) is not p4m at thread scale: a quarter
-  turn or a diagonal mirror swaps warp-up and weft-up crossings where a coloured
-  thread crosses a white one, so its exact group is pmm (odd threads per band) or p4
-  (even). It was designed p4m, and reads so once the yarn is smoothed away.
+  weft thread's colour in the weave's order) is not p4m at thread scale. In plain
+  weave a quarter turn or a diagonal mirror swaps warp-up and weft-up crossings where
+  a coloured thread crosses a white one, so its exact group is pmm (odd threads per
+  band) or p4 (even); a 2/2 twill's diagonal breaks every mirror. It was designed
+  p4m, and reads so once the yarn is smoothed away.
 - ``stripes`` repeat in one direction only: a frieze, reported as
   :class:`~simulators.fabric.Frieze` (p11m for an asymmetric colour order), never as a
   lattice.
