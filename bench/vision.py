@@ -83,7 +83,7 @@ from solver.wallpaper import GROUP_NAMES, gauss_reduce
 from vision.calibration import Calibration
 from vision.classify import BAND, OWN_ASYMMETRY, SHARED_ASYMMETRY, TAU, classify
 from vision.lattice import detect_lattice, prepare_image
-from vision.pipeline import detect_fabric
+from vision.pipeline import above_the_yarn, detect_fabric
 from vision.rectify import rectify
 from vision.subgroups import error_kind
 
@@ -509,8 +509,10 @@ def cross_validate(samples: list[Sample], grid=CV_GRID, params=("band", "tau"),
         if s.truth in ("plain", "stripes"):
             continue
         flat, scale = prepare_image(s.image)
-        lat = detect_lattice(s.image, mm_per_px=s.mm_per_px, prepared=(flat, scale))
-        cached.append((s, lat, flat, scale))
+        _, smooth, read = above_the_yarn(flat, scale, s.mm_per_px)  # as detect_fabric
+        lat = detect_lattice(s.image, mm_per_px=s.mm_per_px, prepared=(flat, scale),
+                             smooth_px=smooth)
+        cached.append((s, lat, read, scale))
     outcome = {}
     for cfg in dict.fromkeys((*grid, shipped)):
         for i, (s, lat, flat, scale) in enumerate(cached):

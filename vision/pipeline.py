@@ -19,8 +19,8 @@ from vision.distortion import Distortion, local_lattices, measure_distortion
 from vision.lattice import LatticeResult, detect_lattice, prepare_image, yarn_repeat
 from vision.perspective import View, fit_view
 
-__all__ = ["CONFIRM_BELOW", "FabricDetection", "confirm_fabric", "detect_fabric",
-           "draw_overlay"]
+__all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric",
+           "detect_fabric", "draw_overlay"]
 
 #: Below this confidence a detected group goes to the operator ("confirm fabric").
 CONFIRM_BELOW = 0.9
@@ -126,14 +126,8 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     (``above_yarn``; off only to measure what it changes)."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
-    yarn_mm = yarn_repeat(flat, mm_per_px / scale, min_repeat_mm) if above_yarn else np.nan
-    sigma, read = 1.0, flat
-    if np.isfinite(yarn_mm):
-        yarn_px = YARN_SMOOTHING * yarn_mm / mm_per_px * scale
-        above = cv2.GaussianBlur(flat, (0, 0), yarn_px)
-        if above.var() >= PRINT_ABOVE_YARN * flat.var():
-            # The print was designed above the yarn: read it with the yarn smoothed away.
-            sigma, read = yarn_px, above
+    yarn_mm, sigma, read = (above_the_yarn(flat, scale, mm_per_px, min_repeat_mm)
+                            if above_yarn else (np.nan, 1.0, flat))
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm, smooth_px=sigma)
     flat = read
@@ -174,6 +168,22 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                             else f"fabric lies distorted: {fault}")
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
                            time.perf_counter() - t0, yarn_mm)
+
+
+def above_the_yarn(flat: np.ndarray, scale: float, mm_per_px: float,
+                   min_repeat_mm: float = 3.0) -> tuple[float, float, np.ndarray]:
+    """The yarn's repeat in mm (:func:`vision.lattice.yarn_repeat`; NaN where the image
+    does not show it), the smoothing in working pixels that takes it away (1 px, the
+    lattice search's own, otherwise) and the working image ``flat`` with it taken away:
+    the print was designed above the yarn. Where less than ``PRINT_ABOVE_YARN`` of the
+    contrast would remain, the yarn is all there is (plain cloth): ``flat`` as it is."""
+    yarn_mm = yarn_repeat(flat, mm_per_px / scale, min_repeat_mm)
+    if np.isfinite(yarn_mm):
+        yarn_px = YARN_SMOOTHING * yarn_mm / mm_per_px * scale
+        above = cv2.GaussianBlur(flat, (0, 0), yarn_px)
+        if above.var() >= PRINT_ABOVE_YARN * flat.var():
+            return yarn_mm, yarn_px, above
+    return yarn_mm, 1.0, flat
 
 
 def _central_lattice(flat: np.ndarray, scale: float, mm_per_px: float,
