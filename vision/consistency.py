@@ -25,11 +25,13 @@ no interpolation enters the test.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Asymmetry", "RepeatSpectra", "asymmetry", "refine_translation", "repeat_spectra"]
+__all__ = ["Alternation", "Asymmetry", "RepeatSpectra", "alternation", "asymmetry",
+           "refine_translation", "repeat_spectra"]
 
 #: Single repeats whose residual energy is averaged (a sample keeps the cost fixed).
 SAMPLE = 64
@@ -74,14 +76,106 @@ def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None 
     r = len(cells)
     if r < 3:
         return None
-    c = np.asarray(ij, float) - np.mean(ij, axis=0)
-    _, _, vt = np.linalg.svd(c, full_matrices=False)
-    order = np.argsort(c @ vt[0], kind="stable")
-    a, _, b = np.array_split(order, 3)
+    a, b = _outer_thirds(ij)
     pick = np.linspace(0, r - 1, min(r, sample)).round().astype(int)
     w = 1.0 if weight is None else weight
     return RepeatSpectra(*(np.fft.fft2(cells[k].mean(0)) * w for k in (slice(None), a, b)),
                          np.fft.fft2(cells[pick]) * w, weight)
+
+
+def _outer_thirds(ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the repeats in the two outer thirds across the longest extent of
+    their (i, j) indices: the parts of the cloth farthest apart."""
+    c = np.asarray(ij, float) - np.mean(ij, axis=0)
+    _, _, vt = np.linalg.svd(c, full_matrices=False)
+    order = np.argsort(c @ vt[0], kind="stable")
+    a, _, b = np.array_split(order, 3)
+    return a, b
+
+
+@dataclass
+class Alternation:
+    """The strongest alternation between neighbouring repeats: ``parity`` (p, q) splits
+    the repeats by (p i + q j) mod 2; ``own`` is the energy of the difference between
+    the two classes that both outer thirds of the cloth share, over the motif energy
+    they share (as :attr:`Asymmetry.own` for the half step as an operation: 0 when the
+    half step is a repeat); ``z`` that shared energy in standard errors of noise;
+    ``share`` its part of the difference between single neighbouring repeats (as
+    :attr:`Asymmetry.share`)."""
+
+    parity: tuple[int, int]
+    own: float
+    z: float
+    share: float = 0.0
+
+
+#: The three ways of splitting a lattice into two cosets of an index-2 sublattice.
+PARITIES = ((1, 0), (0, 1), (1, 1))
+
+
+def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = None,
+                min_terms: int = 4) -> Alternation | None:
+    """Do neighbouring repeats differ in a way the whole cloth shares?
+
+    A lattice read too fine (a print's near-translation, such as a glide's half step
+    under blur, taken for a repeat) puts two different cells ``m + d`` and ``m - d`` in
+    alternate repeats. For each index-2 split, every repeat with both neighbours one
+    odd step away gives ``+-(c - (c_prev + c_next) / 2) / 2``: ``d`` plus noise, with any
+    drift that is linear along the step (perspective, stretch) gone. The inner product of
+    its means over the two outer thirds of the cloth (spectra weighted by ``weight``) is
+    the difference both share, which noise, wrinkles and local stretch do not. None when
+    a third holds fewer than ``min_terms`` such repeats."""
+    ij = np.asarray(ij, float)
+    w = 1.0 if weight is None else weight
+    spec = (np.fft.fft2(cells) * w).reshape(len(cells), -1)
+    third = np.full(len(cells), -1)
+    for k, h in enumerate(_outer_thirds(ij) if len(cells) >= 3 else ()):
+        third[h] = k
+    best = None
+    for p in PARITIES:
+        steps = [e for e in ((1, 0), (0, 1)) if (p[0] * e[0] + p[1] * e[1]) % 2]
+        sign = 1.0 - 2.0 * ((ij @ np.array(p, float)).astype(int) % 2)
+        terms, where = [], []
+        for e in steps:
+            r, nxt = _neighbours(ij, [e])
+            r2, prv = _neighbours(ij, [(-e[0], -e[1])])
+            both, at_n, at_p = np.intersect1d(r, r2, return_indices=True)
+            terms.append(sign[both, None] * (spec[both] - 0.5 * (spec[nxt[at_n]]
+                                                                 + spec[prv[at_p]])) / 2)
+            where.append(both)
+        t, at = np.concatenate(terms), np.concatenate(where)
+        parts = [t[third[at] == k] for k in (0, 1)]
+        if min(len(x) for x in parts) < min_terms:
+            continue
+        d_a, d_b = (x.mean(0) for x in parts)
+        # Variance of each mean per harmonic (neighbouring terms share a repeat, so
+        # this runs low and ``z`` high: it is a guard against few repeats, no more).
+        v_a, v_b = ((np.abs(x - x.mean(0)) ** 2).sum(0) / (len(x) * (len(x) - 1))
+                    for x in parts)
+        m_a, m_b = (spec[third == k].mean(0) for k in (0, 1))
+        shared_d = float(np.real(np.vdot(d_a, d_b)))
+        own = 2.0 * shared_d / max(float(np.real(np.vdot(m_a, m_b))), 1e-30)
+        z = shared_d / math.sqrt(max(float((v_a * v_b).sum()), 1e-300))
+        # Single repeats: the difference of each from its neighbour one step away.
+        r, q = _neighbours(ij, steps)
+        single = float((np.abs(spec[r] - spec[q]) ** 2).sum(1).mean())
+        if best is None or own > best.own:
+            best = Alternation(p, own, z, 4.0 * shared_d / max(single, 1e-30))
+    return best
+
+
+def _neighbours(ij: np.ndarray, steps: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (r, q) of repeats with ij[q] = ij[r] + a step."""
+    key = ij[:, 0].astype(np.int64) * 100003 + ij[:, 1].astype(np.int64)
+    order = np.argsort(key)
+    rs, qs = [], []
+    for e in steps:
+        want = key + e[0] * 100003 + e[1]
+        pos = np.clip(np.searchsorted(key[order], want), 0, len(key) - 1)
+        hit = key[order][pos] == want
+        rs.append(np.flatnonzero(hit))
+        qs.append(order[pos[hit]])
+    return np.concatenate(rs), np.concatenate(qs)
 
 
 def _perm(a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
