@@ -56,7 +56,8 @@ from vision.consistency import RepeatSpectra, asymmetry, repeat_spectra
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
-__all__ = ["Classification", "classify", "mean_cell", "symmetry_elements"]
+__all__ = ["Classification", "classify", "lattice_whitening", "mean_cell", "repeat_cells",
+           "symmetry_elements"]
 
 #: Grid of the mean cell: divisible by 2, 3, 4 and 6 so that every operation of every
 #: group maps grid points onto grid points.
@@ -124,6 +125,13 @@ def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndar
     # texture (twill lines, yarn) that need not share the print's symmetry.
     f = f * math.sqrt(math.sqrt(max(np.linalg.det(metric), 1e-12)))
     return f**alpha * np.exp(-0.5 * (f / band) ** 2)
+
+
+def lattice_whitening(basis: np.ndarray, band: float, n: int = CELL_N) -> np.ndarray:
+    """The whitening (n, n) of cells of the lattice ``basis``, rolled off at ``band``
+    harmonics per repeat, under the metric of the undistorted print."""
+    return _whitening(n, _symmetric_metric(basis, holohedry(basis, tol=HOLOHEDRY_TOL)),
+                      WHITEN, band)
 
 
 #: An operation the mean cell shows must also hold on the single repeats, at least this
@@ -280,6 +288,22 @@ def _cell_maps(anchor: np.ndarray, basis: np.ndarray, n: int, shape: tuple[int, 
     x = anchor[0] + fa * basis[0, 0] + fb * basis[0, 1]
     y = anchor[1] + fa * basis[1, 0] + fb * basis[1, 1]
     return x.astype(np.float32), y.astype(np.float32), ij
+
+
+def repeat_cells(flat: np.ndarray, basis: np.ndarray, *, cell_n: int = CELL_N,
+                 max_repeats: int = 400, prefilter: float = 1.0) -> tuple[np.ndarray, tuple]:
+    """The anchor (the central repeat's cell is centred on the image, so that at least
+    one whole repeat is sampled even when only about three fit across) and
+    :func:`mean_cell`'s answer for the lattice ``basis`` (working (x, y) px). The image
+    is band-limited to the cell grid first: sampling a sharp print more coarsely than
+    its pixels by interpolation leaves errors that differ between a point and its
+    symmetric partner, and a whitening would amplify them."""
+    h, w = flat.shape
+    anchor = np.array([(w - 1) / 2.0, (h - 1) / 2.0]) - basis @ np.array([0.5, 0.5])
+    spacing = float(np.linalg.norm(basis, axis=0).max()) / cell_n
+    if spacing > 1.0:
+        flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
+    return anchor, mean_cell(flat, basis, anchor, n=cell_n, max_repeats=max_repeats)
 
 
 def mean_cell(flat: np.ndarray, basis: np.ndarray, anchor: np.ndarray, *, n: int = CELL_N,
@@ -518,19 +542,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         flat, scale = prepare_image(image, work_side=work_side)
     mm = lattice.mm_per_px
     basis = lattice.basis / mm * scale  # working (x, y) px
-    h, w = flat.shape
-    # The central repeat's cell is centred on the image, so that at least one whole
-    # repeat is sampled even when only about three fit across.
-    anchor = np.array([(w - 1) / 2.0, (h - 1) / 2.0]) - basis @ np.array([0.5, 0.5])
-    # Band-limit the image to the cell grid: sampling a sharp print more coarsely than
-    # its pixels by interpolation leaves errors that differ between a point and its
-    # symmetric partner, and the whitening below would amplify them.
-    spacing = float(np.linalg.norm(basis, axis=0).max()) / cell_n
-    if spacing > 1.0:
-        flat = cv2.GaussianBlur(flat, (0, 0), prefilter * spacing)
     try:
-        motif, halves, nrep, ij, _, cells = mean_cell(flat, basis, anchor, n=cell_n,
-                                                      max_repeats=max_repeats)
+        anchor, (motif, halves, nrep, ij, _, cells) = repeat_cells(
+            flat, basis, cell_n=cell_n, max_repeats=max_repeats, prefilter=prefilter)
     except ValueError as exc:
         return Classification(None, None, 0.0, message=str(exc))
     motif = motif - motif.mean()

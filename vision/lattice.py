@@ -45,7 +45,7 @@ from skimage.feature import peak_local_max
 from solver.wallpaper import gauss_reduce
 
 __all__ = ["LatticeResult", "detect_lattice", "prepare_colour", "prepare_image",
-           "yarn_repeat"]
+           "sublattice", "yarn_repeat"]
 
 #: Autocorrelation of the image's fine detail at which a 2-D repeat finer than any
 #: print counts as the yarn showing (a weave's interlacing, a knit's stitches).
@@ -371,10 +371,7 @@ def detect_lattice(
     if mm_per_px <= 0 or not np.isfinite(mm_per_px):
         raise ValueError(f"mm_per_px must be a positive number, got {mm_per_px}")
     flat, scale = prepared or prepare_image(image, work_side=work_side)
-    colour = _same_view_colour(image, flat, scale)
-    chans = flat[None] if colour is None else colour
-    chans = np.stack([cv2.GaussianBlur(c, (0, 0), max(1.0, smooth_px)) for c in chans])
-    acf, wacf = autocorrelation(chans)
+    acf, wacf = _print_autocorrelation(image, flat, scale, smooth_px)
     h2, w2 = acf.shape
     center = np.array([h2 // 2, w2 // 2], float)
     valid = wacf > 0.25
@@ -704,6 +701,35 @@ def _nested(fine: np.ndarray, coarse: np.ndarray) -> bool:
     """Whether every point of lattice ``coarse`` is a point of ``fine``."""
     m = np.linalg.solve(fine, coarse)
     return bool(np.abs(m - np.round(m)).max() < 0.1)
+
+
+def _print_autocorrelation(image: np.ndarray, flat: np.ndarray, scale: float,
+                           smooth_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Autocorrelation (and its overlap weight) of the working image ``flat``, over its
+    colour channels where ``image`` is the same view in colour, smoothed ``smooth_px``."""
+    colour = _same_view_colour(image, flat, scale)
+    chans = flat[None] if colour is None else colour
+    chans = np.stack([cv2.GaussianBlur(c, (0, 0), max(1.0, smooth_px)) for c in chans])
+    return autocorrelation(chans)
+
+
+def sublattice(lat: LatticeResult, index: np.ndarray, image: np.ndarray, *,
+               prepared: tuple[np.ndarray, float], smooth_px: float = 1.0,
+               message: str = "") -> LatticeResult:
+    """The sublattice of ``lat`` with basis ``lat.basis @ index`` (an integer matrix),
+    reduced and refined on the autocorrelation peaks of its own points only: a lattice
+    read too fine is fitted to peaks that are not all repeats."""
+    flat, scale = prepared
+    acf, wacf = _print_autocorrelation(image, flat, scale, smooth_px)
+    px_mm = lat.mm_per_px / scale
+    coarse = lat.basis @ np.asarray(index, float)  # (x, y) mm
+    basis, sig, n_used = _refine(acf, wacf > 0.25, coarse[::-1] / px_mm)
+    b1, b2 = _right_handed(*gauss_reduce(basis[:, 0], basis[:, 1], obtuse=True)[:2])
+    s = float(np.hypot(*sig)) * px_mm
+    return LatticeResult("lattice", w1=b1[::-1] * px_mm, w2=b2[::-1] * px_mm,
+                         sigma_w1=np.full(2, s), sigma_w2=np.full(2, s),
+                         mm_per_px=lat.mm_per_px, strength=lat.strength,
+                         n_peaks=n_used, message=message)
 
 
 def _refine(acf, valid, basis, rounds: int = 3):
