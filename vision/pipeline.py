@@ -18,6 +18,7 @@ from vision.classify import Classification, classify, symmetry_elements
 from vision.distortion import Distortion, local_lattices, measure_distortion
 from vision.lattice import LatticeResult, detect_lattice, prepare_image, yarn_repeat
 from vision.perspective import View, fit_view
+from vision.repeat import true_lattice
 
 __all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric",
            "detect_fabric", "draw_overlay"]
@@ -130,6 +131,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                             if above_yarn else (np.nan, 1.0, flat))
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm, smooth_px=sigma)
+    lat = true_lattice(image, lat, prepared=(flat, scale), smooth_px=sigma, read=read)
     flat = read
     local, view, cls = None, None, None
     seed = lat
@@ -219,6 +221,7 @@ def _decide_rectified(view: View, flat: np.ndarray, scale: float, mm_per_px: flo
     frame = np.zeros(shape, np.uint8)
     lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(rflat, scale),
                          min_repeat_mm=min_repeat_mm)
+    lat = true_lattice(frame, lat, prepared=(rflat, scale))
     if not lat.found:
         return None
     cls = classify(frame, lat, flat=rflat, scale=scale, allowance=view.change)
