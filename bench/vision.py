@@ -28,6 +28,10 @@ Sources (each reported on its own; never pooled into one number):
   bold layer of each group, a faint layer (30-60 % contrast, thin) of a random subgroup
   of it, camera blur, noise and JPEG; the truth is measured on the drawn segments.
   Training data for the failure the npm source showed (a p1 print read as p2).
+- ``sublattice``: line prints whose faint layer repeats on an index-2 sublattice of the
+  bold layer's (``layered_print(faint_cell=...)``), camera blur, noise and JPEG: the bold
+  layer alone shows a step the print does not repeat by, and a lattice read at that
+  step invents a translation (a supergroup on half the true lattice).
 - ``plain``: unprinted cloth (plain weave, twill, rib knit; threads 0.2-0.6 mm): must
   never give a 2-D lattice.
 - ``npm-wallpaper-groups``: an outside reference, line drawings replicated by the npm
@@ -338,6 +342,23 @@ def lineart(per_group: int, seed: int = 0):
                          basis=basis)
 
 
+#: The index-2 sublattices a faint layer of ``sublattice`` repeats on (columns over the
+#: bold layer's basis).
+FAINT_CELLS = (np.array([[2, 0], [0, 1]]), np.array([[1, 1], [1, -1]]))
+
+
+def sublattice(per_group: int, seed: int = 0):
+    """Line prints whose faint layer repeats on a sublattice (see the module text)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 100 * gi + k + 11)
+            img, truth, basis = layered_print(group, rng.uniform(25, 45),
+                                              seed=seed + 100 * gi + k + 50,
+                                              faint_cell=FAINT_CELLS[k % 2])
+            yield Sample("sublattice", f"{group}/{truth}/{k}", degrade(img, rng), 0.25,
+                         truth, basis=basis)
+
+
 def plain(per_weave: int = 3, seed: int = 0):
     """Unprinted cloth close up: the weave is all there is."""
     for wi, weave in enumerate(("plain", "twill", "rib")):
@@ -590,6 +611,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "woven": lambda: woven(2 * per_group, seed=seed),
             "twill": lambda: woven(2 * per_group, seed=seed, weave="twill"),
             "lineart": lambda: lineart(per_group, seed=seed),
+            "sublattice": lambda: sublattice(per_group, seed=seed),
             "plain": lambda: plain(max(2, per_group), seed=seed),
             "photos": photos,
             "crops": photo_crops,
@@ -598,8 +620,8 @@ def _sources(per_group: int, seed: int) -> dict:
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "woven", "twill", "lineart", "plain", "photos",
-                                    "crops", "npm")
+                                    "woven", "twill", "lineart", "sublattice", "plain",
+                                    "photos", "crops", "npm")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []

@@ -232,14 +232,17 @@ def _random_lines(rng: np.random.Generator, count: int) -> list[np.ndarray]:
 
 def layered_print(group: str, repeat_px: float, size: tuple[int, int] = (480, 360), *,
                   seed: int = 0, faint_contrast: tuple[float, float] = (0.3, 0.6),
-                  faint_ops: np.ndarray | None = None, mm_per_px: float = 0.25
-                  ) -> tuple[np.ndarray, str, np.ndarray]:
+                  faint_ops: np.ndarray | None = None, mm_per_px: float = 0.25,
+                  faint_cell: np.ndarray | None = None) -> tuple[np.ndarray, str, np.ndarray]:
     """A near-symmetric line print: a bold layer of ``group``, a faint layer of a random
     subgroup of it (see :func:`subgroup_ops`; or of ``faint_ops``, fractional
-    operations in the group's cell), turned at random.
+    operations in the group's cell), turned at random. ``faint_cell``, an integer
+    matrix (columns over the bold layer's basis), repeats the faint layer on that
+    sublattice only: the bold layer then shows steps the print does not repeat by.
 
     Returns the BGR image, the print's group as measured by :func:`symmetry_of`
-    (usually the faint layer's) and the lattice basis (2, 2) in mm.
+    (usually the faint layer's) and the lattice basis (2, 2) in mm (the bold layer's;
+    the measured one with ``faint_cell``).
     """
     rng = np.random.default_rng(seed)
     repeat = repeat_px * mm_per_px
@@ -255,12 +258,15 @@ def layered_print(group: str, repeat_px: float, size: tuple[int, int] = (480, 36
     widths = (rng.uniform(0.04, 0.08) * repeat, rng.uniform(0.01, 0.03) * repeat)
     region = (0.0, 0.0, size[0] * mm_per_px, size[1] * mm_per_px)
     shift = rng.uniform(0, 1, 2) @ basis.T
-    tiled = [[t + shift for t in tile(layer, basis, region)] for layer in (bold, faint)]
+    cells = (basis, basis if faint_cell is None else basis @ np.asarray(faint_cell, float))
+    tiled = [[t + shift for t in tile(layer, cell, region)]
+             for layer, cell in zip((bold, faint), cells, strict=True)]
     img = draw_lines([(tiled[0], tuple(ink), widths[0]), (tiled[1], tuple(light), widths[1])],
                      size, mm_per_px, tuple(background))
     # The truth, measured on a patch of the same drawing about 20 repeats across.
     patch = (-10 * repeat, -10 * repeat, 10 * repeat, 10 * repeat)
-    measured = [tile(layer, basis, patch) for layer in (bold, faint)]
-    truth, _ = symmetry_of(measured[0] + measured[1],
-                           labels=[0] * len(measured[0]) + [1] * len(measured[1]))
-    return img, truth, basis
+    measured = [tile(layer, cell, patch) for layer, cell in zip((bold, faint), cells,
+                                                                 strict=True)]
+    truth, lattice = symmetry_of(measured[0] + measured[1],
+                                 labels=[0] * len(measured[0]) + [1] * len(measured[1]))
+    return img, truth, (basis if faint_cell is None else lattice)
