@@ -61,6 +61,7 @@ other sources are scored on the one left out.
     python -c "from bench.vision import run; run(per_group=1)"      # a quick subset
     python -c "from bench.vision import speed; speed()"  # seconds per 4000x3000 frame
     python -c "from bench.vision import yarn_effect; yarn_effect()"  # yarn on / off
+    python -c "from bench.vision import option_effect; option_effect('true_repeat')"
 """
 
 from __future__ import annotations
@@ -457,10 +458,11 @@ def baseline(s: Sample) -> str:
     return error_kind(c.group, s.truth, s.alt)
 
 
-def evaluate(s: Sample, *, with_baseline: bool = True, above_yarn: bool = True) -> dict:
-    """``detect_fabric`` on one sample, graded against its truth."""
+def evaluate(s: Sample, *, with_baseline: bool = True, **options: bool) -> dict:
+    """``detect_fabric`` on one sample (with ``options``, its switches), graded against
+    its truth."""
     t0 = time.perf_counter()
-    det = detect_fabric(s.image, mm_per_px=s.mm_per_px, above_yarn=above_yarn)
+    det = detect_fabric(s.image, mm_per_px=s.mm_per_px, **options)
     sec = time.perf_counter() - t0
     group = det.classification.group
     out = dict(group=group, kind=det.lattice.kind, conf=float(det.classification.confidence),
@@ -654,40 +656,51 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
     return {"samples": samples, "markdown": text}
 
 
-def yarn_effect(per_group: int = 2, seed: int = 0,
-                sources: tuple[str, ...] = ("woven", "plain", "cloth", "classics",
-                                            "synthetic", "photos")) -> str:
-    """Each sample read twice in one process, with and without the yarn smoothed away
-    (``detect_fabric(above_yarn=...)``): outcomes per source, and every image whose
-    answer changed."""
+def option_effect(option: str = "above_yarn", per_group: int = 2, seed: int = 0,
+                  sources: tuple[str, ...] = ("woven", "plain", "cloth", "classics",
+                                              "synthetic", "photos")) -> str:
+    """Each sample read twice in one process, with ``detect_fabric``'s switch
+    ``option`` off and on (``above_yarn``: the yarn smoothed away; ``true_repeat``: the
+    lattice's step checked against the repeats): outcomes and lattices per source, and
+    every image whose answer changed."""
     makers = _sources(per_group, seed)
     rows, changed = [], []
     for name in sources:
-        counts = {False: {}, True: {}}
+        counts, images = {False: {}, True: {}}, 0
         for s in makers[name]():
-            got = {}
+            got, images = {}, images + 1
             for on in (False, True):
-                f = evaluate(s, with_baseline=False, above_yarn=on)
-                counts[on][f["outcome"]] = counts[on].get(f["outcome"], 0) + 1
-                got[on] = f"{f['group'] or f['kind']} ({f['outcome']}, {f['conf']:.2f})"
+                f = evaluate(s, with_baseline=False, **{option: on})
+                for key in (f["outcome"], f"lattice {f['lattice_ok']}"):
+                    counts[on][key] = counts[on].get(key, 0) + 1
+                got[on] = (f"{f['group'] or f['kind']} ({f['outcome']}, {f['conf']:.2f}, "
+                           f"lattice {f['lattice_ok']})")
             if got[False] != got[True]:
                 changed.append(f"- {s.source} {s.name} (truth {s.truth}): {got[False]} -> "
                                f"{got[True]}")
-        rows.append(f"| {name} | {sum(counts[True].values())} | "
+        rows.append(f"| {name} | {images} | "
                     + " | ".join(", ".join(f"{k} {v}" for k, v in sorted(counts[on].items()))
                                  for on in (False, True)) + " |")
-    text = ("| source | images | yarn read | yarn smoothed away |\n|---|---|---|---|\n"
+    text = (f"| source | images | {option} off | {option} on |\n|---|---|---|---|\n"
             + "\n".join(rows) + "\n\nChanged:\n\n" + ("\n".join(changed) or "none"))
     print(text)
     return text
 
 
-def speed(frames: int = 3, seed: int = 0, above_yarn: bool = True) -> list[float]:
-    """Seconds of ``detect_fabric`` on 4000x3000 camera frames (one core's work)."""
+def yarn_effect(per_group: int = 2, seed: int = 0,
+                sources: tuple[str, ...] = ("woven", "plain", "cloth", "classics",
+                                            "synthetic", "photos")) -> str:
+    """:func:`option_effect` of the yarn smoothing (the command BENCHMARKS.md records)."""
+    return option_effect("above_yarn", per_group, seed, sources)
+
+
+def speed(frames: int = 3, seed: int = 0, **options: bool) -> list[float]:
+    """Seconds of ``detect_fabric`` (with ``options``) on 4000x3000 camera frames (one
+    core's work)."""
     secs, cpu = [], []
     for s in itertools.islice(synthetic(1, size=(4000, 3000), seed=seed), frames):
         t0, c0 = time.perf_counter(), time.process_time()
-        detect_fabric(s.image, mm_per_px=s.mm_per_px, above_yarn=above_yarn)
+        detect_fabric(s.image, mm_per_px=s.mm_per_px, **options)
         secs.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     print(f"detect_fabric on {frames} 4000x3000 frames: wall "

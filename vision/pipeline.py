@@ -117,21 +117,25 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
                   distortion: bool = True, min_repeat_mm: float = 3.0,
-                  stretch_tol: float = 0.03, above_yarn: bool = True) -> FabricDetection:
+                  stretch_tol: float = 0.03, above_yarn: bool = True,
+                  true_repeat: bool = True) -> FabricDetection:
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
     stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
     tolerances are named in ``distortion.warning``. Perspective left in the image
     (:mod:`vision.perspective`) is undone before the group is read, and reported; yarn
     the image resolves (:func:`vision.lattice.yarn_repeat`) is smoothed away first
-    (``above_yarn``; off only to measure what it changes)."""
+    (``above_yarn``), and a lattice whose step is not a repeat of the print is halved
+    (:func:`vision.repeat.true_lattice`, ``true_repeat``); both off only to measure what
+    they change."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     yarn_mm, sigma, read = (above_the_yarn(flat, scale, mm_per_px, min_repeat_mm)
                             if above_yarn else (np.nan, 1.0, flat))
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm, smooth_px=sigma)
-    lat = true_lattice(image, lat, prepared=(flat, scale), smooth_px=sigma, read=read)
+    if true_repeat:
+        lat = true_lattice(image, lat, prepared=(flat, scale), smooth_px=sigma, read=read)
     flat = read
     local, view, cls = None, None, None
     seed = lat
@@ -143,7 +147,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
         local = local_lattices(flat, seed.basis / mm_per_px * scale)
         view = fit_view(*local, flat.shape, scale)
     if view is not None:
-        found = _decide_rectified(view, flat, scale, mm_per_px, min_repeat_mm)
+        found = _decide_rectified(view, flat, scale, mm_per_px, min_repeat_mm, true_repeat)
         if found is not None:
             lat, cls = found
     if cls is None:
@@ -210,7 +214,8 @@ def _central_lattice(flat: np.ndarray, scale: float, mm_per_px: float,
 
 
 def _decide_rectified(view: View, flat: np.ndarray, scale: float, mm_per_px: float,
-                      min_repeat_mm: float) -> tuple[LatticeResult, Classification] | None:
+                      min_repeat_mm: float, true_repeat: bool = True
+                      ) -> tuple[LatticeResult, Classification] | None:
     """Lattice and group on the image with the perspective undone, in the input
     image's millimetres (the rectification keeps the frame at the centre); None when
     the rectified image shows no lattice."""
@@ -221,7 +226,8 @@ def _decide_rectified(view: View, flat: np.ndarray, scale: float, mm_per_px: flo
     frame = np.zeros(shape, np.uint8)
     lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(rflat, scale),
                          min_repeat_mm=min_repeat_mm)
-    lat = true_lattice(frame, lat, prepared=(rflat, scale))
+    if true_repeat:
+        lat = true_lattice(frame, lat, prepared=(rflat, scale))
     if not lat.found:
         return None
     cls = classify(frame, lat, flat=rflat, scale=scale, allowance=view.change)
