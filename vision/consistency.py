@@ -112,6 +112,10 @@ class Alternation:
 #: The three ways of splitting a lattice into two cosets of an index-2 sublattice.
 PARITIES = ((1, 0), (0, 1), (1, 1))
 
+#: Harmonics weighted below this fraction of the largest weight carry no energy that
+#: counts (1e-8 of it, squared) and are left out of :func:`alternation`'s sums.
+WEIGHT_FLOOR = 1e-4
+
 
 def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = None,
                 min_terms: int = 4) -> Alternation | None:
@@ -126,8 +130,13 @@ def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = N
     the difference both share, which noise, wrinkles and local stretch do not. None when
     a third holds fewer than ``min_terms`` such repeats."""
     ij = np.asarray(ij, float)
-    w = 1.0 if weight is None else weight
-    spec = (np.fft.fft2(cells) * w).reshape(len(cells), -1)
+    spec = np.fft.fft2(cells).reshape(len(cells), -1)
+    if weight is not None:
+        # Only the harmonics the weighting keeps: a whitening rolled off at a few
+        # harmonics per repeat leaves a few hundred of the cell's n * n.
+        w = weight.ravel()
+        keep = w > WEIGHT_FLOOR * w.max()
+        spec = spec[:, keep] * w[keep]
     third = np.full(len(cells), -1)
     for k, h in enumerate(_outer_thirds(ij) if len(cells) >= 3 else ()):
         third[h] = k
