@@ -163,7 +163,8 @@ LAG_SPREAD = 1.0
 #: source at 0.1, 0.2, 0.3: only those crops change (BENCHMARKS.md).
 ADDED_LAG_SPREAD = 0.1
 
-#: Confidence ceiling of an answer drawn from fewer than three whole repeats.
+#: Confidence ceiling of an answer that single repeats cannot check: one drawn from
+#: fewer than three whole repeats, or from repeats that look little alike.
 FEW_REPEATS_CONFIDENCE = 0.5
 
 #: An operation leaves the print's own asymmetry, not the cloth's, when the residual
@@ -654,10 +655,23 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # Behind the translations the allowed lag widens by how much single repeats differ:
     # each repeat is registered onto the mean (a translation), its other operations are
     # not, so on real cloth they fall short of the translations by about as much.
-    spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
-    win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
-                            - LAG_SPREAD * spread, lag=lag + lag_spread * spread,
-                            spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
+    likeness = neighbour_correlation(cells) if len(cells) > 1 else 1.0
+    spread = max(0.0, 1.0 - likeness)
+    unlike = len(cells) >= 3 and likeness < REPEAT_SUPPORT and "p1" in best
+    message = ""
+    if unlike:
+        # The translations themselves fail the bar every operation must pass on single
+        # repeats: the step is hardly a repeat of the print (a beat of the weave with
+        # the pixels, say, over a print it does not fit) and the mean cell's symmetry is
+        # the averaging's. Nothing can be checked, so nothing is claimed.
+        win = "p1"
+        message = (f"single repeats look little alike (correlation {likeness:.2f}, under "
+                   f"{REPEAT_SUPPORT:g}): no symmetry can be checked on them, none is "
+                   "claimed")
+    else:
+        win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
+                                - LAG_SPREAD * spread, lag=lag + lag_spread * spread,
+                                spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
     _, u, o, _, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ u
@@ -670,13 +684,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
     confidence = float(post[names.index(win)])
-    if nrep < 3:
-        # Too few repeats for the per-repeat check: never sure enough to skip the operator.
+    if nrep < 3 or unlike:
+        # No per-repeat check: never sure enough to skip the operator.
         confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
     return Classification(wp, win, confidence,
                           scores={k: float(v) for k, v in zip(names, ll, strict=True)},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
-                          motif=motif, temperature=temperature,
+                          motif=motif, message=message, temperature=temperature,
                           strain=strain)
 
 

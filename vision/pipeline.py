@@ -69,6 +69,8 @@ class FabricDetection:
         if wp is not None:
             out.update(wp.to_dict())
             out["kind"] = "lattice"
+            if self.classification.message:
+                out["message"] = self.classification.message
         else:
             out["kind"] = self.lattice.kind
             out["message"] = self.lattice.message

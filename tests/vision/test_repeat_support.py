@@ -47,3 +47,50 @@ def test_an_answer_from_fewer_than_three_repeats_goes_to_the_operator():
     det = detect_fabric(render_print(p, (250, 200), 0.5), mm_per_px=0.5)
     assert det.classification.n_repeats < 3 and det.lattice.found
     assert det.classification.confidence <= FEW_REPEATS_CONFIDENCE < CONFIRM_BELOW
+
+
+def _print_under_a_beat(group: str, seed: int, amplitude: float) -> tuple[np.ndarray, object]:
+    """A print of ``group`` (7 mm repeat) under a strong square beat (a weave's moire
+    with the pixels) on a lattice 1.43 times coarser and turned: the beat repeats on
+    its lattice, the print does not. Returns the image and the beat's lattice."""
+    from vision.lattice import LatticeResult
+
+    rng = np.random.default_rng(seed)
+    pr = random_print(group, 7.0, rotation=rng.uniform(0, 90), seed=int(rng.integers(1 << 30)))
+    img = render_print(pr, (300.0, 240.0), 0.5).astype(float)
+    y, x = np.mgrid[0:img.shape[0], 0:img.shape[1]] * 0.5
+    period, t = 7.0 * 1.43, rng.uniform(0, np.pi / 2)
+    u = (x * np.cos(t) + y * np.sin(t)) / period
+    v = (-x * np.sin(t) + y * np.cos(t)) / period
+    beat = amplitude * img.std() * (np.cos(2 * np.pi * u) + np.cos(2 * np.pi * v))
+    lat = LatticeResult("lattice", w1=period * np.array([np.cos(t), np.sin(t)]),
+                        w2=period * np.array([-np.sin(t), np.cos(t)]), mm_per_px=0.5,
+                        strength=0.8)
+    return np.clip(img + beat[..., None], 0, 255).astype(np.uint8), lat
+
+
+@pytest.mark.parametrize(("group", "seed"), [("pm", 202), ("p3", 203), ("p2", 206)])
+def test_a_lattice_the_print_does_not_repeat_on_claims_no_symmetry(group, seed):
+    """Read on the beat's lattice, the mean cell is the beat's square grid (p4m: a
+    supergroup of the print's group) while single repeats differ; the answer is p1,
+    sent to the operator, never the beat's symmetry."""
+    from vision.classify import classify
+
+    img, lat = _print_under_a_beat(group, seed, 0.8)
+    c = classify(img, lat)
+    assert c.group == "p1" and c.confidence <= FEW_REPEATS_CONFIDENCE < CONFIRM_BELOW
+    assert "look little alike" in c.message
+
+
+def test_a_print_read_on_its_own_lattice_keeps_its_symmetry():
+    """A print of the same scale read on its own lattice: repeats look alike and the
+    group is read in full."""
+    from vision.classify import classify
+    from vision.lattice import LatticeResult
+
+    p = random_print("p4m", 7.0, rotation=20.0, seed=11)
+    img = render_print(p, (300.0, 240.0), 0.5)
+    lat = LatticeResult("lattice", w1=p.wallpaper.w1, w2=p.wallpaper.w2, mm_per_px=0.5,
+                        strength=0.9)
+    c = classify(img, lat)
+    assert c.group == "p4m" and not c.message
