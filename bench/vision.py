@@ -16,6 +16,9 @@ Sources (each reported on its own; never pooled into one number):
   woven thread texture (plain or twill), stretch 3-16 % with up to 3 degrees of shear,
   wrinkles, a misregistered colour separation, noise and JPEG. Truth is the group the
   print was designed with, and the stretched lattice.
+- ``fine``: fine prints (5-15 mm repeats) of every group on the same cloth, in large
+  frames (3200 x 2400 px at 0.2-0.4 mm/px): hundreds of repeats, read at a third of
+  the resolution, and threads near the pixel size that beat with it (moire).
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
@@ -60,6 +63,7 @@ other sources are scored on the one left out.
     python -m bench vision                 # every source, 3 images per group and fault
     python -c "from bench.vision import run; run(per_group=1)"      # a quick subset
     python -c "from bench.vision import speed; speed()"  # seconds per 4000x3000 frame
+    python -c "from bench.vision import speed; speed(fine_prints=True)"  # hundreds of repeats
     python -c "from bench.vision import yarn_effect; yarn_effect()"  # yarn on / off
     python -c "from bench.vision import option_effect; option_effect('true_repeat')"
 """
@@ -230,6 +234,21 @@ def cloth(per_group: int, size: tuple[int, int] = (1200, 900), seed: int = 0):
             img = render_print(pr, (size[0] * mm, size[1] * mm), mm)
             img, jac = _on_cloth(img, mm, rng)
             yield Sample("cloth", f"{group}/{repeats:.1f}", img, mm, group,
+                         basis=jac @ pr.wallpaper.basis)
+
+
+def fine(per_group: int, size: tuple[int, int] = (3200, 2400), seed: int = 0):
+    """Fine prints of every group on stretched, wrinkled, woven cloth in large frames."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 104729 * gi + k + 7)
+            mm = rng.uniform(0.2, 0.4)
+            period = math.exp(rng.uniform(math.log(5), math.log(15)))
+            pr = random_print(group, period, rotation=rng.uniform(0, 90),
+                              seed=int(rng.integers(1 << 30)))
+            img = render_print(pr, (size[0] * mm, size[1] * mm), mm)
+            img, jac = _on_cloth(img, mm, rng)
+            yield Sample("fine", f"{group}/{period:.1f}mm", img, mm, group,
                          basis=jac @ pr.wallpaper.basis)
 
 
@@ -609,6 +628,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "tilted": lambda: tilted(per_group, seed=seed),
             "blurred": lambda: blurred(3 * per_group, seed=seed),
             "cloth": lambda: cloth(per_group, seed=seed),
+            "fine": lambda: fine(per_group, seed=seed),
             "classics": lambda: classics(max(2, per_group), seed=seed),
             "woven": lambda: woven(2 * per_group, seed=seed),
             "twill": lambda: woven(2 * per_group, seed=seed, weave="twill"),
@@ -621,9 +641,9 @@ def _sources(per_group: int, seed: int) -> dict:
 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
-        sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "classics",
-                                    "woven", "twill", "lineart", "sublattice", "plain",
-                                    "photos", "crops", "npm")
+        sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
+                                    "classics", "woven", "twill", "lineart", "sublattice",
+                                    "plain", "photos", "crops", "npm")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []
@@ -694,11 +714,15 @@ def yarn_effect(per_group: int = 2, seed: int = 0,
     return option_effect("above_yarn", per_group, seed, sources)
 
 
-def speed(frames: int = 3, seed: int = 0, **options: bool) -> list[float]:
+def speed(frames: int = 3, seed: int = 0, fine_prints: bool = False,
+          **options: bool) -> list[float]:
     """Seconds of ``detect_fabric`` (with ``options``) on 4000x3000 camera frames (one
-    core's work)."""
+    core's work): the ``synthetic`` source's, or the ``fine`` source's (hundreds of
+    repeats) with ``fine_prints``."""
+    frames_of = fine(1, size=(4000, 3000), seed=seed) if fine_prints else synthetic(
+        1, size=(4000, 3000), seed=seed)
     secs, cpu = [], []
-    for s in itertools.islice(synthetic(1, size=(4000, 3000), seed=seed), frames):
+    for s in itertools.islice(frames_of, frames):
         t0, c0 = time.perf_counter(), time.process_time()
         detect_fabric(s.image, mm_per_px=s.mm_per_px, **options)
         secs.append(time.perf_counter() - t0)
