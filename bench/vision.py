@@ -222,6 +222,17 @@ def _on_cloth(img: np.ndarray, mm_per_px: float, rng: np.random.Generator
     return cv2.imdecode(buf, cv2.IMREAD_COLOR), jac
 
 
+def _print_on_cloth(group: str, period_mm: float, mm_per_px: float, size: tuple[int, int],
+                    rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random print of ``group`` filling a ``size`` frame, on cloth (``_on_cloth``),
+    and its stretched lattice (columns, mm)."""
+    pr = random_print(group, period_mm, rotation=rng.uniform(0, 90),
+                      seed=int(rng.integers(1 << 30)))
+    img = render_print(pr, (size[0] * mm_per_px, size[1] * mm_per_px), mm_per_px)
+    img, jac = _on_cloth(img, mm_per_px, rng)
+    return img, jac @ pr.wallpaper.basis
+
+
 def cloth(per_group: int, size: tuple[int, int] = (1200, 900), seed: int = 0):
     """Random prints of every group on stretched, wrinkled, woven cloth."""
     for gi, group in enumerate(GROUP_NAMES):
@@ -229,12 +240,8 @@ def cloth(per_group: int, size: tuple[int, int] = (1200, 900), seed: int = 0):
             rng = np.random.default_rng(seed + 7919 * gi + k + 1)
             mm = rng.uniform(0.1, 0.3)
             repeats = math.exp(rng.uniform(math.log(4), math.log(20)))
-            pr = random_print(group, size[0] * mm / repeats, rotation=rng.uniform(0, 90),
-                              seed=int(rng.integers(1 << 30)))
-            img = render_print(pr, (size[0] * mm, size[1] * mm), mm)
-            img, jac = _on_cloth(img, mm, rng)
-            yield Sample("cloth", f"{group}/{repeats:.1f}", img, mm, group,
-                         basis=jac @ pr.wallpaper.basis)
+            img, basis = _print_on_cloth(group, size[0] * mm / repeats, mm, size, rng)
+            yield Sample("cloth", f"{group}/{repeats:.1f}", img, mm, group, basis=basis)
 
 
 def fine(per_group: int, size: tuple[int, int] = (3200, 2400), seed: int = 0):
@@ -244,12 +251,8 @@ def fine(per_group: int, size: tuple[int, int] = (3200, 2400), seed: int = 0):
             rng = np.random.default_rng(seed + 104729 * gi + k + 7)
             mm = rng.uniform(0.2, 0.4)
             period = math.exp(rng.uniform(math.log(5), math.log(15)))
-            pr = random_print(group, period, rotation=rng.uniform(0, 90),
-                              seed=int(rng.integers(1 << 30)))
-            img = render_print(pr, (size[0] * mm, size[1] * mm), mm)
-            img, jac = _on_cloth(img, mm, rng)
-            yield Sample("fine", f"{group}/{period:.1f}mm", img, mm, group,
-                         basis=jac @ pr.wallpaper.basis)
+            img, basis = _print_on_cloth(group, period, mm, size, rng)
+            yield Sample("fine", f"{group}/{period:.1f}mm", img, mm, group, basis=basis)
 
 
 def classics(per_name: int = 2, seed: int = 0):
