@@ -52,7 +52,7 @@ import numpy as np
 from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
-from vision.consistency import RepeatSpectra, asymmetry, repeat_spectra
+from vision.consistency import WEIGHT_FLOOR, RepeatSpectra, asymmetry, repeat_spectra
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
@@ -214,11 +214,22 @@ def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
 
 def neighbour_correlation(cells: np.ndarray) -> float:
     """Median correlation of each single repeat's cell (R, n, n) with the next one's:
-    how alike the repeats are (noise, distortion, print irregularity), 1 when exact."""
-    norm = np.sqrt((cells**2).sum(axis=(1, 2)))
-    pair = (cells * np.roll(cells, -1, axis=0)).sum(axis=(1, 2)) / np.maximum(
+    how alike the repeats are (noise, distortion, print irregularity), 1 when exact.
+    ``cells`` may also be their spectra (R, ...), complex: the same by Parseval."""
+    flat = cells.reshape(len(cells), -1)
+    norm = np.sqrt((np.abs(flat) ** 2).sum(axis=1))
+    pair = np.real((flat * np.conj(np.roll(flat, -1, axis=0))).sum(axis=1)) / np.maximum(
         norm * np.roll(norm, -1), 1e-12)
     return float(np.median(pair))
+
+
+def _likeness(cells: np.ndarray, metric: np.ndarray, alpha: float) -> float:
+    """:func:`neighbour_correlation` of the cells whitened up to ``LIKENESS_BAND``
+    harmonics per repeat, summed over the harmonics that whitening keeps."""
+    w = _whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel()
+    keep = w > WEIGHT_FLOOR * w.max()
+    return neighbour_correlation(np.fft.fft2(cells).reshape(len(cells), -1)[:, keep]
+                                 * w[keep])
 
 
 def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
@@ -540,7 +551,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     Classification
         ``wallpaper`` in mm of the input image frame (x right, y down, pixel centres at
         ``(col, row) * mm_per_px``), with the group's conventional basis and an origin
-        where the group's operations hold; ``confidence`` in [0, 1].
+        where the group's operations hold; ``confidence`` in [0, 1]. p1, confidence at
+        most ``FEW_REPEATS_CONFIDENCE`` and a ``message`` when single repeats look too
+        little alike for any symmetry to be checked on them (``LIKENESS_BAND``).
     """
     if not lattice.found:
         return Classification(None, None, 0.0, message=lattice.message or "no lattice")
@@ -568,8 +581,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                                  _whitening(cell_n, metric, whiten, min(band,
                                                                         CONSISTENCY_BAND)))
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
-    likeness = (neighbour_correlation(_whiten(cells - cells.mean(axis=(1, 2), keepdims=True),
-                                              metric, whiten, LIKENESS_BAND))
+    likeness = (_likeness(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten)
                 if len(cells) > 1 else 1.0)
     if whiten:
         motif = _whiten(motif, metric, whiten, band)

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Alternation", "Asymmetry", "RepeatSpectra", "alternation", "asymmetry",
-           "refine_translation", "repeat_spectra"]
+__all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alternation",
+           "asymmetry", "refine_translation", "repeat_spectra"]
 
 #: Single repeats whose residual energy is averaged (a sample keeps the cost fixed).
 SAMPLE = 64
@@ -113,7 +113,8 @@ class Alternation:
 PARITIES = ((1, 0), (0, 1), (1, 1))
 
 #: Harmonics weighted below this fraction of the largest weight carry no energy that
-#: counts (1e-8 of it, squared) and are left out of :func:`alternation`'s sums.
+#: counts (1e-8 of it, squared) and are left out of sums over a whitened spectrum
+#: (:func:`alternation`, :func:`vision.classify.classify`'s likeness of the repeats).
 WEIGHT_FLOOR = 1e-4
 
 
