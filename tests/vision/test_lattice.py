@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simulators.classics import classic_print
+from simulators.fabric import render_print
 from solver.wallpaper import GROUP_NAMES, gauss_reduce
 from vision.lattice import detect_lattice
 
@@ -79,3 +81,16 @@ def test_bad_input_is_refused_with_a_reason():
         detect_lattice(np.zeros((64, 64), np.uint8), mm_per_px=0)
     with pytest.raises(ValueError, match="too small"):
         detect_lattice(np.zeros((8, 8), np.uint8))
+
+
+@pytest.mark.parametrize("name, repeat, rotation", [
+    ("gingham", 27.7, 1.3), ("plaid", 33.3, 0.7), ("diamonds", 30.1, 0.4),
+    ("houndstooth", 25.9, 2.2), ("polka-hex", 31.0, 3.0)])
+def test_a_fine_print_in_a_large_frame_is_read_on_its_own_repeat(name, repeat, rotation, vt):
+    """A 26-35 px repeat in a 4096 px frame: 7-9 working px, thousands of equally tall
+    autocorrelation peaks. The lattice comes from those nearest zero lag; the tallest
+    few hundred once gave superlattices of index 5 to 30 on every one of these."""
+    p = classic_print(name, repeat, rotation=rotation)
+    res = detect_lattice(render_print(p, (4096, 1800), 1.0), mm_per_px=1.0)
+    assert res.kind == "lattice", res.message
+    assert vt.lattice_error(res.basis, p.wallpaper.basis) < 0.01
