@@ -52,7 +52,13 @@ import numpy as np
 from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
-from vision.consistency import WEIGHT_FLOOR, RepeatSpectra, asymmetry, repeat_spectra
+from vision.consistency import (
+    SAMPLE,
+    WEIGHT_FLOOR,
+    RepeatSpectra,
+    asymmetry,
+    repeat_spectra,
+)
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
@@ -197,17 +203,21 @@ def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
                    ) -> np.ndarray:
     """Per operation (A, s): the median over repeats of corr(c_r, c_r(A f + s)) divided
     by the median of corr(c_r, c_r+1) (whole-cell correlations of single repeats, so
-    noise lowers both alike). About 1 for a symmetry of the print, near 0 otherwise."""
+    noise lowers both alike). About 1 for a symmetry of the print, near 0 otherwise.
+    The operations are checked on a sample of ``SAMPLE`` repeats spread over all: on
+    fine prints of 400 repeats every one cost 0.4 s."""
     n = cells.shape[-1]
-    norm = np.sqrt((cells**2).sum(axis=(1, 2)))
     base = max(neighbour_correlation(cells), 1e-3)
+    pick = np.linspace(0, len(cells) - 1, min(len(cells), SAMPLE)).round().astype(int)
+    flat = cells[pick].reshape(len(pick), -1)
+    energy = np.maximum(np.einsum("ij,ij->i", flat, flat), 1e-12)
     g = np.arange(n)
     fa, fb = np.meshgrid(g, g, indexing="ij")
     out = np.empty(len(ops))
     for k, (a, sh) in enumerate(ops):
         ia = (a[0, 0] * fa + a[0, 1] * fb + sh[0]) % n
         ib = (a[1, 0] * fa + a[1, 1] * fb + sh[1]) % n
-        sym = (cells * cells[:, ia, ib]).sum(axis=(1, 2)) / np.maximum(norm**2, 1e-12)
+        sym = np.einsum("ij,ij->i", flat, flat[:, (ia * n + ib).ravel()]) / energy
         out[k] = float(np.median(sym)) / base
     return out
 

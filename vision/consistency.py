@@ -33,7 +33,9 @@ import numpy as np
 __all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alternation",
            "asymmetry", "refine_translation", "repeat_spectra"]
 
-#: Single repeats whose residual energy is averaged (a sample keeps the cost fixed).
+#: Single repeats a per-repeat measure is taken over (residual energy here, the
+#: operations' support in :func:`vision.classify.repeat_support`): a sample, spread over
+#: all, keeps the cost fixed.
 SAMPLE = 64
 
 
