@@ -47,6 +47,10 @@ Sources (each reported on its own; never pooled into one number):
   photographs of ``../shared/data/fabric_photos`` (SOURCE.md there), grouped by origin,
   read in place (never copied; skipped when absent). A group is right when it is the
   label's group or its labelled alternative.
+- ``frames``: the same ten photographs whole, as taken: the garments' collars,
+  pockets, folds and background around the cloth, and the line-scan frames' fine
+  repeats at a quarter of the resolution. The labelled lattice holds in the region
+  only, so only the group (and plain or stripes) is graded.
 - ``photo-crops``: each photograph cropped, rescaled and turned eight ways (the truth
   unchanged): how stable the answers are, a stand-in for other photographs.
 
@@ -406,8 +410,10 @@ def npm(per_type: int, seed: int = 0):
                      npm_wallpaper.MM_PER_PX, group, basis=basis)
 
 
-def photos(root: Path = PHOTOS):
-    """The hand-labelled photographs, cropped to their labelled region (pixels = mm)."""
+def photos(root: Path = PHOTOS, whole: bool = False):
+    """The hand-labelled photographs, cropped to their labelled region (pixels = mm);
+    or ``whole``, as taken, without the labelled lattice (which holds in the region
+    only): the photos of garments show collars, pockets and drape around the cloth."""
     labels = root / "labels.csv"
     if not labels.is_file():
         return
@@ -416,16 +422,17 @@ def photos(root: Path = PHOTOS):
             img = cv2.imread(str(root / r["file"]), cv2.IMREAD_COLOR)
             if img is None:
                 continue
-            if r["roi"]:
+            if r["roi"] and not whole:
                 x0, y0, x1, y1 = (int(v) for v in r["roi"].split())
                 img = img[y0:y1, x0:x1]
             basis = None
-            if r["w1_x"] and r["w2_x"]:
+            if r["w1_x"] and r["w2_x"] and not (whole and r["roi"]):
                 basis = np.array([[float(r["w1_x"]), float(r["w2_x"])],
                                   [float(r["w1_y"]), float(r["w2_y"])]])
             truth = r["group"] if r["group"] != "none" else "plain"
             tol = max(0.03, 2 * float(r["lattice_unc_pct"] or 0) / 100)
-            yield Sample("photos-" + r["file"].split("_")[0], r["file"], img, 1.0, truth,
+            source = "frames" if whole else "photos-" + r["file"].split("_")[0]
+            yield Sample(source, r["file"], img, 1.0, truth,
                          alt=r["alt_group"] or None, basis=basis, tol=tol)
 
 
@@ -639,6 +646,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "sublattice": lambda: sublattice(per_group, seed=seed),
             "plain": lambda: plain(max(2, per_group), seed=seed),
             "photos": photos,
+            "frames": lambda: photos(whole=True),
             "crops": photo_crops,
             "npm": lambda: npm(per_group, seed=seed)}
 
@@ -646,7 +654,7 @@ def _sources(per_group: int, seed: int) -> dict:
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
                                     "classics", "woven", "twill", "lineart", "sublattice",
-                                    "plain", "photos", "crops", "npm")
+                                    "plain", "photos", "frames", "crops", "npm")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []

@@ -44,7 +44,7 @@ from skimage.feature import peak_local_max
 
 from solver.wallpaper import gauss_reduce
 
-__all__ = ["LatticeResult", "detect_lattice", "prepare_colour", "prepare_image",
+__all__ = ["LatticeResult", "detect_lattice", "nested", "prepare_colour", "prepare_image",
            "sublattice", "yarn_repeat"]
 
 #: Autocorrelation of the image's fine detail at which a 2-D repeat finer than any
@@ -685,7 +685,7 @@ def _choose_basis(acf, valid, reliable, d, vals, min_strength):
         finer = [_canonical(current @ np.linalg.inv(m)) for k in NEST_INDEX
                  for m in _index_matrices(k)]
         finer += [b for b in bases.values() if abs(np.linalg.det(b)) < area - 0.5
-                  and _nested(b, current)]
+                  and nested(b, current)]
         finer = [b for b in finer if _key(b) not in seen and _on_peaks(b, d)
                  and _verifiable(reliable, center, b)]
         ev = [_coset_evidence(smooth, center, b, current) for b in finer]
@@ -718,7 +718,7 @@ def _on_peaks(basis: np.ndarray, peaks: np.ndarray) -> bool:
     return bool((dist.min(axis=0) <= tol).all())
 
 
-def _nested(fine: np.ndarray, coarse: np.ndarray) -> bool:
+def nested(fine: np.ndarray, coarse: np.ndarray) -> bool:
     """Whether every point of lattice ``coarse`` is a point of ``fine``."""
     m = np.linalg.solve(fine, coarse)
     return bool(np.abs(m - np.round(m)).max() < 0.1)

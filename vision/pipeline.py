@@ -16,8 +16,15 @@ import numpy as np
 from solver.wallpaper import GROUPS, Wallpaper
 from vision.classify import Classification, classify, symmetry_elements
 from vision.distortion import Distortion, local_lattices, measure_distortion
-from vision.lattice import LatticeResult, detect_lattice, prepare_image, yarn_repeat
-from vision.perspective import View, fit_view
+from vision.lattice import (
+    WORK_SIDE,
+    LatticeResult,
+    detect_lattice,
+    nested,
+    prepare_image,
+    yarn_repeat,
+)
+from vision.perspective import fit_view
 from vision.repeat import true_lattice
 
 __all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric",
@@ -25,6 +32,21 @@ __all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric
 
 #: Below this confidence a detected group goes to the operator ("confirm fabric").
 CONFIRM_BELOW = 0.9
+
+#: Most confidence in a group read on the frame's central part only, where the whole
+#: frame shows no lattice (other cloth, a pocket or drape at the edges): the operator
+#: confirms that the print covers the fabric.
+PART_OF_FRAME_CONFIDENCE = 0.5
+
+#: Working pixels a repeat needs for its detail to be read; a finer one is read again at
+#: full resolution (:func:`_closer_look`). The classifier compares up to 12 harmonics
+#: per repeat; at 7 px a basketweave keeps its second direction 0.04 deep in the
+#: autocorrelation (it reads as stripes), at 14 px 0.5.
+RESOLVE_PX = 16.0
+
+#: Repeats (of the step the working image saw) across the centre read closer: enough
+#: for every per-repeat check, in 512-1024 px, a third of the time of a full reading.
+CLOSER_REPEATS = 16
 
 #: Gaussian smoothing, in units of the yarn's repeat (:func:`yarn_repeat`), that takes
 #: the yarn out of the image before the print is read: it leaves exp(-9 pi^2 / 8) ~ 1e-5
@@ -56,10 +78,7 @@ class FabricDetection:
     @property
     def wallpaper(self) -> Wallpaper | None:
         wp = self.classification.wallpaper
-        if wp is None:
-            return None
-        return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + self.offset, tol=1e-6,
-                         motif=wp.motif)
+        return None if wp is None else _moved(wp, self.offset)
 
     def fabric_json(self) -> dict:
         """FABRIC.json: the foundation's format plus confidence, distortion and the
@@ -120,7 +139,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
                   distortion: bool = True, min_repeat_mm: float = 3.0,
                   stretch_tol: float = 0.03, above_yarn: bool = True,
-                  true_repeat: bool = True) -> FabricDetection:
+                  true_repeat: bool = True, closer_look: bool = True) -> FabricDetection:
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
     stretch of the lattice off its group's (``stretch_tol``, relative) beyond their
@@ -129,29 +148,49 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     the image resolves (:func:`vision.lattice.yarn_repeat`) is smoothed away first
     (``above_yarn``), and a lattice whose step is not a repeat of the print is halved
     (:func:`vision.repeat.true_lattice`, ``true_repeat``); both off only to measure what
-    they change."""
+    they change. A repeat too fine for the shrunk working image is read at full
+    resolution on the frame's centre (``closer_look``, :func:`_closer_look`); a frame
+    that shows a print over its centre only is read there. An answer read on a part
+    that the whole frame does not bear out goes to the operator."""
     t0 = time.perf_counter()
     flat, scale = prepare_image(image)
     yarn_mm, sigma, read = (above_the_yarn(flat, scale, mm_per_px, min_repeat_mm)
                             if above_yarn else (np.nan, 1.0, flat))
     lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
                          min_repeat_mm=min_repeat_mm, smooth_px=sigma)
+    if closer_look and scale < 1.0 and _working_step(lat, mm_per_px, scale) < RESOLVE_PX:
+        # Detail finer than the working image resolves: read the centre at full scale.
+        closer = _closer_look(image, lat, mm_per_px, offset=offset, skew_tol_deg=skew_tol_deg,
+                              bow_tol_mm=bow_tol_mm, distortion=distortion,
+                              min_repeat_mm=min_repeat_mm, stretch_tol=stretch_tol,
+                              above_yarn=above_yarn, true_repeat=true_repeat)
+        if closer is not None:
+            closer.seconds = time.perf_counter() - t0
+            return closer
     if true_repeat:
         lat = true_lattice(image, lat, prepared=(flat, scale), smooth_px=sigma, read=read)
     flat = read
     local, view, cls = None, None, None
-    seed = lat
+    seed, part = lat, None
     if distortion and lat.kind == "plain":
-        # A steep view changes the repeat so much across the frame that no one lattice
-        # holds over it all; the central part may still show one.
-        seed = _central_lattice(flat, scale, mm_per_px, min_repeat_mm)
+        # No one lattice holds over the whole frame: a steep view changes the repeat
+        # too much, or the photo shows more than the cloth. The central part may show one.
+        seed, *part = _central_part(flat, scale, mm_per_px, min_repeat_mm)
     if distortion and seed.found:
         local = local_lattices(flat, seed.basis / mm_per_px * scale)
         view = fit_view(*local, flat.shape, scale)
     if view is not None:
-        found = _decide_rectified(view, flat, scale, mm_per_px, min_repeat_mm, true_repeat)
+        found = _decide_part(*view.rectify(flat), scale, mm_per_px, min_repeat_mm,
+                             true_repeat, allowance=view.change)
         if found is not None:
             lat, cls = found
+    elif part and seed.found:
+        found = _decide_part(*part, scale, mm_per_px, min_repeat_mm, true_repeat)
+        if found is not None:
+            lat, cls = found
+            # Read on a part only: whether the print covers the cloth, the operator says.
+            _read_on_part(cls, f"the print repeats over the frame's central "
+                               f"{100 * part[0].size / flat.size:.0f} % only")
     if cls is None:
         view, local = None, local if lat.found else None
         cls = classify(image, lat, flat=flat, scale=scale)
@@ -178,6 +217,65 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                            time.perf_counter() - t0, yarn_mm)
 
 
+def _read_on_part(cls: Classification, why: str) -> None:
+    """A group read on a part of the frame: whether the print covers the fabric, the
+    operator confirms (confidence at most ``PART_OF_FRAME_CONFIDENCE``, and why)."""
+    cls.confidence = min(cls.confidence, PART_OF_FRAME_CONFIDENCE)
+    cls.message = "; ".join(filter(None, (cls.message,
+                                          f"{why}: confirm that it covers the fabric")))
+
+
+def _working_step(lat: LatticeResult, mm_per_px: float, scale: float) -> float:
+    """The shortest step of a repeat found (stripes' period, a lattice's shortest
+    vector) in working pixels; infinite without one."""
+    if lat.kind == "stripes":
+        step = lat.period
+    elif lat.found:
+        step = min(np.hypot(*lat.w1), np.hypot(*lat.w2))
+    else:
+        return float("inf")
+    return float(step / mm_per_px * scale)
+
+
+def _closer_look(image: np.ndarray, seen: LatticeResult, mm_per_px: float,
+                 **options) -> FabricDetection | None:
+    """The frame's centre (``CLOSER_REPEATS`` repeats across) read at full resolution,
+    when the repeat ``seen`` on the shrunk working image spans fewer than ``RESOLVE_PX``
+    of its pixels: there the print's detail is lost, and what is left can beat with the
+    pixels into a wrong lattice, or leave a 2-D print one direction only (a
+    basketweave's 7 px repeat under shading bands reads as stripes). None when the
+    closer look shows no lattice.
+
+    The answer goes to the operator when it disagrees with the whole frame's (stripes,
+    or a lattice that is not a multiple of the one read closer)."""
+    h, w = image.shape[:2]
+    longest = seen.period if seen.kind == "stripes" else max(np.hypot(*seen.w1),
+                                                              np.hypot(*seen.w2))
+    side = int(np.clip(CLOSER_REPEATS * longest / mm_per_px, 512, WORK_SIDE))
+    ch, cw = min(h, side), min(w, side)
+    y0, x0 = (h - ch) // 2, (w - cw) // 2
+    det = detect_fabric(image[y0:y0 + ch, x0:x0 + cw], mm_per_px=mm_per_px,
+                        closer_look=False, **options)
+    if not det.lattice.found or det.classification.wallpaper is None:
+        return None
+    shift = np.array([x0, y0], float) * mm_per_px
+    det.classification.wallpaper = _moved(det.classification.wallpaper, shift)
+    det.distortion.centres = det.distortion.centres + shift
+    if not (seen.found and nested(det.lattice.basis, seen.basis)):
+        whole = (f"stripes {seen.period:.1f} mm apart" if seen.kind == "stripes" else
+                 f"a repeat of {min(np.hypot(*seen.w1), np.hypot(*seen.w2)):.1f} mm")
+        _read_on_part(det.classification, f"the whole frame, shrunk to {WORK_SIDE} px, "
+                      f"shows {whole}; its central {cw} x {ch} px at full resolution a "
+                      "lattice")
+    return det
+
+
+def _moved(wp: Wallpaper, by: np.ndarray) -> Wallpaper:
+    """The same print with its origin moved ``by`` (mm): from a part's frame to the
+    image's, or from the image's to the machine's."""
+    return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + by, tol=1e-6, motif=wp.motif)
+
+
 def above_the_yarn(flat: np.ndarray, scale: float, mm_per_px: float,
                    min_repeat_mm: float = 3.0) -> tuple[float, float, np.ndarray]:
     """The yarn's repeat in mm (:func:`vision.lattice.yarn_repeat`; NaN where the image
@@ -194,50 +292,52 @@ def above_the_yarn(flat: np.ndarray, scale: float, mm_per_px: float,
     return yarn_mm, 1.0, flat
 
 
-def _central_lattice(flat: np.ndarray, scale: float, mm_per_px: float,
-                     min_repeat_mm: float) -> LatticeResult:
+def _central_part(flat: np.ndarray, scale: float, mm_per_px: float, min_repeat_mm: float
+                  ) -> tuple[LatticeResult, np.ndarray, tuple[int, int]]:
     """The lattice of the central half (each way) of the working image, else of its
-    central quarter: a steep view changes the repeat less over a smaller part."""
+    central quarter: a steep view changes the repeat less over a smaller part, and a
+    photo's edges may show other things than the cloth. Returns the lattice, the part
+    read (mean removed) and its top-left corner (working px)."""
     h, w = flat.shape
-    lat = LatticeResult("plain")
+    lat, part, corner = LatticeResult("plain"), flat, (0, 0)
     for frac in (0.5, 0.25):
         ch, cw = int(h * frac), int(w * frac)
-        crop = flat[(h - ch) // 2:(h - ch) // 2 + ch, (w - cw) // 2:(w - cw) // 2 + cw]
+        y0, x0 = (h - ch) // 2, (w - cw) // 2
+        crop = flat[y0:y0 + ch, x0:x0 + cw]
         if min(crop.shape) < 32:
             break
-        crop = crop - np.float32(crop.mean())
-        frame = np.zeros((max(16, round(crop.shape[0] / scale)),
-                          max(16, round(crop.shape[1] / scale))), np.uint8)
-        lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(crop, scale),
-                             min_repeat_mm=min_repeat_mm)
+        part, corner = crop - np.float32(crop.mean()), (x0, y0)
+        lat = detect_lattice(_frame_of(part, scale), mm_per_px=mm_per_px,
+                             prepared=(part, scale), min_repeat_mm=min_repeat_mm)
         if lat.found:
             break
-    return lat
+    return lat, part, corner
 
 
-def _decide_rectified(view: View, flat: np.ndarray, scale: float, mm_per_px: float,
-                      min_repeat_mm: float, true_repeat: bool = True
-                      ) -> tuple[LatticeResult, Classification] | None:
-    """Lattice and group on the image with the perspective undone, in the input
-    image's millimetres (the rectification keeps the frame at the centre); None when
-    the rectified image shows no lattice."""
-    rflat, (x0, y0) = view.rectify(flat)
-    # The rectified crop as an input-sized frame (calloc: no memory is touched); only
-    # its shape is read.
-    shape = (max(16, round(rflat.shape[0] / scale)), max(16, round(rflat.shape[1] / scale)))
-    frame = np.zeros(shape, np.uint8)
-    lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(rflat, scale),
+def _frame_of(part: np.ndarray, scale: float) -> np.ndarray:
+    """An input-sized frame for a working-image part (calloc: no memory is touched);
+    the readers only take its shape."""
+    return np.zeros((max(16, round(part.shape[0] / scale)),
+                     max(16, round(part.shape[1] / scale))), np.uint8)
+
+
+def _decide_part(part: np.ndarray, corner: tuple[int, int], scale: float,
+                 mm_per_px: float, min_repeat_mm: float, true_repeat: bool = True,
+                 allowance: float = 0.0) -> tuple[LatticeResult, Classification] | None:
+    """Lattice and group of a part of the working image (the perspective undone, or
+    the frame's centre) whose top-left corner lies at ``corner`` (working px), in the
+    input image's millimetres; None when the part shows no lattice. ``allowance``:
+    the lattice change across the part that the decision tolerates."""
+    frame = _frame_of(part, scale)
+    lat = detect_lattice(frame, mm_per_px=mm_per_px, prepared=(part, scale),
                          min_repeat_mm=min_repeat_mm)
     if true_repeat:
-        lat = true_lattice(frame, lat, prepared=(rflat, scale))
+        lat = true_lattice(frame, lat, prepared=(part, scale))
     if not lat.found:
         return None
-    cls = classify(frame, lat, flat=rflat, scale=scale, allowance=view.change)
+    cls = classify(frame, lat, flat=part, scale=scale, allowance=allowance)
     if cls.wallpaper is not None:
-        wp = cls.wallpaper
-        shift = np.array([x0, y0], float) / scale * mm_per_px
-        cls.wallpaper = Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + shift, tol=1e-6,
-                                  motif=wp.motif)
+        cls.wallpaper = _moved(cls.wallpaper, np.array(corner, float) / scale * mm_per_px)
     return lat, cls
 
 

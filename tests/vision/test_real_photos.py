@@ -76,3 +76,20 @@ def test_cropped_rescaled_turned_photos_keep_their_answers(crops):
     seen = [f for s, f in crops if s.basis is not None and _repeats_across(s) >= 3]
     assert all(f["outcome"] != "missed" for f in seen)
     assert sum(bool(f["lattice_ok"]) for f in seen) >= 0.9 * len(seen)
+
+
+def test_whole_photographs_are_read_or_sent_to_the_operator():
+    """The ten photographs as taken: collars, pockets and drape around the garments'
+    cloth, and line-scan frames whose repeat is a few working pixels. A printed cloth
+    is never reported plain or stripes, a plain one never gets a lattice, no answer
+    is a supergroup, and a subgroup goes to the operator."""
+    frames = [(s, evaluate(s, with_baseline=False)) for s in photos(whole=True)]
+    assert len(frames) >= 10
+    for s, f in frames:
+        if s.truth in ("plain", "stripes"):
+            assert f["kind"] in (s.truth, s.alt), (s.name, f)
+            continue
+        assert f["kind"] == "lattice", (s.name, f)
+        assert f["outcome"] in ("right", "subgroup"), (s.name, f)
+        if f["outcome"] == "subgroup":
+            assert f["conf"] < CONFIRM_BELOW, (s.name, f)

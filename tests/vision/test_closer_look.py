@@ -1,0 +1,49 @@
+"""A print too fine for the shrunk working image is read again at full resolution on
+the frame's centre (vision/pipeline.py, ``closer_look``)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from bench.vision import lattice_match
+from simulators.classics import classic_print
+from simulators.fabric import render_print
+from solver.wallpaper import Wallpaper
+from vision.pipeline import detect_fabric
+from vision.subgroups import error_kind
+
+
+def _wide_frame(name: str, repeat: float, rotation: float, seed: int
+                ) -> tuple[np.ndarray, Wallpaper]:
+    """A 4096 x 1800 px frame (pixels = mm) of a classic, lightly blurred and noisy."""
+    p = classic_print(name, repeat, rotation=rotation)
+    img = cv2.GaussianBlur(render_print(p, (4096, 1800), 1.0), (0, 0), 0.8)
+    noise = np.random.default_rng(seed).normal(0, 5, img.shape)
+    return np.clip(img + noise, 0, 255).astype(np.uint8), p.wallpaper
+
+
+@pytest.mark.parametrize("repeat, rotation", [(41.3, 0.0), (55.2, 0.9), (63.7, 2.4)])
+def test_a_fine_herringbone_in_a_wide_frame_is_read_at_full_resolution(repeat, rotation):
+    """The herringbone's twill step (a third of its repeat) is 3.4-5.3 working px, under
+    what the lattice search resolves: the working image alone reads a wrong lattice.
+    Read closer, the lattice is the print's and the group never a supergroup."""
+    frame, truth = _wide_frame("herringbone", repeat, rotation, seed=int(repeat))
+    det = detect_fabric(frame, mm_per_px=1.0)
+    same, err = lattice_match(det.lattice.basis, truth.basis)
+    assert same and err < 0.01, (det.lattice.basis, truth.basis)
+    assert error_kind(det.classification.group, truth.group) in ("right", "subgroup")
+    shrunk = detect_fabric(frame, mm_per_px=1.0, closer_look=False)
+    assert not (shrunk.lattice.found and lattice_match(shrunk.lattice.basis, truth.basis)[0])
+
+
+def test_a_coarse_print_is_read_on_the_whole_frame():
+    """A repeat the working image resolves is not looked at again: the answer is the
+    whole frame's, with the distortion measured over all of it."""
+    frame, truth = _wide_frame("gingham", 160.0, 1.0, seed=3)
+    det = detect_fabric(frame, mm_per_px=1.0)
+    assert det.classification.group == "p4m" and det.classification.confidence > 0.9
+    assert lattice_match(det.lattice.basis, truth.basis)[0]
+    centres = det.distortion.centres
+    assert np.ptp(centres[:, 0]) > 2000  # measured across the frame, not its centre
