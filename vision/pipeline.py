@@ -44,8 +44,9 @@ PART_OF_FRAME_CONFIDENCE = 0.5
 #: autocorrelation (it reads as stripes), at 14 px 0.5.
 RESOLVE_PX = 16.0
 
-#: Repeats (of the step the working image saw) across the centre read closer: enough
-#: for every per-repeat check, in 512-1024 px, a third of the time of a full reading.
+#: Repeats (of the longest step the working image saw) across the centre read closer,
+#: in 512-1024 px: enough for the per-repeat checks, while the whole 1024 px centre put
+#: fine 4000 x 3000 frames over 1.5 s (BENCHMARKS.md).
 CLOSER_REPEATS = 16
 
 #: Gaussian smoothing, in units of the yarn's repeat (:func:`yarn_repeat`), that takes
