@@ -49,6 +49,10 @@ RESOLVE_PX = 16.0
 #: fine 4000 x 3000 frames over 1.5 s (BENCHMARKS.md).
 CLOSER_REPEATS = 16
 
+#: Side (input px) of the frame's centre given a first look at full resolution when the
+#: working image shows no repeat too fine for it: a repeat finer still may be lost there.
+PEEK_SIDE = 512
+
 #: Gaussian smoothing, in units of the yarn's repeat (:func:`yarn_repeat`), that takes
 #: the yarn out of the image before the print is read: it leaves exp(-9 pi^2 / 8) ~ 1e-5
 #: of the weave's fundamental, and the band edges' thread steps with it, and keeps print
@@ -154,17 +158,15 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     that shows a print over its centre only is read there. An answer read on a part
     that the whole frame does not bear out goes to the operator."""
     t0 = time.perf_counter()
-    flat, scale = prepare_image(image)
-    yarn_mm, sigma, read = (above_the_yarn(flat, scale, mm_per_px, min_repeat_mm)
-                            if above_yarn else (np.nan, 1.0, flat))
-    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
-                         min_repeat_mm=min_repeat_mm, smooth_px=sigma)
-    if closer_look and scale < 1.0 and _working_step(lat, mm_per_px, scale) < RESOLVE_PX:
+    flat, scale, yarn_mm, sigma, read, lat = _first_reading(image, mm_per_px, min_repeat_mm,
+                                                            above_yarn)
+    if closer_look and scale < 1.0:
         # Detail finer than the working image resolves: read the centre at full scale.
-        closer = _closer_look(image, lat, mm_per_px, offset=offset, skew_tol_deg=skew_tol_deg,
-                              bow_tol_mm=bow_tol_mm, distortion=distortion,
-                              min_repeat_mm=min_repeat_mm, stretch_tol=stretch_tol,
-                              above_yarn=above_yarn, true_repeat=true_repeat)
+        closer = _closer_look(image, lat, scale, mm_per_px, offset=offset,
+                              skew_tol_deg=skew_tol_deg, bow_tol_mm=bow_tol_mm,
+                              distortion=distortion, min_repeat_mm=min_repeat_mm,
+                              stretch_tol=stretch_tol, above_yarn=above_yarn,
+                              true_repeat=true_repeat)
         if closer is not None:
             closer.seconds = time.perf_counter() - t0
             return closer
@@ -226,48 +228,79 @@ def _read_on_part(cls: Classification, why: str) -> None:
                                           f"{why}: confirm that it covers the fabric")))
 
 
-def _working_step(lat: LatticeResult, mm_per_px: float, scale: float) -> float:
-    """The shortest step of a repeat found (stripes' period, a lattice's shortest
-    vector) in working pixels; infinite without one."""
+def _first_reading(image: np.ndarray, mm_per_px: float, min_repeat_mm: float,
+                   above_yarn: bool) -> tuple[np.ndarray, float, float, float, np.ndarray,
+                                              LatticeResult]:
+    """The working image and its scale, the yarn's repeat (mm), the smoothing that takes
+    it away (working px), the image read with it taken away, and the lattice found."""
+    flat, scale = prepare_image(image)
+    yarn_mm, sigma, read = (above_the_yarn(flat, scale, mm_per_px, min_repeat_mm)
+                            if above_yarn else (np.nan, 1.0, flat))
+    lat = detect_lattice(image, mm_per_px=mm_per_px, prepared=(flat, scale),
+                         min_repeat_mm=min_repeat_mm, smooth_px=sigma)
+    return flat, scale, yarn_mm, sigma, read, lat
+
+
+def _steps(lat: LatticeResult) -> tuple[float, float]:
+    """The shortest and the longest step (mm) of a repeat found: the stripes' period,
+    or a lattice's two vectors; NaN without one."""
     if lat.kind == "stripes":
-        step = lat.period
-    elif lat.found:
-        step = min(np.hypot(*lat.w1), np.hypot(*lat.w2))
-    else:
-        return float("inf")
-    return float(step / mm_per_px * scale)
+        return lat.period, lat.period
+    if lat.found:
+        n1, n2 = np.hypot(*lat.w1), np.hypot(*lat.w2)
+        return float(min(n1, n2)), float(max(n1, n2))
+    return float("nan"), float("nan")
 
 
-def _closer_look(image: np.ndarray, seen: LatticeResult, mm_per_px: float,
+def _unresolved(lat: LatticeResult, mm_per_px: float, scale: float) -> bool:
+    """Whether a repeat was found whose shortest step spans fewer than ``RESOLVE_PX``
+    pixels of a working image at ``scale``."""
+    return bool(_steps(lat)[0] / mm_per_px * scale < RESOLVE_PX)
+
+
+def _centre(image: np.ndarray, side: int) -> tuple[np.ndarray, np.ndarray]:
+    """The central ``side`` x ``side`` pixels of ``image`` (less where it is smaller),
+    and their top-left corner (x, y)."""
+    h, w = image.shape[:2]
+    ch, cw = min(h, side), min(w, side)
+    y0, x0 = (h - ch) // 2, (w - cw) // 2
+    return image[y0:y0 + ch, x0:x0 + cw], np.array([x0, y0], float)
+
+
+def _closer_look(image: np.ndarray, seen: LatticeResult, scale: float, mm_per_px: float,
                  **options) -> FabricDetection | None:
     """The frame's centre (``CLOSER_REPEATS`` repeats across) read at full resolution,
-    when the repeat ``seen`` on the shrunk working image spans fewer than ``RESOLVE_PX``
-    of its pixels: there the print's detail is lost, and what is left can beat with the
-    pixels into a wrong lattice, or leave a 2-D print one direction only (a
-    basketweave's 7 px repeat under shading bands reads as stripes). None when the
-    closer look shows no lattice.
+    when the print's repeat spans fewer than ``RESOLVE_PX`` pixels of the working image
+    (at ``scale``): there its detail is lost, and what is left can beat with the pixels
+    into a wrong lattice, or leave a 2-D print one direction only (a basketweave's 7 px
+    repeat under shading bands reads as stripes). The repeat is the one the working
+    image showed (``seen``), or, when that is coarser or none, the one a first look at
+    the central ``PEEK_SIDE`` px shows (a fine herringbone's twill step, lost in the
+    shrink, leaves a coarse beat). None when neither is that fine, or when the closer
+    look shows no lattice.
 
     The answer goes to the operator when it disagrees with the whole frame's (stripes,
     or a lattice that is not a multiple of the one read closer)."""
-    h, w = image.shape[:2]
-    longest = seen.period if seen.kind == "stripes" else max(np.hypot(*seen.w1),
-                                                              np.hypot(*seen.w2))
-    side = int(np.clip(CLOSER_REPEATS * longest / mm_per_px, 512, WORK_SIDE))
-    ch, cw = min(h, side), min(w, side)
-    y0, x0 = (h - ch) // 2, (w - cw) // 2
-    det = detect_fabric(image[y0:y0 + ch, x0:x0 + cw], mm_per_px=mm_per_px,
-                        closer_look=False, **options)
+    found = seen
+    if not _unresolved(seen, mm_per_px, scale):
+        found = _first_reading(_centre(image, PEEK_SIDE)[0], mm_per_px,
+                               options["min_repeat_mm"], options["above_yarn"])[-1]
+        if not _unresolved(found, mm_per_px, scale):
+            return None
+    side = int(np.clip(CLOSER_REPEATS * _steps(found)[1] / mm_per_px, PEEK_SIDE, WORK_SIDE))
+    crop, corner = _centre(image, side)
+    det = detect_fabric(crop, mm_per_px=mm_per_px, closer_look=False, **options)
     if not det.lattice.found or det.classification.wallpaper is None:
         return None
-    shift = np.array([x0, y0], float) * mm_per_px
+    shift = corner * mm_per_px
     det.classification.wallpaper = _moved(det.classification.wallpaper, shift)
     det.distortion.centres = det.distortion.centres + shift
     if not (seen.found and nested(det.lattice.basis, seen.basis)):
-        whole = (f"stripes {seen.period:.1f} mm apart" if seen.kind == "stripes" else
-                 f"a repeat of {min(np.hypot(*seen.w1), np.hypot(*seen.w2)):.1f} mm")
+        whole = {"stripes": f"stripes {seen.period:.1f} mm apart",
+                 "lattice": f"a repeat of {_steps(seen)[0]:.1f} mm"}.get(seen.kind, "no print")
         _read_on_part(det.classification, f"the whole frame, shrunk to {WORK_SIDE} px, "
-                      f"shows {whole}; its central {cw} x {ch} px at full resolution a "
-                      "lattice")
+                      f"shows {whole}; its central {crop.shape[1]} x {crop.shape[0]} px at "
+                      "full resolution a lattice")
     return det
 
 

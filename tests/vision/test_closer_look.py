@@ -11,7 +11,7 @@ from bench.vision import lattice_match
 from simulators.classics import classic_print
 from simulators.fabric import render_print
 from solver.wallpaper import Wallpaper
-from vision.pipeline import detect_fabric
+from vision.pipeline import PART_OF_FRAME_CONFIDENCE, detect_fabric
 from vision.subgroups import error_kind
 
 
@@ -24,11 +24,14 @@ def _wide_frame(name: str, repeat: float, rotation: float, seed: int
     return np.clip(img + noise, 0, 255).astype(np.uint8), p.wallpaper
 
 
-@pytest.mark.parametrize("repeat, rotation", [(41.3, 0.0), (55.2, 0.9), (63.7, 2.4)])
+@pytest.mark.parametrize("repeat, rotation", [(41.3, 0.0), (41.3, 0.9), (55.2, 0.9),
+                                              (63.7, 2.4)])
 def test_a_fine_herringbone_in_a_wide_frame_is_read_at_full_resolution(repeat, rotation):
     """The herringbone's twill step (a third of its repeat) is 3.4-5.3 working px, under
-    what the lattice search resolves: the working image alone reads a wrong lattice.
-    Read closer, the lattice is the print's and the group never a supergroup."""
+    what the lattice search resolves: the working image alone reads a wrong lattice,
+    fine or coarse (at 41.3 px and 0.9 degrees a multiple of index 11, whose 69 px step
+    only the first look at the centre shows up). Read closer, the lattice is the
+    print's and the group never a supergroup."""
     frame, truth = _wide_frame("herringbone", repeat, rotation, seed=int(repeat))
     det = detect_fabric(frame, mm_per_px=1.0)
     same, err = lattice_match(det.lattice.basis, truth.basis)
@@ -36,6 +39,20 @@ def test_a_fine_herringbone_in_a_wide_frame_is_read_at_full_resolution(repeat, r
     assert error_kind(det.classification.group, truth.group) in ("right", "subgroup")
     shrunk = detect_fabric(frame, mm_per_px=1.0, closer_look=False)
     assert not (shrunk.lattice.found and lattice_match(shrunk.lattice.basis, truth.basis)[0])
+
+
+def test_a_print_the_working_image_loses_is_found_at_the_centre():
+    """A 21 px herringbone (7 px twill step, 1.8 working px) shrinks to plain grey: the
+    whole frame shows no print. The first look at the centre finds it; read closer, it
+    goes to the operator, since the whole frame does not bear it out."""
+    frame, truth = _wide_frame("herringbone", 21.3, 0.8, seed=21)
+    assert detect_fabric(frame, mm_per_px=1.0, closer_look=False).lattice.kind == "plain"
+    det = detect_fabric(frame, mm_per_px=1.0)
+    same, err = lattice_match(det.lattice.basis, truth.basis)
+    assert same and err < 0.01, (det.lattice.basis, truth.basis)
+    assert error_kind(det.classification.group, truth.group) in ("right", "subgroup")
+    assert det.classification.confidence <= PART_OF_FRAME_CONFIDENCE
+    assert "shows no print" in det.fabric_json()["message"]
 
 
 def test_a_coarse_print_is_read_on_the_whole_frame():
