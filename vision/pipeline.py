@@ -161,7 +161,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     flat, scale, yarn_mm, sigma, read, lat = _first_reading(image, mm_per_px, min_repeat_mm,
                                                             above_yarn)
     if closer_look and scale < 1.0:
-        # Detail finer than the working image resolves: read the centre at full scale.
+        # A repeat finer than the working image resolves: the centre read at full scale.
         closer = _closer_look(image, lat, scale, mm_per_px, offset=offset,
                               skew_tol_deg=skew_tol_deg, bow_tol_mm=bow_tol_mm,
                               distortion=distortion, min_repeat_mm=min_repeat_mm,
