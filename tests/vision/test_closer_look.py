@@ -9,7 +9,7 @@ import pytest
 
 from bench.vision import lattice_match
 from simulators.classics import classic_print
-from simulators.fabric import render_print
+from simulators.fabric import random_print, render_print
 from solver.wallpaper import Wallpaper
 from vision.pipeline import PART_OF_FRAME_CONFIDENCE, detect_fabric
 from vision.subgroups import error_kind
@@ -64,3 +64,23 @@ def test_a_coarse_print_is_read_on_the_whole_frame():
     assert lattice_match(det.lattice.basis, truth.basis)[0]
     centres = det.distortion.centres
     assert np.ptp(centres[:, 0]) > 2000  # measured across the frame, not its centre
+
+
+@pytest.mark.parametrize("group, seed, depth", [("pmm", 1, 0.3), ("p4m", 1, 0.6)])
+def test_a_fine_print_under_shading_bands_is_not_read_as_stripes(group, seed, depth):
+    """A 28 px print (7 working px) under shading bands 80-400 px wide (line-scan light,
+    long wrinkles): the shrunk frame reads the bands as stripes. The first look at the
+    centre finds the print; read closer, it goes to the operator."""
+    rng = np.random.default_rng(seed)
+    p = random_print(group, 28.0, rotation=0.0, seed=seed)
+    img = render_print(p, (4096, 1800), 1.0).astype(np.float32) / 255.0
+    x = np.arange(4096, dtype=np.float32)
+    bands = sum(rng.uniform(0.3, 1) * np.sin(2 * np.pi * x / rng.uniform(80, 400)
+                                             + rng.uniform(0, 6)) for _ in range(4)) / 4
+    frame = (255 * np.clip((0.15 + 0.7 * img) * (1 + depth * bands)[None, :, None], 0, 1)
+             ).astype(np.uint8)
+    assert detect_fabric(frame, mm_per_px=1.0, closer_look=False).lattice.kind == "stripes"
+    det = detect_fabric(frame, mm_per_px=1.0)
+    assert det.classification.group == group
+    assert lattice_match(det.lattice.basis, p.wallpaper.basis)[0]
+    assert det.classification.confidence <= PART_OF_FRAME_CONFIDENCE
