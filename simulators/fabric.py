@@ -161,12 +161,17 @@ class Print:
         """(..., 2) fabric mm -> (..., 2) fractional coordinates of the rendering cell."""
         return (np.asarray(xy) - self.origin) @ self._basis_inv.T
 
-    def colour_at(self, x: np.ndarray, y: np.ndarray, pixel_mm: float) -> np.ndarray:
+    def colour_at(self, x: np.ndarray, y: np.ndarray, pixel_mm: float, *,
+                  anti_alias: bool = True) -> np.ndarray:
         """Colours (H, W, 3) float32 BGR in [0, 1] at fabric points (mm, (H, W) each).
 
         ``pixel_mm`` is the footprint of one output pixel on the fabric, which sets the
-        anti-aliasing filter.
+        anti-aliasing filter; without it (``anti_alias=False``) each point takes the
+        colour of the texel it falls in, hard edges rounded to the pixels as a drawing
+        program writes them.
         """
+        if not anti_alias:
+            return self._nearest(x, y, self.grid_size(pixel_mm))
         tex = self.filtered_texture(pixel_mm)
         m = tex.shape[0]
         # float32 is ample (table coordinates of 1 m carry 1e-4 mm) and twice as fast;
@@ -182,12 +187,21 @@ class Print:
         v *= np.float32(m)
         return cv2.remap(tex, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
 
+    def _nearest(self, x: np.ndarray, y: np.ndarray, m: int) -> np.ndarray:
+        """The unfiltered texture's texel under each point."""
+        tex = np.asarray(self._texture(m), np.float32)
+        uv = self.fractional(np.stack([np.asarray(x, float), np.asarray(y, float)], -1))
+        ij = np.floor((uv - np.floor(uv)) * m).astype(int) % m
+        return tex[ij[..., 1], ij[..., 0]]  # rows vary along v (w2), columns along u
+
 
 def render_print(p: Print, size_mm: tuple[float, float], mm_per_px: float, *,
-                 offset: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+                 offset: tuple[float, float] = (0.0, 0.0),
+                 anti_alias: bool = True) -> np.ndarray:
     """A flat, top-down image of the print: (H, W, 3) BGR uint8.
 
-    Pixel ``(col, row)`` is centred on ``offset + (col, row) * mm_per_px`` mm.
+    Pixel ``(col, row)`` is centred on ``offset + (col, row) * mm_per_px`` mm;
+    ``anti_alias``: see :meth:`Print.colour_at`.
     """
     if mm_per_px <= 0:
         raise ValueError(f"mm per pixel must be positive, got {mm_per_px}")
@@ -199,7 +213,7 @@ def render_print(p: Print, size_mm: tuple[float, float], mm_per_px: float, *,
     xs = offset[0] + np.arange(w) * mm_per_px
     ys = offset[1] + np.arange(h) * mm_per_px
     x, y = np.meshgrid(xs, ys)
-    return to_uint8(p.colour_at(x, y, mm_per_px))
+    return to_uint8(p.colour_at(x, y, mm_per_px, anti_alias=anti_alias))
 
 
 def to_uint8(img: np.ndarray) -> np.ndarray:
