@@ -53,11 +53,15 @@ from scipy import fft as sfft
 
 from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
 from vision.consistency import (
+    EDGE_SLACK_PX,
     SAMPLE,
     WEIGHT_FLOOR,
     RepeatSpectra,
     asymmetry,
+    beyond_rounding,
+    pixel_rounding,
     repeat_spectra,
+    rounding_slack,
 )
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
@@ -68,6 +72,10 @@ __all__ = ["Classification", "classify", "lattice_whitening", "mean_cell", "repe
 #: Grid of the mean cell: divisible by 2, 3, 4 and 6 so that every operation of every
 #: group maps grid points onto grid points.
 CELL_N = 96
+
+#: Highest confidence of a group that holds only with rounding to the pixel grid allowed
+#: (``classify``'s ``pixel_slack``): under the operator's threshold.
+ROUNDING_CONFIDENCE = 0.5
 
 #: Likelihood of an operation being present given its reliability-normalised score.
 TAU = 0.86
@@ -460,6 +468,21 @@ def _corr_all_shifts(motif: np.ndarray, a: np.ndarray) -> np.ndarray:
     return r[ta, tb]
 
 
+def _rounded_score(motif: np.ndarray, a: np.ndarray, shift: np.ndarray,
+                   rounding: np.ndarray) -> float:
+    """:func:`_corr_all_shifts` at one ``shift`` of a cell that repeats by whole pixels,
+    less what rounding its edges to the grid explains (:func:`rounding_slack`):
+    1 - |M - M(A f + s)|^2 / 2|M|^2, the residual taken beyond that slack."""
+    n = motif.shape[0]
+    g = np.arange(n)
+    fa, fb = np.meshgrid(g, g, indexing="ij")
+    image = motif[(a[0, 0] * fa + a[0, 1] * fb + shift[0]) % n,
+                  (a[1, 0] * fa + a[1, 1] * fb + shift[1]) % n]
+    slack = rounding_slack(np.fft.fft2(motif), np.fft.fft2(image), rounding)
+    left = beyond_rounding(motif - image, slack)
+    return 1.0 - float((left**2).sum()) / max(2.0 * float((motif**2).sum()), 1e-12)
+
+
 def _reflection_classes(a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return _reflection_classes_cached(_key(a), n)
 
@@ -521,7 +544,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              lag: float = ADDED_OPERATION_LAG, lag_spread: float = ADDED_LAG_SPREAD,
              consistency: bool = True,
              own_asymmetry: float = OWN_ASYMMETRY,
-             shared_asymmetry: float = SHARED_ASYMMETRY) -> Classification:
+             shared_asymmetry: float = SHARED_ASYMMETRY,
+             pixel_slack: bool = True) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -555,6 +579,12 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         Refuse a group one of whose operations leaves the same residual all over the
         cloth (:func:`invents`, with its two thresholds); off only to measure what it
         changes.
+    pixel_slack
+        On an image whose repeats lie whole pixels apart (a rendering), allow every
+        edge to sit up to ``EDGE_SLACK_PX`` off its image under an operation
+        (:func:`vision.consistency.pixel_rounding`). A group read only with that
+        allowance goes to the operator (confidence at most ``ROUNDING_CONFIDENCE``):
+        a faint stroke along an edge hides in it as well.
 
     Returns
     -------
@@ -585,11 +615,15 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     snap_tol = SNAP_TOL + allowance
     strain_sigma = math.hypot(strain_sigma, allowance)
     metric = _symmetric_metric(basis, holo)
+    # A rendering repeats by whole pixels: its edges' rounding to the grid is the same
+    # in every repeat, and is allowed (vision.consistency.EDGE_SLACK_PX).
+    rounding = pixel_rounding(basis, scale, ij, cell_n) if pixel_slack else None
     spectra = None
     if consistency:
         spectra = repeat_spectra(cells - cells.mean(axis=(1, 2), keepdims=True), ij,
                                  _whitening(cell_n, metric, whiten, min(band,
-                                                                        CONSISTENCY_BAND)))
+                                                                        CONSISTENCY_BAND)),
+                                 rounding=rounding)
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
     likeness = (_likeness(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten)
                 if len(cells) > 1 else 1.0)
@@ -610,17 +644,21 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     op_scores: dict[str, float] = {}
     for a in holo:
         t = corr[_key(a)] / ceiling
-        if round(np.linalg.det(a)) == 1:
-            forb[(_key(a), "rot")] = float(t.max())
-            op_scores[_name(a, basis)] = float(t.max())
-        else:
-            mir, gli = _reflection_classes(a, n)
-            if mir.any():
-                forb[(_key(a), "mirror")] = float(t[mir].max())
-                op_scores[_name(a, basis) + "m"] = float(t[mir].max())
-            if gli.any():
-                forb[(_key(a), "glide")] = float(t[gli].max())
-                op_scores[_name(a, basis) + "g"] = float(t[gli].max())
+        classes = ([("rot", "", np.ones((n, n), bool))] if round(np.linalg.det(a)) == 1
+                   else [(kind, tag, mask) for kind, tag, mask in
+                         zip(("mirror", "glide"), "mg", _reflection_classes(a, n),
+                             strict=True) if mask.any()])
+        for kind, tag, mask in classes:
+            at = np.unravel_index(int(np.argmax(np.where(mask, t, -np.inf))), t.shape)
+            if rounding is not None:
+                # What rounding explains, measured at the class's best shift, is
+                # given back at every shift of the class (the decision reads them all).
+                gain = _rounded_score(motif, a, np.array(at), rounding) - float(
+                    corr[_key(a)][at])
+                corr[_key(a)][mask] += gain
+                t = corr[_key(a)] / ceiling
+            forb[(_key(a), kind)] = float(t[at])
+            op_scores[_name(a, basis) + tag] = float(t[at])
     holo_keys = {_key(a) for a in holo}
 
     best: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
@@ -720,6 +758,20 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     if nrep < 3 or unlike:
         # No per-repeat check: never sure enough to skip the operator.
         confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
+    if rounding is not None:
+        strict = classify(image, lattice, cell_n=cell_n, max_repeats=max_repeats, tau=tau,
+                          kappa=kappa, work_side=work_side, flat=flat, scale=scale,
+                          whiten=whiten, prefilter=prefilter,
+                          holohedry_tol=holohedry_tol, strain_sigma=strain_sigma,
+                          band=band, temperature=temperature, allowance=allowance,
+                          lag=lag, lag_spread=lag_spread, consistency=consistency,
+                          own_asymmetry=own_asymmetry, shared_asymmetry=shared_asymmetry,
+                          pixel_slack=False)
+        if strict.group != win:
+            confidence = min(confidence, ROUNDING_CONFIDENCE)
+            message = (f"{message}; " if message else "") + (
+                f"a rendering (repeats whole pixels apart): {win} holds with its edges "
+                f"allowed {EDGE_SLACK_PX:g} px off, {strict.group} without")
     return Classification(wp, win, confidence,
                           scores={k: float(v) for k, v in zip(names, ll, strict=True)},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,

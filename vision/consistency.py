@@ -31,12 +31,30 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alternation",
-           "asymmetry", "refine_translation", "repeat_spectra"]
+           "asymmetry", "beyond_rounding", "pixel_rounding", "refine_translation",
+           "repeat_spectra", "rounding_slack"]
 
 #: Single repeats a per-repeat measure is taken over (residual energy here, the
 #: operations' support in :func:`vision.classify.repeat_support`): a sample, spread over
 #: all, keeps the cost fixed.
 SAMPLE = 64
+
+#: How far (working px) an edge of the print and its image under an operation may lie
+#: apart without the operation counting as broken, on an image that repeats by whole
+#: pixels (:func:`pixel_rounding`): a rendering, whose edges are each rounded to the
+#: grid by up to half a pixel (so a pair by up to one), at the same place in every
+#: repeat. Such rounding is a residual every repeat shares, as a faint stroke's is, but
+#: it lies only along edges the print has on both sides of the operation, at most this
+#: far times their slope.
+EDGE_SLACK_PX = 1.0
+
+#: Largest drift (input px) of the pixel grid along an image axis over the sampled
+#: repeats for them to be rounded alike along it: whole pixels apart, as only a
+#: rendering's repeats are (a hexagonal one's along one axis at most). A rendering's
+#: lattice is measured to a few thousandths of a pixel; a photograph's lies this close
+#: to whole pixels over ``MIN_SPAN`` repeats each way about once in a thousand.
+PIXEL_GRID_DRIFT = 0.05
+MIN_SPAN = 3
 
 
 @dataclass
@@ -50,6 +68,7 @@ class RepeatSpectra:
     half_b: np.ndarray
     single: np.ndarray
     weight: np.ndarray | None = None  # real filter (n, n) the spectra are weighted by
+    rounding: np.ndarray | None = None  # see pixel_rounding: renderings only
 
     @property
     def shared(self) -> float:
@@ -70,11 +89,14 @@ class Asymmetry:
 
 
 def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = None,
-                   sample: int = SAMPLE) -> RepeatSpectra | None:
+                   sample: int = SAMPLE, rounding: np.ndarray | None = None
+                   ) -> RepeatSpectra | None:
     """The spectra of ``cells`` (R, n, n) with repeat indices ``ij`` (R, 2) that
     :func:`asymmetry` reads, weighted by ``weight`` (n, n), a real, non-negative filter
     (a whitening) if any; None with fewer than three repeats. :func:`asymmetry` undoes
-    what of the weighting an operation does not keep."""
+    what of the weighting an operation does not keep. ``rounding``
+    (:func:`pixel_rounding`), for repeats rounded alike to the pixel grid: the residual
+    that rounding explains is allowed."""
     r = len(cells)
     if r < 3:
         return None
@@ -82,7 +104,53 @@ def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None 
     pick = np.linspace(0, r - 1, min(r, sample)).round().astype(int)
     w = 1.0 if weight is None else weight
     return RepeatSpectra(*(np.fft.fft2(cells[k].mean(0)) * w for k in (slice(None), a, b)),
-                         np.fft.fft2(cells[pick]) * w, weight)
+                         np.fft.fft2(cells[pick]) * w, weight, rounding)
+
+
+def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int
+                   ) -> np.ndarray | None:
+    """What rounding to the pixel grid explains in the repeats ``ij`` (R, 2) of the
+    lattice ``basis`` (columns w1, w2, working px; ``scale`` working px per input px)
+    sampled on an ``n``-point cell: the (2, 2) map from a cell's gradient (per cell step
+    along w1, w2) to the residual its edges' rounding explains; None unless the repeats,
+    ``MIN_SPAN`` or more each way, lie whole input pixels apart along an image axis, as
+    only a rendering's do.
+
+    Along such an axis every repeat's edges are rounded alike; along the other (a
+    hexagonal rendering's) the rounding differs from repeat to repeat and smears the
+    mean cell's edges instead, by up to a pixel too: either way an edge may lie up to
+    ``EDGE_SLACK_PX`` off its image's, along both axes."""
+    basis, ij = np.asarray(basis, float), np.asarray(ij, float)
+    if len(ij) == 0 or np.ptp(ij, axis=0).min() < MIN_SPAN:
+        return None  # too few repeats to tell whole pixels from chance
+    offsets = (ij - ij[0]) @ (basis / scale).T
+    if not (np.abs(offsets - np.rint(offsets)).max(axis=0) < PIXEL_GRID_DRIFT).any():
+        return None
+    # Chain rule: the cell's steps a, b are the columns of basis / n in the image.
+    return EDGE_SLACK_PX * np.linalg.inv(basis / n).T
+
+
+def rounding_slack(spec: np.ndarray, image_spec: np.ndarray, rounding: np.ndarray
+                   ) -> np.ndarray:
+    """(n, n): per cell point, the difference between a cell (spectrum ``spec``) and its
+    aligned image under an operation (``image_spec``) that rounding their edges to the
+    pixel grid explains (``rounding``, from :func:`pixel_rounding`), the smaller of the
+    two: a stroke with no partner edge in the other gets none."""
+    return np.minimum(_slope(spec, rounding), _slope(image_spec, rounding))
+
+
+def beyond_rounding(residual: np.ndarray, slack: np.ndarray) -> np.ndarray:
+    """The residual (..., n, n) in the cell less the ``slack`` rounding explains."""
+    return np.sign(residual) * np.maximum(np.abs(residual) - slack, 0.0)
+
+
+def _slope(spec: np.ndarray, rounding: np.ndarray) -> np.ndarray:
+    """|rounding @ gradient| over the cell whose spectrum is ``spec``."""
+    n = spec.shape[0]
+    k = 2j * np.pi * np.fft.fftfreq(n)
+    d_ab = np.stack([np.fft.ifft2(spec * k[:, None]).real.ravel(),
+                     np.fft.ifft2(spec * k[None, :]).real.ravel()])
+    return np.hypot(*(rounding @ d_ab)).reshape(n, n)
 
 
 def _outer_thirds(ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -285,6 +353,18 @@ def asymmetry(spectra: RepeatSpectra, a: np.ndarray, s: np.ndarray, *,
     def residual(spec: np.ndarray) -> np.ndarray:
         return spec * ua - spec[..., ma, mb] * ub
 
-    shared = float(np.real(np.vdot(residual(spectra.half_a), residual(spectra.half_b))))
-    single = float((np.abs(residual(spectra.single)) ** 2).sum(axis=(-2, -1)).mean())
+    if spectra.rounding is None:
+        shared = float(np.real(np.vdot(residual(spectra.half_a),
+                                       residual(spectra.half_b))))
+        single = float((np.abs(residual(spectra.single)) ** 2).sum(axis=(-2, -1)).mean())
+    else:
+        slack = rounding_slack(spectra.mean * ua, spectra.mean[ma, mb] * ub,
+                               spectra.rounding)
+
+        def beyond(spec: np.ndarray) -> np.ndarray:
+            return beyond_rounding(np.fft.ifft2(residual(spec)).real, slack)
+
+        # n^2 times the sums over the cell: the spectra's scale (Parseval).
+        shared = n * n * float(np.sum(beyond(spectra.half_a) * beyond(spectra.half_b)))
+        single = n * n * float((beyond(spectra.single) ** 2).sum(axis=(-2, -1)).mean())
     return Asymmetry(shared / max(2.0 * spectra.shared, 1e-30), shared / max(single, 1e-30))
