@@ -227,6 +227,17 @@ def test_pixel_convention_and_periodicity():
     assert a.shape == (100, 120, 3) and a.dtype == np.uint8
 
 
+def test_without_anti_aliasing_a_lattice_of_whole_pixels_repeats_exactly():
+    """As a drawing program writes a print: on a lattice of whole pixels every repeat
+    is the same pixels (the anti-aliased rendering blends its edges differently)."""
+    p = random_print("p4m", w1=np.array([24.0, 0.0]), w2=np.array([0.0, 24.0]), seed=3,
+                     origin=(0.3, 0.7))
+    hard = render_print(p, (96, 72), 1.0, anti_alias=False)
+    assert np.array_equal(hard[:, 24:], hard[:, :-24])
+    assert np.array_equal(hard[24:], hard[:-24])
+    assert not np.array_equal(hard, render_print(p, (96, 72), 1.0))
+
+
 def test_anti_aliased_against_a_supersampled_reference():
     """At 6 px per repeat, point sampling aliases into moiré (low-frequency error that
     survives a slight blur); the band-limited rendering matches the box average of an
