@@ -21,7 +21,9 @@ type (see BENCHMARKS.md):
   p3, p3m1: hexagonal with side sqrt(3) width).
 
 The drawing (ours, OpenCV): random polylines in the package's tile, a colour and a
-width per line, the whole pattern scaled and turned, then blur, noise and JPEG.
+width per line, the whole pattern scaled and turned, then blur, noise and JPEG; or, as a
+generator writes its PNG, a tile of whole pixels, not turned, no camera, half of them
+without anti-aliasing (``as_written``).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from simulators.lineart import degrade, draw_lines, symmetry_of
@@ -102,15 +105,48 @@ def draw(lines: list, n_motif: int, basis: np.ndarray, rng: np.random.Generator,
     return degrade(img, rng), rot @ basis
 
 
-def patterns(per_type: int, seed: int = 0, types: tuple[str, ...] = TYPES, first: int = 0
-             ) -> Iterator[tuple[str, str, np.ndarray, np.ndarray]]:
+def draw_as_written(lines: list, n_motif: int, basis: np.ndarray, tile_px: int,
+                    rng: np.random.Generator, anti_alias: bool,
+                    size: tuple[int, int] = (800, 600)) -> tuple[np.ndarray, np.ndarray]:
+    """The pattern as a generator writes its PNG: the package's tile ``tile_px`` whole
+    pixels wide, not turned, no camera; strokes anti-aliased, or with their points
+    rounded to whole pixels and drawn without (the hard-edged drawings of many
+    programs). Returns the BGR image and the lattice basis in its pixels."""
+    w, h = size
+    background = rng.uniform(0, 255, 3)
+    colours = [rng.uniform(0, 255, 3) for _ in range(n_motif)]
+    while min(np.abs(c - background).max() for c in colours) < 60:
+        background = rng.uniform(0, 255, 3)
+    widths = [rng.uniform(0.02, 0.06) * tile_px for _ in range(n_motif)]
+    pts = [np.asarray(line, float) * tile_px for line in lines]
+    if anti_alias:
+        layers = [(pts[k::n_motif], tuple(colours[k]), widths[k]) for k in range(n_motif)]
+        return draw_lines(layers, size, 1.0, tuple(background)), basis * tile_px
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = np.clip(np.rint(background), 0, 255).astype(np.uint8)
+    for k in range(n_motif):
+        cv2.polylines(img, [np.rint(p).astype(np.int32) for p in pts[k::n_motif]], False,
+                      tuple(float(v) for v in colours[k]), max(1, round(widths[k])),
+                      cv2.LINE_8)
+    return img, basis * tile_px
+
+
+def patterns(per_type: int, seed: int = 0, types: tuple[str, ...] = TYPES, first: int = 0,
+             as_written: bool = False) -> Iterator[tuple[str, str, np.ndarray, np.ndarray]]:
     """(package type, measured group, image, lattice basis in mm) per pattern: patterns
-    ``first`` to ``first + per_type - 1`` of each type (the same whatever is asked)."""
-    rngs, requests, motifs = [], [], []
+    ``first`` to ``first + per_type - 1`` of each type (the same whatever is asked);
+    ``as_written``: drawn by :func:`draw_as_written` (every other one anti-aliased)
+    instead of :func:`draw`."""
+    rngs, requests, motifs, tiles_px = [], [], [], []
     for kind in types:
         for k in range(first, first + per_type):
             rng = np.random.default_rng(seed + 4241 * TYPES.index(kind) + k)
             req = _request(kind, rng)
+            if as_written:
+                # A tile of whole pixels both ways (the package's height is relative).
+                tile_px = int(rng.integers(24, 72))
+                req["height"] = max(1, round(req["height"] * tile_px)) / tile_px
+                tiles_px.append(tile_px)
             rngs.append(rng)
             requests.append(req)
     tiles = [np.asarray(p["tile"], float) for p in call_package(
@@ -119,9 +155,13 @@ def patterns(per_type: int, seed: int = 0, types: tuple[str, ...] = TYPES, first
         motifs.append(_motif(tile, rng))
         # Enough copies that the middle of the drawing is covered whatever the turn.
         req.update(columns=26, rows=26, lines=motifs[-1])
-    for req, motif, rng, pat in zip(requests, motifs, rngs, call_package(requests),
-                                    strict=True):
+    for index, (req, motif, rng, pat) in enumerate(zip(requests, motifs, rngs,
+                                                       call_package(requests), strict=True)):
         group, basis = symmetry_of(pat["lines"],
                                    labels=[k % len(motif) for k in range(len(pat["lines"]))])
-        img, px = draw(pat["lines"], len(motif), basis, rng)
+        if as_written:
+            img, px = draw_as_written(pat["lines"], len(motif), basis, tiles_px[index],
+                                      rng, anti_alias=index % 2 == 1)
+        else:
+            img, px = draw(pat["lines"], len(motif), basis, rng)
         yield req["type"], group, img, px * MM_PER_PX

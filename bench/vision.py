@@ -19,6 +19,10 @@ Sources (each reported on its own; never pooled into one number):
 - ``fine``: fine prints (5-15 mm repeats) of every group on the same cloth, in large
   frames (3200 x 2400 px at 0.2-0.4 mm/px): hundreds of repeats, read at a third of
   the resolution, and threads near the pixel size that beat with it (moire).
+- ``renderings``: a random print of every group as a drawing program writes it: a
+  lattice of whole pixels (along x only when hexagonal), symmetry elements anywhere,
+  500-1400 px, no anti-aliasing, no camera. Every edge is rounded to the grid the same
+  way in every repeat (``vision.consistency.pixel_rounding``).
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
@@ -43,6 +47,9 @@ Sources (each reported on its own; never pooled into one number):
   lattice measured on the package's own segments, not its label. Evaluation only: the
   classifier's constants are never picked on it. Skipped, saying so, without node or
   the package (``make bench`` installs it).
+- ``npm-as-written``: the same package's drawings as a generator writes its PNG (tiles
+  of 24-72 whole pixels, not turned, no camera, every other one without anti-aliasing).
+  Evaluation only.
 - ``photos-tc``, ``photos-pj``, ``photos-lyn``, ``photos-ms``: the ten hand-labelled real
   photographs of ``../shared/data/fabric_photos`` (SOURCE.md there), grouped by origin,
   read in place (never copied; skipped when absent). A group is right when it is the
@@ -91,9 +98,9 @@ from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
 from simulators.classics import CLASSICS, classic_print, woven_check
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
-from simulators.fabric import random_print, render_print
+from simulators.fabric import lattice_for, random_print, render_print
 from simulators.lineart import degrade, layered_print
-from solver.wallpaper import GROUP_NAMES, gauss_reduce
+from solver.wallpaper import GROUP_NAMES, GROUPS, gauss_reduce
 from vision.calibration import Calibration
 from vision.classify import BAND, OWN_ASYMMETRY, SHARED_ASYMMETRY, TAU, classify
 from vision.lattice import detect_lattice, prepare_image
@@ -105,7 +112,7 @@ PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "fabric_photo
 FAMILIES = ("rotation-scale", "perspective", "blur", "noise", "jpeg", "light", "fold")
 #: Sources for evaluation only: no constant is fitted or picked on them (an outside
 #: reference, and the photographs whole, which the photos-* sources already hold).
-OUTSIDE = ("npm-wallpaper-groups", "frames")
+OUTSIDE = ("npm-wallpaper-groups", "npm-as-written", "frames")
 THRESHOLDS = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95)
 CV_GRID = tuple((band, tau) for band in (float("inf"), 24.0, 12.0, 6.0)
                 for tau in (0.80, 0.86))
@@ -413,6 +420,45 @@ def npm(per_type: int, seed: int = 0):
                      npm_wallpaper.MM_PER_PX, group, basis=basis)
 
 
+def npm_as_written(per_type: int, seed: int = 0):
+    """The npm package's line drawings as a generator writes them (tiles of whole
+    pixels, no camera, half without anti-aliasing); none, saying why, when node or
+    the package is missing."""
+    why = npm_wallpaper.unavailable()
+    if why:
+        print(f"source npm-as-written skipped: {why}", flush=True)
+        return
+    for kind, group, img, basis in npm_wallpaper.patterns(per_type, seed=seed,
+                                                          as_written=True):
+        yield Sample("npm-as-written", f"{kind}->{group}", img, npm_wallpaper.MM_PER_PX,
+                     group, basis=basis)
+
+
+def renderings(per_group: int, seed: int = 0):
+    """Random prints as a drawing program writes them (see the module text)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 100 * gi + k + 13)
+            repeat = int(rng.integers(24, 80))
+            kind = GROUPS[group].lattice
+            # Whole pixels (along x only on a hexagonal lattice: sqrt 3 is not whole).
+            if kind == "hexagonal":
+                w1 = np.array([2.0 * (repeat // 2), 0.0])
+                w2 = np.array([w1[0] / 2, w1[0] / 2 * math.sqrt(3.0)])
+            elif kind == "rhombic":
+                half = math.radians(rng.uniform(68.0, 78.0)) / 2
+                w1 = np.rint(repeat * np.array([math.cos(half), math.sin(half)]))
+                w2 = w1 * [1.0, -1.0]
+            else:
+                w1, w2 = (np.rint(v) for v in lattice_for(group, repeat, rng=rng))
+            side = int(rng.integers(500, 1400))
+            pr = random_print(group, w1=w1, w2=w2, seed=int(rng.integers(1 << 30)),
+                              origin=tuple(rng.uniform(0, 1, 2)))
+            img = render_print(pr, (side, side * 3 // 4), 1.0, anti_alias=False)
+            yield Sample("renderings", f"{group}/{repeat}px/{side}", img, 1.0, group,
+                         basis=pr.wallpaper.basis)
+
+
 def photos(root: Path = PHOTOS, whole: bool = False):
     """The hand-labelled photographs, cropped to their labelled region (pixels = mm);
     or ``whole``, as taken, without the labelled lattice (which holds in the region
@@ -651,13 +697,16 @@ def _sources(per_group: int, seed: int) -> dict:
             "photos": photos,
             "frames": lambda: photos(whole=True),
             "crops": photo_crops,
-            "npm": lambda: npm(per_group, seed=seed)}
+            "renderings": lambda: renderings(per_group, seed=seed),
+            "npm": lambda: npm(per_group, seed=seed),
+            "npm-as-written": lambda: npm_as_written(per_group, seed=seed)}
 
 
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
                                     "classics", "woven", "twill", "lineart", "sublattice",
-                                    "plain", "photos", "frames", "crops", "npm")
+                                    "renderings", "plain", "photos", "frames", "crops",
+                                    "npm", "npm-as-written")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []
