@@ -387,12 +387,30 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
         if group not in GROUPS:
             raise ValueError(f"unknown wallpaper group {group!r}; expected one of "
                              f"{', '.join(GROUPS)}")
-        wp = Wallpaper.snapped(group, doc["w1"], doc["w2"], doc.get("origin", (0.0, 0.0)))
+        try:
+            wp = Wallpaper.snapped(group, doc["w1"], doc["w2"],
+                                   doc.get("origin", (0.0, 0.0)))
+        except ValueError as exc:
+            carried = [g for g in GROUPS if _carries(g, doc["w1"], doc["w2"])]
+            raise ValueError(
+                f"{exc}: the cloth as it lies does not carry {group}, and pieces cut to "
+                f"it would drift off the print. Confirm a group this lattice carries "
+                f"({', '.join(carried)}), or straighten the cloth and photograph it "
+                "again") from None
         out.update(wp.to_dict())
         out["detected_group"] = doc["group"]
     out["confirmed"] = True
     out["confidence"] = 1.0
     return out
+
+
+def _carries(group: str, w1, w2) -> bool:
+    """Whether the measured lattice (w1, w2) snaps to ``group``'s."""
+    try:
+        Wallpaper.snapped(group, w1, w2)
+    except ValueError:
+        return False
+    return True
 
 
 def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:

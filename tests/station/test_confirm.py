@@ -68,7 +68,11 @@ def test_uncertain_print_waits_then_the_operator_corrects_it(station, capsys):
     assert _state(sock, job)["reason"].startswith(CONFIRM_FABRIC)
     # A group the measured lattice cannot carry is refused, and the job keeps waiting.
     assert main(["confirm", str(job), "--group", "p6", "--socket", str(sock)]) == 2
-    assert "hexagonal" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "hexagonal" in err
+    # ... saying which groups it can carry.
+    carried = err.split("carries (")[1].split(")")[0].split(", ")
+    assert {"pmm", "p4m"} <= set(carried) and "p6" not in carried and "p3" not in carried
     assert _state(sock, job)["state"] == "paused"
     assert main(["confirm", str(job), "--group", "p4m", "--socket", str(sock),
                  "--json"]) == 0
