@@ -26,13 +26,14 @@ no interpolation enters the test.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alternation",
            "asymmetry", "beyond_rounding", "pixel_rounding", "refine_translation",
-           "repeat_spectra", "rounding_slack"]
+           "repeat_spectra", "rounding_map", "rounding_slack"]
 
 #: Single repeats a per-repeat measure is taken over (residual energy here, the
 #: operations' support in :func:`vision.classify.repeat_support`): a sample, spread over
@@ -107,13 +108,13 @@ def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None 
                          np.fft.fft2(cells[pick]) * w, weight, rounding)
 
 
-def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int
-                   ) -> np.ndarray | None:
+def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int,
+                   min_span: int = MIN_SPAN) -> np.ndarray | None:
     """What rounding to the pixel grid explains in the repeats ``ij`` (R, 2) of the
     lattice ``basis`` (columns w1, w2, working px; ``scale`` working px per input px)
     sampled on an ``n``-point cell: the (2, 2) map from a cell's gradient (per cell step
     along w1, w2) to the residual its edges' rounding explains; None unless the repeats,
-    ``MIN_SPAN`` or more each way, lie whole input pixels apart along an image axis, as
+    ``min_span`` or more each way, lie whole input pixels apart along an image axis, as
     only a rendering's do.
 
     Along such an axis every repeat's edges are rounded alike; along the other (a
@@ -121,13 +122,19 @@ def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int
     mean cell's edges instead, by up to a pixel too: either way an edge may lie up to
     ``EDGE_SLACK_PX`` off its image's, along both axes."""
     basis, ij = np.asarray(basis, float), np.asarray(ij, float)
-    if len(ij) == 0 or np.ptp(ij, axis=0).min() < MIN_SPAN:
+    if len(ij) == 0 or np.ptp(ij, axis=0).min() < min_span:
         return None  # too few repeats to tell whole pixels from chance
     offsets = (ij - ij[0]) @ (basis / scale).T
     if not (np.abs(offsets - np.rint(offsets)).max(axis=0) < PIXEL_GRID_DRIFT).any():
         return None
-    # Chain rule: the cell's steps a, b are the columns of basis / n in the image.
-    return EDGE_SLACK_PX * np.linalg.inv(basis / n).T
+    return rounding_map(basis, n)
+
+
+def rounding_map(basis: np.ndarray, n: int) -> np.ndarray:
+    """The (2, 2) map from the gradient of a cell of ``basis`` (columns, working px)
+    sampled on ``n`` points (per cell step along w1, w2) to ``EDGE_SLACK_PX`` times the
+    gradient per working px (chain rule: the steps are the columns of basis / n)."""
+    return EDGE_SLACK_PX * np.linalg.inv(np.asarray(basis, float) / n).T
 
 
 def rounding_slack(spec: np.ndarray, image_spec: np.ndarray, rounding: np.ndarray
@@ -189,7 +196,9 @@ WEIGHT_FLOOR = 1e-4
 
 
 def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = None,
-                min_terms: int = 4) -> Alternation | None:
+                min_terms: int = 4,
+                rounding: Callable[[tuple[int, int]], np.ndarray | None] | None = None
+                ) -> Alternation | None:
     """Do neighbouring repeats differ in a way the whole cloth shares?
 
     A lattice read too fine (a print's near-translation, such as a glide's half step
@@ -199,15 +208,27 @@ def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = N
     drift that is linear along the step (perspective, stretch) gone. The inner product of
     its means over the two outer thirds of the cloth (spectra weighted by ``weight``) is
     the difference both share, which noise, wrinkles and local stretch do not. None when
-    a third holds fewer than ``min_terms`` such repeats."""
+    a third holds fewer than ``min_terms`` such repeats.
+
+    ``rounding(parity)``: for a rendering whose index-2 sublattice of that parity lies
+    whole pixels apart (:func:`pixel_rounding`), its map; the two classes are then each
+    rounded to the grid their own way, and the half of that difference ``d`` carries
+    (up to half of ``EDGE_SLACK_PX`` times the slope) is allowed."""
     ij = np.asarray(ij, float)
+    n = cells.shape[-1]
     spec = np.fft.fft2(cells).reshape(len(cells), -1)
+    keep = np.ones(n * n, bool)
     if weight is not None:
         # Only the harmonics the weighting keeps: a whitening rolled off at a few
         # harmonics per repeat leaves a few hundred of the cell's n * n.
         w = weight.ravel()
         keep = w > WEIGHT_FLOOR * w.max()
         spec = spec[:, keep] * w[keep]
+
+    def in_cell(kept: np.ndarray) -> np.ndarray:
+        full = np.zeros(n * n, complex)
+        full[keep] = kept
+        return full.reshape(n, n)
     third = np.full(len(cells), -1)
     for k, h in enumerate(_outer_thirds(ij) if len(cells) >= 3 else ()):
         third[h] = k
@@ -234,6 +255,13 @@ def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = N
                     for x in parts)
         m_a, m_b = (spec[third == k].mean(0) for k in (0, 1))
         shared_d = float(np.real(np.vdot(d_a, d_b)))
+        grid = None if rounding is None else rounding(p)
+        if grid is not None:
+            mean = in_cell(spec.mean(0))
+            slack = 0.5 * rounding_slack(mean, mean, grid)
+            beyond_a, beyond_b = (beyond_rounding(np.fft.ifft2(in_cell(d)).real, slack)
+                                  for d in (d_a, d_b))
+            shared_d = n * n * float(np.sum(beyond_a * beyond_b))  # Parseval
         own = 2.0 * shared_d / max(float(np.real(np.vdot(m_a, m_b))), 1e-30)
         z = shared_d / math.sqrt(max(float((v_a * v_b).sum()), 1e-300))
         # Single repeats: the difference of each from its neighbour one step away.

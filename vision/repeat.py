@@ -12,10 +12,18 @@ which the alternation is a repeat, and it is asked again.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from vision.classify import OWN_ASYMMETRY, SHARED_ASYMMETRY, lattice_whitening, repeat_cells
-from vision.consistency import Alternation, alternation
+from vision.consistency import (
+    MIN_SPAN,
+    Alternation,
+    alternation,
+    pixel_rounding,
+    rounding_map,
+)
 from vision.lattice import LatticeResult, sublattice
 
 __all__ = ["ALTERNATION_BAND", "FALSE_STEP", "FALSE_STEP_Z", "step_is_repeat", "true_lattice"]
@@ -52,6 +60,24 @@ _SUBLATTICE = {(1, 0): np.array([[2, 0], [0, 1]]),
                (1, 1): np.array([[1, 1], [1, -1]])}
 
 
+def _rounding_of(basis: np.ndarray, scale: float, ij: np.ndarray, n: int
+                 ) -> Callable[[tuple[int, int]], np.ndarray | None]:
+    """For :func:`alternation`: per parity, whether the repeats of that index-2
+    sublattice lie whole pixels apart (a rendering of a half-pixel step), and then the
+    lattice cell's rounding map. The lattice's repeats must span ``MIN_SPAN`` each way,
+    the sublattice's (half as many along one way) one less."""
+    def of(parity: tuple[int, int]) -> np.ndarray | None:
+        if len(ij) == 0 or np.ptp(ij, axis=0).min() < MIN_SPAN:
+            return None
+        even = (ij @ np.array(parity, float)) % 2 == 0
+        sub = ij[even] @ np.linalg.inv(_SUBLATTICE[parity]).T  # indices on the sublattice
+        if pixel_rounding(basis @ _SUBLATTICE[parity], scale, sub, n,
+                          min_span=MIN_SPAN - 1) is None:
+            return None
+        return rounding_map(basis, n)
+    return of
+
+
 def true_lattice(image: np.ndarray, lat: LatticeResult, *,
                  prepared: tuple[np.ndarray, float], smooth_px: float = 1.0,
                  read: np.ndarray | None = None, max_halvings: int = 2) -> LatticeResult:
@@ -70,7 +96,8 @@ def true_lattice(image: np.ndarray, lat: LatticeResult, *,
         except ValueError:
             return lat
         alt = alternation(cells - cells.mean(axis=(1, 2), keepdims=True), ij,
-                          lattice_whitening(basis, ALTERNATION_BAND))
+                          lattice_whitening(basis, ALTERNATION_BAND),
+                          rounding=_rounding_of(basis, scale, ij, cells.shape[-1]))
         if step_is_repeat(alt):
             return lat
         lat = sublattice(lat, _SUBLATTICE[alt.parity], image, prepared=prepared,

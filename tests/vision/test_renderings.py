@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import vision.classify as classify_module
+from bench.vision import lattice_match
 from simulators.fabric import random_print, render_print
 from solver.wallpaper import GROUP_NAMES, GROUPS
 from vision.consistency import PIXEL_GRID_DRIFT, pixel_rounding
@@ -92,3 +93,28 @@ def test_rounding_is_allowed_only_where_repeats_lie_whole_pixels_apart():
     assert pixel_rounding(hexagonal, 1.0, ij, 96) is not None
     # Shrunk to a working image: whole pixels of the input, not of the working image.
     assert pixel_rounding(whole * 0.37, 0.37, ij, 96) is not None
+
+
+def _half_pixel_cmm(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A cmm rendering whose centred cell (61 x 45 px) is whole pixels and whose
+    primitive vectors are not: alternate repeats are rounded to the grid two ways."""
+    p = random_print("cmm", w1=np.array([30.5, 22.5]), w2=np.array([30.5, -22.5]),
+                     seed=seed, origin=OFF_GRID)
+    return render_print(p, (700, 600), 1.0, anti_alias=False), p.wallpaper.basis
+
+
+def test_a_half_pixel_step_of_a_rendering_is_still_a_repeat(monkeypatch):
+    """Two ways of rounding alternate repeats are no difference of the print's: the
+    lattice is not traded for its index-2 sublattice for them (vision.repeat) with the
+    allowance; without it, some of the same renderings are read on the doubled cell."""
+    import vision.repeat as repeat_module
+
+    renderings = [_half_pixel_cmm(seed) for seed in range(6)]
+    for img, basis in renderings:
+        det = detect_fabric(img, mm_per_px=1.0)
+        assert det.classification.group == "cmm"
+        assert lattice_match(det.lattice.basis, basis)[0]
+    monkeypatch.setattr(repeat_module, "_rounding_of", lambda *a: (lambda parity: None))
+    doubled = sum(not lattice_match(detect_fabric(img, mm_per_px=1.0).lattice.basis,
+                                   basis)[0] for img, basis in renderings)
+    assert doubled >= 1
