@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from solver.wallpaper import GROUPS, Wallpaper
-from vision.classify import Classification, classify, symmetry_elements
+from vision.classify import Classification, classify, lattice_strain, symmetry_elements
 from vision.distortion import Distortion, local_lattices, measure_distortion
 from vision.lattice import (
     WORK_SIDE,
@@ -391,12 +391,14 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
             wp = Wallpaper.snapped(group, doc["w1"], doc["w2"],
                                    doc.get("origin", (0.0, 0.0)))
         except ValueError as exc:
-            carried = [g for g in GROUPS if _carries(g, doc["w1"], doc["w2"])]
+            needs = {g: _strain_for(g, doc["w1"], doc["w2"]) for g in GROUPS}
+            carried = sorted((v, g) for g, v in needs.items() if v is not None)
             raise ValueError(
                 f"{exc}: the cloth as it lies does not carry {group}, and pieces cut to "
                 f"it would drift off the print. Confirm a group this lattice carries "
-                f"({', '.join(carried)}), or straighten the cloth and photograph it "
-                "again") from None
+                f"(with the stretch each needs: "
+                f"{', '.join(f'{g} {100 * v:.0f} %' for v, g in carried)}), or straighten "
+                "the cloth and photograph it again") from None
         out.update(wp.to_dict())
         out["detected_group"] = doc["group"]
     out["confirmed"] = True
@@ -404,13 +406,17 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
     return out
 
 
-def _carries(group: str, w1, w2) -> bool:
-    """Whether the measured lattice (w1, w2) snaps to ``group``'s."""
+def _strain_for(group: str, w1, w2) -> float | None:
+    """The stretch (largest principal strain) that snapping the measured lattice
+    (w1, w2) to ``group``'s takes; None when it does not snap."""
     try:
-        Wallpaper.snapped(group, w1, w2)
+        ideal = Wallpaper.snapped(group, w1, w2).basis
     except ValueError:
-        return False
-    return True
+        return None
+    measured = np.column_stack([w1, w2]).astype(float)
+    # The snapped basis may be another basis of the same lattice.
+    same = measured @ np.rint(np.linalg.solve(measured, ideal))
+    return lattice_strain(same, ideal)
 
 
 def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:

@@ -70,9 +70,12 @@ def test_uncertain_print_waits_then_the_operator_corrects_it(station, capsys):
     assert main(["confirm", str(job), "--group", "p6", "--socket", str(sock)]) == 2
     err = capsys.readouterr().err
     assert "hexagonal" in err
-    # ... saying which groups it can carry.
-    carried = err.split("carries (")[1].split(")")[0].split(", ")
-    assert {"pmm", "p4m"} <= set(carried) and "p6" not in carried and "p3" not in carried
+    # ... saying which groups it can carry, and the stretch each needs (nearest first).
+    carried = err.split("each needs: ")[1].split(")")[0].split(", ")
+    stretch = {g: float(v.rstrip(" %")) for g, v in (c.split(" ", 1) for c in carried)}
+    assert {"pmm", "p4m"} <= set(stretch) and "p6" not in stretch and "p3" not in stretch
+    assert stretch["pmm"] == 0 and stretch["p4m"] == pytest.approx(2, abs=1)
+    assert list(stretch.values()) == sorted(stretch.values())
     assert _state(sock, job)["state"] == "paused"
     assert main(["confirm", str(job), "--group", "p4m", "--socket", str(sock),
                  "--json"]) == 0
