@@ -426,8 +426,10 @@ class Daemon:
         self.store.set_plan(job.id, {"fabric": str(path)})
         self.store.transition(job.id, "planning", f"fabric confirmed as {doc['group']}")
         self._wake.set()
+        warning = (doc.get("distortion") or {}).get("warning")
         return {"job": job.id, "group": doc["group"],
-                "message": f"fabric confirmed as {doc['group']}; planning"}
+                "message": f"fabric confirmed as {doc['group']}; planning"
+                           + (f" (warning: {warning})" if warning else "")}
 
     def cmd_plan(self, req: dict[str, Any]) -> dict[str, Any]:
         """The files a job's planning wrote (for `station preview`); read-only."""

@@ -140,10 +140,15 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
     return ideal
 
 
+#: Stretch of the measured lattice off its group's (relative) beyond which the cloth is
+#: reported distorted: pieces cut to the group's lattice come out of the print by it.
+STRETCH_TOL = 0.03
+
+
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
                   skew_tol_deg: float = 1.0, bow_tol_mm: float = 3.0,
                   distortion: bool = True, min_repeat_mm: float = 3.0,
-                  stretch_tol: float = 0.03, above_yarn: bool = True,
+                  stretch_tol: float = STRETCH_TOL, above_yarn: bool = True,
                   true_repeat: bool = True, closer_look: bool = True) -> FabricDetection:
     """Lattice, group with origin, and distortion of the print in ``image``; a repeat
     finer than ``min_repeat_mm`` is the weave (``kind: "plain"``). Skew, bow and a
@@ -378,7 +383,9 @@ def _decide_part(part: np.ndarray, corner: tuple[int, int], scale: float,
 def confirm_fabric(doc: dict, group: str | None = None) -> dict:
     """FABRIC.json ``doc`` as the operator confirmed it: the detected group accepted, or
     replaced by ``group`` on the same measured lattice and origin (snapped to the new
-    group's lattice; raises ValueError when that lattice cannot carry it)."""
+    group's lattice; raises ValueError when that lattice cannot carry it). A snap that
+    stretches the measured lattice beyond ``STRETCH_TOL`` is recorded in the
+    distortion's strain and warning, as detection records its own."""
     if doc.get("group") is None:
         raise ValueError(f"no lattice was detected ({doc.get('kind', 'no print')}): "
                          "there is no group to confirm; give the job a FABRIC.json")
@@ -401,6 +408,15 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
                 "the cloth and photograph it again") from None
         out.update(wp.to_dict())
         out["detected_group"] = doc["group"]
+        strain = _strain_for(group, doc["w1"], doc["w2"])
+        distortion = dict(out.get("distortion") or {}, lattice_strain=round(strain, 4))
+        if strain > STRETCH_TOL:
+            fault = (f"confirmed as {group}, which stretches the measured lattice "
+                     f"{100 * strain:.1f} % (tolerance {100 * STRETCH_TOL:g} %): pieces "
+                     "cut to it come out of the print by that much")
+            distortion["warning"] = "; ".join(w for w in (distortion.get("warning"), fault)
+                                              if w)
+        out["distortion"] = distortion
     out["confirmed"] = True
     out["confidence"] = 1.0
     return out

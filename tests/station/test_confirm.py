@@ -79,12 +79,17 @@ def test_uncertain_print_waits_then_the_operator_corrects_it(station, capsys):
     assert _state(sock, job)["state"] == "paused"
     assert main(["confirm", str(job), "--group", "p4m", "--socket", str(sock),
                  "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["group"] == "p4m"
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["group"] == "p4m"
+    # The snap to a square lattice stretches the measured one 2.4 %: within tolerance.
+    assert "warning" not in answer["message"]
     assert wait_until(lambda: _state(sock, job)["state"] == "done", 10)
     used = pipeline.planned_with
     assert used["group"] == "p4m" and used["detected_group"] == "pmm" and used["confirmed"]
-    # Snapped to a square lattice on the measured one (mean length), origin kept.
+    # Snapped to a square lattice on the measured one (mean length), origin kept, and
+    # the stretch that took recorded.
     assert used["w1"][0] == pytest.approx(used["w2"][1]) and used["origin"] == [1.0, 2.0]
+    assert used["distortion"]["lattice_strain"] == pytest.approx(0.024, abs=0.002)
     with pytest.raises(ControlError, match="not waiting"):
         request(sock, "confirm", job=job)
 
@@ -96,3 +101,15 @@ def test_accepting_keeps_the_detected_group(station):
     assert request(sock, "confirm", job=job)["group"] == "pmm"
     assert wait_until(lambda: _state(sock, job)["state"] == "done", 10)
     assert pipeline.planned_with["group"] == "pmm" and pipeline.planned_with["w2"] == [0, 21]
+
+
+def test_a_correction_that_stretches_the_lattice_is_confirmed_with_a_warning():
+    """An operator's group whose lattice is 6 % off the measured one: accepted (the
+    operator knows the cloth), and the stretch named as detection names its own."""
+    from vision.pipeline import confirm_fabric
+
+    doc = dict(DETECTED, w2=[0.0, 22.4], distortion={"warning": None})
+    out = confirm_fabric(doc, "p4m")
+    assert out["group"] == "p4m" and out["distortion"]["lattice_strain"] > 0.03
+    assert "stretches the measured lattice" in out["distortion"]["warning"]
+    assert "lattice_strain" not in confirm_fabric(doc).get("distortion", {})
