@@ -664,14 +664,17 @@ def _choose_basis(acf, valid, reliable, d, vals, min_strength):
             basis = _canonical(np.column_stack([u, v]))
             bases.setdefault(_key(basis), basis)
     # Lattices whose shortest repeats can be checked, when there are any (a print of
-    # fewer than three repeats across offers none: then its lattice is taken as seen).
-    bases = {k: b for k, b in bases.items() if _verifiable(reliable, center, b)} or bases
+    # fewer than three repeats across offers none: then its lattice is taken as seen,
+    # on strong near support only: its far shells lie where the window hardly overlaps,
+    # and plain cloth's shading bands reach min_strength there).
+    checkable = {k: b for k, b in bases.items() if _verifiable(reliable, center, b)}
+    bases = checkable or bases
     if not bases:
         return None, 0.0
     scored = [tuple(_support(smooth, center, basis, reach * np.linalg.norm(basis, axis=0).max())
                     for reach in (NEAR_REACH, FAR_REACH)) for basis in bases.values()]
     eligible = [i for i, (near, far) in enumerate(scored)
-                if near >= NEAR_STRENGTH or far >= min_strength]
+                if near >= NEAR_STRENGTH or (checkable and far >= min_strength)]
     if not eligible:
         return None, max(far for _, far in scored)
     # The best near support wins; one within ``TIE`` of it and denser is preferred (a

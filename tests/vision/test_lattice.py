@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from simulators.classics import classic_print
-from simulators.fabric import render_print
+from simulators.fabric import lattice_for, random_print, render_print
 from solver.wallpaper import GROUP_NAMES, gauss_reduce
 from vision.lattice import detect_lattice
 
@@ -74,6 +75,31 @@ def test_noise_and_plain_cloth_have_no_lattice(seed, vt):
     res = detect_lattice(img)
     assert res.kind == "plain"
     assert "no periodic print" in res.message
+
+
+def test_smooth_shading_over_plain_cloth_makes_no_lattice():
+    """Uneven dyeing or light, a few blotches across the frame: peaks of its
+    autocorrelation at lags the frame shows fewer than three times are chance (10 of
+    these 32 frames gave a lattice before a repeat seen so few times had to be strong)."""
+    lattices = 0
+    for blotch_px in (40.0, 80.0):
+        for seed in range(16):
+            rng = np.random.default_rng(seed)
+            shade = cv2.GaussianBlur(rng.standard_normal((1000, 1000)).astype(np.float32),
+                                     (0, 0), blotch_px)
+            img = 128 + 10 * shade / shade.std() + rng.normal(0, 3, shade.shape)
+            lattices += detect_lattice(np.clip(img, 0, 255).astype(np.uint8),
+                                       mm_per_px=0.25).found
+    assert lattices <= 1
+
+
+@pytest.mark.parametrize("group", GROUP_NAMES)
+def test_a_strong_print_seen_fewer_than_three_times_across_is_found(group):
+    rng = np.random.default_rng(GROUP_NAMES.index(group))
+    w1, w2 = lattice_for(group, 380.0, rng=rng)
+    img = render_print(random_print(group, w1=w1, w2=w2, seed=7), (1000, 1000), 1.0)
+    res = detect_lattice(img, mm_per_px=1.0)
+    assert res.found, res.message
 
 
 def test_bad_input_is_refused_with_a_reason():
