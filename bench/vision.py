@@ -61,6 +61,8 @@ Sources (each reported on its own; never pooled into one number):
   npm source: the same photographs are already among the training sources.
 - ``photo-crops``: each photograph cropped, rescaled and turned eight ways (the truth
   unchanged): how stable the answers are, a stand-in for other photographs.
+- ``photo-turns``: each photograph turned by three random angles off the axes (5-85
+  degrees) and cropped square: threads, shading bands and print across the pixel grid.
 
 Reported per source: group accuracy; lattice success (found = labelled lattice up to a
 unimodular change of basis, vectors within max(3 %, twice the label's uncertainty)) and
@@ -508,6 +510,27 @@ def photo_crops(per_photo: int = 8, seed: int = 0, root: Path = PHOTOS):
                          basis=basis, tol=s.tol)
 
 
+def photo_turns(per_photo: int = 3, seed: int = 0, root: Path = PHOTOS):
+    """Each labelled photograph turned by random angles (5-85 degrees, resampled) and
+    cropped to the largest centred square the turned region fills: cloth photographed
+    off the axes, whose threads, shading bands and print run across the pixel grid.
+    The group does not change; the labelled lattice turns with the image."""
+    rng = np.random.default_rng(seed)
+    for s in photos(root):
+        h, w = s.image.shape[:2]
+        for _ in range(per_photo):
+            angle = float(rng.uniform(5.0, 85.0))
+            turn = cv2.getRotationMatrix2D(((w - 1) / 2, (h - 1) / 2), angle, 1.0)
+            img = cv2.warpAffine(s.image, turn, (w, h), flags=cv2.INTER_LINEAR)
+            t = math.radians(angle)
+            side = int(min(h, w) / (math.cos(t) + math.sin(t)))
+            y0, x0 = (h - side) // 2, (w - side) // 2
+            basis = None if s.basis is None else turn[:, :2] @ s.basis
+            yield Sample("photo-turns", f"{s.name}@{angle:.0f}",
+                         np.ascontiguousarray(img[y0:y0 + side, x0:x0 + side]), 1.0,
+                         s.truth, alt=s.alt, basis=basis, tol=s.tol)
+
+
 # ---------------------------------------------------------------- scoring
 def lattice_match(found: np.ndarray, truth: np.ndarray) -> tuple[bool, float]:
     """(same lattice up to a unimodular change of basis, largest relative error)."""
@@ -697,6 +720,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "photos": photos,
             "frames": lambda: photos(whole=True),
             "crops": photo_crops,
+            "turns": photo_turns,
             "renderings": lambda: renderings(per_group, seed=seed),
             "npm": lambda: npm(per_group, seed=seed),
             "npm-as-written": lambda: npm_as_written(per_group, seed=seed)}
@@ -706,7 +730,7 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
                                     "classics", "woven", "twill", "lineart", "sublattice",
                                     "renderings", "plain", "photos", "frames", "crops",
-                                    "npm", "npm-as-written")
+                                    "turns", "npm", "npm-as-written")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.vision import PHOTOS, evaluate, photo_crops, photos
+from bench.vision import PHOTOS, evaluate, photo_crops, photo_turns, photos
 from vision.pipeline import CONFIRM_BELOW
 
 pytestmark = pytest.mark.skipif(not (PHOTOS / "labels.csv").is_file(),
@@ -76,6 +76,26 @@ def test_cropped_rescaled_turned_photos_keep_their_answers(crops):
     seen = [f for s, f in crops if s.basis is not None and _repeats_across(s) >= 3]
     assert all(f["outcome"] != "missed" for f in seen)
     assert sum(bool(f["lattice_ok"]) for f in seen) >= 0.9 * len(seen)
+
+
+@pytest.fixture(scope="module")
+def turns():
+    return [(s, evaluate(s, with_baseline=False)) for s in photo_turns(per_photo=3, seed=0)]
+
+
+def test_photos_turned_off_the_axes_keep_their_answers(turns):
+    """Each photograph turned by angles off the axes (its threads and shading bands
+    across the pixel grid): plain cloth still has no lattice (turned, its shading bands
+    made one of two repeats across), no answer is a supergroup or on a wrong lattice,
+    and a safe subgroup goes to the operator."""
+    assert len(turns) >= 30
+    for s, f in turns:
+        assert f["outcome"] not in ("supergroup", "false lattice", "other"), (s.name, f)
+        if f["outcome"] == "subgroup":
+            assert f["conf"] < CONFIRM_BELOW, (s.name, f)
+    assert sum(f["outcome"] == "right" for _, f in turns) >= 0.7 * len(turns)
+    seen = [f for s, f in turns if s.basis is not None and _repeats_across(s) >= 3]
+    assert all(f["outcome"] != "missed" and f["lattice_ok"] for f in seen)
 
 
 def test_whole_photographs_are_read_or_sent_to_the_operator():
