@@ -27,7 +27,9 @@ Method (own code, after the cited work):
    itself under the integer quarter turn. Each group's answer must snap to its lattice
    (``Wallpaper.snapped``), and a prior on the strain it needs (``STRAIN_SIGMA``) asks
    more evidence of more distortion. The answer is the group the print was designed
-   with; the strain is reported.
+   with; the strain is reported. A group whose operations hold on a lattice further off
+   its own than the snap allows cannot be the answer, but it stays in the posterior:
+   the answer that forbids those operations then goes to the operator.
 
 References
 ----------
@@ -264,7 +266,9 @@ class Classification:
     wallpaper: Wallpaper | None
     group: str | None
     confidence: float
-    scores: dict[str, float] = field(default_factory=dict)  # log-likelihood per group
+    #: Log-likelihood per group, including those that hold only on a lattice further
+    #: off theirs than a print is snapped by (never the answer, but weighed against it).
+    scores: dict[str, float] = field(default_factory=dict)
     op_scores: dict[str, float] = field(default_factory=dict)  # best score per isometry
     reliability: float = float("nan")
     n_repeats: int = 0
@@ -275,7 +279,8 @@ class Classification:
 
     @property
     def posterior(self) -> dict[str, float]:
-        """Calibrated probability of each group that fits the lattice (sums to 1)."""
+        """Calibrated probability of each group whose operations the lattice carries
+        (sums to 1); ``confidence`` is the answer's."""
         if not self.scores:
             return {}
         names = list(self.scores)
@@ -662,6 +667,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     holo_keys = {_key(a) for a in holo}
 
     best: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
+    beyond: dict[str, tuple[float, float]] = {}  # (score, strain) off the snap tolerance
     g = np.arange(n)
     oa, ob = np.meshgrid(g, g, indexing="ij")
     for name in GROUP_NAMES:
@@ -689,9 +695,15 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             try:
                 ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
                                           snap_tol=snap_tol).basis
+                within = True
             except ValueError:
-                continue  # too distorted for this group's lattice
-            prior = -0.5 * (lattice_strain(conv, ideal) / strain_sigma) ** 2
+                # Too distorted for this group's lattice: never the answer, but its
+                # operations holding is evidence against every answer that forbids them.
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
+                                          snap_tol=math.inf).basis
+                within = False
+            strain_needed = lattice_strain(conv, ideal)
+            prior = -0.5 * (strain_needed / strain_sigma) ** 2
             total = np.zeros((n, n))
             present = set()
             shifts = []
@@ -711,6 +723,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
             absent = sum(float(_log_sig((tau - v) / kappa)) for key, v in forb.items()
                          if key not in present)
             score = float(total[ka, kb]) + absent + prior
+            if not within:
+                if score > beyond.get(name, (-np.inf,))[0]:
+                    beyond[name] = (score, strain_needed)
+                continue
             o = _refine_origin(total, ka, kb) / n
             if name not in best or score > best[name][0]:
                 at = [(a, np.array([ia[ka, kb], ib[ka, kb]]))
@@ -721,8 +737,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         return Classification(None, None, 0.0, message="no group fits the lattice")
     names = list(best)
     ll = np.array([best[k][0] for k in names])
-    post = np.exp((ll - ll.max()) / temperature)
-    post /= post.sum()
+    beyond = {k: v for k, v in beyond.items() if k not in best}
+    everything = np.concatenate([ll, [v[0] for v in beyond.values()]])
+    post = np.exp((ll - everything.max()) / temperature)
+    post /= np.exp((everything - everything.max()) / temperature).sum()
     # Behind the translations the allowed lag widens by how much single repeats differ:
     # each repeat is registered onto the mean (a translation), its other operations are
     # not, so on real cloth they fall short of the translations by about as much.
@@ -755,6 +773,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
     confidence = float(post[names.index(win)])
+    held = sorted((v, k) for k, v in beyond.items() if v[0] > ll[names.index(win)])
+    if held:
+        (_, strain_off), group_off = held[-1]
+        message = (f"{message}; " if message else "") + (
+            f"{group_off} holds on this lattice stretched {100 * strain_off:.0f} % off its "
+            f"own, more than a print is snapped by: the cloth or the view distorts it "
+            f"(straighten the cloth, or confirm {win})")
     if nrep < 3 or unlike:
         # No per-repeat check: never sure enough to skip the operator.
         confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
@@ -773,7 +798,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                 f"a rendering (repeats whole pixels apart): {win} holds with its edges "
                 f"allowed {EDGE_SLACK_PX:g} px off, {strict.group} without")
     return Classification(wp, win, confidence,
-                          scores={k: float(v) for k, v in zip(names, ll, strict=True)},
+                          scores={**{k: float(v) for k, v in zip(names, ll, strict=True)},
+                                  **{k: float(v[0]) for k, v in beyond.items()}},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
                           motif=motif, message=message, temperature=temperature,
                           strain=strain)

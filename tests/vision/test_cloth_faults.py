@@ -12,10 +12,10 @@ import pytest
 
 from simulators.classics import classic_print
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
-from simulators.fabric import random_print, render_print
+from simulators.fabric import lattice_for, random_print, render_print
 from station.cli import main
 from vision.lattice import detect_lattice
-from vision.pipeline import detect_fabric
+from vision.pipeline import CONFIRM_BELOW, detect_fabric
 from vision.subgroups import error_kind
 
 MM = 0.25
@@ -50,6 +50,22 @@ def test_prints_on_stretched_woven_cloth_never_gain_a_symmetry(group):
     img, _ = stretch(img, 1.08, shear_deg=1.0, angle_deg=70.0)
     found = detect_fabric(img, mm_per_px=MM).classification.group
     assert error_kind(found, group) in ("right", "subgroup"), found
+
+
+@pytest.mark.parametrize("group", ["p4m", "p4", "p4g", "pmm"])
+def test_a_print_sheared_past_the_snap_goes_to_the_operator_naming_its_group(group):
+    """Sheared 13 degrees (beyond the 0.2 rad a lattice is snapped by, within the 16 %
+    the operations are tested over): the design group cannot be the answer, but its
+    operations hold, so the subgroup read instead must not pass unconfirmed (before:
+    cmm or p2 at 0.94-0.99)."""
+    rng = np.random.default_rng(1)
+    w1, w2 = lattice_for(group, 48.0, rng=rng)
+    img, _ = stretch(render_print(random_print(group, w1=w1, w2=w2, seed=3), (640, 480),
+                                  1.0), 1.0, shear_deg=13.0)
+    det = detect_fabric(img, mm_per_px=1.0)
+    assert error_kind(det.classification.group, group) == "subgroup"
+    assert det.classification.confidence < CONFIRM_BELOW
+    assert f"{group} holds on this lattice stretched" in det.classification.message
 
 
 def test_a_rectangular_plaid_is_not_read_as_a_square_check():
