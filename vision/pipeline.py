@@ -485,9 +485,32 @@ def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
             cv2.arrowedLine(out, px(c), px(c + v), (0, 220, 255), 2, cv2.LINE_AA,
                             tipLength=0.15)
     # The runners-up, so the operator confirming the print sees what else it may be.
-    post = sorted(det.classification.posterior.items(), key=lambda kv: -kv[1])
-    label = ", ".join(f"{g} {p:.2f}" for g, p in post[:3] if p >= 0.01)
-    if d.warning:
-        label += " - " + d.warning
-    cv2.putText(out, label, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)
+    cls = det.classification
+    post = sorted(cls.posterior.items(), key=lambda kv: -kv[1])
+    label = f"{cls.group} {cls.confidence:.2f}" + "".join(
+        f", {g} {p:.2f}" for g, p in post[:3] if p >= 0.01 and g != cls.group)
+    _caption(out, [label, *(t for t in (d.warning, cls.message) if t)])
     return out
+
+
+def _caption(image: np.ndarray, texts: list[str], scale: float = 0.6) -> None:
+    """``texts`` written over the top of ``image``, each wrapped to its width, on a dark
+    band so that they read over any print."""
+    font, thick = cv2.FONT_HERSHEY_SIMPLEX, 1
+    width = image.shape[1] - 20
+    lines: list[str] = []
+    for text in texts:
+        line = ""
+        for word in text.split():
+            wider = f"{line} {word}".strip()
+            if line and cv2.getTextSize(wider, font, scale, thick)[0][0] > width:
+                lines.append(line)
+                wider = word
+            line = wider
+        lines.append(line)
+    step = int(cv2.getTextSize("Ag", font, scale, thick)[0][1] * 1.8)
+    band = image[:step * len(lines) + 10]
+    band[:] = (band * 0.35).astype(image.dtype)
+    for k, line in enumerate(lines):
+        cv2.putText(image, line, (10, step * (k + 1)), font, scale, (255, 255, 255), thick,
+                    cv2.LINE_AA)

@@ -15,7 +15,7 @@ from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, w
 from simulators.fabric import lattice_for, random_print, render_print
 from station.cli import main
 from vision.lattice import detect_lattice
-from vision.pipeline import CONFIRM_BELOW, detect_fabric
+from vision.pipeline import CONFIRM_BELOW, detect_fabric, draw_overlay
 from vision.subgroups import error_kind
 
 MM = 0.25
@@ -66,6 +66,11 @@ def test_a_print_sheared_past_the_snap_goes_to_the_operator_naming_its_group(gro
     assert error_kind(det.classification.group, group) == "subgroup"
     assert det.classification.confidence < CONFIRM_BELOW
     assert f"{group} holds on this lattice stretched" in det.classification.message
+    # The picture the operator confirms from says it too: the answer, the runner-up and
+    # the message, wrapped on a dark band over the print's top.
+    pic = draw_overlay(img, det)
+    band = pic[:60].astype(float).mean()
+    assert band < 0.6 * pic[200:260].astype(float).mean()
 
 
 def test_a_rectangular_plaid_is_not_read_as_a_square_check():
