@@ -773,11 +773,11 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
     confidence = float(post[names.index(win)])
-    held = sorted((v, k) for k, v in beyond.items() if v[0] > ll[names.index(win)])
-    if held:
-        (_, strain_off), group_off = held[-1]
+    likelier = [k for k, (score, _) in beyond.items() if score > ll[names.index(win)]]
+    if likelier:
+        off = max(likelier, key=lambda k: beyond[k][0])
         message = (f"{message}; " if message else "") + (
-            f"{group_off} holds on this lattice stretched {100 * strain_off:.0f} % off its "
+            f"{off} holds on this lattice stretched {100 * beyond[off][1]:.0f} % off its "
             f"own, more than a print is snapped by: the cloth or the view distorts it "
             f"(straighten the cloth, or confirm {win})")
     if nrep < 3 or unlike:

@@ -448,8 +448,7 @@ def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
         return tuple(int(round(v)) for v in (np.asarray(p) / s))
 
     if wp is None:
-        cv2.putText(out, f"no lattice: {det.lattice.kind}", (10, 30),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 255), 2)
+        _caption(out, [f"no lattice: {det.lattice.kind}", det.lattice.message])
         return out
     region = (0.0, 0.0, (w - 1) * s, (h - 1) * s)
     f = wp.to_fractional(np.array([[0, 0], [region[2], 0], [0, region[3]],
@@ -489,17 +488,17 @@ def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
     post = sorted(cls.posterior.items(), key=lambda kv: -kv[1])
     label = f"{cls.group} {cls.confidence:.2f}" + "".join(
         f", {g} {p:.2f}" for g, p in post[:3] if p >= 0.01 and g != cls.group)
-    _caption(out, [label, *(t for t in (d.warning, cls.message) if t)])
+    _caption(out, [label, d.warning, cls.message])
     return out
 
 
-def _caption(image: np.ndarray, texts: list[str], scale: float = 0.6) -> None:
-    """``texts`` written over the top of ``image``, each wrapped to its width, on a dark
-    band so that they read over any print."""
+def _caption(image: np.ndarray, texts: list[str | None], scale: float = 0.6) -> None:
+    """``texts`` (empty ones skipped) written over the top of ``image``, each wrapped to
+    its width, on a dark band so that they read over any print."""
     font, thick = cv2.FONT_HERSHEY_SIMPLEX, 1
     width = image.shape[1] - 20
     lines: list[str] = []
-    for text in texts:
+    for text in filter(None, texts):
         line = ""
         for word in text.split():
             wider = f"{line} {word}".strip()
