@@ -77,6 +77,29 @@ def test_noise_and_plain_cloth_have_no_lattice(seed, vt):
     assert "no periodic print" in res.message
 
 
+def _fine_stripes(period: float, angle_deg: float, seed: int) -> np.ndarray:
+    """Hard stripes a few pixels apart (a rib knit, a pinstripe seen from afar), turned
+    off the pixel axes, integrated over the pixels as a sensor does."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:2400, 0:3000].astype(np.float32) / 3
+    a = np.deg2rad(angle_deg)
+    u = (xx * np.cos(a) + yy * np.sin(a)) / period
+    img = cv2.resize((0.5 + 0.4 * (np.mod(u, 1.0) < 0.35)).astype(np.float32), (1000, 800),
+                     interpolation=cv2.INTER_AREA)
+    return np.clip(img * 255 + rng.normal(0, 3, img.shape), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize(("period", "angle"), [(7.5, 2.0), (8.4, 42.6), (6.3, 10.0),
+                                               (9.6, 2.0)])
+def test_fine_stripes_off_the_axes_are_stripes(period, angle):
+    """A ridge a few pixels wide off the pixel axes is sampled between pixels; linear
+    interpolation made it ripple along its length as a 2-D print's would, and these
+    read as lattices."""
+    res = detect_lattice(_fine_stripes(period, angle, seed=1), mm_per_px=1.0)
+    assert res.kind == "stripes", res.message
+    assert res.period == pytest.approx(period, rel=0.01)
+
+
 def test_smooth_shading_over_plain_cloth_makes_no_lattice():
     """Uneven dyeing or light, a few blotches across the frame: peaks of its
     autocorrelation at lags the frame shows fewer than three times are chance (10 of
