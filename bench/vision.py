@@ -65,6 +65,8 @@ Sources (each reported on its own; never pooled into one number):
   degrees) and cropped square: threads, shading bands and print across the pixel grid.
 - ``photo-views``: each photograph seen in perspective three ways (one side shrunk
   10-30 %), its central 60 % read: the repeat changes across the view.
+- ``photo-degraded``: each photograph as JPEG at quality 25, with noise, under a light
+  ramp, and at half size.
 
 Reported per source: group accuracy; lattice success (found = labelled lattice up to a
 unimodular change of basis, vectors within max(3 %, twice the label's uncertainty)) and
@@ -561,6 +563,28 @@ def photo_views(per_photo: int = 3, seed: int = 0, root: Path = PHOTOS):
                          s.truth, alt=s.alt, basis=basis, tol=max(s.tol, 0.06))
 
 
+def photo_degraded(seed: int = 0, root: Path = PHOTOS):
+    """Each labelled photograph four ways worse than taken: JPEG at quality 25, noise of
+    10 grey levels, light falling to a third across the frame, and half the size."""
+    rng = np.random.default_rng(seed)
+    for s in photos(root):
+        h, w = s.image.shape[:2]
+        yy, xx = np.mgrid[0:h, 0:w]
+        light = 0.5 + 0.8 * (xx / w) * (0.6 + 0.4 * yy / h)
+        worse = {
+            "jpeg25": cv2.imdecode(cv2.imencode(".jpg", s.image,
+                                                [cv2.IMWRITE_JPEG_QUALITY, 25])[1],
+                                   cv2.IMREAD_COLOR),
+            "noise10": np.clip(s.image + rng.normal(0, 10, s.image.shape), 0, 255),
+            "ramp": np.clip(s.image * light[..., None], 0, 255),
+            "half": cv2.resize(s.image, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)}
+        for kind, img in worse.items():
+            zoom = 0.5 if kind == "half" else 1.0
+            yield Sample("photo-degraded", f"{s.name}/{kind}", img.astype(np.uint8), 1.0,
+                         s.truth, alt=s.alt,
+                         basis=None if s.basis is None else s.basis * zoom, tol=s.tol)
+
+
 # ---------------------------------------------------------------- scoring
 def lattice_match(found: np.ndarray, truth: np.ndarray) -> tuple[bool, float]:
     """(same lattice up to a unimodular change of basis, largest relative error)."""
@@ -752,6 +776,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "crops": photo_crops,
             "turns": photo_turns,
             "views": photo_views,
+            "degraded": photo_degraded,
             "renderings": lambda: renderings(per_group, seed=seed),
             "npm": lambda: npm(per_group, seed=seed),
             "npm-as-written": lambda: npm_as_written(per_group, seed=seed)}
@@ -761,7 +786,8 @@ def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = T
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
                                     "classics", "woven", "twill", "lineart", "sublattice",
                                     "renderings", "plain", "photos", "frames", "crops",
-                                    "turns", "views", "npm", "npm-as-written")
+                                    "turns", "views", "degraded", "npm",
+                                    "npm-as-written")
         ) -> dict:
     makers = _sources(per_group, seed)
     samples = []
