@@ -46,8 +46,10 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -538,6 +540,155 @@ def _log_sig(x: np.ndarray | float) -> np.ndarray:
     return -np.logaddexp(0.0, -np.asarray(x, float))
 
 
+class _GroupFit(NamedTuple):
+    """A group's best reading of the motif: its log-likelihood, the unimodular ``u``
+    taking the lattice basis to the group's conventional one, its origin (cell
+    fractions), its operations with their translation parts on the grid, and the
+    isometry classes (``(key, "rot" | "mirror" | "glide")``) those operations are."""
+
+    score: float
+    u: np.ndarray
+    origin: np.ndarray
+    ops: list[tuple[np.ndarray, np.ndarray]]
+    present: frozenset
+
+
+def _isometry_scores(motif: np.ndarray, holo: list[np.ndarray], basis: np.ndarray,
+                     ceiling: float, rounding: np.ndarray | None
+                     ) -> tuple[dict, dict[tuple, float], dict[str, float]]:
+    """Every lattice isometry scored at every translation part: the correlations by
+    isometry key (raw; with what pixel ``rounding`` explains given back), the best
+    score relative to ``ceiling`` of each isometry and class (rotation, mirror, glide:
+    the "forbidden" terms of the groups without it), and the same by readable name."""
+    n = motif.shape[0]
+    corr = {_key(a): _corr_all_shifts(motif, a) for a in holo}
+    forb: dict[tuple, float] = {}
+    op_scores: dict[str, float] = {}
+    for a in holo:
+        t = corr[_key(a)] / ceiling
+        classes = ([("rot", "", np.ones((n, n), bool))] if round(np.linalg.det(a)) == 1
+                   else [(kind, tag, mask) for kind, tag, mask in
+                         zip(("mirror", "glide"), "mg", _reflection_classes(a, n),
+                             strict=True) if mask.any()])
+        for kind, tag, mask in classes:
+            at = np.unravel_index(int(np.argmax(np.where(mask, t, -np.inf))), t.shape)
+            if rounding is not None:
+                # What rounding explains, measured at the class's best shift, is
+                # given back at every shift of the class (the decision reads them all).
+                gain = _rounded_score(motif, a, np.array(at), rounding) - float(
+                    corr[_key(a)][at])
+                corr[_key(a)][mask] += gain
+                t = corr[_key(a)] / ceiling
+            forb[(_key(a), kind)] = float(t[at])
+            op_scores[_name(a, basis) + tag] = float(t[at])
+    return corr, forb, op_scores
+
+
+def _conventions(name: str, holo_keys: set, n: int
+                 ) -> Iterator[tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]]:
+    """The group's operations in each basis of the lattice that fits its convention
+    (``solver.wallpaper`` ops conjugated by a unimodular ``u``), each distinct set
+    once: ``(u, [(A, s on the grid), ...])``."""
+    seen = set()
+    for u, uinv in _unimodular():
+        ops = []
+        for a0, b0 in _group_ops(name):
+            a = u @ a0 @ uinv
+            b = u @ b0 * n
+            if _key(a) not in holo_keys or np.abs(b - np.rint(b)).max() > 1e-6:
+                break
+            ops.append((a, np.rint(b).astype(int) % n))
+        else:
+            sig = frozenset((_key(a), tuple(b)) for a, b in ops)
+            if sig not in seen:
+                seen.add(sig)
+                yield u, ops
+
+
+def _origin_likelihood(ops: list[tuple[np.ndarray, np.ndarray]], corr: dict,
+                       ceiling: float, tau: float, kappa: float
+                       ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]], set]:
+    """Log-likelihood that every operation holds, at every grid origin at once (each
+    operation's translation part follows from the origin); with each operation's
+    translation part per origin and the isometry classes present."""
+    n = next(iter(corr.values())).shape[0]
+    g = np.arange(n)
+    oa, ob = np.meshgrid(g, g, indexing="ij")
+    total = np.zeros((n, n))
+    present = set()
+    shifts = []
+    for a, b in ops:
+        ia = (b[0] + (1 - a[0, 0]) * oa - a[0, 1] * ob) % n
+        ib = (b[1] - a[1, 0] * oa + (1 - a[1, 1]) * ob) % n
+        total += _log_sig((corr[_key(a)][ia, ib] / ceiling - tau) / kappa)
+        shifts.append((ia, ib))
+        if round(np.linalg.det(a)) == 1:
+            present.add((_key(a), "rot"))
+        else:
+            mir, _ = _reflection_classes(a, n)
+            present.add((_key(a), "mirror" if mir[b[0], b[1]] else "glide"))
+    return total, shifts, present
+
+
+def _fit_groups(corr: dict, forb: dict[tuple, float], holo: list[np.ndarray],
+                basis: np.ndarray, ceiling: float, *, tau: float, kappa: float,
+                snap_tol: float, strain_sigma: float
+                ) -> tuple[dict[str, _GroupFit], dict[str, tuple[float, float]]]:
+    """Each of the 17 groups' best reading (over its conventions and origins): its
+    operations should hold, every other isometry class of the lattice should not, and
+    the strain its lattice needs costs a prior. Groups whose lattice is beyond
+    ``snap_tol`` come apart, as ``(score, strain)``: never the answer, but their
+    operations holding is evidence against every answer that forbids them."""
+    n = next(iter(corr.values())).shape[0]
+    holo_keys = {_key(a) for a in holo}
+    best: dict[str, _GroupFit] = {}
+    beyond: dict[str, tuple[float, float]] = {}
+    for name in GROUP_NAMES:
+        for u, ops in _conventions(name, holo_keys, n):
+            conv = basis @ u  # the group's conventional basis, working px
+            try:
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
+                                          snap_tol=snap_tol).basis
+                within = True
+            except ValueError:
+                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
+                                          snap_tol=math.inf).basis
+                within = False
+            strain_needed = lattice_strain(conv, ideal)
+            prior = -0.5 * (strain_needed / strain_sigma) ** 2
+            total, shifts, present = _origin_likelihood(ops, corr, ceiling, tau, kappa)
+            ka, kb = divmod(int(np.argmax(total)), n)
+            absent = sum(float(_log_sig((tau - v) / kappa)) for key, v in forb.items()
+                         if key not in present)
+            score = float(total[ka, kb]) + absent + prior
+            if not within:
+                if score > beyond.get(name, (-np.inf,))[0]:
+                    beyond[name] = (score, strain_needed)
+            elif name not in best or score > best[name].score:
+                at = [(a, np.array([ia[ka, kb], ib[ka, kb]]))
+                      for (a, _), (ia, ib) in zip(ops, shifts, strict=True)]
+                best[name] = _GroupFit(score, u, _refine_origin(total, ka, kb) / n, at,
+                                       frozenset(present))
+    return best, {k: v for k, v in beyond.items() if k not in best}
+
+
+def _beyond_message(beyond: dict[str, tuple[float, float]], score: float, win: str
+                    ) -> str:
+    """Why the answer goes to the operator when a group holding beyond the snap is
+    likelier than it; empty when none is."""
+    likelier = [k for k, (s, _) in beyond.items() if s > score]
+    if not likelier:
+        return ""
+    off = max(likelier, key=lambda k: beyond[k][0])
+    return (f"{off} holds on this lattice stretched {100 * beyond[off][1]:.0f} % off its "
+            f"own, more than a print is snapped by: the cloth or the view distorts it "
+            f"(straighten the cloth, or confirm {win})")
+
+
+def _joined(*parts: str) -> str:
+    return "; ".join(p for p in parts if p)
+
+
 # ---------------------------------------------------------------- main entry
 def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              max_repeats: int = 400, tau: float = TAU, kappa: float = KAPPA,
@@ -618,126 +769,34 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # HOLOHEDRY_STRAIN; the snap tolerance is a strain already).
     holo = holohedry(basis, tol=holohedry_tol * (1.0 + allowance / HOLOHEDRY_STRAIN))
     snap_tol = SNAP_TOL + allowance
-    strain_sigma = math.hypot(strain_sigma, allowance)
     metric = _symmetric_metric(basis, holo)
     # A rendering repeats by whole pixels: its edges' rounding to the grid is the same
     # in every repeat, and is allowed (vision.consistency.EDGE_SLACK_PX).
     rounding = pixel_rounding(basis, scale, ij, cell_n) if pixel_slack else None
+    centred = cells - cells.mean(axis=(1, 2), keepdims=True)
     spectra = None
     if consistency:
-        spectra = repeat_spectra(cells - cells.mean(axis=(1, 2), keepdims=True), ij,
-                                 _whitening(cell_n, metric, whiten, min(band,
-                                                                        CONSISTENCY_BAND)),
+        spectra = repeat_spectra(centred, ij, _whitening(cell_n, metric, whiten,
+                                                         min(band, CONSISTENCY_BAND)),
                                  rounding=rounding)
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
-    likeness = (_likeness(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten)
-                if len(cells) > 1 else 1.0)
+    likeness = _likeness(centred, metric, whiten) if len(cells) > 1 else 1.0
     if whiten:
         motif = _whiten(motif, metric, whiten, band)
         halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
-        cells = _whiten(cells - cells.mean(axis=(1, 2), keepdims=True), metric, whiten,
-                        band)
+        cells = _whiten(centred, metric, whiten, band)
     rel = split_half_reliability(*halves)
     if motif.std() < 1e-6:
         return Classification(None, None, 0.0, message="the mean cell is flat")
-    n = cell_n
-    corr = {_key(a): _corr_all_shifts(motif, a) for a in holo}
     ceiling = max(rel, 0.3)
-
-    # Best score of every isometry (and class, for reflections), for "forbidden" terms.
-    forb: dict[tuple, float] = {}
-    op_scores: dict[str, float] = {}
-    for a in holo:
-        t = corr[_key(a)] / ceiling
-        classes = ([("rot", "", np.ones((n, n), bool))] if round(np.linalg.det(a)) == 1
-                   else [(kind, tag, mask) for kind, tag, mask in
-                         zip(("mirror", "glide"), "mg", _reflection_classes(a, n),
-                             strict=True) if mask.any()])
-        for kind, tag, mask in classes:
-            at = np.unravel_index(int(np.argmax(np.where(mask, t, -np.inf))), t.shape)
-            if rounding is not None:
-                # What rounding explains, measured at the class's best shift, is
-                # given back at every shift of the class (the decision reads them all).
-                gain = _rounded_score(motif, a, np.array(at), rounding) - float(
-                    corr[_key(a)][at])
-                corr[_key(a)][mask] += gain
-                t = corr[_key(a)] / ceiling
-            forb[(_key(a), kind)] = float(t[at])
-            op_scores[_name(a, basis) + tag] = float(t[at])
-    holo_keys = {_key(a) for a in holo}
-
-    best: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
-    beyond: dict[str, tuple[float, float]] = {}  # (score, strain) off the snap tolerance
-    g = np.arange(n)
-    oa, ob = np.meshgrid(g, g, indexing="ij")
-    for name in GROUP_NAMES:
-        seen = set()
-        for u, uinv in _unimodular():
-            ops = []
-            ok = True
-            for a0, b0 in _group_ops(name):
-                a = u @ a0 @ uinv
-                if _key(a) not in holo_keys:
-                    ok = False
-                    break
-                b = u @ b0 * n
-                if np.abs(b - np.rint(b)).max() > 1e-6:
-                    ok = False
-                    break
-                ops.append((a, np.rint(b).astype(int) % n))
-            if not ok:
-                continue
-            sig = frozenset((_key(a), tuple(b)) for a, b in ops)
-            if sig in seen:
-                continue
-            seen.add(sig)
-            conv = basis @ u  # the group's conventional basis, working px
-            try:
-                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
-                                          snap_tol=snap_tol).basis
-                within = True
-            except ValueError:
-                # Too distorted for this group's lattice: never the answer, but its
-                # operations holding is evidence against every answer that forbids them.
-                ideal = Wallpaper.snapped(name, conv[:, 0], conv[:, 1],
-                                          snap_tol=math.inf).basis
-                within = False
-            strain_needed = lattice_strain(conv, ideal)
-            prior = -0.5 * (strain_needed / strain_sigma) ** 2
-            total = np.zeros((n, n))
-            present = set()
-            shifts = []
-            for a, b in ops:
-                ia = (b[0] + (1 - a[0, 0]) * oa - a[0, 1] * ob) % n
-                ib = (b[1] - a[1, 0] * oa + (1 - a[1, 1]) * ob) % n
-                x = corr[_key(a)][ia, ib] / ceiling
-                total += _log_sig((x - tau) / kappa)
-                shifts.append((ia, ib))
-                if round(np.linalg.det(a)) == 1:
-                    present.add((_key(a), "rot"))
-                else:
-                    mir, _ = _reflection_classes(a, n)
-                    present.add((_key(a), "mirror" if mir[b[0], b[1]] else "glide"))
-            k = int(np.argmax(total))
-            ka, kb = divmod(k, n)
-            absent = sum(float(_log_sig((tau - v) / kappa)) for key, v in forb.items()
-                         if key not in present)
-            score = float(total[ka, kb]) + absent + prior
-            if not within:
-                if score > beyond.get(name, (-np.inf,))[0]:
-                    beyond[name] = (score, strain_needed)
-                continue
-            o = _refine_origin(total, ka, kb) / n
-            if name not in best or score > best[name][0]:
-                at = [(a, np.array([ia[ka, kb], ib[ka, kb]]))
-                      for (a, _), (ia, ib) in zip(ops, shifts, strict=True)]
-                best[name] = (score, u, o, at, frozenset(present))
-
+    corr, forb, op_scores = _isometry_scores(motif, holo, basis, ceiling, rounding)
+    best, beyond = _fit_groups(corr, forb, holo, basis, ceiling, tau=tau, kappa=kappa,
+                               snap_tol=snap_tol,
+                               strain_sigma=math.hypot(strain_sigma, allowance))
     if not best:
         return Classification(None, None, 0.0, message="no group fits the lattice")
     names = list(best)
-    ll = np.array([best[k][0] for k in names])
-    beyond = {k: v for k, v in beyond.items() if k not in best}
+    ll = np.array([best[k].score for k in names])
     everything = np.concatenate([ll, [v[0] for v in beyond.values()]])
     post = np.exp((ll - everything.max()) / temperature)
     post /= np.exp((everything - everything.max()) / temperature).sum()
@@ -761,10 +820,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
                                 - LAG_SPREAD * spread, lag=lag + lag_spread * spread,
                                 spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
-    _, u, o, _, _ = best[win]
     # Back to mm of the input image: working px -> input px -> mm.
-    new_basis_px = basis @ u
-    origin_w = anchor + basis @ o
+    new_basis_px = basis @ best[win].u
+    origin_w = anchor + basis @ best[win].origin
     origin_in = (origin_w + 0.5) / scale - 0.5
     w1 = new_basis_px[:, 0] / scale * mm
     w2 = new_basis_px[:, 1] / scale * mm
@@ -773,13 +831,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     wp = _nearest_origin(wp, np.array([(image.shape[1] - 1) / 2,
                                        (image.shape[0] - 1) / 2]) * mm)
     confidence = float(post[names.index(win)])
-    likelier = [k for k, (score, _) in beyond.items() if score > ll[names.index(win)]]
-    if likelier:
-        off = max(likelier, key=lambda k: beyond[k][0])
-        message = (f"{message}; " if message else "") + (
-            f"{off} holds on this lattice stretched {100 * beyond[off][1]:.0f} % off its "
-            f"own, more than a print is snapped by: the cloth or the view distorts it "
-            f"(straighten the cloth, or confirm {win})")
+    message = _joined(message, _beyond_message(beyond, best[win].score, win))
     if nrep < 3 or unlike:
         # No per-repeat check: never sure enough to skip the operator.
         confidence = min(confidence, FEW_REPEATS_CONFIDENCE)
@@ -794,9 +846,9 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                           pixel_slack=False)
         if strict.group != win:
             confidence = min(confidence, ROUNDING_CONFIDENCE)
-            message = (f"{message}; " if message else "") + (
+            message = _joined(message, (
                 f"a rendering (repeats whole pixels apart): {win} holds with its edges "
-                f"allowed {EDGE_SLACK_PX:g} px off, {strict.group} without")
+                f"allowed {EDGE_SLACK_PX:g} px off, {strict.group} without"))
     return Classification(wp, win, confidence,
                           scores={**{k: float(v) for k, v in zip(names, ll, strict=True)},
                                   **{k: float(v[0]) for k, v in beyond.items()}},
@@ -828,7 +880,7 @@ def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.nd
     for name in order:
         if not is_subgroup(name, top) or _lags(name, best, scores, translation, lag):
             continue
-        ops = best[name][3]
+        ops = best[name].ops
         if len(cells) >= 3 and ops and repeat_support(cells, ops).min() < REPEAT_SUPPORT:
             continue
         if spectra is not None and invents(ops, spectra, seen, *(asym or ())):
@@ -865,9 +917,9 @@ def _lags(name: str, best: dict, scores: dict, translation: float = 1.0,
     the single repeats' disagreement): so a group over p1 is measured against them,
     the way a near-symmetric print (a bold bar that is its own half turn, thin strokes
     that are not) shows its lag."""
-    have = best[name][4]
+    have = best[name].present
     for sub, entry in best.items():
-        own = entry[4]
+        own = entry.present
         if sub == name or not own < have or 2 * (len(own) + 1) != len(have) + 1:
             continue
         added = have - own

@@ -10,7 +10,7 @@ import numpy as np
 
 from simulators.lineart import degrade, layered_print
 from solver.wallpaper import GROUPS
-from vision.classify import ADDED_OPERATION_LAG, _lags, classify
+from vision.classify import ADDED_OPERATION_LAG, _GroupFit, _lags, classify
 from vision.lattice import detect_lattice
 from vision.subgroups import error_kind
 
@@ -28,8 +28,8 @@ def test_a_group_over_p1_must_not_lag_behind_the_translations():
     the single repeats' disagreement): a half turn scoring 0.94 lags them by 0.06, more
     than allowed on alike repeats, and is allowed when repeats differ by 0.08."""
     rot = ((-1, 0, 0, -1), "rot")
-    best = {"p1": (0.0, None, None, [], frozenset()),
-            "p2": (1.0, None, None, [], frozenset({rot}))}
+    best = {"p1": _GroupFit(0.0, None, None, [], frozenset()),
+            "p2": _GroupFit(1.0, None, None, [], frozenset({rot}))}
     assert _lags("p2", best, {rot: 0.94}, 1.0, ADDED_OPERATION_LAG)
     assert not _lags("p2", best, {rot: 0.99}, 1.0, ADDED_OPERATION_LAG)
     assert not _lags("p2", best, {rot: 0.94}, 1.0 - 0.08, ADDED_OPERATION_LAG)
