@@ -356,7 +356,8 @@ def load_spec(
         geom.append((verts, edges))
         dense.append(polys)
 
-    _check_size(path, [v for v, _ in geom], res)
+    # curves may bulge far beyond their vertices: size the sampled outlines, not the corners
+    _check_size(path, [np.concatenate(polys) for polys in dense], res)
 
     # stitches: validate and give both edges the same sample count; a meshed panel's
     # edges are one segment each, and so are the edges sewn to them
@@ -567,8 +568,22 @@ def _drop_duplicates(loop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return loop[keep], mapping
 
 
+def _check_simple(path: Path, name: str, loop: np.ndarray) -> None:
+    """Err unless the sampled outline is a simple polygon of positive area: Triangle
+    crashes the process (SIGSEGV) on some degenerate loops, e.g. collinear vertices."""
+    if len(loop) < 3:
+        why = "fewer than 3 distinct points"
+    else:
+        ring = shapely.Polygon(loop)
+        why = shapely.is_valid_reason(ring).split("[")[0].lower() if not ring.is_valid \
+            else "" if ring.area > 0 else "no area"
+    if why:
+        raise GarmentError(path, f"panel {name!r} outline is not a simple polygon ({why})")
+
+
 def _triangulate(path: Path, name: str, loop: np.ndarray, res: float) -> dict:
     """Quality triangulation of one closed loop with Triangle; boundary kept as sampled."""
+    _check_simple(path, name, loop)
     n = len(loop)
     segs = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
     max_area = math.sqrt(3) / 4 * res * res

@@ -248,3 +248,34 @@ def test_machine_profile_with_passes_1e8(tmp_path, capsys):
                          "pieces": [{"id": "a", "outline": [[10, 10], [60, 10], [60, 60]]}]})
     refused(capsys, bad, "gcode", layout, "--machine", bad, "-o", tmp_path / "x.nc",
             match="passes")
+
+
+# ---- faults found by a second fuzzing round: well-formed files with absurd content
+
+
+def spec_edited(tmp_path: Path, name: str, edit) -> Path:
+    """The test t-shirt specification with ``edit(first_panel)`` applied."""
+    spec = json.loads(SPEC.read_text())
+    edit(next(iter(spec["pattern"]["panels"].values())))
+    return write_json(tmp_path / name, spec)
+
+
+@pytest.mark.parametrize("vertices,match", [
+    ([[10.0 * i, 0.0] for i in range(7)], "not a simple polygon"),  # Triangle's SIGSEGV
+    ([[5.0, 5.0]] * 7, "fewer than 3 distinct points"),
+    ([[0, 0], [20, 20], [20, 0], [0, 20], [10, 30], [5, 40], [0, 35]], "self-intersection"),
+])
+def test_pattern_panel_that_is_not_a_simple_polygon(tmp_path, capsys, vertices, match):
+    bad = spec_edited(tmp_path, "flat.json", lambda p: p.update(vertices=vertices))
+    refused(capsys, bad, "inspect", bad, match=match)
+
+
+@pytest.mark.parametrize("curvature", [
+    {"type": "cubic", "params": [[1e6, 1e6], [-1e6, 1e6]]},  # MemoryError after 17 s
+    {"type": "circle", "params": [1e9, 1, 1]},  # a 2.3 GiB sample array
+    [0.5, 1e5],  # hung
+])
+def test_pattern_curve_far_beyond_its_vertices(tmp_path, capsys, curvature):
+    bad = spec_edited(tmp_path, "bulge.json",
+                      lambda p: p["edges"][2].update(curvature=curvature))
+    refused(capsys, bad, "inspect", bad, match="a garment is at most 10000 mm")
