@@ -81,6 +81,20 @@ def _notch(value, source: str, where: str, off: np.ndarray) -> Notch:
     return Notch(at, d / nd if nd > 0 else d, depth)
 
 
+EDGE_SLACK_MM = 1.0  # how far an outline may stray past the fabric's edge (rounding)
+
+
+def _check_on_fabric(ring: np.ndarray, width: float, source: str, where: str) -> None:
+    """Err if a piece (fabric mm) leaves the cloth: before the roll's start or beyond a
+    selvedge. The toolpath trims cuts to the cloth, so such a piece would be cut short, or,
+    lying wholly off it, not at all."""
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    if lo[0] < -EDGE_SLACK_MM or lo[1] < -EDGE_SLACK_MM or hi[1] > width + EDGE_SLACK_MM:
+        raise untrusted.InputError(
+            source, f"{where} leaves the fabric: it spans x {lo[0]:g}..{hi[0]:g}, "
+            f"y {lo[1]:g}..{hi[1]:g} mm; the cloth starts at x = 0 and spans y 0..{width:g} mm")
+
+
 def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
     """Check a LAYOUT.json dict and return it in machine coordinates (fabric + origin)."""
     lim = untrusted.limits
@@ -123,6 +137,9 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
                                                                (2, 3))))
     size = {k: untrusted.number(data.get(k, 0.0) or 0.0, source, k, lo=0.0,
                                 hi=lim.MAX_COORD_MM) for k in ("width", "length", "gap")}
+    if size["width"] > 0:
+        for i, piece in enumerate(pieces):
+            _check_on_fabric(piece.outline - off, size["width"], source, f"pieces[{i}].outline")
     return Layout(pieces=pieces, width=size["width"], length=size["length"], gap=size["gap"],
                   origin=(float(off[0]), float(off[1])), source=source)
 

@@ -279,3 +279,15 @@ def test_pattern_curve_far_beyond_its_vertices(tmp_path, capsys, curvature):
     bad = spec_edited(tmp_path, "bulge.json",
                       lambda p: p["edges"][2].update(curvature=curvature))
     refused(capsys, bad, "inspect", bad, match="a garment is at most 10000 mm")
+
+
+@pytest.mark.parametrize("outline,width", [
+    ([[100_000, 100_000], [100_010, 100_000], [100_000, 100_010]], 500),  # IndexError, exit 70
+    ([[-100, -100], [-50, -100], [-50, -50]], 500),
+    ([[10, 10], [60, 10], [60, 60]], 1e-9),
+])
+def test_layout_piece_off_the_fabric(tmp_path, capsys, outline, width):
+    bad = write_json(tmp_path / "layout.json",
+                     {"version": 1, "units": "mm", "width": width, "length": 500,
+                      "pieces": [{"id": "a", "outline": outline}]})
+    refused(capsys, bad, "gcode", bad, "-o", tmp_path / "x.nc", match="leaves the fabric")
