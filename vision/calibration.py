@@ -226,9 +226,32 @@ class Calibration:
             for v in res:
                 untrusted.integer(v, src, "resolution", lo=1, hi=100_000)
         try:
-            return cls.from_dict(d)
+            cal = cls.from_dict(d)
         except (ValueError, TypeError) as exc:
             raise untrusted.InputError(src, str(exc)) from None
+        cal.check(src)
+        return cal
+
+    def check(self, source: str) -> None:
+        """Err (naming ``source``) unless the maps are a camera's: OpenCV's distortion
+        model, positive focal lengths, and a table view that rectifies into a sane image.
+        A singular or wild homography otherwise surfaces later as an OpenCV assertion, a
+        fault blamed on the photo, or a rectified image of hundreds of megapixels."""
+        from vision.rectify import check_view
+
+        k = self.camera_matrix
+        if len(self.dist_coeffs) not in (0, 4, 5, 8, 12, 14):
+            raise untrusted.InputError(source, f"dist_coeffs has {len(self.dist_coeffs)} "
+                                       "numbers; OpenCV's models take 4, 5, 8, 12 or 14")
+        if not (k[0, 0] > 0 and k[1, 1] > 0 and np.array_equal(k[2], [0.0, 0.0, 1.0])):
+            raise untrusted.InputError(source, "camera_matrix must be [[fx, 0, cx], [0, fy, "
+                                       "cy], [0, 0, 1]] with fx, fy > 0")
+        try:
+            check_view(self)
+        except (ValueError, cv2.error) as exc:  # LinAlgError is a ValueError
+            fault = str(exc).removeprefix("calibration: ").splitlines()[0]
+            raise untrusted.InputError(source, f"the table map does not fit the camera "
+                                       f"({fault})") from None
 
     # ------------------------------------------------------------ building
     @classmethod

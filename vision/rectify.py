@@ -7,12 +7,15 @@ it converts to millimetres by one scale and one offset, with no perspective left
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
+from untrusted.limits import MAX_IMAGE_PIXELS
 from vision.calibration import Calibration
 
-__all__ = ["pixel_to_mm", "rectify", "visible_region"]
+__all__ = ["check_view", "pixel_to_mm", "rectified_size", "rectify", "visible_region"]
 
 
 def visible_region(cal: Calibration, *, samples: int = 64) -> tuple[float, float, float,
@@ -63,12 +66,8 @@ def rectify(frame: np.ndarray, cal: Calibration, *,
                          f"calibration is for {w}x{h} px")
     region = region or visible_region(cal)
     s = float(mm_per_px or cal.mm_per_px())
-    if s <= 0:
-        raise ValueError(f"mm per pixel must be positive, got {s}")
+    nx, ny = rectified_size(region, s)
     x0, y0, x1, y1 = region
-    nx, ny = int(round((x1 - x0) / s)), int(round((y1 - y0) / s))
-    if not (8 <= nx <= 20000 and 8 <= ny <= 20000):
-        raise ValueError(f"region {region} at {s} mm/px gives {nx}x{ny} px")
     # The table -> pixel map is smooth: compute it exactly on a coarse grid and let
     # remap interpolate (as the simulator does), which keeps 12 MP frames fast.
     step = 8
@@ -84,6 +83,30 @@ def rectify(frame: np.ndarray, cal: Calibration, *,
     mapy = cv2.remap(cy, fx, fy, cv2.INTER_LINEAR)
     out = cv2.remap(frame, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return out, (float(x0), float(y0), float(x1), float(y1)), s
+
+
+def rectified_size(region: tuple[float, float, float, float], mm_per_px: float
+                   ) -> tuple[int, int]:
+    """(width, height) px of ``region`` rectified at ``mm_per_px``; a ValueError if that is
+    not a sane image (at most the image pixel limit), before anything is allocated."""
+    x0, y0, x1, y1 = region
+    if not 0 < mm_per_px < math.inf:
+        raise ValueError(f"mm per pixel must be positive and finite, got {mm_per_px:g}")
+    nx, ny = (x1 - x0) / mm_per_px, (y1 - y0) / mm_per_px
+    if not (8 <= nx <= 20000 and 8 <= ny <= 20000 and nx * ny <= MAX_IMAGE_PIXELS):
+        raise ValueError(f"the table region {x0:.4g}..{x1:.4g} x {y0:.4g}..{y1:.4g} mm at "
+                         f"{mm_per_px:.4g} mm/px gives {nx:.4g} x {ny:.4g} px")
+    return int(round(nx)), int(round(ny))
+
+
+def check_view(cal: Calibration) -> None:
+    """A ValueError unless ``cal`` maps its frame onto a table region that rectifies into
+    a sane image, at most 4 times the frame's pixels (a camera's view of a flat table is
+    within a few times that): a calibration file's maps, checked before any photo is read."""
+    nx, ny = rectified_size(visible_region(cal), cal.mm_per_px())
+    w, h = cal.resolution
+    if nx * ny > 4 * w * h:
+        raise ValueError(f"the frame of {w} x {h} px would rectify into {nx} x {ny} px")
 
 
 def pixel_to_mm(xy: np.ndarray, region: tuple[float, float, float, float],

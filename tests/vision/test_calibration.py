@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -83,6 +84,34 @@ def test_bad_calibration_files_name_the_fault(tmp_path):
         Calibration.load(bad)
     with pytest.raises(FileNotFoundError):
         Calibration.load(tmp_path / "missing.json")
+
+
+GOOD = {"camera_matrix": [[800, 0, 320], [0, 800, 240], [0, 0, 1]],
+        "dist_coeffs": [0.0] * 5, "resolution": [480, 360],
+        "homography_undistorted_px_to_mm": [[0.25, 0, 0], [0, 0.25, 0], [0, 0, 1]]}
+
+
+@pytest.mark.parametrize("change,match", [
+    # blamed on the photo before, or an OpenCV assertion (exit 70), or a 16 s rectification
+    ({"homography_undistorted_px_to_mm": [[0, 0, 0], [0, 0, 0], [0, 0, 1]]},
+     "does not enclose a table region"),
+    ({"homography_undistorted_px_to_mm": [[1e-300, 0, 0], [0, 1e-300, 0], [0, 0, 1]]},
+     "mm per pixel must be positive"),
+    ({"homography_undistorted_px_to_mm": [[1, 0, 0], [0, 1, 0], [1, 1, 1]]},
+     "would rectify into"),
+    ({"camera_matrix": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}, "fx, fy > 0"),
+    ({"dist_coeffs": [0.0] * 3}, "OpenCV's models take 4, 5, 8, 12 or 14"),
+])
+def test_calibration_whose_maps_are_no_camera_is_refused(tmp_path, capsys, change, match):
+    from station.cli import main
+
+    bad = tmp_path / "cal.json"
+    bad.write_text(json.dumps({**GOOD, **change}))
+    image = tmp_path / "frame.png"
+    cv2.imwrite(str(image), np.full((360, 480, 3), 128, np.uint8))
+    assert main(["detect", str(image), "--calibration", str(bad)]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"{bad}: " in last and match in last, last
 
 
 def test_no_board_in_a_blank_image():
