@@ -26,6 +26,13 @@ def rules_for(config: Config, seam_mm: float | None = None,
     return rules.with_overrides(more) if more else rules
 
 
+def name_key(key: str) -> int | str:
+    """A seam-line index for a key of ASCII digits (at most 9), else the name itself.
+
+    ``str.isdigit`` alone also takes '²' or a 5000-digit key, which ``int`` refuses."""
+    return int(key) if key.isascii() and key.isdigit() and len(key) <= 9 else key
+
+
 def rules_for_job(config: Config, options: Mapping[str, Any]) -> AllowanceRules:
     """The rules of a submitted job (options ``seam_allowance`` MM, ``allowance`` {name: MM}).
 
@@ -34,8 +41,7 @@ def rules_for_job(config: Config, options: Mapping[str, Any]) -> AllowanceRules:
     given = options.get("allowance") or {}
     if not isinstance(given, Mapping):
         raise ValueError('job option allowance must be an object {"seam line": mm}')
-    overrides = {int(k) if isinstance(k, str) and k.isdigit() else k: v
-                 for k, v in given.items()}
+    overrides = {name_key(k) if isinstance(k, str) else k: v for k, v in given.items()}
     seam = options.get("seam_allowance")
     if seam is not None and (isinstance(seam, bool) or not isinstance(seam, (int, float))
                              or seam < 0):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import untrusted
 from solver.units import UNIT_CHOICES
 from solver.wallpaper import Wallpaper
 
@@ -144,25 +145,23 @@ def fabric_grain_deg(path: str | Path) -> float:
     return float(value)
 
 
-def read_name_map(path: str | Path, what: str) -> dict[int | str, float]:
-    """A JSON object {"seam line name or index": number} (weights, allowances) from a file.
+def read_name_map(path: str | Path, what: str, *, hi: float = untrusted.limits.MAX_GARMENT_MM
+                  ) -> dict[int | str, float]:
+    """A JSON object {"seam line name or index": number in 0..``hi``} (weights, allowances)
+    from a file; every fault names it.
 
     Keys that are digits become indices, as ``--weights`` and ``--allowance`` take them.
     """
-    from solver.jsonfile import read_json
+    from station.allowance import name_key
 
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such {what} file")
-    data = read_json(p)
+    data = untrusted.read_json(p, what=f"{what} file")
     if not isinstance(data, dict):
         raise ValueError(f'{p}: expected an object {{"seam line": {what}}}')
-    out: dict[int | str, float] = {}
-    for key, value in data.items():
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise ValueError(f"{p}: {what} of {key!r} is not a number")
-        out[int(key) if key.isdigit() else key] = float(value)
-    return out
+    return {name_key(key): untrusted.number(value, p, f"{what} of {key[:40]!r}", lo=0.0, hi=hi)
+            for key, value in data.items()}
 
 
 def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:

@@ -68,10 +68,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _load_weights(path: str) -> dict:
+def _load_weights(path: str, garment) -> dict:
+    """The seam weights of W.json, their names and indices checked against the garment."""
+    import untrusted
     from station.cliargs import read_name_map
 
-    return read_name_map(path, "weight")
+    weights = read_name_map(path, "weight", hi=1e6)
+    try:
+        garment.with_seam_weights(weights)
+    except ValueError as exc:
+        raise untrusted.InputError(path, str(exc)) from None
+    return weights
 
 
 def _mirror_pairs(args: argparse.Namespace, garment) -> list:
@@ -92,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     garment, symmetrised = symmetrised_garment(args, load_garment_arg(args))
     garment = garment_with_grain(garment, args)
     fabric = load_fabric(args.fabric)
-    weights = _load_weights(args.weights) if args.weights else None
+    weights = _load_weights(args.weights, garment) if args.weights else None
     init = Placement.load(args.init) if args.init else None
 
     def progress(k: int, n: int, e_random: float, e_aligned: float) -> None:

@@ -291,3 +291,21 @@ def test_layout_piece_off_the_fabric(tmp_path, capsys, outline, width):
                      {"version": 1, "units": "mm", "width": width, "length": 500,
                       "pieces": [{"id": "a", "outline": outline}]})
     refused(capsys, bad, "gcode", bad, "-o", tmp_path / "x.nc", match="leaves the fabric")
+
+
+@pytest.mark.parametrize("weights,match", [
+    ({"²": 1}, "no seam line '²'"),  # int('²') raised, naming no file
+    ({"9" * 5000: 1}, "no seam line"),  # int() refused 5000 digits, naming no file
+    ({"0": -1}, "weight of '0' = -1 is out of range"),
+    ({"0": 1e300}, "out of range"),
+])
+def test_seam_weights_name_their_file(tmp_path, capsys, fabric, weights, match):
+    bad = write_json(tmp_path / "w.json", weights)
+    refused(capsys, bad, "align", TSHIRT, "--units", "m", "--fabric", fabric, "--weights",
+            bad, "--restarts", "1", "-o", tmp_path / "p.json", match=match)
+
+
+def test_allowances_name_their_file(tmp_path, capsys):
+    bad = write_json(tmp_path / "a.json", {"open#0": -1})
+    refused(capsys, bad, "nest", JAKOBS, "--allowance", bad, "-o", tmp_path / "l.json",
+            "--time", "1", match="allowance of 'open#0' = -1 is out of range")
