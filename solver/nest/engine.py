@@ -109,9 +109,15 @@ class Board:
 
     def footprint(self, poly: shapely.Polygon) -> tuple[int, int, np.ndarray]:
         """(x0, y0, uint8 image): every pixel of this board's grid that ``poly`` covers,
-        its image placed with its first pixel at column x0, row y0."""
+        its image placed with its first pixel at column x0, row y0.
+
+        The image is cut to the board (and a pixel around it): a keep-out may reach far
+        beyond the roll, and a 2 km square would otherwise be a 58 TiB image."""
         lo = np.floor(np.asarray(poly.bounds[:2]) / self.res).astype(int) - 1
         hi = np.ceil(np.asarray(poly.bounds[2:]) / self.res).astype(int) + 1
+        lo, hi = np.maximum(lo, -1), np.minimum(hi, [self.cols, self.rows])
+        if np.any(hi < lo):
+            return 0, 0, np.zeros((0, 0), np.uint8)
         img = np.zeros((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.uint8)
         pts = np.asarray(poly.exterior.coords) / self.res - 0.5 - lo
         cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)

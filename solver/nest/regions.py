@@ -31,10 +31,10 @@ def load_keepouts(path: str | Path) -> list[np.ndarray]:
     rings = untrusted.sequence(rings, src, "keepouts", max_len=untrusted.limits.MAX_PIECES)
     out = []
     for i, r in enumerate(rings):
-        ring = ccw_ring(untrusted.points(r, src, f"keepouts[{i}]", min_len=3))
-        if not shapely.Polygon(ring).is_valid:
-            raise untrusted.InputError(src, f"keepouts[{i}] crosses itself")
-        out.append(ring)
+        ring = untrusted.points(r, src, f"keepouts[{i}]", min_len=3)
+        if not shapely.Polygon(ring).is_valid:  # before ccw_ring drops repeated points
+            raise untrusted.InputError(src, f"keepouts[{i}] crosses itself or has no area")
+        out.append(ccw_ring(ring))
     return out
 
 

@@ -73,6 +73,10 @@ def _check_widths(problem: NestProblem) -> None:
 
 
 def _no_fit(problem: NestProblem) -> str:
+    """Why the pieces found no room: the window, or (no length given) the keep-outs."""
+    if problem.length is None:
+        return (f"the pieces do not fit on the fabric {problem.width:g} mm wide around its "
+                f"{len(problem.keepouts)} keep-out(s)")
     return (f"the pieces do not fit on the fabric window {problem.length:g} x "
             f"{problem.width:g} mm")
 

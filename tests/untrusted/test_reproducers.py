@@ -309,3 +309,21 @@ def test_allowances_name_their_file(tmp_path, capsys):
     bad = write_json(tmp_path / "a.json", {"open#0": -1})
     refused(capsys, bad, "nest", JAKOBS, "--allowance", bad, "-o", tmp_path / "l.json",
             "--time", "1", match="allowance of 'open#0' = -1 is out of range")
+
+
+def test_keepout_of_one_repeated_point(tmp_path, capsys):
+    """Named no file before: 'a piece outline needs at least 3 points, got 2'."""
+    bad = write_json(tmp_path / "keep.json", {"keepouts": [[[1, 1], [1, 1], [1, 1]]]})
+    refused(capsys, bad, "nest", JAKOBS, "--keepout", bad, "-o", tmp_path / "l.json",
+            match="keepouts[0] crosses itself or has no area")
+
+
+@pytest.mark.parametrize("square", [1e6, 1e5])
+def test_keepout_far_larger_than_the_roll(tmp_path, capsys, square):
+    """A 58 TiB raster (MemoryError) before; now the roll has no room left beside it."""
+    keep = write_json(tmp_path / "keep.json", {"keepouts": [[[-square, -square], [square, -square],
+                                                             [square, square], [-square, square]]]})
+    code, err = run(capsys, "nest", JAKOBS, "--keepout", keep, "-o", tmp_path / "l.json",
+                    "--time", "1")
+    last = err.splitlines()[-1]
+    assert code == 2 and "do not fit on the fabric" in last and "keep-out" in last, last
