@@ -85,6 +85,7 @@ class Machine:
 #: WHY: a profile is the only thing between a typo and the machine: `inf` or 1e30 passes
 #: "> 0" but writes moves off the table, S words GRBL cannot hold, or buffer overruns.
 MAX_TABLE_MM = 10000.0  # no cutting table is 10 m long
+MAX_TEXT = 40  # a profile's texts (its name): "(machine NAME tool knife pieces N)" fits 79
 RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("machine", "work_area"): (-MAX_TABLE_MM, MAX_TABLE_MM, True),
     ("machine", "park"): (-MAX_TABLE_MM, MAX_TABLE_MM, True),
@@ -157,6 +158,8 @@ def _coerce(cls: type, table: dict, section: str, source: str) -> dict:
             elif isinstance(default, str):
                 if not isinstance(val, str):
                     raise TypeError("expected a string")
+                if len(val) > MAX_TEXT:  # the name goes into a GRBL line of at most 79
+                    raise ValueError(f"at most {MAX_TEXT} characters")
                 out[key] = val
             else:
                 out[key] = val

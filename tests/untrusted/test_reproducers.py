@@ -327,3 +327,15 @@ def test_keepout_far_larger_than_the_roll(tmp_path, capsys, square):
                     "--time", "1")
     last = err.splitlines()[-1]
     assert code == 2 and "do not fit on the fabric" in last and "keep-out" in last, last
+
+
+def test_machine_name_longer_than_a_grbl_line(tmp_path, capsys):
+    """Refused only while writing before ('generated line longer than 79 characters'),
+    naming no file."""
+    bad = tmp_path / "machine.toml"
+    bad.write_text('[machine]\nname = "' + "x" * 100 + '"\n')
+    layout = write_json(tmp_path / "layout.json",
+                        {"version": 1, "units": "mm", "width": 100, "length": 100,
+                         "pieces": [{"id": "a", "outline": [[10, 10], [60, 10], [60, 60]]}]})
+    refused(capsys, bad, "gcode", layout, "--machine", bad, "-o", tmp_path / "x.nc",
+            match="at most 40 characters")
