@@ -28,7 +28,7 @@ from solver.nest.engine import (
     moves_of,
 )
 from solver.nest.layout import build_layout
-from solver.nest.plain import Late, spyrrow_pack
+from solver.nest.plain import SPARROW_MAX_POINTS, Late, coarsened, spyrrow_pack
 from solver.nest.solve import nest
 from solver.wallpaper import Wallpaper
 
@@ -256,3 +256,22 @@ def test_nest_returns_a_verified_marker_within_its_time(case, printed_tshirt, pr
     took = time.monotonic() - t0
     assert faults == [] and len(layout.pieces) == len(problem.items())
     assert took < 1.5, f"nest --time 1 took {took:.2f} s"
+
+
+def test_a_raw_digitised_curve_is_nested_whole_within_its_budget():
+    """A digitiser's raw curve (a 60,000-point circle) kept sparrow from any marker for
+    minutes under a 1 s budget. It is given a coarser ring that contains the piece, so
+    the marker comes in time and the layout verifies against the true outline."""
+    t = np.linspace(0.0, 2 * np.pi, 60_000, endpoint=False)
+    circle = np.column_stack([15 * np.cos(t), 15 * np.sin(t)])
+    coarse = coarsened(circle)
+    assert len(coarse) <= SPARROW_MAX_POINTS
+    assert shapely.Polygon(coarse).buffer(1e-9).contains(shapely.Polygon(circle))
+    assert shapely.Polygon(coarse).area < 1.01 * shapely.Polygon(circle).area
+    assert coarsened(circle[::40]) is not None and np.array_equal(coarsened(circle[::40]),
+                                                                  circle[::40])
+    problem = load_esicup(DATA / "nesting" / "jakobs1.json")
+    problem.pieces.append(Piece("raw circle", circle + 15, quantity=2))
+    layout = nest(problem, time_limit=1.0, seed=0)
+    assert verify_layout(layout, problem) == []
+    assert len(layout.pieces) == len(problem.items())
