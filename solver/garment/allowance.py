@@ -33,10 +33,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from solver.garment.grain import LIMB_ANGLE_DEG, PANEL_UP, panel_positions
 from solver.garment.model import Garment, _components
 
 __all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "drape_up",
-           "edge_allowances", "offset_outline", "open_edges"]
+           "edge_allowances", "limb_end_axes", "offset_outline", "open_edges"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
 LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
@@ -144,10 +145,9 @@ def open_edges(garment: Garment, up: np.ndarray | None = None
     if not flat:
         pos = g.xyz
         up = drape_up(pos, edges, opening) if up is None else np.asarray(up, float)
-    elif len(g.panel_frames) == g.n_pieces:  # a specification places its panels: y up
-        frames = np.stack([g.panel_frames[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
-        pos = np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
-        up = np.array([0.0, 1.0, 0.0]) if up is None else np.asarray(up, float)
+    elif (placed := panel_positions(g)) is not None:  # a specification places its panels
+        pos = placed
+        up = PANEL_UP if up is None else np.asarray(up, float)
     else:  # flat pattern: heights relative to each piece's own box
         box = g.piece_bboxes()
         piece = g.piece_of_vertex
@@ -164,12 +164,36 @@ def open_edges(garment: Garment, up: np.ndarray | None = None
     level = np.abs(normal @ up) > LEVEL
     # a limb's end: an upright loop (a T-pose sleeve's cuff reaches the shoulder's height)
     # on pieces that have no other opening; an armhole's pieces also carry the neckline
-    pieces = g.piece_of_vertex[edges[:, 0]]
-    touches = np.zeros((len(first), g.n_pieces), bool)
-    touches[opening, pieces] = True
-    others = touches.sum(0)[None, :] - touches  # other openings on each piece
-    alone = ~np.any(touches & (others > 0), axis=1)
+    alone = _alone(g, edges, opening).any(axis=1)
     return edges, opening, (reach < top - TOP_FRACTION * span) | (~level & alone)
+
+
+def _alone(g: Garment, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
+    """(k, P) bool: opening k touches piece p, and every piece it touches carries no other
+    opening (a limb's end: a cuff, a leg's hem; a torso also has its neckline)."""
+    k = int(opening.max()) + 1
+    touches = np.zeros((k, g.n_pieces), bool)
+    touches[opening, g.piece_of_vertex[edges[:, 0]]] = True
+    others = touches.sum(0)[None, :] - touches  # other openings on each piece
+    return touches & ~np.any(touches & (others > 0), axis=1)[:, None]
+
+
+def limb_end_axes(garment: Garment, pos: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """(P,3) per piece the axis of the limb it belongs to, or NaN: the plane normal of an
+    upright opening alone on its pieces (a sleeve's cuff), for patterns whose pieces lie
+    flat in 3D (a specification's panels), where the drape's wrapping says nothing.
+    It points towards the garment's middle (the sleeve's cap), as ``limb_axes`` does."""
+    out = np.full((garment.n_pieces, 3), np.nan)
+    edges, opening, _ = open_edges(garment, up)
+    if len(edges) == 0:
+        return out
+    centre, normal, _ = _opening_planes(pos, edges, opening)
+    upright = np.abs(normal @ up) < np.cos(np.radians(LIMB_ANGLE_DEG))
+    towards = np.einsum("ki,ki->k", normal, pos.mean(0) - centre)
+    normal = normal * np.where(towards < 0, -1.0, 1.0)[:, None]
+    for k, piece in zip(*np.nonzero(_alone(garment, edges, opening) & upright[:, None])):
+        out[piece] = normal[k]
+    return out
 
 
 def _opening_planes(pos: np.ndarray, edges: np.ndarray, opening: np.ndarray

@@ -13,7 +13,9 @@ comes from the first source available, per piece:
    best matches the axis ``a``: the garment's up axis for body pieces, the limb's axis for
    sleeves and legs. A piece is a limb when it wraps around an axis (its area-weighted
    face normals spread around it, as on a tube) that lies far from vertical; that axis is
-   the normals' direction of least spread.
+   the normals' direction of least spread. A specification (GarmentCode, GPG) has no
+   drape but places each flat panel around the body, y up: that placement is its drape,
+   and a limb's axis is the normal of its end (a cuff), since flat panels do not wrap.
 4. ``outline``: flat patterns with none of the above. The piece's longest principal axis
    (second moments of its area) is a guess, and the caller is warned: a pattern's
    vertical axis means nothing (the Berkeley back pieces lie sideways).
@@ -36,6 +38,7 @@ SOURCES = ("file", "operator", "drape", "outline")
 LIMB_SPREAD = 0.45  # normals' 2nd / 1st spread above which a piece wraps around an axis
 LIMB_ANGLE_DEG = 30.0  # a wrapped piece whose axis is this far from vertical is a limb
 AXES = {"x": 0, "y": 1, "z": 2}
+PANEL_UP = np.array([0.0, 1.0, 0.0])  # specifications place their panels y-up (GarmentCode)
 
 
 @dataclass(frozen=True)
@@ -93,14 +96,15 @@ def _piece_sums(values: np.ndarray, piece: np.ndarray, n: int) -> np.ndarray:
     return out.reshape((n,) + values.shape[1:])
 
 
-def drape_maps(garment) -> np.ndarray:
-    """(P,3,2) linear maps from pattern to 3D, one per piece: the area-weighted mean of
-    the faces' Jacobians, i.e. the least-squares fit ``argmin_J sum_f A_f |J_f - J|^2``."""
+def drape_maps(garment, xyz: np.ndarray | None = None) -> np.ndarray:
+    """(P,3,2) linear maps from pattern to 3D (``xyz``, default the drape), one per piece:
+    the area-weighted mean of the faces' Jacobians, i.e. the least-squares fit
+    ``argmin_J sum_f A_f |J_f - J|^2``."""
     f = garment.faces
+    x = garment.xyz if xyz is None else xyz
     e2 = np.stack([garment.uv[f[:, 1]] - garment.uv[f[:, 0]],
                    garment.uv[f[:, 2]] - garment.uv[f[:, 0]]], axis=2)  # (F,2,2) columns
-    e3 = np.stack([garment.xyz[f[:, 1]] - garment.xyz[f[:, 0]],
-                   garment.xyz[f[:, 2]] - garment.xyz[f[:, 0]]], axis=2)  # (F,3,2)
+    e3 = np.stack([x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]]], axis=2)  # (F,3,2)
     det = e2[:, 0, 0] * e2[:, 1, 1] - e2[:, 0, 1] * e2[:, 1, 0]  # 2 A_f
     adj = np.stack([np.stack([e2[:, 1, 1], -e2[:, 0, 1]], -1),
                     np.stack([-e2[:, 1, 0], e2[:, 0, 0]], -1)], -2)  # det * inverse
@@ -140,13 +144,41 @@ def limb_axes(garment, up: np.ndarray) -> np.ndarray:
     return np.where(limb[:, None], axis, np.nan)
 
 
+def panel_positions(garment) -> np.ndarray | None:
+    """(V,3) mm: where a specification places its flat panels around the body (``PANEL_UP``
+    up), or None when not every piece is placed."""
+    g = garment
+    if len(g.panel_frames) != g.n_pieces or g.n_pieces == 0:
+        return None
+    frames = np.stack([g.panel_frames[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
+    return np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
+
+
 def drape_grain(garment, up: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(P,) grain angles in degrees from the drape, and (P,) bool: the piece is a limb."""
-    if garment.xyz is None:
+    """(P,) grain angles in degrees from the drape, and (P,) bool: the piece is a limb.
+
+    A specification without a drape places its panels around the body: that placement is
+    the drape here (body pieces up ``PANEL_UP``). Flat panels do not wrap around a limb,
+    so its axis is read off its end instead (`solver.garment.allowance.limb_end_axes`).
+    """
+    placed = panel_positions(garment) if garment.xyz is None else None
+    if garment.xyz is None and placed is None:
         raise ValueError("the garment has no 3D drape")
+    if placed is not None:
+        from solver.garment.allowance import limb_end_axes
+
+        up = PANEL_UP if up is None else np.asarray(up, float) / np.linalg.norm(up)
+        jac = drape_maps(garment, placed)
+        limb = limb_end_axes(garment, placed, up)
+        return _grain_along(jac, limb, up)
     up = detect_up(garment.xyz) if up is None else np.asarray(up, float) / np.linalg.norm(up)
-    jac = drape_maps(garment)
-    limb = limb_axes(garment, up)
+    return _grain_along(drape_maps(garment), limb_axes(garment, up), up)
+
+
+def _grain_along(jac: np.ndarray, limb: np.ndarray, up: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Per piece the pattern direction whose 3D image (``jac``, (P,3,2)) best matches up,
+    or the limb's axis where ``limb`` (P,3) is not NaN; degrees and the limb mask."""
     is_limb = ~np.isnan(limb[:, 0])
     target = np.where(is_limb[:, None], limb, up[None, :])
     jtj = np.einsum("pki,pkj->pij", jac, jac) + 1e-12 * np.eye(2)
@@ -261,7 +293,7 @@ def piece_grains(garment, *, lines: Mapping[int | str, float] | None = None,
     n = garment.n_pieces
     deg = np.full(n, np.nan)
     source = np.array(["outline"] * n, dtype=object)
-    if garment.xyz is not None:
+    if garment.xyz is not None or panel_positions(garment) is not None:
         up_vec = parse_up(up) if isinstance(up, str) else up
         deg[:], _ = drape_grain(garment, up_vec)
         source[:] = "drape"

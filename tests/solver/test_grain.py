@@ -180,3 +180,49 @@ def test_nesting_keeps_the_placement_grain_rule(tmp_path):
         p.save(tmp_path / "P.json")
         pieces, _ = pieces_from_placement(tmp_path / "P.json")
         assert all(pc.orientations == want for pc in pieces)
+
+
+SPECS = ["garmentcode/tshirt_specification.json", "garmentcode/shirt_mean_specification.json",
+         "garmentcode/pants_specification.json",
+         "garmentcode/skirt_many_panels_specification.json",
+         "garment_pattern_generator/tee.json",
+         "garment_pattern_generator/pants_straight_sides.json"]
+
+
+@pytest.mark.parametrize("name", SPECS)
+def test_a_specification_takes_its_grain_from_where_it_places_its_panels(name):
+    """A specification places each panel around the body (y up): body panels take the
+    grain that runs up the body there, limbs the grain along the limb, without a guess.
+    (Guessed from the longest axis, skirt panels wider than long lay across the grain
+    and torso panels 5-10 degrees off it.)"""
+    g = load_garment(DATA / name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "guessed" warning
+        grains = g.grains()
+    assert {gr.source for gr in grains} == {"drape"}
+    _, limb = drape_grain(g)
+    up = np.array([0.0, 1.0, 0.0])
+    for i, gr in enumerate(grains):
+        d = np.array([np.cos(np.radians(gr.deg)), np.sin(np.radians(gr.deg))])
+        image = g.panel_frames[i][:, :2] @ d
+        if limb[i]:  # sleeves: along the arm, far from the body's vertical
+            assert min(_angle(image, up), _angle(-image, up)) > 30.0, (name, g.piece_names[i])
+        else:
+            assert min(_angle(image, up), _angle(-image, up)) <= 5.0, (name, g.piece_names[i])
+    sleeves = {g.piece_names[i] for i in np.flatnonzero(limb)}
+    assert sleeves == {n for n in g.piece_names if "sleeve" in n}
+
+
+def test_shared_specifications_run_their_body_grain_up_the_body(shared_data):
+    root = shared_data / "garments"
+    files = (sorted((root / "garmentcode").rglob("*_specification.json"))
+             + sorted((root / "garment_pattern_generator").glob("*.json")))
+    assert files
+    for path in files:
+        g = load_garment(path)
+        deg, limb = drape_grain(g)
+        for i in np.flatnonzero(~limb):
+            d = np.array([np.cos(np.radians(deg[i])), np.sin(np.radians(deg[i]))])
+            image = g.panel_frames[i][:, :2] @ d
+            assert abs(image[1]) >= np.cos(np.radians(5.0)) * np.linalg.norm(image), (
+                path.name, g.piece_names[i])
