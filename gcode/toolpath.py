@@ -17,8 +17,8 @@ from gcode.arcs import FittedPath, fit_arcs
 from gcode.layout import Layout, LayoutPiece
 from gcode.machine import Machine
 
-__all__ = ["Contour", "PieceToolpath", "build_toolpaths", "fabric_box", "order_pieces",
-           "two_opt"]
+__all__ = ["Contour", "PieceToolpath", "build_toolpaths", "check_on_table", "fabric_box",
+           "order_pieces", "two_opt"]
 
 
 @dataclass
@@ -294,6 +294,25 @@ def _lead_in(closed: np.ndarray, length: float, waste: Polygon | None) -> np.nda
     return closed
 
 
+def check_on_table(layout: Layout, machine: Machine) -> None:
+    """Refuse, naming the cause, a marker that runs past the table's end along the roll.
+
+    A selvedge is an edge of the cloth, so a kerf beyond it is left out (`_on_fabric`);
+    the table's end is not: the cloth runs on and the piece would be cut short. Without
+    this check the program's own work-area check names a move and blames the kerf.
+    """
+    if not layout.pieces:
+        return
+    x0, x1 = machine.work_area[0], machine.work_area[2]
+    xs = np.concatenate([p.outline[:, 0] for p in layout.pieces])
+    lo, hi = float(xs.min()), float(xs.max())
+    if lo < x0 - 1e-6 or hi > x1 + 1e-6:
+        raise ValueError(
+            f"{layout.source}: the marker runs from x={lo:.1f} to x={hi:.1f} mm but the table "
+            f"({machine.name}) cuts x={x0:g} to {x1:g} mm: nest it with --length "
+            f"{x1 - layout.origin[0]:g} or less (station.toml [nest] length_mm)")
+
+
 def fabric_box(layout: Layout) -> Polygon | None:
     """The cloth on the table (machine mm): its two selvedges and its start; the roll runs
     on past the marker's end (x = length), so that is no edge. None: no width given."""
@@ -404,6 +423,7 @@ def build_toolpaths(layout: Layout, machine: Machine, *, only: set[str] | None =
                     ) -> list[PieceToolpath]:
     """Toolpaths of the layout's pieces (all, or those whose id is in ``only``) in cut order."""
     pieces = [(i, p) for i, p in enumerate(layout.pieces) if only is None or p.id in only]
+    check_on_table(layout, machine)
     if only is not None:
         missing = only - {p.id for _, p in pieces}
         if missing:

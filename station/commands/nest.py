@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 
 from station.cliargs import (
@@ -116,6 +117,7 @@ def run(args) -> int:
         raise UserError(f"the layout failed verification: {faults[0]} "
                         f"({len(faults)} faults); nothing written")
     layout.save(args.output)
+    _warn_past_table(layout.length, args.length, config["nest"]["length_mm"])
     if args.png:
         from station.render import draw_marker
 
@@ -134,3 +136,13 @@ def run(args) -> int:
         print(f"{summary['pieces']} pieces, length {layout.length:.1f} mm, "
               f"density {layout.density:.1%}{cut}, {seconds:.1f} s -> {args.output}")
     return 0
+
+
+def _warn_past_table(length: float, asked: float | None, table: float) -> None:
+    """Say now, not at `station gcode`, when an unbounded marker is longer than the table
+    window (station.toml [nest] length_mm): the table cannot cut it in one job."""
+    if asked is None and length > table + 1e-9:
+        print(f"station nest: warning: the marker is {length:.1f} mm long but the table "
+              f"window is {table:g} mm (station.toml [nest] length_mm): station gcode will "
+              f"refuse it; nest with --length {table:g} or cut fewer pieces per marker",
+              file=sys.stderr)

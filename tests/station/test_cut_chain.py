@@ -105,3 +105,24 @@ def test_inspect_names_the_openings_an_allowance_file_takes(data_dir, capsys):
     neck = next(o for o in openings if o["kind"] == "opening")
     bottom = max(openings, key=lambda o: o["length_mm"])
     assert bottom["kind"] == "hem" and neck["length_mm"] < bottom["length_mm"]
+
+
+def test_a_marker_longer_than_the_table_is_refused_with_its_cause(clean_cwd, data_dir, capsys):
+    """Berkeley trousers on grain need a ~2 m marker; the default table is 1600 mm long.
+    nest warns at once, and gcode refuses naming the marker and the table, not a move
+    and the kerf (what it said before)."""
+    tmp = clean_cwd
+    fabric = tmp / "fabric.json"
+    fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80]}))
+    garment = data_dir / "garments" / "berkeley" / "pants-coarse.obj"
+    assert main(["align", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--restarts", "2", "-o", str(tmp / "P.json")]) == 0
+    capsys.readouterr()
+    assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "2"]) == 0
+    layout = json.loads((tmp / "L.json").read_text())
+    assert layout["length"] > 1600.0
+    assert "table window is 1600 mm" in capsys.readouterr().err
+    assert main(["gcode", str(tmp / "L.json"), "-o", str(tmp / "J.nc")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "cuts x=0 to 1600 mm" in err and "--length 1600" in err
+    assert not (tmp / "J.nc").exists()
