@@ -7,6 +7,7 @@ import importlib
 import os
 import pkgutil
 import sys
+import warnings
 
 from station import commands
 from station.errors import UserError
@@ -31,9 +32,23 @@ def one_line(exc: BaseException) -> str:
     return text if len(text) <= 500 else text[:497] + "..."
 
 
+def _warn_on_one_line(command: str):
+    """Every warning a command raises as one ``station CMD: warning: ...`` line on stderr,
+    like its errors (Python's own format adds the file, line and source of the call)."""
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"station {command}: warning: {one_line(message)}", file=sys.stderr)
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = build_parser().parse_args(argv)
+    with warnings.catch_warnings():  # the command's warnings only, then Python's way again
+        warnings.showwarning = _warn_on_one_line(args.command)
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command, every fault one line on stderr and an exit status."""
     try:
         return int(args.func(args) or 0)
     except (UserError, ValueError, FileNotFoundError) as exc:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from collections import defaultdict
 from pathlib import Path
 
@@ -99,12 +100,19 @@ def _reflect(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return a + 2 * np.outer(v @ d, d) - v
 
 
-def _sew_inward(outline: np.ndarray, allowance_mm: float | None) -> np.ndarray | None:
-    """The sew line a file without layer 14 implies: the cut line moved in by the allowance."""
+def _sew_inward(outline: np.ndarray, allowance_mm: float | None, what: str
+                ) -> np.ndarray | None:
+    """The sew line a file without layer 14 implies: the cut line moved in by the allowance.
+
+    A piece narrower than twice the allowance (a loop, a binding strip) has none; that is
+    said (a warning naming ``what``), since the file's pieces are otherwise taken as cut."""
     if not allowance_mm:
         return None
     inner = shapely.Polygon(outline).buffer(-allowance_mm, join_style="mitre", mitre_limit=2.0)
     if inner.is_empty:
+        warnings.warn(f"{what} is too narrow for a {allowance_mm:g} mm seam allowance on "
+                      "every side: it gets no sew line (give its sew line on layer 14, or "
+                      "a smaller --seam-allowance)", stacklevel=2)
         return None
     if inner.geom_type != "Polygon":
         inner = max(inner.geoms, key=lambda q: q.area)
@@ -185,7 +193,7 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
         quantity = 1
     outline = np.asarray(outline, float)
     if sew_line is None:
-        sew_line = _sew_inward(outline, allowance_mm)
+        sew_line = _sew_inward(outline, allowance_mm, f"{where}: piece {name!r}")
     elif shapely.Polygon(sew_line).area < 0:
         sew_line = sew_line[::-1]
     if sew_line is not None:

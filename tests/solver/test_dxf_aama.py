@@ -166,3 +166,21 @@ def test_without_layer_14_the_sew_line_is_the_stated_allowance_inside(tmp_path):
     d = cut.exterior.distance(shapely.points(np.asarray(piece.sew_line)))
     assert d.min() == pytest.approx(10.0, abs=1e-6)
     assert read_dxf_aama(tmp_path / "net.dxf")[0].sew_line is None  # nothing stated
+
+
+def test_a_piece_too_narrow_for_the_allowance_is_told_not_silently_left_without_sew_line(
+        tmp_path, capsys):
+    """A 16 mm binding strip under a 10 mm allowance has no sew line inside it: the
+    console says so on one line, naming the file and the piece, and still nests."""
+    path = tmp_path / "strip.dxf"
+    write_dxf_aama([bodice("M"), Piece("binding", [[0, 0], [300, 0], [300, 16], [0, 16]])],
+                   path)
+    with pytest.warns(UserWarning, match="'binding' is too narrow for a 10 mm seam"):
+        pieces = read_dxf_aama(path, allowance_mm=10.0)
+    assert [p.sew_line is None for p in pieces] == [False, True]
+    rc = main(["nest", str(path), "-o", str(tmp_path / "L.json"), "--width", "900",
+               "--time", "1", "--seam-allowance", "10"])
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert rc == 0
+    assert len(warned) == 1 and warned[0].startswith("station nest: warning: ")
+    assert str(path) in warned[0] and "'binding'" in warned[0]
