@@ -14,8 +14,10 @@ from station.config import Config
 
 
 def rules_for(config: Config, seam_mm: float | None = None,
-              overrides: Mapping[int | str, float] | None = None) -> AllowanceRules:
-    """The rules: the station's defaults, the per-name overrides, then ``seam_mm``."""
+              overrides: Mapping[int | str, float] | None = None,
+              source: str = "") -> AllowanceRules:
+    """The rules: the station's defaults, the per-name overrides (from the file
+    ``source``, named in their errors), then ``seam_mm``."""
     a = config["allowance"]
     rules = AllowanceRules(a["seam_mm"], a["hem_mm"], a["opening_mm"],
                            notch_depth_mm=a["notch_depth_mm"],
@@ -23,7 +25,7 @@ def rules_for(config: Config, seam_mm: float | None = None,
     more: dict[int | str, float] = dict(overrides or {})
     if seam_mm is not None:
         more["seam"] = float(seam_mm)
-    return rules.with_overrides(more) if more else rules
+    return rules.with_overrides(more, source) if more else rules
 
 
 def name_key(key: str) -> int | str:

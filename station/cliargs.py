@@ -180,7 +180,8 @@ def allowance_rules(args: argparse.Namespace, config=None):
     if args.seam_allowance is not None and args.seam_allowance < 0:
         raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
     more = read_name_map(args.allowance, "allowance") if args.allowance else None
-    return rules_for(config or load_config_arg(args), args.seam_allowance, more)
+    return rules_for(config or load_config_arg(args), args.seam_allowance, more,
+                     source=args.allowance or "")
 
 
 def add_symmetrise_argument(parser: argparse.ArgumentParser) -> None:

@@ -61,6 +61,7 @@ class AllowanceRules:
     overrides: Mapping[int | str, float] = field(default_factory=dict)
     notch_depth_mm: float = 3.0
     notch_spacing_mm: float = 100.0
+    source: str = ""  # the file the overrides came from, named when one names nothing
 
     def __post_init__(self) -> None:
         for name in ("seam_mm", "hem_mm", "opening_mm"):
@@ -72,13 +73,16 @@ class AllowanceRules:
         if not self.cap >= 1.0:
             raise ValueError(f"allowance cap must be >= 1, got {self.cap!r}")
 
-    def with_overrides(self, more: Mapping[int | str, float]) -> AllowanceRules:
-        """Copy with ``more`` overrides on top; ``seam``/``hem``/``opening`` set defaults."""
+    def with_overrides(self, more: Mapping[int | str, float], source: str = ""
+                       ) -> AllowanceRules:
+        """Copy with ``more`` overrides on top (from the file ``source``, if given);
+        ``seam``/``hem``/``opening`` set defaults."""
         merged = {**self.overrides, **more}
         base = {k: _check_mm(k, merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
         return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
                               base.get("opening", self.opening_mm), self.cap, merged,
-                              self.notch_depth_mm, self.notch_spacing_mm)
+                              self.notch_depth_mm, self.notch_spacing_mm,
+                              source or self.source)
 
     def to_dict(self) -> dict:
         return {"seam_mm": self.seam_mm, "hem_mm": self.hem_mm,
@@ -250,21 +254,23 @@ def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.nda
     edges, opening, is_hem = open_edges(g)
     open_mm = np.where(is_hem, rules.hem_mm, rules.opening_mm)
     piece_open: dict[int, float] = {}
+    where = f"{rules.source}: " if rules.source else ""
     for key, value in ov.items():
         if isinstance(key, int) or (isinstance(key, str) and key in names):
             idx = names.get(key) if isinstance(key, str) else key
             if not 0 <= idx < len(seam_mm):
-                raise ValueError(f"no seam line {key!r} (there are {len(seam_mm)})")
+                raise ValueError(f"{where}no seam line {key!r} (there are {len(seam_mm)})")
             seam_mm[idx] = value
         elif key.startswith("open#") and key[5:].isdigit():
             k = int(key[5:])
             if not 0 <= k < len(open_mm):
-                raise ValueError(f"no opening {key!r} (there are {len(open_mm)}: open#0...)")
+                raise ValueError(f"{where}no opening {key!r} (there are {len(open_mm)}: "
+                                 "open#0...)")
             open_mm[k] = value
         elif key.endswith("/open") and key[:-5] in g.piece_names:
             piece_open[g.piece_names.index(key[:-5])] = float(value)
         else:
-            raise ValueError(f"no seam line, opening or piece {key!r}; seam lines are "
+            raise ValueError(f"{where}no seam line, opening or piece {key!r}; seam lines are "
                              f"{', '.join(names) or 'none'}, openings open#0..open#"
                              f"{len(open_mm) - 1}, pieces take PIECE/open")
     keys = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),

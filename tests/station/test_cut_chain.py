@@ -48,7 +48,7 @@ def test_default_nest_then_gcode_cuts_garment_pieces_with_allowances(clean_cwd, 
     load_program(tmp / "J.nc", default_machine())  # re-read and re-checked
 
 
-def test_seam_allowance_option_sets_the_seams(clean_cwd, data_dir, tmp_path):
+def test_seam_allowance_option_sets_the_seams(clean_cwd, data_dir, tmp_path, capsys):
     fabric = tmp_path / "fabric.json"
     fabric.write_text(json.dumps({"group": "p4m", "w1": [50, 0], "w2": [0, 50]}))
     garment = data_dir / "garments" / "garment_pattern_generator" / "tee.json"
@@ -62,8 +62,11 @@ def test_seam_allowance_option_sets_the_seams(clean_cwd, data_dir, tmp_path):
     used = set(np.concatenate([p["allowance"] for p in layout["pieces"]]).tolist())
     assert used == {15.0, 30.0, 6.0}
     (tmp_path / "bad.json").write_text(json.dumps({"no-such-seam": 5}))
+    capsys.readouterr()
     assert main(["nest", str(tmp_path / "P.json"), "-o", str(tmp_path / "L2.json"),
                  "--time", "1", "--allowance", str(tmp_path / "bad.json")]) == 2
+    (error,) = capsys.readouterr().err.splitlines()  # one line, naming the file
+    assert f"{tmp_path / 'bad.json'}: no seam line, opening or piece 'no-such-seam'" in error
 
 
 def test_pieces_touching_the_selvedge_still_make_a_program(clean_cwd, data_dir, capsys):
