@@ -527,10 +527,8 @@ def _read_stitches(
             if name not in index:
                 raise GarmentError(path, f"stitch {s} names missing panel {name!r}")
             p = index[name]
-            try:
-                e = int(side["edge"])
-            except (TypeError, ValueError):
-                raise GarmentError(path, f"stitch {s} has a bad edge index") from None
+            # 1.5 or true once read as edge 1: an index is a whole number, nothing else
+            e = untrusted.integer(side["edge"], path, f"stitch {s} edge", lo=0, hi=10**9)
             if not 0 <= e < len(dense[p]):
                 raise GarmentError(
                     path,

@@ -270,6 +270,15 @@ def test_pattern_panel_that_is_not_a_simple_polygon(tmp_path, capsys, vertices, 
     refused(capsys, bad, "inspect", bad, match=match)
 
 
+@pytest.mark.parametrize("edge", [1.5, True, "1", None])
+def test_stitch_edge_that_is_not_a_whole_number(tmp_path, capsys, edge):
+    """1.5 and true were read as edge 1: a seam sewn to an edge nobody named."""
+    spec = json.loads(SPEC.read_text())
+    spec["pattern"]["stitches"][0][0]["edge"] = edge
+    bad = write_json(tmp_path / "stitch.json", spec)
+    refused(capsys, bad, "inspect", bad, match="stitch 0 edge must be an integer")
+
+
 @pytest.mark.parametrize("curvature", [
     {"type": "cubic", "params": [[1e6, 1e6], [-1e6, 1e6]]},  # MemoryError after 17 s
     {"type": "circle", "params": [1e9, 1, 1]},  # a 2.3 GiB sample array
