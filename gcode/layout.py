@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 import untrusted
 
@@ -95,6 +96,17 @@ def _check_on_fabric(ring: np.ndarray, width: float, source: str, where: str) ->
             f"y {lo[1]:g}..{hi[1]:g} mm; the cloth starts at x = 0 and spans y 0..{width:g} mm")
 
 
+def _check_holes_inside(outline: np.ndarray, holes: list[np.ndarray], source: str,
+                        where: str) -> None:
+    """Err if a hole is not inside its piece: the toolpath cuts holes as the piece's inner
+    rings, and one outside it was dropped without a word (or would cut the cloth around)."""
+    piece = shapely.Polygon(outline).buffer(1e-6)
+    for k, hole in enumerate(holes):
+        if not piece.covers(shapely.Polygon(hole)):
+            raise untrusted.InputError(source, f"{where}.holes[{k}] is not inside the "
+                                       "piece's outline")
+
+
 def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
     """Check a LAYOUT.json dict and return it in machine coordinates (fabric + origin)."""
     lim = untrusted.limits
@@ -121,6 +133,7 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
         outline = _ring(p["outline"], source, f"{where}.outline") + off
         holes = [_ring(h, source, f"{where}.holes[{k}]") + off
                  for k, h in enumerate(_listed(p, "holes", source, where))]
+        _check_holes_inside(outline, holes, source, where)
         notches = [_notch(n, source, f"{where}.notches[{k}]", off)
                    for k, n in enumerate(_listed(p, "notches", source, where))]
         marks_in = _listed(p, "marks", source, where)

@@ -302,6 +302,16 @@ def test_layout_piece_off_the_fabric(tmp_path, capsys, outline, width):
     refused(capsys, bad, "gcode", bad, "-o", tmp_path / "x.nc", match="leaves the fabric")
 
 
+def test_layout_hole_outside_its_piece(tmp_path, capsys):
+    """The toolpath dropped such a hole without a word."""
+    bad = write_json(tmp_path / "layout.json",
+                     {"version": 1, "units": "mm", "width": 500, "length": 500,
+                      "pieces": [{"id": "a", "outline": [[10, 10], [60, 10], [60, 60]],
+                                  "holes": [[[200, 200], [210, 200], [210, 210]]]}]})
+    refused(capsys, bad, "gcode", bad, "-o", tmp_path / "x.nc",
+            match="pieces[0].holes[0] is not inside the piece's outline")
+
+
 @pytest.mark.parametrize("weights,match", [
     ({"²": 1}, "no seam line '²'"),  # int('²') raised, naming no file
     ({"9" * 5000: 1}, "no seam line"),  # int() refused 5000 digits, naming no file
