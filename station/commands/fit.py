@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 from solver.fit import fit_report
@@ -49,7 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    fabric = load_fabric(args.fabric)  # the small file first: fail fast
+    fabric = load_fabric(args.fabric)  # the small files first: fail fast
+    rules = allowance_rules(args)
+    if not args.png and (args.allowance or args.seam_allowance is not None):
+        print("station fit: warning: the allowance only changes the --png picture (the fit "
+              "is measured on the sew line)", file=sys.stderr)
     garment = load_garment_arg(args)
     if args.placement:
         placement = Placement.load(args.placement)
@@ -77,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         from solver.garment.notches import cut_ready
         from station.render import draw_fit
 
-        cuts, notches = cut_ready(garment, allowance_rules(args), placement)
+        cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.front_view:

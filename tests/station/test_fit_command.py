@@ -91,3 +91,21 @@ def test_missing_files_and_wrong_placement(tmp_path, fabric, capsys, data_dir):
     assert main(["fit", str(garment), "--units", "m", "--fabric", str(fabric),
                  "--placement", str(tmp_path / "p.json")]) == 2
     assert "placement has 3 pieces" in capsys.readouterr().err
+
+
+def test_an_allowance_without_a_picture_is_checked_and_said_to_change_nothing(
+        tmp_path, fabric, capsys, data_dir):
+    """The fit is measured on the sew line: an allowance only changes ``--png``. It was
+    ignored without a word, and a bad allowance file was never read."""
+    path = data_dir / "garments" / "berkeley" / "shorts-iso.obj"
+    common = ["fit", str(path), "--units", "m", "--fabric", str(fabric), "--json"]
+    plain = run_json(capsys, *common)
+    with_allowance = run_json(capsys, *common, "--seam-allowance", "15")
+    assert with_allowance["e_fit_mm2"] == pytest.approx(plain["e_fit_mm2"], rel=1e-12)
+    capsys.readouterr()
+    main([*common, "--seam-allowance", "15"])
+    assert "warning: the allowance only changes the --png picture" in capsys.readouterr().err
+    bad = tmp_path / "A.json"
+    bad.write_text('{"seam": -4}')
+    assert main([*common, "--allowance", str(bad)]) == 2
+    assert str(bad) in capsys.readouterr().err
