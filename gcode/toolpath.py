@@ -308,9 +308,9 @@ def check_on_table(layout: Layout, machine: Machine) -> None:
     lo, hi = float(xs.min()), float(xs.max())
     if lo < x0 - 1e-6 or hi > x1 + 1e-6:
         raise ValueError(
-            f"{layout.source}: the marker runs from x={lo:.1f} to x={hi:.1f} mm but the table "
-            f"({machine.name}) cuts x={x0:g} to {x1:g} mm: nest it with --length "
-            f"{x1 - layout.origin[0]:g} or less (station.toml [nest] length_mm)")
+            f"{layout.source}: the marker runs from x={lo:.1f} to x={hi:.1f} mm, outside the "
+            f"work area: the table ({machine.name}) cuts x={x0:g} to {x1:g} mm: nest it with "
+            f"--length {x1 - layout.origin[0]:g} or less (station.toml [nest] length_mm)")
 
 
 def fabric_box(layout: Layout) -> Polygon | None:

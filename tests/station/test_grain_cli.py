@@ -23,7 +23,7 @@ def run(capsys, argv: list[str]) -> tuple[int, dict | None, str]:
     return code, (json.loads(out) if code == 0 and "--json" in argv else None), err
 
 
-def test_inspect_reports_each_pieces_grain_and_its_source(capsys):
+def test_inspect_reports_each_pieces_grain_and_its_source(capsys, tmp_path):
     code, rep, err = run(capsys, ["inspect", str(PANTS), "--units", "m", "--json",
                                   "--grain-line", "piece1=10"])
     assert code == 0 and err == ""
@@ -35,8 +35,19 @@ def test_inspect_reports_each_pieces_grain_and_its_source(capsys):
     assert rep["piece_list"][1]["grain_deg"] == pytest.approx(10.0)
     assert abs(rep["piece_list"][0]["grain_deg"] - 90.0) < 5.0  # upright pants piece
     assert rep["grain_guessed"] == []
+    # a specification places its panels around the body: that is its drape
     code, rep, err = run(capsys, ["inspect", str(SPEC), "--json"])
-    assert code == 0 and rep["grain_guessed"]  # a flat pattern without grain lines
+    assert code == 0 and rep["grain_guessed"] == [] and err == ""
+    assert {p["grain_source"] for p in rep["piece_list"]} == {"drape"}
+    # without the placement it is a flat pattern without grain lines: guessed, and said
+    spec = json.loads(SPEC.read_text())
+    for panel in spec["pattern"]["panels"].values():
+        panel.pop("translation", None)
+        panel.pop("rotation", None)
+    flat = tmp_path / "flat.json"
+    flat.write_text(json.dumps(spec))
+    code, rep, err = run(capsys, ["inspect", str(flat), "--json"])
+    assert code == 0 and rep["grain_guessed"]
     assert "warning" in err and "guessed" in err and err.count("\n") == 1
     assert {p["grain_source"] for p in rep["piece_list"]} == {"outline"}
     code, _, err = run(capsys, ["inspect", str(SPEC), "--grain-line", "sleeve=0"])
