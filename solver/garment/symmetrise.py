@@ -159,13 +159,7 @@ def _one_side_first(g: Garment, pairs: list[MirrorPair]) -> list[MirrorPair]:
                 if m not in flip:
                     flip[m] = flip[n] ^ parity
                     stack.append(m)
-    return [_turned(p) if flip[n] else p for n, p in enumerate(pairs)]
-
-
-def _turned(p: MirrorPair) -> MirrorPair:
-    """The same pair read the other way: ``p_first = R FLIP p_second - R FLIP t``."""
-    return MirrorPair(p.second, p.first, p.rms_mm, p.size_mm, p.rotation,
-                      -p.rotation @ FLIP @ p.translation, p.declared)
+    return [p.turned() if flip[n] else p for n, p in enumerate(pairs)]
 
 
 class _Skip(Exception):

@@ -65,6 +65,11 @@ class MirrorPair:
         """(n,2) points of the first piece -> their mirror images on the second piece."""
         return (np.asarray(points, float) @ FLIP.T) @ self.rotation.T + self.translation
 
+    def turned(self) -> MirrorPair:
+        """The same pair read the other way: ``p_first = R FLIP p_second - R FLIP t``."""
+        return MirrorPair(self.second, self.first, self.rms_mm, self.size_mm, self.rotation,
+                          -self.rotation @ FLIP @ self.translation, self.declared)
+
     def to_dict(self) -> dict:
         return {"pieces": [self.first, self.second], "rms_mm": round(self.rms_mm, 3),
                 "size_mm": round(self.size_mm, 3), "declared": self.declared}
@@ -172,6 +177,61 @@ def mirror_correspondence(garment: Garment, pair: MirrorPair) -> np.ndarray | No
     if gap.max() > COPY_TOLERANCE * pair.size_mm or len(np.unique(near)) != len(near):
         return None
     return first[near]
+
+
+def mirrored_edges(garment: Garment, pair: MirrorPair) -> np.ndarray:
+    """(k,4) rows ``[a, b, c, d]``: each boundary edge a->b of the pair's first piece (as in
+    its face, holes included) and the second piece's boundary edge c->d at its mirror
+    image, c the image of a (mirroring reverses the outline, so d->c runs as in its face).
+
+    This is how the two halves of a pair are read as one pattern edge by edge: whatever
+    is decided per edge (allowance, notches) is decided once for both. The match is the
+    nearest edge midpoint under the pair's mirror: exact for a mirrored copy (a
+    symmetrised pair), the nearest edge for halves meshed apart.
+    """
+    from scipy.spatial import cKDTree
+
+    g = garment
+    bhe = g.boundary_half_edges()
+    mine = bhe[g.piece_of_vertex[bhe[:, 0]] == pair.first]
+    theirs = bhe[g.piece_of_vertex[bhe[:, 0]] == pair.second]
+    if len(mine) == 0 or len(theirs) == 0:
+        return np.zeros((0, 4), np.int64)
+    moved = pair.map_first_to_second(g.uv[mine].reshape(-1, 2)).reshape(-1, 2, 2)
+    _, k = cKDTree(g.uv[theirs].mean(axis=1)).query(moved.mean(axis=1))
+    c, d = theirs[k, 1], theirs[k, 0]  # the image of a->b runs d->c in its face
+    swap = (np.linalg.norm(g.uv[c] - moved[:, 0], axis=1)
+            > np.linalg.norm(g.uv[d] - moved[:, 0], axis=1))
+    return np.column_stack([mine, np.where(swap, d, c), np.where(swap, c, d)])
+
+
+def mirror_gap(pair: MirrorPair, a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance (mm) between the closed polygon ``a`` (on the first piece) mapped
+    by the pair's mirror and the closed polygon ``b`` (on the second), both ways: 0 when
+    the two are exact mirror images, as a pair's outlines and cut lines must be."""
+    moved = pair.map_first_to_second(np.asarray(a, float))
+    b = np.asarray(b, float)
+    return float(max(np.linalg.norm(_closest_on_polygon(moved, b) - moved, axis=1).max(),
+                     np.linalg.norm(_closest_on_polygon(b, moved[::-1]) - b, axis=1).max()))
+
+
+def cut_mismatch(pair: MirrorPair, cuts: Sequence, notches: Sequence) -> tuple[float, float]:
+    """How far a pair's cut is from mirroring (mm): the :func:`mirror_gap` of the two cut
+    lines, and the largest distance from a notch (``at``, on the cut line) of either piece
+    to the nearest mirrored notch of the other (inf when their numbers differ).
+
+    ``cuts`` and ``notches`` are per piece, as `solver.garment.notches.cut_ready` gives
+    them; a cutting room checks a pair this way, one piece laid flipped on the other.
+    """
+    cut = mirror_gap(pair, cuts[pair.first].outline, cuts[pair.second].outline)
+    a = np.array([n.at for n in notches[pair.first]], float).reshape(-1, 2)
+    b = np.array([n.at for n in notches[pair.second]], float).reshape(-1, 2)
+    if len(a) != len(b):
+        return cut, float("inf")
+    if len(a) == 0:
+        return cut, 0.0
+    d = np.linalg.norm(pair.map_first_to_second(a)[:, None] - b[None], axis=2)
+    return cut, float(max(d.min(axis=1).max(), d.min(axis=0).max()))
 
 
 def _exact_or(g: Garment, i: int, j: int, rot: np.ndarray, t: np.ndarray, rms: float

@@ -16,10 +16,11 @@ from solver.garment.allowance import AllowanceRules
 from solver.garment.notches import cut_ready
 from solver.garment.symmetrise import symmetrise, symmetrise_as_recorded
 from solver.garment.symmetry import (
-    _closest_on_polygon,
     centre_seams,
+    cut_mismatch,
     fit_pairs,
     mirror_correspondence,
+    mirror_gap,
     mirror_pairs,
 )
 from solver.reshape import reshape
@@ -41,14 +42,6 @@ def _load(name: str):
     return load_garment(DATA / name, units=GARMENTS[name])
 
 
-def _mirror_gap(g, pair, a: np.ndarray, b: np.ndarray) -> float:
-    """Largest distance (mm) between the polygon ``a`` mapped by the pair's mirror and the
-    polygon ``b``, both ways (closest points on the other's outline)."""
-    moved = pair.map_first_to_second(a)
-    return max(np.linalg.norm(_closest_on_polygon(moved, b) - moved, axis=1).max(),
-               np.linalg.norm(_closest_on_polygon(b, moved[::-1]) - b, axis=1).max())
-
-
 def _seam_structure(g) -> list[tuple[str, int, int, int]]:
     """Per seam line in order: name, pieces, number of twin edges."""
     return [(s.name, s.piece_a, s.piece_b, int((g.seam_line_of_edge == k).sum()))
@@ -68,7 +61,7 @@ def test_a_symmetrised_pair_is_one_pattern_cut_twice(name: str) -> None:
         assert copy is not None  # vertex for vertex
         second = np.flatnonzero(h.piece_of_vertex == p.second)
         assert np.abs(p.map_first_to_second(h.uv[copy]) - h.uv[second]).max() < 1e-9
-        assert _mirror_gap(h, p, h.piece_outline(p.first), h.piece_outline(p.second)) < 1e-9
+        assert mirror_gap(p, h.piece_outline(p.first), h.piece_outline(p.second)) < 1e-9
         # the pairs found again on the new garment are the same, and exact
         again = fit_pairs(h, [(p.first, p.second)])[0]
         assert again.rms_mm < 1e-6 and np.allclose(again.rotation, p.rotation)
@@ -147,18 +140,11 @@ def test_reshaping_keeps_a_symmetrised_pair_one_pattern(name: str, fabric: Wallp
     assert report.max_displacement_mm > 0.5  # it did reshape
     for p in fit_pairs(new, [p[:2] for p in placement.pairs]):
         assert mirror_correspondence(new, p) is not None
-        assert _mirror_gap(new, p, new.piece_outline(p.first),
-                           new.piece_outline(p.second)) < 0.1
+        assert mirror_gap(p, new.piece_outline(p.first), new.piece_outline(p.second)) < 0.1
     # 3. the cut: cut lines and notches of the two pieces mirror each other too
     cuts, notches = cut_ready(new, AllowanceRules(), placement if fabric is PMM else None)
     for p in fit_pairs(new, [p[:2] for p in placement.pairs]):
-        assert _mirror_gap(new, p, cuts[p.first].outline, cuts[p.second].outline) < 0.1
-        a = np.array([n.at for n in notches[p.first]]).reshape(-1, 2)
-        b = np.array([n.at for n in notches[p.second]]).reshape(-1, 2)
-        assert len(a) == len(b)
-        if len(a):
-            moved = p.map_first_to_second(a)
-            assert np.linalg.norm(moved[:, None] - b[None], axis=2).min(axis=1).max() < 0.1
+        assert max(cut_mismatch(p, cuts, notches)) < 0.1
 
 
 def test_station_align_fit_and_inspect_symmetrise(tmp_path: Path, capsys) -> None:
