@@ -132,7 +132,7 @@ class StationPipeline:
         from solver.garment.allowance import edge_allowances
         from station.allowance import rules_for_job
 
-        edge_allowances(loaded, rules_for_job(self.config, options))  # names must exist
+        edge_allowances(loaded, rules_for_job(self.config, options), ())  # names must exist
         for key in ("symmetry", "symmetrise"):
             if not isinstance(options.get(key, key == "symmetry"), bool):
                 raise ValueError(f"job option {key} must be true or false")

@@ -27,7 +27,7 @@ patterns are drawn upright).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,9 +35,10 @@ import shapely
 
 from solver.garment.grain import LIMB_ANGLE_DEG, PANEL_UP, panel_positions
 from solver.garment.model import Garment, _components
+from solver.garment.symmetry import MirrorPair, mirror_pairs, mirrored_edges
 
 __all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "drape_up",
-           "edge_allowances", "limb_end_axes", "offset_outline", "open_edges"]
+           "edge_allowances", "limb_end_axes", "offset_outline", "open_edges", "pair_allowances"]
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
 LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
@@ -240,11 +241,14 @@ def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndar
     return up
 
 
-def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.ndarray]]:
+def edge_allowances(garment: Garment, rules: AllowanceRules,
+                    pairs: Sequence[MirrorPair] | None = None) -> list[list[np.ndarray]]:
     """Per piece, per loop of :meth:`Garment.piece_loops`, the (k,) allowance of each edge.
 
     Edge k of a loop runs from ``loop[k]`` to ``loop[k + 1]``. Unknown override keys are
-    errors that list what exists.
+    errors that list what exists. The two halves of each mirror pair (``pairs``, default
+    :func:`~solver.garment.symmetry.mirror_pairs`) get one allowance per pair of mirrored
+    edges (:func:`pair_allowances`).
     """
     g, n = garment, garment.n_vertices
     rules = rules.with_overrides({})  # "seam", "hem", "opening" keys become the defaults
@@ -293,7 +297,36 @@ def edge_allowances(garment: Garment, rules: AllowanceRules) -> list[list[np.nda
                 a[is_open[pos]] = piece_open[i]
             per_loop.append(a)
         out.append(per_loop)
-    return out
+    return pair_allowances(g, out, mirror_pairs(g) if pairs is None else pairs)
+
+
+def pair_allowances(garment: Garment, per_piece: list[list[np.ndarray]],
+                    pairs: Sequence[MirrorPair]) -> list[list[np.ndarray]]:
+    """``per_piece`` (as :func:`edge_allowances` gives it) with each pair of mirrored edges
+    (:func:`~solver.garment.symmetry.mirrored_edges`) given the larger of its two
+    allowances, so a pair's cut lines are mirror images.
+
+    Left and right are one pattern cut twice, but their edges are classed one by one: the
+    hem test reads heights off a drape that need not be symmetric (a simulated drape, or an
+    up axis found across the body), and an override may name one half. Where the halves
+    disagree the larger allowance wins: a cutter can trim cloth, not add it.
+    """
+    g, n = garment, garment.n_vertices
+    loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
+    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
+    values = np.concatenate([a for per_loop in per_piece for a in per_loop]).astype(float)
+    order = np.argsort(keys)
+    for pair in pairs:
+        for p in (pair, pair.turned()):  # both ways: halves meshed apart need not match 1:1
+            rows = mirrored_edges(g, p)
+            mine = order[np.searchsorted(keys, rows[:, 0] * n + rows[:, 1], sorter=order)]
+            theirs = order[np.searchsorted(keys, rows[:, 3] * n + rows[:, 2], sorter=order)]
+            both = np.maximum(values[mine], values[theirs])
+            np.maximum.at(values, mine, both)
+            np.maximum.at(values, theirs, both)
+    sizes = [len(a) for per_loop in per_piece for a in per_loop]
+    flat = iter(np.split(values, np.cumsum(sizes)[:-1]))
+    return [[next(flat) for _ in per_loop] for per_loop in per_piece]
 
 
 def offset_outline(loops: list[np.ndarray], allowances: list[np.ndarray], *,
@@ -422,10 +455,12 @@ def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) 
     return out
 
 
-def cut_lines(garment: Garment, rules: AllowanceRules | None = None) -> list[CutLine]:
-    """Every piece's sew line, per-edge allowances and cut line (pattern mm)."""
+def cut_lines(garment: Garment, rules: AllowanceRules | None = None,
+              pairs: Sequence[MirrorPair] | None = None) -> list[CutLine]:
+    """Every piece's sew line, per-edge allowances and cut line (pattern mm); the mirror
+    ``pairs`` (default: found) get mirrored allowances (:func:`pair_allowances`)."""
     rules = rules or AllowanceRules()
-    per_piece = edge_allowances(garment, rules)
+    per_piece = edge_allowances(garment, rules, pairs)
     out = []
     for i in range(garment.n_pieces):
         loops = [garment.uv[lp] for lp in garment.piece_loops(i)]

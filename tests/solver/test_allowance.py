@@ -100,9 +100,11 @@ def test_open_edges_split_into_hems_and_openings():
 
 
 def test_overrides_change_only_what_they_name(garment):
-    base = edge_allowances(garment, AllowanceRules())
+    # each piece on its own: with mirror pairs the mirrored edges follow (test_pair_cut.py)
+    base = edge_allowances(garment, AllowanceRules(), ())
     name = garment.seam_lines[0].name
-    changed = edge_allowances(garment, AllowanceRules().with_overrides({name: 17.0, "hem": 33}))
+    changed = edge_allowances(garment, AllowanceRules().with_overrides({name: 17.0, "hem": 33}),
+                              ())
     first = garment.seam_edges[garment.seam_line_of_edge == 0]
     named = set(map(tuple, np.sort(np.vstack([first[:, :2], first[:, 2:]]), axis=1).tolist()))
     for i in range(garment.n_pieces):
