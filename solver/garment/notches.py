@@ -22,7 +22,8 @@ and a drill mark just before its point (:func:`dart_marks`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,9 +31,10 @@ import shapely
 
 from solver.garment.allowance import CutLine, dart_runs
 from solver.garment.model import Garment
+from solver.garment.symmetry import MirrorPair, fit_pairs, mirror_pairs, mirrored_edges
 
-__all__ = ["Notch", "cut_ready", "dart_marks", "placement_lattice", "print_stations",
-           "seam_notches"]
+__all__ = ["Notch", "cut_ready", "dart_marks", "placement_lattice", "placement_pairs",
+           "print_stations", "seam_notches"]
 
 
 LatticeCoords = Callable[[int, np.ndarray], np.ndarray]  # (piece, (k,2) uv) -> (k,2) frac
@@ -101,8 +103,8 @@ def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) 
 
 
 def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 100.0,
-                 depth_mm: float = 3.0,
-                 lattice_coords: LatticeCoords | None = None) -> list[list[Notch]]:
+                 depth_mm: float = 3.0, lattice_coords: LatticeCoords | None = None,
+                 pairs: Sequence[MirrorPair] = ()) -> list[list[Notch]]:
     """Per piece, the notches of every seam line (pattern mm), twins on matching points.
 
     ``cuts`` (:func:`solver.garment.allowance.cut_lines`) carry the per-edge allowances
@@ -111,6 +113,10 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     placement) the balance notches go where the print's lattice lines cross the sew line
     (:func:`print_stations`), the match points a cutter lines a plaid up on, no closer
     than half the spacing (a fine print would otherwise notch every few centimetres).
+    A seam line that is the mirror image of an earlier one through the mirror ``pairs``
+    takes that line's notches mirrored (:func:`_mirror_sources`): measured on its own,
+    a seam's stations depend on which side is measured and how it is meshed (a darted
+    waist is three runs), and a pair's notches would not mirror.
     """
     g = garment
     n = g.n_vertices
@@ -134,16 +140,33 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     darts = {line: (piece, run) for piece in range(g.n_pieces)
              for line, run in dart_runs(g, piece)}
 
-    def emit(line: int, sides: list) -> None:
-        """Add the notches of stations that are clear on both twin sides."""
+    def emit(line: int, sides: list, ids: np.ndarray | None = None) -> None:
+        """Add the notches of stations (numbered ``ids``, default in order) that are clear
+        on both twin sides."""
         made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, boundaries[piece],
                                                       sews[piece], depth_mm))
                 for piece, point, nrm, w, a, b, f in sides]
         both = made[0][-1] & made[1][-1]
+        ids = np.arange(len(both)) if ids is None else ids
         for piece, point, nrm, a, b, f, at, depth, _ in made:
             for j in np.flatnonzero(both):
                 out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
-                                        line, int(j), (int(a[j]), int(b[j])), float(f[j])))
+                                        line, int(ids[j]), (int(a[j]), int(b[j])),
+                                        float(f[j])))
+
+    def twin_sides(rows: np.ndarray, k: np.ndarray, f: np.ndarray) -> list:
+        """Both sides of stations at fraction ``f`` along twin rows ``rows[k]``."""
+        sides = []
+        for cols in ((0, 1), (2, 3)):
+            a, b = rows[k, cols[0]], rows[k, cols[1]]
+            w, fwd = lookup(a, b)
+            point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
+            sides.append((int(g.piece_of_vertex[a[0]]), point, _outward(g.uv, a, b, fwd), w,
+                          a, b, f))
+        return sides
+
+    images = _edge_images(g, pairs)
+    sources = _mirror_sources(g, images)
 
     for line in range(len(g.seam_lines)):
         if line in darts:  # a dart: one notch at each end of its mouth, its legs sewn shut
@@ -159,6 +182,12 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
                 sides.append((piece, g.uv[b] if f else g.uv[a], _outward(g.uv, a, b, fwd), w,
                               a, b, np.array([f])))
             emit(line, sides)
+            continue
+        if line in sources:
+            rows = g.seam_edges[g.seam_line_of_edge == line]
+            k, f, ids = _mirrored_stations(rows, sources[line], out, images)
+            if len(k):
+                emit(line, twin_sides(rows, k, f), ids)
             continue
         rows = _reference_side_first(g.uv, g.seam_edges[g.seam_line_of_edge == line],
                                      lambda u, v: lookup(u, v)[1])
@@ -181,27 +210,91 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
                                       min_gap=max(2.0 * float(allow.max()), spacing_mm / 2))
         k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
         f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
-        sides = []
-        for cols in ((0, 1), (2, 3)):
-            a, b = rows[k, cols[0]], rows[k, cols[1]]
-            w, fwd = lookup(a, b)
-            point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
-            sides.append((int(g.piece_of_vertex[a[0]]), point, _outward(g.uv, a, b, fwd), w,
-                          a, b, f))
-        emit(line, sides)
+        emit(line, twin_sides(rows, k, f))
     return out
 
 
-def cut_ready(garment: Garment, rules, placement=None) -> tuple[list[CutLine], list[list[Notch]]]:
+EdgeImages = dict[tuple[int, int], tuple[int, int]]
+
+
+def _edge_images(garment: Garment, pairs: Sequence[MirrorPair]) -> EdgeImages:
+    """Directed boundary edge a->b of a paired piece -> its partner's edge c->d at its
+    mirror image (c the image of a), both ways round and both directions."""
+    out: EdgeImages = {}
+    for pair in pairs:
+        for p in (pair, pair.turned()):
+            for a, b, c, d in mirrored_edges(garment, p).tolist():
+                out[(a, b)], out[(b, a)] = (c, d), (d, c)
+    return out
+
+
+def _mirror_sources(garment: Garment, images: EdgeImages) -> dict[int, int]:
+    """Seam line -> the lower-numbered seam line whose paired sides its own sides are the
+    mirror images of (the other half's copy of the seam); centre seams, which are their
+    own mirror images, and seams between unpaired pieces have none."""
+    g = garment
+    line_of: dict[tuple[int, int], int] = {}
+    for (a, b, a2, b2), line in zip(g.seam_edges.tolist(), g.seam_line_of_edge.tolist()):
+        for u, v in ((a, b), (b, a), (a2, b2), (b2, a2)):
+            line_of[(u, v)] = line
+    out = {}
+    for line in range(len(g.seam_lines)):
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        hits = [line_of.get(images[e], -1) for e in map(tuple, np.concatenate(
+            [rows[:, :2], rows[:, 2:]]).tolist()) if e in images]
+        if hits:
+            source = Counter(hits).most_common(1)[0][0]
+            if 0 <= source < line:
+                out[line] = source
+    return out
+
+
+def _mirrored_stations(rows: np.ndarray, source: int, out: list[list[Notch]],
+                       images: EdgeImages) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stations of a seam line (its twin ``rows``) at the mirror images of the notches
+    already made on seam line ``source``: per station the row, the fraction along it and
+    the source's station number. A notch on edge a->b at t maps to t along the image
+    c->d (c the image of a), the same point of the mirrored piece."""
+    at_row = {}
+    for r, (a, b, a2, b2) in enumerate(rows.tolist()):
+        at_row[(a, b)], at_row[(b, a)] = (r, False), (r, True)
+        at_row[(a2, b2)], at_row[(b2, a2)] = (r, False), (r, True)
+    found: dict[int, tuple[int, float]] = {}
+    for notch in (n for piece in out for n in piece if n.seam_line == source):
+        image = images.get(notch.edge)
+        if image in at_row and notch.station not in found:
+            r, flipped = at_row[image]
+            found[notch.station] = (r, 1.0 - notch.t if flipped else notch.t)
+    ids = np.array(sorted(found), dtype=np.int64)
+    k = np.array([found[i][0] for i in ids], dtype=np.int64)
+    f = np.array([found[i][1] for i in ids], dtype=float)
+    return k, f, ids
+
+
+def cut_ready(garment: Garment, rules, placement=None,
+              pairs: Sequence[MirrorPair] | None = None
+              ) -> tuple[list[CutLine], list[list[Notch]]]:
     """Per piece the cut line and the notches with ``rules`` (AllowanceRules); with the
-    placement the balance notches sit on the print's lattice lines."""
+    placement the balance notches sit on the print's lattice lines. Mirror ``pairs`` get
+    mirrored allowances and notches; by default the pairs the placement records, else
+    the garment's own (:func:`~solver.garment.symmetry.mirror_pairs`)."""
     from solver.garment.allowance import cut_lines
 
-    cuts = cut_lines(garment, rules)
+    if pairs is None:
+        pairs = placement_pairs(garment, placement)
+    cuts = cut_lines(garment, rules, pairs)
     lattice = None if placement is None or placement.fabric is None else placement_lattice(
         placement)
     return cuts, seam_notches(garment, cuts, spacing_mm=rules.notch_spacing_mm,
-                              depth_mm=rules.notch_depth_mm, lattice_coords=lattice)
+                              depth_mm=rules.notch_depth_mm, lattice_coords=lattice,
+                              pairs=pairs)
+
+
+def placement_pairs(garment: Garment, placement=None) -> list[MirrorPair]:
+    """The mirror pairs a placement was made with (operator's declarations and vetoes
+    included), else, without a placement or pairs in it, those the garment shows."""
+    recorded = [] if placement is None else [p[:2] for p in placement.pairs]
+    return fit_pairs(garment, recorded) if recorded else mirror_pairs(garment)
 
 
 def placement_lattice(placement) -> LatticeCoords:
