@@ -140,9 +140,9 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     darts = {line: (piece, run) for piece in range(g.n_pieces)
              for line, run in dart_runs(g, piece)}
 
-    def emit(line: int, sides: list, ids: np.ndarray | None = None) -> None:
+    def emit(line: int, sides: list, ids: np.ndarray | None = None) -> np.ndarray:
         """Add the notches of stations (numbered ``ids``, default in order) that are clear
-        on both twin sides."""
+        on both twin sides; the numbers of those added."""
         made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, boundaries[piece],
                                                       sews[piece], depth_mm))
                 for piece, point, nrm, w, a, b, f in sides]
@@ -153,6 +153,7 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
                 out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
                                         line, int(ids[j]), (int(a[j]), int(b[j])),
                                         float(f[j])))
+        return ids[both]
 
     def twin_sides(rows: np.ndarray, k: np.ndarray, f: np.ndarray) -> list:
         """Both sides of stations at fraction ``f`` along twin rows ``rows[k]``."""
@@ -186,8 +187,12 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
         if line in sources:
             rows = g.seam_edges[g.seam_line_of_edge == line]
             k, f, ids = _mirrored_stations(rows, sources[line], out, images)
-            if len(k):
-                emit(line, twin_sides(rows, k, f), ids)
+            kept = emit(line, twin_sides(rows, k, f), ids) if len(k) else ids
+            # a mirror image not clear here (beside an unpaired piece) drops its original
+            dropped = set(ids.tolist()) - set(kept.tolist())
+            for notches in out:
+                notches[:] = [n for n in notches
+                              if n.seam_line != sources[line] or n.station not in dropped]
             continue
         rows = _reference_side_first(g.uv, g.seam_edges[g.seam_line_of_edge == line],
                                      lambda u, v: lookup(u, v)[1])

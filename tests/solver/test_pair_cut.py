@@ -180,3 +180,19 @@ def test_shared_garments_cut_pairs_as_mirror_images(shared_data) -> None:
             assert cut < TOLERANCE_MM and notch < TOLERANCE_MM, (path.name, i, j, cut, notch)
             checked += 1
     assert checked >= 70
+
+
+def test_shared_dress_keeps_or_drops_a_notch_with_its_mirror_image(shared_data) -> None:
+    """GarmentCode's pencil dress under a pmm plaid: one front's waist notch came too
+    close to the (unpaired, reshaped) skirt's sew line and was dropped on that half only,
+    so the fronts had 19 and 20 notches."""
+    from bench.paircut import aligned_reshaped, check, load
+
+    g = load(shared_data / "garments" / "garmentcode" / "repo_specs"
+             / "dress_pencil_specification.json")
+    sym = symmetrise(g, mirror_pairs(g))
+    new, placement = aligned_reshaped(sym.garment, sym.pairs)
+    found = check(new, fit_pairs(new, [p[:2] for p in placement.pairs]), placement)
+    assert found
+    for i, j, cut, notch in found:
+        assert cut < TOLERANCE_MM and notch < TOLERANCE_MM, (i, j, cut, notch)
