@@ -296,10 +296,13 @@ def cut_ready(garment: Garment, rules, placement=None,
 
 
 def placement_pairs(garment: Garment, placement=None) -> list[MirrorPair]:
-    """The mirror pairs a placement was made with (operator's declarations and vetoes
-    included), else, without a placement or pairs in it, those the garment shows."""
-    recorded = [] if placement is None else [p[:2] for p in placement.pairs]
-    return fit_pairs(garment, recorded) if recorded else mirror_pairs(garment)
+    """The mirror pairs an alignment kept: those its placement records, the operator's
+    declarations, vetoes and ``--no-symmetry`` included (none when it kept none, so a veto
+    is never undone here). Without an aligned placement (none, or the identity, which
+    has no report), the pairs the garment shows."""
+    if placement is not None and placement.report:
+        return fit_pairs(garment, [p[:2] for p in placement.pairs])
+    return mirror_pairs(garment)
 
 
 def placement_lattice(placement) -> LatticeCoords:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from solver.align import align
 from solver.align.symmetric import align_symmetric
 from solver.garment import load_garment
 from solver.garment.allowance import AllowanceRules, cut_lines, edge_allowances, open_edges
@@ -196,3 +197,20 @@ def test_shared_dress_keeps_or_drops_a_notch_with_its_mirror_image(shared_data) 
     assert found
     for i, j, cut, notch in found:
         assert cut < TOLERANCE_MM and notch < TOLERANCE_MM, (i, j, cut, notch)
+
+
+def test_pairs_an_alignment_left_apart_are_not_mirrored_by_the_cut() -> None:
+    """An operator's veto (or ``--no-symmetry``) is what the placement records: the cut
+    honours it, and only a placement from no alignment takes the pairs the garment shows."""
+    sym = _symmetrised("garmentcode/pants_specification.json", None)
+    pair = next(p for p in sym.pairs if "pant_f" in sym.garment.piece_names[p.first])
+    g = _upside_down(sym.garment, pair.second)
+    rules = AllowanceRules()
+    kept = align_symmetric(g, PMM, fit_pairs(g, [(pair.first, pair.second)]), restarts=1)
+    vetoed = align(g, PMM, restarts=1)  # what `station align --no-symmetry` runs
+    assert kept.pairs and not vetoed.pairs and vetoed.report
+    for placement, mirrored in ((kept, True), (vetoed, False)):
+        cuts, _ = cut_ready(g, rules, placement)
+        assert (cuts[pair.second].allowance.max() == rules.hem_mm) == mirrored
+    cuts, _ = cut_ready(g, rules)  # no alignment: the pairs the garment shows
+    assert cuts[pair.second].allowance.max() == rules.hem_mm
