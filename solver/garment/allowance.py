@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from solver.garment.grain import LIMB_ANGLE_DEG, PANEL_UP, panel_positions
+from solver.garment.grain import LIMB_ANGLE_DEG, PANEL_UP, detect_up, panel_positions
 from solver.garment.model import Garment, _components
 from solver.garment.symmetry import MirrorPair, mirror_pairs, mirrored_edges
 
@@ -42,6 +42,7 @@ __all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", 
 
 TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
 LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
+VOTE_LEVEL = 0.9  # level enough (within ~25 degrees) to vote on which end is up
 
 
 @dataclass(frozen=True)
@@ -219,19 +220,20 @@ def _opening_planes(pos: np.ndarray, edges: np.ndarray, opening: np.ndarray
 
 
 def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
-    """The drape's up direction, from its openings (the files disagree: Berkeley is z-up,
-    GarmentCode y-up).
+    """The drape's up direction (the files disagree: Berkeley is z-up, GarmentCode y-up).
 
-    Hems, necklines and waists are horizontal loops, so the coordinate axis their planes'
-    normals favour (weighted by length) is vertical; sleeve ends in a T-pose vote for the
-    arm. A garment hangs from its smaller end: the neckline or waist is shorter than the
-    hems below it, so up is the side of the mid-height with less length of horizontal
-    openings.
+    The axis is the one across which the garment is least mirror-symmetric
+    (:func:`~solver.garment.grain.detect_up`, as the grain takes it): a garment mirrors
+    left to right, and the openings' planes favour the wrong axis on an open front (a
+    shirt's or jacket's hem, front edges and neckline are one loop, standing upright) or
+    with T-pose sleeves. The sense: a garment hangs from its smaller end, the neckline
+    or waist shorter than the hems below it, so up is the side of the mid-height with
+    less length of level openings; only loops within ``VOTE_LEVEL`` of level vote (a
+    sleeve's cuff at 45 degrees is neither hem nor neckline).
     """
+    axis = int(np.argmax(detect_up(xyz)))
     centre, normal, total = _opening_planes(xyz, edges, opening)
-    normal = np.abs(normal)
-    axis = int(np.argmax(total @ normal))
-    level = normal[:, axis] > LEVEL  # horizontal loops only: armholes, sleeves do not vote
+    level = np.abs(normal[:, axis]) > VOTE_LEVEL
     h = centre[:, axis]
     middle = 0.5 * (xyz[:, axis].min() + xyz[:, axis].max())
     above = total[level & (h > middle)].sum()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import shapely
@@ -11,6 +13,7 @@ from solver.garment.allowance import (
     AllowanceRules,
     cut_lines,
     dart_fills,
+    drape_up,
     edge_allowances,
     offset_outline,
     open_edges,
@@ -179,3 +182,58 @@ def test_shared_garments_keep_the_cut_line_bounds(shared_data):
             assert c.cut.is_valid and c.cut.exterior.is_simple, path.name
             assert sew.buffer(allow.min() - 0.5).difference(c.cut).area < 1e-6, path.name
             assert sew.buffer(2 * allow.max() + 0.5).contains(c.cut), path.name
+
+
+def _rings(specs: list[tuple[np.ndarray, np.ndarray, float]], n: int = 64
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points, edges and opening labels of circular openings (centre, normal, radius)."""
+    pts, edges, label = [], [], []
+    for k, (c, nrm, r) in enumerate(specs):
+        nrm = np.asarray(nrm, float) / np.linalg.norm(nrm)
+        u = np.cross(nrm, [0.0, 0.0, 1.0] if abs(nrm[2]) < 0.9 else [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(nrm, u)
+        t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        start = sum(len(p) for p in pts)
+        pts.append(np.asarray(c, float) + r * (np.outer(np.cos(t), u) + np.outer(np.sin(t), v)))
+        edges.append(start + np.column_stack([np.arange(n), (np.arange(n) + 1) % n]))
+        label.append(np.full(n, k))
+    return np.vstack(pts), np.vstack(edges), np.concatenate(label)
+
+
+def test_up_is_the_least_mirrored_axis_and_cuffs_at_45_degrees_do_not_vote():
+    """A t-shirt y-up (as GarmentCode places its panels) with its sleeves raised 45
+    degrees: hem 300 mm across at the bottom, neckline 150 mm at the top, cuffs 200 mm.
+    The cuffs counted as level openings above the middle and turned the garment upside
+    down (its neckline then took the hem allowance); and open fronts made the openings'
+    planes pick the axis. Up is the axis across which the garment is least mirrored."""
+    xyz, edges, opening = _rings([([0, 0, 0], [0, 1, 0], 300.0),
+                                  ([0, 500, 0], [0, 1, 0], 150.0),
+                                  ([-400, 400, 0], [0.7, 0.71, 0], 200.0),
+                                  ([400, 400, 0], [-0.7, 0.71, 0], 200.0)])
+    assert np.allclose(drape_up(xyz, edges, opening), [0, 1, 0])
+    turned = xyz[:, [2, 0, 1]]  # the same garment z-up (as the Berkeley files are)
+    assert np.allclose(drape_up(turned, edges, opening), [0, 0, 1])
+    assert np.allclose(drape_up(-turned, edges, opening), [0, 0, -1])
+
+
+def test_shared_drapes_stand_up(shared_data):
+    """GarmentCode's box meshes are y-up and stand on their hems; the Berkeley and ARCSim
+    drapes are z-up. Before, the box meshes (sleeves at 45 degrees) stood on their
+    necklines, the neckline cut with the hem's allowance and the hem with an opening's,
+    and open fronts (Berkeley shirt and vest, ARCSim jacket) had up across the body."""
+    garments = shared_data / "garments"
+    boxes = sorted((garments / "garmentcode").glob("**/*boxmesh*.obj"))
+    drapes = sorted(garments.glob("berkeley_garment_library/**/*-iso*.obj")) + sorted(
+        (garments / "arcsim_meshes").glob("*.obj"))
+    assert len(boxes) >= 4 and len(drapes) >= 10
+    for path, expected in [(p, [0, 1, 0]) for p in boxes] + [(p, [0, 0, 1]) for p in drapes]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            g = load_garment(path, units="m" if "berkeley" in str(path) else None)
+        edges, opening, is_hem = open_edges(g)
+        assert np.allclose(drape_up(g.xyz, edges, opening), expected), path
+        if path in boxes:  # the lowest opening is the hem
+            low = [g.xyz[edges[opening == k][:, 0], 1].mean()
+                   for k in range(int(opening.max()) + 1)]
+            assert is_hem[int(np.argmin(low))], path
