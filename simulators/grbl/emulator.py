@@ -46,6 +46,32 @@ class Faults:
     reset_at: set[int] = field(default_factory=set)
     disconnect_at: set[int] = field(default_factory=set)
     power_cut_at: set[int] = field(default_factory=set)
+    dup_byte_at: set[int] = field(default_factory=set)  # the byte arrives twice
+    insert_at: dict[int, bytes] = field(default_factory=dict)  # a burst before byte N
+    # The controller's transmit line (GRBL -> host): bytes count from 1 over every byte it
+    # sends; and its answers: `ok`s count from 1 over every `ok` it sends.
+    out_drop_at: set[int] = field(default_factory=set)
+    out_flip_at: set[int] = field(default_factory=set)
+    out_dup_at: set[int] = field(default_factory=set)
+    out_insert_at: dict[int, bytes] = field(default_factory=dict)
+    drop_ok_at: set[int] = field(default_factory=set)
+    dup_ok_at: set[int] = field(default_factory=set)
+
+    def corrupt(self, data: bytes, first: int, drop: set[int], flip: set[int],
+                dup: set[int], insert: dict[int, bytes]) -> bytes:
+        """``data`` as a faulty line delivers it, its first byte being number ``first``.
+        WHY one routine: both directions of the wire fail the same ways."""
+        last = first + len(data)
+        if not any(first <= n < last for f in (drop, flip, dup, insert) for n in f):
+            return data
+        out = bytearray()
+        for n, byte in enumerate(data, first):
+            out += insert.get(n, b"")
+            if n in drop:
+                continue
+            byte ^= 0x01 if n in flip else 0
+            out += bytes([byte, byte]) if n in dup else bytes([byte])
+        return bytes(out)
 
 
 class GrblEmulator:
@@ -83,6 +109,8 @@ class GrblEmulator:
         self.lines_executed = 0
         self.bytes_received = 0
         self.bytes_lost = 0
+        self.bytes_sent = 0
+        self.oks_sent = 0
         self.sim_time = 0.0
         # Connection.
         self._out = bytearray()
@@ -145,14 +173,12 @@ class GrblEmulator:
             self._wall += time.monotonic() - busy_from
 
     def _receive(self, data: bytes) -> None:
-        for byte in bytes(data):
-            self.bytes_received += 1
-            n = self.bytes_received
-            if n in self.faults.drop_byte_at:
-                self.bytes_lost += 1
-                continue
-            if n in self.faults.flip_byte_at:
-                byte ^= 0x01
+        f = self.faults
+        first = self.bytes_received + 1
+        self.bytes_received += len(data)
+        self.bytes_lost += sum(first <= n < first + len(data) for n in f.drop_byte_at)
+        for byte in f.corrupt(bytes(data), first, f.drop_byte_at, f.flip_byte_at,
+                              f.dup_byte_at, f.insert_at):
             if self._realtime(byte):
                 continue
             if byte > 0x7F:
@@ -306,9 +332,20 @@ class GrblEmulator:
 
     # ------------------------------------------------------------------ output
     def _emit(self, text: str) -> None:
-        if self.connected:
-            self._out += text.encode("latin-1") + b"\r\n"
-            self._cond.notify_all()
+        if not self.connected:
+            return
+        data = text.encode("latin-1") + b"\r\n"
+        f = self.faults
+        if text == "ok":
+            self.oks_sent += 1
+            if self.oks_sent in f.drop_ok_at:
+                return
+            data *= 2 if self.oks_sent in f.dup_ok_at else 1
+        first = self.bytes_sent + 1
+        self.bytes_sent += len(data)
+        self._out += f.corrupt(data, first, f.out_drop_at, f.out_flip_at, f.out_dup_at,
+                               f.out_insert_at)
+        self._cond.notify_all()
 
     # ------------------------------------------------------------------ real-time bytes
     def _realtime(self, byte: int) -> bool:

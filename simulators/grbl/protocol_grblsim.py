@@ -5,13 +5,16 @@ pyserial finds it as `<package>.protocol_grblsim` once `simulators.grbl` is in
 
     grblsim://?speed=20&name=cutter&error_at=12:20&alarm_at=30:1&drop_byte_at=500
               &flip_byte_at=77&reset_at=40&disconnect_at=50&power_cut_at=60&force_origin=1
-              &baud=115200
+              &baud=115200&dup_byte_at=90&insert_at=95:213f0a&out_drop_at=300
+              &out_flip_at=310&out_dup_at=320&out_insert_at=330:6f6b0d0a
+              &drop_ok_at=7&dup_ok_at=9
 
 speed: simulated seconds per wall second (default 1); baud: model the serial line at that
 rate in both directions (default: none, bytes arrive at once; see `wire.SerialLine`);
 name: share one machine between opens
 (reopen after a disconnect or power cut); *_at: fault injection (lines and bytes count from 1,
-several values separated by commas); force_origin: homing sets the origin at the home switches
+several values separated by commas; out_* count the bytes GRBL sends, *_ok_at its `ok`s;
+insert bursts are given in hex); force_origin: homing sets the origin at the home switches
 (build option Z); settings: `$N` values stored before power-up, e.g. settings=22:1,20:1.
 The port object exposes the machine as `port.emulator`.
 """
@@ -31,7 +34,9 @@ from simulators.grbl.wire import SerialLine
 EXPECTED = (
     '"grblsim://[?speed=S][&name=NAME][&error_at=LINE:CODE][&alarm_at=LINE:CODE]'
     "[&drop_byte_at=N][&flip_byte_at=N][&reset_at=LINE][&disconnect_at=LINE]"
-    '[&power_cut_at=LINE][&settings=N:V,...][&force_origin=0|1][&baud=BAUD]'
+    '[&power_cut_at=LINE][&dup_byte_at=N][&insert_at=N:HEX][&out_drop_at=N]'
+    "[&out_flip_at=N][&out_dup_at=N][&out_insert_at=N:HEX][&drop_ok_at=K][&dup_ok_at=K]"
+    '[&settings=N:V,...][&force_origin=0|1][&baud=BAUD]'
     '[&logging=debug|info|warning|error]"'
 )
 LOGGER_LEVELS = {"debug": logging.DEBUG, "info": logging.INFO,
@@ -81,8 +86,17 @@ def parse_url(url: str) -> tuple[dict, dict, str | None]:
                 table[int(line)] = int(code)
             faults[option] = table
         elif option in ("drop_byte_at", "flip_byte_at", "reset_at", "disconnect_at",
-                        "power_cut_at"):
+                        "power_cut_at", "dup_byte_at", "out_drop_at", "out_flip_at",
+                        "out_dup_at", "drop_ok_at", "dup_ok_at"):
             faults[option] = {int(v) for v in items}
+        elif option in ("insert_at", "out_insert_at"):
+            table = {}
+            for item in items:
+                at, sep, burst = item.partition(":")
+                if not sep:
+                    raise ValueError(f"{option} needs BYTE:HEX, got {item!r}")
+                table[int(at)] = bytes.fromhex(burst)
+            faults[option] = table
         elif option == "logging":
             if values[-1] not in LOGGER_LEVELS:
                 raise ValueError(f"unknown logging level {values[-1]!r}")

@@ -52,14 +52,29 @@ def wire_lines(prog: Program) -> list[bytes]:
             if strip_comment(ln)]
 
 
-class LineFault:
-    """Arms the emulator's byte fault at byte ``offset`` of the ``line``-th program line
-    written (the emulator counts every byte, polls included, so the position is only known
-    when that line goes out)."""
+def arm(em, kind: str, offset: int, value: bytes | None = None) -> None:
+    """Arm the emulator's fault ``kind`` (``flip``/``drop`` or a ``Faults`` field) ``offset``
+    positions past its counter: bytes GRBL received, bytes it sent (``out_*``) or its
+    ``ok``s (``*_ok_at``)."""
+    attr = f"{kind}_byte_at" if kind in ("flip", "drop") else kind
+    counter = (em.bytes_sent if attr.startswith("out_") else
+               em.oks_sent if attr.endswith("_ok_at") else em.bytes_received)
+    faults = getattr(em.faults, attr)
+    if isinstance(faults, dict):
+        faults[counter + offset + 1] = value
+    else:
+        faults.add(counter + offset + 1)
 
-    def __init__(self, port, lines: list[bytes], kind: str, line: int, offset: int):
+
+class LineFault:
+    """Arms the emulator's fault at ``offset`` past its counter (see ``arm``) when the
+    ``line``-th program line is written (the emulator counts every byte, polls included,
+    so the position is only known when that line goes out)."""
+
+    def __init__(self, port, lines: list[bytes], kind: str, line: int, offset: int,
+                 value: bytes | None = None):
         self.__dict__.update(port=port, lines=lines, kind=kind, line=line, offset=offset,
-                             next=0)
+                             value=value, next=0)
 
     def __getattr__(self, name):
         return getattr(self.port, name)
@@ -71,9 +86,7 @@ class LineFault:
         j = self.next
         if j < len(self.lines) and data == self.lines[j]:
             if j == self.line:
-                em = self.port.emulator
-                getattr(em.faults, f"{self.kind}_byte_at").add(em.bytes_received
-                                                               + self.offset + 1)
+                arm(self.port.emulator, self.kind, self.offset, self.value)
             self.__dict__["next"] = j + 1
         return self.port.write(data)
 
@@ -112,15 +125,21 @@ def judge(prog: Program, em, res) -> None:
         assert off <= 0.5, f"completed with the beam {off:.2f} mm off the path"
     else:
         _stopped_safely(em, res, off)
-    # every piece reported cut was cut: its whole path lies within 0.5 mm of the burnt path
-    full = [s for s in burnt if s.complete]
     for piece, rec in zip(prog.pieces, res.pieces, strict=True):
         if rec.state == "cut":
-            pa, pb = _cut_segments(prog, range(piece.first_line, piece.sync_line))
-            need = np.vstack([pa, pb[-1:]])
-            ta = np.array([(s.x0, s.y0) for s in full])
-            tb = np.array([(s.x1, s.y1) for s in full])
-            assert _distance(need, ta, tb).max() <= 0.5, f"piece {piece.id} not fully cut"
+            assert fully_cut(prog, em, piece), f"piece {piece.id} not fully cut"
+
+
+def fully_cut(prog: Program, em, piece) -> bool:
+    """The machine has traced the whole of ``piece``'s cut with the beam on, so far: its
+    path lies within 0.5 mm of completed beam-on segments."""
+    full = [s for s in list(em.trace) if s.power > 0 and not s.rapid and s.complete]
+    if not full:
+        return False
+    pa, pb = _cut_segments(prog, range(piece.first_line, piece.sync_line))
+    ta = np.array([(s.x0, s.y0) for s in full])
+    tb = np.array([(s.x1, s.y1) for s in full])
+    return bool(_distance(np.vstack([pa, pb[-1:]]), ta, tb).max() <= 0.5)
 
 
 def _stopped_safely(em, res, off: float) -> None:
@@ -133,15 +152,23 @@ def _stopped_safely(em, res, off: float) -> None:
 
 
 def run_with(prog: Program, speed: float, kind: str | None = None, line: int = 0,
-             offset: int = 0, url_extra: str = ""):
+             offset: int = 0, url_extra: str = "", value: bytes | None = None):
     port = serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}{url_extra}",
                                  timeout=0.02)
     em = port.emulator
     if kind is not None:
-        port = LineFault(port, wire_lines(prog), kind, line, offset)
-    st = Streamer(port, response_timeout=2.0, stall_timeout=1.0)
+        port = LineFault(port, wire_lines(prog), kind, line, offset, value)
+    early: list[str] = []  # pieces marked cut before the machine had cut them
+
+    def on_piece(rec) -> None:
+        piece = next(p for p in prog.pieces if p.number == rec.number)
+        if rec.state == "cut" and not fully_cut(prog, em, piece):
+            early.append(rec.id)
+
+    st = Streamer(port, response_timeout=2.0, stall_timeout=1.0, on_piece=on_piece)
     st.connect(quiet=0.02)
     res = st.run(prog)
+    assert not early, f"marked cut before the machine had cut them: {early}"
     judge(prog, em, res)
     port.close()
     return res

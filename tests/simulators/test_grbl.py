@@ -575,6 +575,37 @@ def test_injected_byte_faults_corrupt_the_line(fault, x):
         p.close()
 
 
+@pytest.mark.parametrize(("fault", "x"), [("dup_byte_at=20", -122.0),
+                                          ("insert_at=20:35", -152.0)])
+def test_injected_byte_duplicated_or_inserted_toward_grbl(fault, x):
+    """`dup_byte_at=N` delivers byte N twice; `insert_at=N:HEX` puts a burst before it."""
+    p = open_port(f"{FAST}&{fault}")
+    try:
+        read_boot(p)
+        assert send(p, "G1 X-1 F1000") == ["ok"]
+        assert send(p, "G1 X-12") == ["ok"]
+        assert send(p, "G4 P0") == ["ok"]
+        assert p.emulator.trace[-1].x1 == x
+    finally:
+        p.close()
+
+
+def test_injected_faults_on_grbls_transmit_line():
+    """`out_*` corrupt the bytes GRBL sends (counted from its start-up message), and
+    `drop_ok_at` / `dup_ok_at` lose or double its K-th `ok`."""
+    boot = len(f"\r\n{C.BANNER}\r\n")
+    p = open_port(f"{FAST}&out_flip_at={boot + 1}&drop_ok_at=2&dup_ok_at=3"
+                  f"&out_insert_at={boot + 5}:213e0d0a")
+    try:
+        assert read_boot(p)[:2] == ["", C.BANNER]
+        p.write(b"G4P0\nG4P0\nG4P0\n")
+        time.sleep(0.1)
+        # `ok` with o^1 = n; the second `ok` lost; the third twice, a burst before it
+        assert p.read(100) == b"nk\r\n!>\r\nok\r\nok\r\n"
+    finally:
+        p.close()
+
+
 def test_injected_reset_at_line():
     """`reset_at=LINE`: a soft reset as that line arrives; "The start up message always prints
     upon startup and after a reset."."""
