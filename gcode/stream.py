@@ -158,7 +158,7 @@ class Progress:
 class StreamResult:
     """What happened: ``reason`` is a :class:`StopReason` (a ``str``: ``done``, ``checked``,
     ``error``, ``alarm``, ``reset``, ``garbled``, ``unmatched``, ``off_path``, ``feed``,
-    ``power``, ``timeout``, ``disconnect``, ``stopped`` or ``interrupted``)."""
+    ``power``, ``timeout``, ``hold``, ``disconnect``, ``stopped`` or ``interrupted``)."""
 
     completed: bool
     reason: StopReason | str
@@ -375,6 +375,8 @@ class Streamer:
         self._status_pending_since: float | None = None
         self._last_ack = time.monotonic()
         self._pause = self._resume = self._stop = False
+        self._held = False  # the host asked for the feed hold the machine may be in
+        self._resumed_at = -1e9  # wall time of the last cycle start written
         self._frozen = False
         self._messages: list[str] = []
         try:
@@ -539,6 +541,7 @@ class Streamer:
         job = _Run(self, program, self._wire_lines(program), check)
         self._refuse_state(check)
         wd = self._make_watchdog(program) if not check else None
+        self._held = False
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
         if wd is not None and wd.catch_mm > CATCH_MM and not self.line_baud:
@@ -607,14 +610,17 @@ class Streamer:
             self._stop = False  # consumed: the next run starts afresh
             raise _Fault(StopReason.STOPPED, "stopped by the operator")
         if self._pause:
-            self._pause = False
+            self._pause, self._held = False, True
             self._write(FEED_HOLD)
         if self._resume:
-            self._resume = False
+            self._resume, self._held = False, False
             self._write(CYCLE_START)
+            self._resumed_at = time.monotonic()
         job.send_ready()
         self._poll(now, wd.interval if wd is not None else None)
         self.reader.pump()
+        if self._status_seq != job.seen_status and self.status is not None:
+            self._refuse_unasked_hold(self.status, self._oldest_line(job.stream))
         if wd is not None and self._status_seq != job.seen_status:
             job.seen_status = self._status_seq
             breach = wd.check(self.status, self._work_xy(), *self._status_machine,
@@ -624,6 +630,17 @@ class Streamer:
                              if breach.line is not None else self._oldest_line(job.stream))
         self._watchdog(job.stream)
         job.progress()
+
+    def _refuse_unasked_hold(self, st: Status, line: int | None) -> None:
+        """A hold or open door the host did not ask for is a fault: a ``!`` made by line
+        noise looks exactly like a hold button, and a job nobody resumes would wait
+        forever with its piece half cut and recorded as being cut."""
+        if st.state not in ("Hold", "Door") or self._held:
+            return
+        if self._status_asked <= self._resumed_at:
+            return  # asked before our cycle start reached the controller
+        raise _Fault(StopReason.HOLD, f"{st.state}:{st.substate} that the host did not ask "
+                     "for (a feed hold or door from the line or a switch)", line)
 
     def _finish(self, res: StreamResult, check: bool) -> None:
         """Every line answered: leave check mode, or wait until the machine is at rest."""
@@ -786,7 +803,11 @@ class Streamer:
                                     lambda: self._poll(time.monotonic(), 0.02))
 
     def _wait_idle(self, timeout: float = 120.0) -> None:
-        if not self._wait_status(lambda s: s.state in ("Idle", "Check"), timeout):
+        def at_rest(s: Status) -> bool:
+            self._refuse_unasked_hold(s, None)
+            return s.state in ("Idle", "Check")
+
+        if not self._wait_status(at_rest, timeout):
             raise _Fault(StopReason.TIMEOUT,
                          f"the controller did not come back to Idle in {timeout:g} s")
 

@@ -322,3 +322,84 @@ def test_stream_states_and_stop_reason(tiny):
         assert isinstance(res.reason, StopReason)
         assert res.reason is (StopReason.DONE if fault is None else StopReason.FEED)
         raw.close()
+
+
+def _line_of(prog: Program, prefix: bytes, nth: int = 0) -> int:
+    return [i for i, ln in enumerate(wire_lines(prog)) if ln.startswith(prefix)][nth]
+
+
+@pytest.mark.parametrize("kind,value,stride", [
+    ("dup_byte_at", None, 9),
+    ("insert_at", b"\n", 9),  # an extra empty line: GRBL answers it ok (a doubled ok)
+    ("insert_at", b"\xff\x00G7", 13),  # noise: ignored bytes, then a bad word
+    ("insert_at", b"\x18", 29),  # a soft reset from the line
+])
+def test_bytes_duplicated_or_inserted_toward_grbl_sampled(tiny, kind, value, stride):
+    for line, offset in positions(tiny)[::stride]:
+        run_with(tiny, 50, kind, line, offset, value=value)
+
+
+@pytest.mark.parametrize("kind,value", [
+    ("out_flip_at", None), ("out_drop_at", None), ("out_dup_at", None),
+    ("out_insert_at", b"ok\r\n"),  # an ok nobody's line earned
+    ("out_insert_at", b"<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),  # a spurious report
+])
+def test_faults_on_grbls_transmit_line_sampled(tiny, kind, value):
+    """Bytes GRBL sends: `ok`s, reports and the banner, from a few bytes to a report
+    length after each of a spread of lines goes out."""
+    lines = wire_lines(tiny)
+    for i, line in enumerate(range(3, len(lines), 4)):
+        run_with(tiny, 50, kind, line, (7 * i) % 60, value=value)
+
+
+@pytest.mark.parametrize("kind,stride", [("drop_ok_at", 4), ("dup_ok_at", 2)])
+def test_an_ok_lost_or_doubled_never_marks_a_piece_cut_early(tiny, kind, stride):
+    """A doubled ok moves every later answer onto the line after its own. The sync line
+    still only counts once the machine has run the cut: the `M5` before it is answered
+    only after the motion ends. A lost ok ends in the stall timeout (1 s each)."""
+    for line in range(0, len(wire_lines(tiny)), stride):
+        run_with(tiny, 50, kind, line, 0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["drop_ok_at", "dup_ok_at"])
+def test_every_ok_lost_or_doubled(tiny, kind):
+    for line in range(len(wire_lines(tiny))):
+        run_with(tiny, 50, kind, line, 0)
+
+
+@pytest.mark.parametrize("where", [b"G1X26.1Y26.1", b"G4", b"G0X39.9", b"M4S700"])
+def test_a_feed_hold_the_host_did_not_ask_for_is_a_recorded_stop(tiny, where):
+    """A `!` from the line (or a hold button) mid-job: before, the run waited forever in
+    Hold with its piece 'cutting'; now it stops safely, saying why."""
+    res = run_with(tiny, 50, "insert_at", _line_of(tiny, where), 1, value=b"!")
+    assert not res.completed and res.reason == "hold", res.fault
+    assert "did not ask" in res.fault["detail"]
+
+
+def test_a_hold_the_host_asked_for_and_resumed_completes(tiny):
+    """The operator's own pause and resume is no fault."""
+    import threading
+
+    port = serial.serial_for_url(f"grblsim://?speed=5&{SETTINGS}", timeout=0.02)
+    em = port.emulator
+    st = Streamer(port, response_timeout=2.0, stall_timeout=1.0)
+    st.connect(quiet=0.02)
+    out: dict = {}
+    th = threading.Thread(target=lambda: out.setdefault("res", st.run(tiny)))
+    th.start()
+    deadline = time.monotonic() + 5.0
+    while not (em.state == "Run" and any(s.power > 0 for s in em.trace)):
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+    st.pause()
+    while not em.state.startswith("Hold:0"):
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+    time.sleep(0.2)
+    st.resume()
+    th.join(20)
+    res = out["res"]
+    assert res.completed and res.pieces_cut == 2, res.fault
+    judge(tiny, em, res)
+    port.close()
