@@ -6,7 +6,7 @@ sent proves nothing, so every status report is held against the program:
 
 * the head stays within ``deviation_mm`` of the program's path (any motion);
 * while the beam is on, the reported laser value (``FS:`` second field) is one the program
-  asks for (times the spindle override);
+  asks for, and no override (``Ov:``) is in force: the host sends none;
 * the head is followed along the path in program order: in the middle of a move that
   cuts, the beam is on; in the middle of a travel move, it is off;
 * while the beam is on, the reported feed reaches the programmed cutting feed within the
@@ -57,6 +57,7 @@ class StopReason(str, Enum):
     FEED = "feed"
     POWER = "power"
     TIMEOUT = "timeout"
+    HOLD = "hold"
     DISCONNECT = "disconnect"
     STOPPED = "stopped"
     INTERRUPTED = "interrupted"
@@ -159,7 +160,6 @@ class Watchdog:
         self._last_asked: float | None = None
         self._slow_since: float | None = None
         self._dark_since: float | None = None
-        self._overrides = (100, 100, 100)
         self.last_line: int | None = None
         self.reports = 0
 
@@ -240,8 +240,8 @@ class Watchdog:
         (seconds): the machine was in that state somewhere in between. ``starved``: the
         sender has nothing in flight (the planner may be running dry)."""
         self.reports += 1
-        if st.overrides is not None:
-            self._overrides = st.overrides
+        if st.overrides is not None and st.overrides != (100, 100, 100):
+            return self._override_breach(st.overrides)
         now = asked
         # at most this much machine time since the previous report (an upper bound)
         dt = 0.5 if self._last_asked is None else received - self._last_asked
@@ -267,7 +267,6 @@ class Watchdog:
         if st.state != "Run" or not len(self.powers):
             self._slow_since = self._dark_since = None
             return None
-        feed_ovr, _, spindle_ovr = (v / 100.0 for v in self._overrides)
         if not (st.speed or 0.0) > 0:
             self._slow_since = None
             return self._check_dark(inside, now)
@@ -277,12 +276,12 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
                           "(the cut starts off its path: a corrupted or rejected line?)",
                           inside if inside != _LEG else None)
-        if np.min(np.abs(self.powers * spindle_ovr - power)) > 0.5:
+        if np.min(np.abs(self.powers - power)) > 0.5:
             allowed = ", ".join(f"S{p:g}" for p in self.powers)
             return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
                           f"{allowed} (corrupted S word?)", self.last_line)
         feed = float(st.feed or 0.0)
-        low, high = min(self.feeds) * feed_ovr, max(self.feeds) * feed_ovr
+        low, high = min(self.feeds), max(self.feeds)
         expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)
             starved = st.planner_free >= PLANNER_BLOCKS - 2
@@ -304,6 +303,16 @@ class Watchdog:
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
         return None
+
+    def _override_breach(self, ovr: tuple[int, int, int]) -> Breach:
+        """Feed, rapid and spindle overrides are real-time bytes this host never sends: one
+        made by line noise (0x91..0x9D) would cut faster or hotter than the program, and
+        the piece would still count as cut."""
+        feed, rapid, spindle = ovr
+        reason = StopReason.POWER if spindle != 100 else StopReason.FEED
+        return Breach(reason, f"overrides at feed {feed}%, rapid {rapid}%, spindle {spindle}% "
+                      "that the host never sent (a real-time byte from the line?)",
+                      self.last_line)
 
     def lookahead_feed(self, blocks: int) -> float:
         """The fastest feed (mm/min) GRBL may plan with ``blocks`` queued from the head's

@@ -403,3 +403,15 @@ def test_a_hold_the_host_asked_for_and_resumed_completes(tiny):
     assert res.completed and res.pieces_cut == 2, res.fault
     judge(tiny, em, res)
     port.close()
+
+
+@pytest.mark.parametrize("byte,reason", [(b"\x9a", "power"), (b"\x91", "feed"),
+                                         (b"\x9c", "power"), (b"\x96", "feed")])
+def test_an_override_byte_from_the_line_stops_the_cut(tiny, byte, reason):
+    """Override bytes (0x90-0x9D) are real-time: GRBL acts on them wherever they fall in a
+    line. The host sends none, so spindle +10 % (0x9A) or feed +10 % (0x91), even +1 %,
+    is corruption. Before, the watchdog scaled what it expected by the override and the
+    job finished cutting hotter or faster than programmed, every piece marked cut."""
+    res = run_with(tiny, 50, "insert_at", _line_of(tiny, b"G1X26.1Y26.1"), 3, value=byte)
+    assert not res.completed and res.reason == reason, res.fault
+    assert "override" in res.fault["detail"]
