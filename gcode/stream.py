@@ -8,8 +8,8 @@ else (status reports, messages, alarms, the banner) is pushed and handled on its
 A piece goes pending -> cutting when its first line is sent and -> cut only when the ``ok``
 of its sync line (``G4 P0.01`` after its last cut) arrives: GRBL answers a dwell only after
 every motion before it has finished. Once anything goes wrong (error, alarm, reset banner,
-garbled answer, silence, disconnect) piece states freeze, so no piece is ever reported cut
-on an answer that might have been misattributed.
+garbled answer, silence, disconnect, a hold it did not ask for) piece states freeze, so no
+piece is ever reported cut on an answer that might have been misattributed.
 
 Works with a real serial port, a pseudo-terminal, or a pyserial URL (the emulator), because
 it only uses ``read``, ``write``, ``in_waiting`` and ``timeout``.

@@ -415,3 +415,11 @@ def test_an_override_byte_from_the_line_stops_the_cut(tiny, byte, reason):
     res = run_with(tiny, 50, "insert_at", _line_of(tiny, b"G1X26.1Y26.1"), 3, value=byte)
     assert not res.completed and res.reason == reason, res.fault
     assert "override" in res.fault["detail"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind,value", [("dup_byte_at", None), ("insert_at", b"\n"),
+                                        ("insert_at", b"!")])
+def test_bytes_duplicated_or_inserted_at_every_position_speed_50(tiny, kind, value):
+    for line, offset in positions(tiny):
+        run_with(tiny, 50, kind, line, offset, value=value)
