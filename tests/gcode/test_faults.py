@@ -12,6 +12,7 @@ sweeps every byte position at speed 50.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -29,6 +30,12 @@ from gcode.toolpath import build_toolpaths
 
 sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
 from gcode_helpers import trace  # noqa: E402
+
+#: The every-position sweeps of the fault kinds added after issue 16 (about a minute of
+#: both cores): their sampled versions always run; the full ones on request, so the
+#: whole suite stays within CI's ten minutes. Their results are in BENCHMARKS.md.
+full_sweep = pytest.mark.skipif(not os.environ.get("STATION_FULL_SWEEPS"),
+                                reason="full fault sweep: set STATION_FULL_SWEEPS=1")
 
 SETTINGS = "settings=32:1,130:1600,131:1000,110:12000,111:12000,120:1500,121:1500"
 
@@ -362,6 +369,7 @@ def test_an_ok_lost_or_doubled_never_marks_a_piece_cut_early(tiny, kind, stride)
 
 
 @pytest.mark.slow
+@full_sweep
 @pytest.mark.parametrize("kind", ["drop_ok_at", "dup_ok_at"])
 def test_every_ok_lost_or_doubled(tiny, kind):
     for line in range(len(wire_lines(tiny))):
@@ -418,6 +426,7 @@ def test_an_override_byte_from_the_line_stops_the_cut(tiny, byte, reason):
 
 
 @pytest.mark.slow
+@full_sweep
 @pytest.mark.parametrize("kind,value", [("dup_byte_at", None), ("insert_at", b"\n"),
                                         ("insert_at", b"!")])
 def test_bytes_duplicated_or_inserted_at_every_position_speed_50(tiny, kind, value):
