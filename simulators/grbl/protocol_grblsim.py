@@ -43,6 +43,17 @@ LOGGER_LEVELS = {"debug": logging.DEBUG, "info": logging.INFO,
                  "warning": logging.WARNING, "error": logging.ERROR}
 
 
+def _keyed(option: str, items: list[str], form: str, value) -> dict:
+    """``{int(KEY): value(VALUE)}`` of ``KEY:VALUE`` items (a fault table of the URL)."""
+    table = {}
+    for item in items:
+        key, sep, text = item.partition(":")
+        if not sep:
+            raise ValueError(f"{option} needs {form}, got {item!r}")
+        table[int(key)] = value(text)
+    return table
+
+
 def parse_url(url: str) -> tuple[dict, dict, str | None]:
     """Split a grblsim URL into (machine options, faults given, logging level); ValueError."""
     parts = urllib.parse.urlsplit(url)
@@ -78,25 +89,13 @@ def parse_url(url: str) -> tuple[dict, dict, str | None]:
         elif option == "force_origin":
             options["force_origin"] = values[-1] not in ("0", "false", "")
         elif option in ("error_at", "alarm_at"):
-            table = {}
-            for item in items:
-                line, sep, code = item.partition(":")
-                if not sep:
-                    raise ValueError(f"{option} needs LINE:CODE, got {item!r}")
-                table[int(line)] = int(code)
-            faults[option] = table
+            faults[option] = _keyed(option, items, "LINE:CODE", int)
         elif option in ("drop_byte_at", "flip_byte_at", "reset_at", "disconnect_at",
                         "power_cut_at", "dup_byte_at", "out_drop_at", "out_flip_at",
                         "out_dup_at", "drop_ok_at", "dup_ok_at"):
             faults[option] = {int(v) for v in items}
         elif option in ("insert_at", "out_insert_at"):
-            table = {}
-            for item in items:
-                at, sep, burst = item.partition(":")
-                if not sep:
-                    raise ValueError(f"{option} needs BYTE:HEX, got {item!r}")
-                table[int(at)] = bytes.fromhex(burst)
-            faults[option] = table
+            faults[option] = _keyed(option, items, "BYTE:HEX", bytes.fromhex)
         elif option == "logging":
             if values[-1] not in LOGGER_LEVELS:
                 raise ValueError(f"unknown logging level {values[-1]!r}")

@@ -83,15 +83,20 @@ def test_pieces_touching_the_selvedge_still_make_a_program(clean_cwd, data_dir, 
     assert len(program.pieces) == len(layout["pieces"])
 
 
+def _aligned_pants(tmp, data_dir, print_: dict) -> None:
+    """The Berkeley trousers aligned on grain under ``print_``, as tmp/P.json."""
+    fabric = tmp / "fabric.json"
+    fabric.write_text(json.dumps(print_))
+    garment = data_dir / "garments" / "berkeley" / "pants-coarse.obj"
+    assert main(["align", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--restarts", "2", "-o", str(tmp / "P.json")]) == 0
+
+
 def test_a_piece_wider_than_the_roll_is_refused_by_name(clean_cwd, data_dir, capsys):
     """Berkeley trousers on grain (legs along the roll) on a 200 mm wide roll: no leg fits
     across it; the operator hears which piece and why."""
     tmp = clean_cwd
-    fabric = tmp / "fabric.json"
-    fabric.write_text(json.dumps({"group": "p4m", "w1": [50, 0], "w2": [0, 50]}))
-    garment = data_dir / "garments" / "berkeley" / "pants-coarse.obj"
-    assert main(["align", str(garment), "--units", "m", "--fabric", str(fabric),
-                 "--restarts", "2", "-o", str(tmp / "P.json")]) == 0
+    _aligned_pants(tmp, data_dir, {"group": "p4m", "w1": [50, 0], "w2": [0, 50]})
     capsys.readouterr()
     assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "1",
                  "--width", "200"]) == 2
@@ -115,11 +120,7 @@ def test_a_marker_longer_than_the_table_is_refused_with_its_cause(clean_cwd, dat
     nest warns at once, and gcode refuses naming the marker and the table, not a move
     and the kerf (what it said before)."""
     tmp = clean_cwd
-    fabric = tmp / "fabric.json"
-    fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80]}))
-    garment = data_dir / "garments" / "berkeley" / "pants-coarse.obj"
-    assert main(["align", str(garment), "--units", "m", "--fabric", str(fabric),
-                 "--restarts", "2", "-o", str(tmp / "P.json")]) == 0
+    _aligned_pants(tmp, data_dir, {"group": "pmm", "w1": [60, 0], "w2": [0, 80]})
     capsys.readouterr()
     assert main(["nest", str(tmp / "P.json"), "-o", str(tmp / "L.json"), "--time", "2"]) == 0
     layout = json.loads((tmp / "L.json").read_text())
