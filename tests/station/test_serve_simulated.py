@@ -30,7 +30,7 @@ FABRIC = {"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0], "units
 
 @pytest.fixture
 def served(tmp_path):
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", "speed=20")
+    port = SCHEMA["serial"]["port"].default
     config = tmp_path / "station.toml"
     config.write_text(
         f'[serial]\nport = "{port}"\n'
