@@ -817,9 +817,13 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                    f"{REPEAT_SUPPORT:g}): no symmetry can be checked on them, none is "
                    "claimed")
     else:
-        win = _supported_winner(names, ll, best, cells, forb, translation=rel / ceiling
-                                - LAG_SPREAD * spread, lag=lag + lag_spread * spread,
-                                spectra=spectra, asym=(own_asymmetry, shared_asymmetry))
+        win, refused = _supported_winner(names, ll, best, cells, forb, basis,
+                                         translation=rel / ceiling - LAG_SPREAD * spread,
+                                         lag=lag + lag_spread * spread, spectra=spectra,
+                                         asym=(own_asymmetry, shared_asymmetry))
+        if refused is not None:
+            message = (f"{refused.group} is likelier ({post[names.index(refused.group)]:.2f}) "
+                       f"but not taken: {refused.why}")
     # Back to mm of the input image: working px -> input px -> mm.
     new_basis_px = basis @ best[win].u
     origin_w = anchor + basis @ best[win].origin
@@ -857,14 +861,24 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                           strain=strain)
 
 
+class _Refusal(NamedTuple):
+    """A group likelier than the answer that was not taken, and why (for the operator)."""
+
+    group: str
+    why: str
+
+
 def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.ndarray,
-                      scores: dict, *, translation: float = 1.0,
+                      scores: dict, basis: np.ndarray, *, translation: float = 1.0,
                       lag: float = ADDED_OPERATION_LAG,
                       spectra: RepeatSpectra | None = None,
-                      asym: tuple[float, float] | None = None) -> str:
+                      asym: tuple[float, float] | None = None
+                      ) -> tuple[str, _Refusal | None]:
     """The likeliest group whose added operations hold like its subgroups', that holds
     on the single repeats and none of whose operations leaves a consistent residual;
-    else its likeliest subgroup that does (the safe side).
+    else its likeliest subgroup that does (the safe side). With it, the likeliest group
+    refused on the way and why, or None: the operator confirming the answer sees why a
+    likelier group was not taken.
 
     Added operations: blur, noise and distortion lower every symmetry of a print
     together (blur not at all), while one that blur has half-made (the chiral detail of
@@ -873,30 +887,66 @@ def _supported_winner(names: list[str], ll: np.ndarray, best: dict, cells: np.nd
     (best per class, ``scores``) below every operation of that subgroup by more than
     ``ADDED_OPERATION_LAG``. Single repeats: see :func:`repeat_support` (needs three
     repeats; with fewer the mean cell decides). Consistent residuals: see
-    :func:`invents` (needs ``spectra``, three repeats or more)."""
+    :func:`invents` (needs ``spectra``, three repeats or more). ``basis`` (working px)
+    names the operations."""
     order = [names[k] for k in np.argsort(-ll)]
     top = order[0]
     seen: dict = {}
+    first: _Refusal | None = None
     for name in order:
-        if not is_subgroup(name, top) or _lags(name, best, scores, translation, lag):
+        if not is_subgroup(name, top):
             continue
-        ops = best[name].ops
-        if len(cells) >= 3 and ops and repeat_support(cells, ops).min() < REPEAT_SUPPORT:
-            continue
-        if spectra is not None and invents(ops, spectra, seen, *(asym or ())):
-            continue
-        return name
-    return order[0]
+        why = _refusal(name, best, cells, scores, basis, translation=translation, lag=lag,
+                       spectra=spectra, seen=seen, asym=asym)
+        if not why:
+            return name, first
+        first = first or _Refusal(name, why)
+    return top, None
+
+
+def _refusal(name: str, best: dict, cells: np.ndarray, scores: dict, basis: np.ndarray,
+             *, translation: float, lag: float, spectra: RepeatSpectra | None, seen: dict,
+             asym: tuple[float, float] | None) -> str:
+    """Why ``name`` cannot be the answer (see :func:`_supported_winner`); empty when it
+    can."""
+    lagging = _lags(name, best, scores, translation, lag)
+    if lagging:
+        sub, behind = lagging
+        ref = "the translations" if sub == "p1" else f"{sub}'s"
+        return (f"the operations it adds to {sub} score {behind:.2f} below {ref}, as blur or "
+                "distortion half-making a symmetry leaves them")
+    ops = best[name].ops
+    if len(cells) >= 3 and ops:
+        support = repeat_support(cells, ops)
+        k = int(np.argmin(support))
+        if support[k] < REPEAT_SUPPORT:
+            return (f"{_spoken(ops[k][0], basis)} holds on the mean cell but not on single "
+                    f"repeats (support {support[k]:.2f}, under {REPEAT_SUPPORT:g})")
+    broken = None if spectra is None else invents(ops, spectra, seen, *(asym or ()))
+    if broken is not None:
+        return (f"{_spoken(broken, basis)} leaves the same residual all over the cloth: a "
+                "part of the print it does not map onto itself")
+    return ""
+
+
+def _spoken(a: np.ndarray, basis: np.ndarray) -> str:
+    """An isometry of the lattice (integer matrix ``a`` in ``basis``) in words: its
+    order follows from the integer trace, a reflection's axis from ``basis``."""
+    if round(np.linalg.det(a)) == 1:
+        order = {-2: 2, -1: 3, 0: 4, 1: 6}.get(int(round(np.trace(a))), 0)
+        return {2: "the half turn", 3: "the third turn", 4: "the quarter turn",
+                6: "the sixth turn"}.get(order, "a turn")
+    return f"the reflection at {_name(a, basis)[5:-1]} degrees"
 
 
 def invents(ops: list[tuple[np.ndarray, np.ndarray]], spectra: RepeatSpectra,
             seen: dict | None = None, own: float = OWN_ASYMMETRY,
-            shared: float = SHARED_ASYMMETRY) -> bool:
-    """True when some operation (A, s) leaves the same residual all over the cloth
-    (:func:`vision.consistency.asymmetry`): a faint stroke of the print that the
-    operation does not map onto itself, however small its lag: more than ``own`` of
-    the motif, more than ``shared`` of a single repeat's residual. ``seen`` caches
-    operations shared by several groups."""
+            shared: float = SHARED_ASYMMETRY) -> np.ndarray | None:
+    """The matrix A of the first operation (A, s) that leaves the same residual all over
+    the cloth (:func:`vision.consistency.asymmetry`): a faint stroke of the print that
+    the operation does not map onto itself, however small its lag: more than ``own`` of
+    the motif, more than ``shared`` of a single repeat's residual. None when no
+    operation does. ``seen`` caches operations shared by several groups."""
     seen = {} if seen is None else seen
     for a, s in ops:
         key = (_key(a), int(s[0]), int(s[1]))
@@ -904,19 +954,19 @@ def invents(ops: list[tuple[np.ndarray, np.ndarray]], spectra: RepeatSpectra,
             asym = asymmetry(spectra, a, s)
             seen[key] = asym.own > own and asym.share > shared
         if seen[key]:
-            return True
-    return False
+            return a
+    return None
 
 
 def _lags(name: str, best: dict, scores: dict, translation: float = 1.0,
-          lag: float = ADDED_OPERATION_LAG) -> bool:
-    """True when the operations ``name`` adds to one of its maximal subgroups (half its
-    point group, as found in this print) all score below that subgroup's by more than
-    ``lag``. p1's operations are the translations, scoring ``translation`` (the
-    motif's reliability over the score ceiling, 1 unless the cell is very noisy, less
-    the single repeats' disagreement): so a group over p1 is measured against them,
-    the way a near-symmetric print (a bold bar that is its own half turn, thin strokes
-    that are not) shows its lag."""
+          lag: float = ADDED_OPERATION_LAG) -> tuple[str, float] | None:
+    """The maximal subgroup (half its point group, as found in this print) whose
+    operations all score above every operation ``name`` adds to it by more than
+    ``lag``, with that lag; None when there is none. p1's operations are the
+    translations, scoring ``translation`` (the motif's reliability over the score
+    ceiling, 1 unless the cell is very noisy, less the single repeats' disagreement):
+    so a group over p1 is measured against them, the way a near-symmetric print (a bold
+    bar that is its own half turn, thin strokes that are not) shows its lag."""
     have = best[name].present
     for sub, entry in best.items():
         own = entry.present
@@ -924,9 +974,10 @@ def _lags(name: str, best: dict, scores: dict, translation: float = 1.0,
             continue
         added = have - own
         ref = min(scores[k] for k in own) if own else translation
-        if ref - max(scores[k] for k in added) > lag:
-            return True
-    return False
+        behind = ref - max(scores[k] for k in added)
+        if behind > lag:
+            return sub, behind
+    return None
 
 
 def _refine_origin(total: np.ndarray, ka: int, kb: int) -> np.ndarray:
