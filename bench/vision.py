@@ -23,6 +23,10 @@ Sources (each reported on its own; never pooled into one number):
   lattice of whole pixels (along x only when hexagonal), symmetry elements anywhere,
   500-1400 px, no anti-aliasing, no camera. Every edge is rounded to the grid the same
   way in every repeat (``vision.consistency.pixel_rounding``).
+- ``waves``: smooth prints of every group as Farris's recipes draw them
+  (``simulators.fabric.wave_print``): plane waves symmetrised over the group and
+  domain-coloured, 40-90 px repeats, no edges anywhere (the fine detail where a missing
+  symmetry shows most is absent), no camera. Evaluation only.
 - ``classics``: the textile classics of ``simulators.classics`` (gingham, tartan, plaid,
   houndstooth, herringbone, polka dots, diamonds; stripes must be stripes), clean and on
   stretched, woven cloth.
@@ -104,7 +108,7 @@ from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
 from simulators.classics import CLASSICS, classic_print, woven_check
 from simulators.cloth import misregister, plain_cloth, stretch, weave_texture, wrinkle
-from simulators.fabric import lattice_for, random_print, render_print
+from simulators.fabric import lattice_for, random_print, render_print, wave_print
 from simulators.lineart import degrade, layered_print
 from solver.wallpaper import GROUP_NAMES, GROUPS, gauss_reduce
 from vision.calibration import Calibration
@@ -117,8 +121,9 @@ from vision.subgroups import error_kind
 PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "fabric_photos"
 FAMILIES = ("rotation-scale", "perspective", "blur", "noise", "jpeg", "light", "fold")
 #: Sources for evaluation only: no constant is fitted or picked on them (an outside
-#: reference, and the photographs whole, which the photos-* sources already hold).
-OUTSIDE = ("npm-wallpaper-groups", "npm-as-written", "frames")
+#: reference, a generator family added after the constants were set, and the
+#: photographs whole, which the photos-* sources already hold).
+OUTSIDE = ("npm-wallpaper-groups", "npm-as-written", "waves", "frames")
 THRESHOLDS = (0.0, 0.5, 0.7, 0.8, 0.9, 0.95)
 CV_GRID = tuple((band, tau) for band in (float("inf"), 24.0, 12.0, 6.0)
                 for tau in (0.80, 0.86))
@@ -465,6 +470,18 @@ def renderings(per_group: int, seed: int = 0):
                          basis=pr.wallpaper.basis)
 
 
+def waves(per_group: int, seed: int = 0):
+    """Smooth domain-coloured prints of every group (see the module text)."""
+    for gi, group in enumerate(GROUP_NAMES):
+        for k in range(per_group):
+            rng = np.random.default_rng(seed + 211 * gi + k + 5)
+            repeat = rng.uniform(40, 90)
+            pr = wave_print(group, repeat, rotation=rng.uniform(0, 90),
+                            seed=int(rng.integers(1 << 30)))
+            yield Sample("waves", f"{group}/{repeat:.0f}px", render_print(pr, (640, 480), 1.0),
+                         1.0, group, basis=pr.wallpaper.basis)
+
+
 def photos(root: Path = PHOTOS, whole: bool = False):
     """The hand-labelled photographs, cropped to their labelled region (pixels = mm);
     or ``whole``, as taken, without the labelled lattice (which holds in the region
@@ -778,6 +795,7 @@ def _sources(per_group: int, seed: int) -> dict:
             "views": photo_views,
             "degraded": photo_degraded,
             "renderings": lambda: renderings(per_group, seed=seed),
+            "waves": lambda: waves(per_group, seed=seed),
             "npm": lambda: npm(per_group, seed=seed),
             "npm-as-written": lambda: npm_as_written(per_group, seed=seed)}
 
@@ -785,8 +803,8 @@ def _sources(per_group: int, seed: int) -> dict:
 def run(per_group: int = 3, *, seed: int = 0, verbose: bool = True, cv: bool = True,
         sources: tuple[str, ...] = ("synthetic", "tilted", "blurred", "cloth", "fine",
                                     "classics", "woven", "twill", "lineart", "sublattice",
-                                    "renderings", "plain", "photos", "frames", "crops",
-                                    "turns", "views", "degraded", "npm",
+                                    "renderings", "waves", "plain", "photos", "frames",
+                                    "crops", "turns", "views", "degraded", "npm",
                                     "npm-as-written")
         ) -> dict:
     makers = _sources(per_group, seed)

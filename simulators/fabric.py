@@ -37,6 +37,7 @@ __all__ = [
     "lattice_for",
     "random_print",
     "render_print",
+    "wave_print",
 ]
 
 # Grid sizes of cell textures are multiples of this, so that every fractional
@@ -279,11 +280,16 @@ def _symmetrised_coefficients(group: str, basis: np.ndarray, rng: np.random.Gene
     return np.concatenate(out_k), np.concatenate(out_c)
 
 
-def _field_on_grid(ks: np.ndarray, cs: np.ndarray, m: int) -> np.ndarray:
-    """Re sum_k c_k exp(2 pi i k.u) at u = (col/m, row/m): an exact inverse FFT."""
+def _wave_sum(ks: np.ndarray, cs: np.ndarray, m: int) -> np.ndarray:
+    """sum_k c_k exp(2 pi i k.u) at u = (col/m, row/m), complex: an exact inverse FFT."""
     spec = np.zeros((m, m), complex)
     np.add.at(spec, (ks[:, 1] % m, ks[:, 0] % m), cs)
-    return np.fft.ifft2(spec).real * (m * m)
+    return np.fft.ifft2(spec) * (m * m)
+
+
+def _field_on_grid(ks: np.ndarray, cs: np.ndarray, m: int) -> np.ndarray:
+    """The real part of :func:`_wave_sum`: a real field with the group's symmetry."""
+    return _wave_sum(ks, cs, m).real
 
 
 def _lattice_point_ops(basis: np.ndarray) -> np.ndarray:
@@ -387,3 +393,45 @@ def random_print(group: str, repeat: float = 40.0, *, rotation: float = 0.0,
         return np.clip(palette[level] * shade[..., None], 0.0, 1.0).astype(np.float32)
 
     return Print(f"random-{group}", wp, texture)
+
+
+def wave_print(group: str, repeat: float = 40.0, *, rotation: float = 0.0,
+               seed: int = 0) -> Print:
+    """A smooth print of ``group`` as Farris's wallpaper recipes draw one [1]_: a sum of
+    plane waves symmetrised over the group, domain-coloured (hue from the complex
+    value's argument, lightness from its modulus). Unlike :func:`random_print` it has
+    no colour levels and so no edges anywhere: the fine detail where a missing symmetry
+    shows most is absent, as in the renderings of such generators.
+
+    The complex field is invariant under every operation of the group, so its colours
+    are too; of a few draws the one least like any other isometric copy of itself is
+    kept (:func:`accidental_symmetry` of its real and imaginary parts).
+
+    .. [1] F. A. Farris, *Creating Symmetry: The Artful Mathematics of Wallpaper
+       Patterns*, Princeton University Press, 2015 (wave functions, domain colouring).
+    """
+    rng = np.random.default_rng(seed)
+    w1, w2 = lattice_for(group, repeat, rotation=rotation, rng=rng)
+    origin = tuple(rng.uniform(0.0, 1.0, 2) @ np.column_stack([w1, w2]).T)
+    wp = Wallpaper(group, w1, w2, origin)
+    best = None
+    for _ in range(_MOTIF_TRIES):
+        ks, cs = _symmetrised_coefficients(group, wp.basis, rng, kmax=4)
+        ref = _wave_sum(ks, cs, 96)
+        score = max(accidental_symmetry(group, wp.basis, part) for part in (ref.real,
+                                                                             ref.imag))
+        if best is None or score < best[0]:
+            best = (score, ks, cs, float(np.quantile(np.abs(ref), 0.95)) or 1.0)
+        if score < _MOTIF_ACCEPT:
+            break
+    _, ks, cs, unit = best
+
+    def texture(m: int) -> np.ndarray:
+        z = _wave_sum(ks, cs, m)
+        hsv = np.empty((m, m, 3), np.float32)
+        hsv[..., 0] = np.degrees(np.angle(z)) % 360.0
+        hsv[..., 1] = 0.8
+        hsv[..., 2] = 0.15 + 0.85 * np.tanh(1.5 * np.abs(z) / unit)
+        return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+
+    return Print(f"waves-{group}", wp, texture)
