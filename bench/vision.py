@@ -106,6 +106,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from bench import npm_wallpaper
 from simulators.camera import CameraModel, Imaging, Pose, Sheet, SyntheticCamera
@@ -115,7 +116,17 @@ from simulators.fabric import lattice_for, random_print, render_print, wave_prin
 from simulators.lineart import degrade, layered_print
 from solver.wallpaper import GROUP_NAMES, GROUPS, gauss_reduce
 from vision.calibration import Calibration
-from vision.classify import BAND, OWN_ASYMMETRY, SHARED_ASYMMETRY, TAU, classify
+from vision.classify import (
+    BAND,
+    HOLOHEDRY_TOL,
+    OWN_ASYMMETRY,
+    SHARED_ASYMMETRY,
+    TAU,
+    classify,
+    holohedry,
+    repeat_cells,
+    symmetric_metric,
+)
 from vision.lattice import detect_lattice, prepare_image
 from vision.pipeline import above_the_yarn, detect_fabric
 from vision.rectify import rectify
@@ -623,6 +634,92 @@ def photo_degraded(seed: int = 0, root: Path = PHOTOS):
             yield Sample("photo-degraded", f"{s.name}/{kind}", img.astype(np.uint8), 1.0,
                          s.truth, alt=s.alt,
                          basis=None if s.basis is None else s.basis * zoom, tol=s.tol)
+
+
+# ---------------------------------------------------------------- a print's distortion
+def motif_stretch(name: str = "ms_checker_perspective.jpg",
+                  stretches: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15, 0.2),
+                  tol: float = 2 * HOLOHEDRY_TOL, root: Path = PHOTOS) -> str:
+    """:func:`stretch_scores` of the labelled photograph ``name`` on its labelled
+    lattice, as a table: whether a symmetry the label names is in the image, or only
+    in the design the label assumes (issue 15's last photograph)."""
+    s = next((x for x in photos(root) if x.name == name), None)
+    if s is None or s.basis is None:
+        return f"{name}: no labelled lattice here ({root})"
+    rows = [f"| {kind} {a.ravel().tolist()} | " + " | ".join(f"{v:.2f}" for v in scores)
+            + " |" for a, kind, scores in stretch_scores(s, stretches, tol)]
+    text = (f"{name} ({s.truth}), mean cell on the labelled lattice:\n\n"
+            "| isometry (fractional matrix) | "
+            + " | ".join(f"stretch {100 * e:.0f} %" for e in stretches) + " |\n|---|"
+            + "---|" * len(stretches) + "\n" + "\n".join(rows))
+    print(text)
+    return text
+
+
+def stretch_scores(s: Sample, stretches: tuple[float, ...], tol: float = 2 * HOLOHEDRY_TOL
+                   ) -> list[tuple[np.ndarray, str, list[float]]]:
+    """How far the print of ``s`` must be stretched for each isometry of its lattice
+    (``s.basis``) to map it onto itself: per isometry of finite order within ``tol``
+    (relative metric tolerance; twice the classifier's by default, so that a lattice
+    seen steeply still shows the quarter turn its design would have), its integer
+    matrix, its kind and its score at each stretch.
+
+    The mean cell (no whitening) is sampled on the basis. In the frame where the
+    lattice is undistorted (its metric averaged over the isometries tested, as
+    ``vision.classify`` tests them), each isometry's image is stretched by ``1 + e``
+    along the lattice's principal strain axis and shrunk as much across, and correlated
+    with the cell over a Gaussian window of 0.35 repeats about the best centre (the
+    best of 24 x 24, refined eightfold). A symmetry of the print scores near 1 at
+    e = 0."""
+    flat, scale = prepare_image(s.image)
+    basis = s.basis / s.mm_per_px * scale
+    _, (motif, *_) = repeat_cells(flat, basis)
+    motif = motif - motif.mean()
+    n = motif.shape[0]
+    holo = holohedry(basis, tol=tol)
+    ev, vec = np.linalg.eigh(symmetric_metric(basis, holo))
+    to_frame = vec @ np.diag(np.sqrt(ev)) @ vec.T  # undistorted frame, from fractions
+    to_frame /= math.sqrt(np.linalg.det(to_frame))
+    frame_inv = np.linalg.inv(to_frame)
+    strain = frame_inv.T @ (basis.T @ basis) @ frame_inv  # measured metric in that frame
+    axis = np.linalg.eigh(strain)[1]
+    u, v = axis[:, 1], axis[:, 0]
+    g = np.linspace(-0.5, 0.5, 48, endpoint=False)
+    pts = np.stack([a.ravel() for a in np.meshgrid(g, g, indexing="ij")])  # (2, P)
+    weight = np.exp(-0.5 * ((to_frame @ pts) ** 2).sum(0) / 0.35**2)
+    c = np.arange(24) / 24
+    coarse = np.stack([a.ravel() for a in np.meshgrid(c, c, indexing="ij")])  # (2, C)
+    f = np.linspace(-1.0, 1.0, 9) / 24
+    fine = np.stack([a.ravel() for a in np.meshgrid(f, f, indexing="ij")])
+
+    def window(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
+        at = (points[:, None, :] + centres[:, :, None]) * n  # (2, C, P) grid units
+        vals = ndimage.map_coordinates(motif, at.reshape(2, -1), order=3, mode="grid-wrap")
+        vals = vals.reshape(at.shape[1:])
+        return vals - (vals * weight).sum(1, keepdims=True) / weight.sum()
+
+    def best(op: np.ndarray) -> float:
+        """The windowed correlation at the best centre: 24 x 24, then refined."""
+        score, centres = None, coarse
+        for _ in range(2):
+            here, there = window(pts, centres), window(op @ pts, centres)
+            corr = (weight * here * there).sum(1) / np.sqrt(
+                (weight * here**2).sum(1) * (weight * there**2).sum(1))
+            k = int(np.argmax(corr))
+            score, centres = float(corr[k]), centres[:, k, None] + fine
+        return score
+
+    out = []
+    for a in holo:
+        if not any(np.array_equal(np.linalg.matrix_power(a, k), np.eye(2)) for k in (2, 3, 4, 6)):
+            continue  # of infinite order (a shear): an isometry of no lattice
+        trace, det = int(round(np.trace(a))), int(round(np.linalg.det(a)))
+        kind = ({-2: "half turn", -1: "third turn", 0: "quarter turn", 1: "sixth turn"}
+                [trace] if det > 0 else "reflection")
+        scores = [best(frame_inv @ ((1 + e) * np.outer(u, u) + np.outer(v, v) / (1 + e))
+                       @ to_frame @ a) for e in stretches]
+        out.append((a, kind, scores))
+    return out
 
 
 # ---------------------------------------------------------------- scoring

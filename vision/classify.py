@@ -71,7 +71,7 @@ from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
 __all__ = ["Classification", "classify", "lattice_whitening", "mean_cell", "repeat_cells",
-           "symmetry_elements"]
+           "symmetric_metric", "symmetry_elements"]
 
 #: Grid of the mean cell: divisible by 2, 3, 4 and 6 so that every operation of every
 #: group maps grid points onto grid points.
@@ -116,7 +116,7 @@ SNAP_TOL = 0.2
 STRAIN_SIGMA = 0.1
 
 
-def _symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
+def symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
     """The lattice metric averaged over the tested isometries: the metric of the
     undistorted print, under which every tested isometry is exact."""
     g = basis.T @ basis
@@ -148,7 +148,7 @@ def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndar
 def lattice_whitening(basis: np.ndarray, band: float, n: int = CELL_N) -> np.ndarray:
     """The whitening (n, n) of cells of the lattice ``basis``, rolled off at ``band``
     harmonics per repeat, under the metric of the undistorted print."""
-    return _whitening(n, _symmetric_metric(basis, holohedry(basis, tol=HOLOHEDRY_TOL)),
+    return _whitening(n, symmetric_metric(basis, holohedry(basis, tol=HOLOHEDRY_TOL)),
                       WHITEN, band)
 
 
@@ -769,7 +769,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # HOLOHEDRY_STRAIN; the snap tolerance is a strain already).
     holo = holohedry(basis, tol=holohedry_tol * (1.0 + allowance / HOLOHEDRY_STRAIN))
     snap_tol = SNAP_TOL + allowance
-    metric = _symmetric_metric(basis, holo)
+    metric = symmetric_metric(basis, holo)
     # A rendering repeats by whole pixels: its edges' rounding to the grid is the same
     # in every repeat, and is allowed (vision.consistency.EDGE_SLACK_PX).
     rounding = pixel_rounding(basis, scale, ij, cell_n) if pixel_slack else None
