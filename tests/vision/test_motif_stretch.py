@@ -10,8 +10,9 @@ import numpy as np
 from bench.vision import Sample, stretch_scores
 from simulators.cloth import stretch
 from simulators.fabric import random_print, render_print
+from vision.classify import HOLOHEDRY_TOL
 
-STRETCHES = (0.0, 0.1, 0.2)
+STRETCHES = (0.0, 0.2)
 
 
 def _quarter_turns(group: str, cloth_stretch: float) -> list[list[float]]:
@@ -22,7 +23,7 @@ def _quarter_turns(group: str, cloth_stretch: float) -> list[list[float]]:
     if cloth_stretch:
         img, jac = stretch(img, 1.0 + cloth_stretch, angle_deg=30.0)
     s = Sample("test", group, img, 1.0, group, basis=jac @ pr.wallpaper.basis)
-    return [scores for _, kind, scores in stretch_scores(s, STRETCHES)
+    return [scores for _, kind, scores in stretch_scores(s, STRETCHES, tol=HOLOHEDRY_TOL)
             if kind == "quarter turn"]
 
 
@@ -34,7 +35,7 @@ def test_a_p4m_print_needs_no_stretch_even_on_stretched_cloth():
         assert len(turns) == 2
         for scores in turns:
             assert scores[0] > 0.97, (cloth, scores)
-            assert scores[0] > scores[1] > scores[2], (cloth, scores)
+            assert scores[0] > scores[1] + 0.1, (cloth, scores)
 
 
 def test_a_pmm_print_on_a_square_lattice_has_no_quarter_turn_at_any_stretch():
