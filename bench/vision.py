@@ -124,6 +124,7 @@ from vision.classify import (
     TAU,
     classify,
     holohedry,
+    isometry_name,
     repeat_cells,
     symmetric_metric,
 )
@@ -713,9 +714,7 @@ def stretch_scores(s: Sample, stretches: tuple[float, ...], tol: float = 2 * HOL
     for a in holo:
         if not any(np.array_equal(np.linalg.matrix_power(a, k), np.eye(2)) for k in (2, 3, 4, 6)):
             continue  # of infinite order (a shear): an isometry of no lattice
-        trace, det = int(round(np.trace(a))), int(round(np.linalg.det(a)))
-        kind = ({-2: "half turn", -1: "third turn", 0: "quarter turn", 1: "sixth turn"}
-                [trace] if det > 0 else "reflection")
+        kind = isometry_name(a)
         scores = [best(frame_inv @ ((1 + e) * np.outer(u, u) + np.outer(v, v) / (1 + e))
                        @ to_frame @ a) for e in stretches]
         out.append((a, kind, scores))

@@ -70,8 +70,8 @@ from vision.consistency import (
 from vision.lattice import LatticeResult, prepare_image
 from vision.subgroups import is_subgroup
 
-__all__ = ["Classification", "classify", "lattice_whitening", "mean_cell", "repeat_cells",
-           "symmetric_metric", "symmetry_elements"]
+__all__ = ["Classification", "classify", "isometry_name", "lattice_whitening", "mean_cell",
+           "repeat_cells", "symmetric_metric", "symmetry_elements"]
 
 #: Grid of the mean cell: divisible by 2, 3, 4 and 6 so that every operation of every
 #: group maps grid points onto grid points.
@@ -920,23 +920,23 @@ def _refusal(name: str, best: dict, cells: np.ndarray, scores: dict, basis: np.n
         support = repeat_support(cells, ops)
         k = int(np.argmin(support))
         if support[k] < REPEAT_SUPPORT:
-            return (f"{_spoken(ops[k][0], basis)} holds on the mean cell but not on single "
-                    f"repeats (support {support[k]:.2f}, under {REPEAT_SUPPORT:g})")
+            return (f"the {isometry_name(ops[k][0], basis)} holds on the mean cell but not on "
+                    f"single repeats (support {support[k]:.2f}, under {REPEAT_SUPPORT:g})")
     broken = None if spectra is None else invents(ops, spectra, seen, *(asym or ()))
     if broken is not None:
-        return (f"{_spoken(broken, basis)} leaves the same residual all over the cloth: a "
-                "part of the print it does not map onto itself")
+        return (f"the {isometry_name(broken, basis)} leaves the same residual all over the "
+                "cloth: a part of the print it does not map onto itself")
     return ""
 
 
-def _spoken(a: np.ndarray, basis: np.ndarray) -> str:
-    """An isometry of the lattice (integer matrix ``a`` in ``basis``) in words: its
-    order follows from the integer trace, a reflection's axis from ``basis``."""
+def isometry_name(a: np.ndarray, basis: np.ndarray | None = None) -> str:
+    """An isometry of a lattice (integer matrix ``a`` in its basis) in words: a turn's
+    order follows from the integer trace, a reflection's axis (given ``basis``, working
+    px) from the basis."""
     if round(np.linalg.det(a)) == 1:
-        order = {-2: 2, -1: 3, 0: 4, 1: 6}.get(int(round(np.trace(a))), 0)
-        return {2: "the half turn", 3: "the third turn", 4: "the quarter turn",
-                6: "the sixth turn"}.get(order, "a turn")
-    return f"the reflection at {_name(a, basis)[5:-1]} degrees"
+        return {-2: "half turn", -1: "third turn", 0: "quarter turn",
+                1: "sixth turn"}.get(int(round(np.trace(a))), "turn")
+    return "reflection" if basis is None else f"reflection at {_name(a, basis)[5:-1]} degrees"
 
 
 def invents(ops: list[tuple[np.ndarray, np.ndarray]], spectra: RepeatSpectra,
