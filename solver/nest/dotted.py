@@ -51,6 +51,12 @@ EDGE_EPS = 1e-9  # mm of slack at the fabric's edges (verify_layout allows 1e-6)
 # share of the model's build time kept back for handing it to the solver (twice what was
 # measured, as machines under load pay more)
 HANDOVER = 0.2
+# CP-SAT's first presolve pass is not interrupted by its time limit: asked to stop within
+# less than about 1.7 model build times it overran by up to 0.7 s and found no marker
+# (the shorts' 4940 positions, built in 0.70 s: asked 0.2 s, took 0.83; 0.5 -> 1.00;
+# 1.0 -> 1.15; 1.5 -> 1.47; 2.0 -> 2.01, its first marker). The solver is started only
+# with this many build times left.
+SOLVE_MIN = 2.0
 # above this many allowed positions in all the model does not fit a nest's budget (the
 # strategy steps aside): the Berkeley dresses' p1 (11 pieces, 3475-3740) built in 1 s and
 # solved from 1-2 s on; the shirt's p2 (14 pieces, 11167, 12 M literals) took 4.2 s to
@@ -220,9 +226,10 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     beyond it) and starts the search, so the result is never longer. Without it,
     ``limit`` (mm) bounds the length: a result without moves and ``optimal`` proves that
     no marker is that short. Returns None when the deadline passes while the model is
-    built, or when the search ends without a marker and without a proof, or when the
-    pieces have more than ``max_options`` allowed positions in all (a stripe print's
-    1 mm steps, many pieces: the model would not be built in time).
+    built or leaves the solver less than its uninterruptible presolve takes
+    (``SOLVE_MIN``), or when the search ends without a marker and without a proof, or
+    when the pieces have more than ``max_options`` allowed positions in all (a stripe
+    print's 1 mm steps, many pieces: the model would not be built in time).
 
     ``any_phase``: the marker may start at any phase of the print along the roll (the
     fabric laid out to suit it), so its length is its span plus the gap at both ends,
@@ -342,7 +349,9 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     # Handing the model over costs about a tenth of building it, outside the solver's own
     # time limit (0.08 s after a 0.92 s build of the shorts' 4940 positions): kept back.
     left = deadline.left() - HANDOVER * build
-    if left <= 0:
+    if left < SOLVE_MIN * build:
+        if progress:
+            progress(f"dotted: {left:.2f} s left, less than its presolve takes: skipped")
         return None
     solver = cp_model.CpSolver()
     solver.parameters.max_time_in_seconds = left

@@ -255,7 +255,8 @@ class Filler:
             return np.zeros((0, 2))
         w = self.chunk
         parts = []
-        for c in range(int(math.floor(lo / w)), int(math.floor(hi / w)) + 1):
+        # hi may lie below lo by the tolerance above, across a chunk's edge: lo's chunk
+        for c in range(int(math.floor(lo / w)), int(math.floor(max(hi, lo) / w)) + 1):
             if (id(s), c) not in self._moves:
                 t = self._grid(item, s, c * w - 1e-9, (c + 1) * w - 1e-9)
                 self._moves[id(s), c] = t[np.argsort(t[:, 0], kind="stable")]

@@ -275,3 +275,18 @@ def test_a_raw_digitised_curve_is_nested_whole_within_its_budget():
     layout = nest(problem, time_limit=1.0, seed=0)
     assert verify_layout(layout, problem) == []
     assert len(layout.pieces) == len(problem.items())
+
+
+def test_a_window_closing_just_left_of_a_chunk_edge_has_no_translation(printed_shirts):
+    """The window's right end may lie under its left end by the rounding tolerance; where
+    the left end is a chunk's edge the chunks to read were none, an IndexError that
+    stopped `station nest` under load (the fill's window then fell on such an edge)."""
+    items, filler = _filler(printed_shirts)
+    item = items[0]
+    s = filler.shapes[item.key][0]
+    edge = 2 * filler.chunk
+    width = float(s.hi[0] - s.lo[0])
+    filler.length = edge + filler.gap + width - 5e-10  # hi = edge - 5e-10, lo = edge
+    got = filler.translations(item, s, xlo=edge, xhi=edge + 10.0)
+    assert got.shape[1] == 2
+    assert np.all(got[:, 0] + s.lo[0] >= edge - 1e-6)

@@ -145,7 +145,9 @@ def test_dotted_respects_its_deadline(shorts):
     problem = NestProblem(shorts, 1500.0, gap=2.0,
                           fabric=Wallpaper("p2", (50.0, 0.0), (0.0, 50.0)))
     items = problem.items()
-    for limit in (0.0, 0.3, 1.0):
+    # 1 s three times: built fast, the model left the solver 0.2 s, which it overran by
+    # 0.6 s in its first presolve pass (one run in three; SOLVE_MIN)
+    for limit in (0.0, 0.3, 1.0, 1.0, 1.0):
         t0 = time.monotonic()
         r = dotted_nest(problem, items, time_limit=limit, limit=2000.0)
         assert time.monotonic() - t0 <= 1.1 * limit + 0.25  # the nest's promise: 10 %
