@@ -19,7 +19,14 @@ try:
 except ModuleNotFoundError:  # Python 3.10 (pyproject pulls in tomli there)
     import tomli as tomllib
 
-__all__ = ["CutParams", "KnifeParams", "Machine", "default_machine", "load_machine"]
+__all__ = ["POWER_MODES", "CutParams", "KnifeParams", "Machine", "default_machine",
+           "load_machine"]
+
+
+#: The laser's spindle word for each ``[cut] power_mode``. Under GRBL's laser mode ($32=1)
+#: M4 scales the power with the current speed (the same energy per millimetre through
+#: every acceleration and corner); M3 keeps the programmed S whatever the speed.
+POWER_MODES = {"dynamic": "M4", "constant": "M3"}
 
 
 @dataclass(frozen=True)
@@ -28,6 +35,7 @@ class CutParams:
 
     feed: float = 3000.0
     power: float = 700.0
+    power_mode: str = "dynamic"  # "dynamic": M4, GRBL scales S with the speed; "constant": M3
     passes: int = 1
     air_assist: bool = True
     kerf: float = 0.2
@@ -181,6 +189,8 @@ def _check_cut(c: CutParams, source: str) -> None:
         (c.tolerance > 0, "tolerance must be > 0"),
         (c.lead_in >= 0, "lead_in must be >= 0"),
         (c.notch in ("slit", "v"), "notch must be \"slit\" or \"v\""),
+        (c.power_mode in POWER_MODES,
+         "power_mode must be \"dynamic\" (M4) or \"constant\" (M3)"),
         (c.notch_depth > 0, "notch_depth must be > 0"),
         (c.notch_width > 0, "notch_width must be > 0"),
         (c.mark_size > 0, "mark_size must be > 0"),

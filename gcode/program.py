@@ -23,7 +23,7 @@ import numpy as np
 
 import untrusted
 from gcode.arcs import CW, LINE, FittedPath
-from gcode.machine import Machine
+from gcode.machine import POWER_MODES, Machine
 from gcode.toolpath import PieceToolpath
 
 __all__ = [
@@ -94,6 +94,8 @@ class Check:
     line_on: np.ndarray | None = None  # (lines,) bool, the beam or knife cuts along the move
     cut_feeds: tuple[float, ...] = ()  # every feed (mm/min) a beam-on move asks for
     cut_powers: tuple[float, ...] = ()  # every S a beam-on move asks for
+    cut_pairs: tuple[tuple[float, float], ...] = ()  # every (S, F) a beam-on move asks for
+    dynamic_power: bool = True  # the beam's S is scaled with the speed (M4), else constant
 
     @property
     def estimated_seconds(self) -> float:
@@ -184,7 +186,7 @@ def _laser_stroke(w: _Writer, path: FittedPath, power: float, passes: int, close
     for k in range(passes):
         if k == 0 or not closed:
             w.rapid_to(path.start)
-        w.emit(f"M4 S{_num(power)}")
+        w.emit(f"{POWER_MODES[m.cut.power_mode]} S{_num(power)}")
         w.moves(path, m.cut.feed)
         if not closed or k == passes - 1:
             w.emit("M5")
@@ -345,6 +347,15 @@ def _arc_extent(s, e, c, cw: bool):
     return sweep, r, pts
 
 
+#: Why a laser program's spindle word disagrees with the profile's ``[cut] power_mode``.
+_POWER_MODE_FAULT = {
+    "dynamic": "M3 constant laser power burns while the head slows and stops; the profile's "
+               "power_mode is dynamic (M4)",
+    "constant": "M4 dynamic laser power, but the profile's power_mode is constant (M3): the "
+                "watchdog would judge the power the machine reports by the wrong rule",
+}
+
+
 def validate(lines: list[str], machine: Machine, source: str = "<program>",
              path_step: float = 1.0) -> Check:
     """Check a program against the machine profile; raise ProgramError at the first fault.
@@ -356,6 +367,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     x0, y0, x1, y1 = machine.work_area
     eps = 1e-6
     laser = machine.tool == "laser"
+    laser_word = POWER_MODES[machine.cut.power_mode]
     pos: list[float | None] = [None, None, None]
     motion = None
     feed: float | None = None
@@ -370,6 +382,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     current = [0]  # the line being read (for the samples' line numbers)
     cut_feeds: set[float] = set()
     cut_powers: set[float] = set()
+    cut_pairs: set[tuple[float, float]] = set()
     line_power = np.zeros(len(lines))
     line_motion = np.full(len(lines), -1, np.int8)
     line_on = np.zeros(len(lines), bool)
@@ -443,9 +456,9 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
                 fail(i, f"G{g:g} is not accepted by the program checker")
         for mm in ms:
             if mm in (3, 4, 5):
-                if laser and mm == 3:
-                    fail(i, "M3 constant laser power burns while the head stops; use M4")
                 spindle = f"M{int(mm)}"
+                if laser and mm != 5 and spindle != laser_word:
+                    fail(i, _POWER_MODE_FAULT[machine.cut.power_mode])
             elif mm in (8, 9, 2, 30):
                 pass
             else:
@@ -539,6 +552,7 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
                 cut_feeds.add(feed)
                 if laser:
                     cut_powers.add(s_word)
+                    cut_pairs.add((s_word, feed))
                     line_power[i] = s_word
             seconds[i] = _move_time(length, feed, machine.acceleration)
         pos = target
@@ -548,7 +562,8 @@ def validate(lines: list[str], machine: Machine, source: str = "<program>",
     return Check(seconds=seconds, cut_length_mm=cut, travel_length_mm=travel, bounds=bounds,
                  path=path, path_line=path_line, line_power=line_power,
                  line_motion=line_motion, line_on=line_on,
-                 cut_feeds=tuple(sorted(cut_feeds)), cut_powers=tuple(sorted(cut_powers)))
+                 cut_feeds=tuple(sorted(cut_feeds)), cut_powers=tuple(sorted(cut_powers)),
+                 cut_pairs=tuple(sorted(cut_pairs)), dynamic_power=laser_word == "M4")
 
 
 def program_moves(program: Program) -> list[tuple[int, bool, int, np.ndarray]]:

@@ -540,7 +540,8 @@ class Streamer:
         """
         job = _Run(self, program, self._wire_lines(program), check)
         self._refuse_state(check)
-        wd = self._make_watchdog(program) if not check else None
+        min_s = 0.0 if check else self._refuse_laser_settings(program)
+        wd = self._make_watchdog(program, min_s) if not check else None
         self._held = False
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
@@ -744,7 +745,29 @@ class Streamer:
                          line)
         return False
 
-    def _make_watchdog(self, program: Program) -> Watchdog | None:
+    def _refuse_laser_settings(self, program: Program) -> float:
+        """Refuse, before anything moves, a laser program the controller would not run as
+        checked: M3/M4 outside laser mode ($32=0) keep the beam on through rapids and
+        stops, and an S above $30 is clamped (the power watchdog would see it as corrupt).
+        Returns $31, the smallest non-zero value GRBL reports."""
+        c = program.check
+        if c is None or not c.cut_pairs:
+            return 0.0
+        settings = self.read_settings()
+        word = "M4" if c.dynamic_power else "M3"
+        if settings.get(32) is None or int(settings[32]) != 1:
+            found = "does not report $32" if settings.get(32) is None else \
+                f"has $32={settings[32]:g}"
+            raise StreamError(f"{self.prefix}the program's laser power ({word}) needs GRBL's "
+                              f"laser mode, but the controller {found}: without it the beam "
+                              "stays on through rapids and stops; set $32=1")
+        top = max(s for s, _ in c.cut_pairs)
+        if settings.get(30) is not None and top > settings[30] + 1e-6:
+            raise StreamError(f"{self.prefix}the program asks for S{top:g}, above the "
+                              f"controller's $30={settings[30]:g}: GRBL would clamp it")
+        return float(settings.get(31, 0.0))
+
+    def _make_watchdog(self, program: Program, min_s: float = 0.0) -> Watchdog | None:
         """The watchdog over ``program``'s path, polls and port timeout set to its pace."""
         c = program.check
         self.watchdog = None
@@ -752,7 +775,8 @@ class Streamer:
             return None
         wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
                                   time_scale=self.time_scale, deviation_mm=self.deviation_limit,
-                                  watch_mm=self.watch_mm, baud=self.line_baud)
+                                  watch_mm=self.watch_mm, baud=self.line_baud,
+                                  min_s=min_s)
         wd.start_from(self._work_xy() if self.status is not None else None)
         try:  # never sleep in a read longer than the next poll is due
             self.port.timeout = min(0.02, wd.interval)

@@ -5,8 +5,13 @@ GRBL has no checksum: one flipped bit on the wire turns ``G1X173.9Y67.1`` into t
 sent proves nothing, so every status report is held against the program:
 
 * the head stays within ``deviation_mm`` of the program's path (any motion);
-* while the beam is on, the reported laser value (``FS:`` second field) is one the program
-  asks for, and no override (``Ov:``) is in force: the host sends none;
+* while the beam is on, the reported laser value (``FS:`` second field) is what a healthy
+  GRBL 1.1 reports for the program's S at the report's own feed (``FS:`` first field), and
+  no override (``Ov:``) is in force: the host sends none. Under M4 (laser mode's dynamic
+  power) GRBL scales S by current speed / programmed feed for every step segment it
+  prepares, and reports that value (``stepper.c``: ``rpm *= current_speed * inv_rate``;
+  ``spindle_compute_pwm_value`` stores it in ``sys.spindle_speed``); the reported feed is
+  the same prepared segment's speed (``st_get_realtime_rate``). Under M3 it is S;
 * the head is followed along the path in program order: in the middle of a move that
   cuts, the beam is on; in the middle of a travel move, it is off;
 * while the beam is on, the reported feed reaches the programmed cutting feed within the
@@ -40,6 +45,18 @@ __all__ = ["CATCH_MM", "REPORT_BYTES", "Breach", "StopReason", "Watchdog", "catc
            "poll_interval", "report_spacing"]
 
 PLANNER_BLOCKS = 15  # GRBL 1.1's planner on an AVR
+#: How far (machine seconds) the values a report shows run ahead of the head: GRBL prepares
+#: step segments of 10 ms ahead of the one executing (a buffer of 6 holds up to 5 of
+#: them), and ``FS:`` shows the last prepared. The head is still braking into the end of a
+#: stroke while the report already shows the feed and the M4 power of its stop (0).
+PREP_LEAD_S = 0.05
+#: The reported S against the S the program's S and the report's own feed imply: the
+#: report prints both as integers (0.5), 2 % of S for $30/PWM rounding and float error,
+#: and, for a firmware that samples the two a moment apart, POWER_SKEW_S seconds of
+#: acceleration of the feed (GRBL 1.1 takes both from the same prepared segment). The S of a
+#: flipped digit (S700 -> S600) lies outside at full speed; a missing digit (S70) at any.
+POWER_SHARE = 0.02
+POWER_SKEW_S = 0.002
 _LEG = -2  # path_line of the leg from where the head stood to the program's first move
 
 
@@ -132,12 +149,19 @@ class Watchdog:
     def __init__(self, path: np.ndarray, path_line: np.ndarray, line_power: np.ndarray,
                  feeds: tuple[float, ...], powers: tuple[float, ...], acceleration: float,
                  fastest: float, *, time_scale: float = 1.0, deviation_mm: float = 0.3,
-                 watch_mm: float = 0.5, step: float = 1.0, baud: float | None = None):
+                 watch_mm: float = 0.5, step: float = 1.0, baud: float | None = None,
+                 pairs: tuple[tuple[float, float], ...] = (), dynamic: bool = True,
+                 min_s: float = 0.0):
         self.path = np.asarray(path, float).reshape(-1, 2)
         self.path_line = np.asarray(path_line, int)
         self.line_power = np.asarray(line_power, float)
         self.feeds = tuple(feeds)
         self.powers = np.asarray(powers, float)
+        # the (S, F) of every beam-on move; without them each S with the slowest feed
+        pairs = pairs or tuple((p, min(self.feeds, default=1.0)) for p in powers)
+        self.pair_s, self.pair_f = np.asarray(pairs, float).reshape(-1, 2).T
+        self.dynamic = dynamic
+        self.min_s = float(min_s)  # GRBL's $31: a value below it is reported as $31
         self.time_scale = float(time_scale)
         self.deviation = float(deviation_mm)
         self.step = float(step)
@@ -150,9 +174,10 @@ class Watchdog:
         slow = min(self.feeds, default=0.0) / 60.0
         latency = 2.0 * self.interval * self.time_scale  # two polls, in machine time
         # a corner's braking and re-acceleration plus the polls' latency, in machine time
-        self.feed_allowance = 3.0 * slow / max(acceleration, 1e-9) + 0.1 + latency
-        # M4 power comes with its block: only the polls' latency before the beam is on
-        self.dark_allowance = 0.02 + latency
+        self.feed_allowance = 3.0 * slow / max(acceleration, 1e-9) + 0.1 + latency + PREP_LEAD_S
+        # M4 power comes with its block: the polls' latency before the beam is on, and the
+        # reports' lead over the head at the end of a stroke
+        self.dark_allowance = 0.02 + latency + PREP_LEAD_S
         self._along = np.zeros(0)
         self._leg_end = 0
         self._reindex()
@@ -167,7 +192,8 @@ class Watchdog:
     def for_program(cls, check, acceleration: float, fastest: float, **kw) -> Watchdog:
         """The watchdog over a validated program's ``Check``."""
         return cls(check.path, check.path_line, check.line_power, check.cut_feeds,
-                   check.cut_powers, acceleration, fastest, **kw)
+                   check.cut_powers, acceleration, fastest, pairs=check.cut_pairs,
+                   dynamic=check.dynamic_power, **kw)
 
     def _reindex(self) -> None:
         """Distance along the path of every sample, and where each line's samples begin
@@ -276,11 +302,18 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
                           "(the cut starts off its path: a corrupted or rejected line?)",
                           inside if inside != _LEG else None)
-        if np.min(np.abs(self.powers - power)) > 0.5:
-            allowed = ", ".join(f"S{p:g}" for p in self.powers)
-            return Breach(StopReason.POWER, f"laser at S{power:g} while the program asks for "
-                          f"{allowed} (corrupted S word?)", self.last_line)
         feed = float(st.feed or 0.0)
+        if not self.power_is_healthy(power, feed):
+            if self.dynamic and self.power_is_healthy(power, max(self.feeds)):
+                # full M4 power at a feed the program never asks for: GRBL scales S by the
+                # feed it was given, so it was given another F
+                return Breach(StopReason.FEED, f"beam on at F{feed:g} with the full S{power:g}: "
+                              "the machine runs at a programmed feed that is not the "
+                              f"program's F{max(self.feeds):g} (corrupted F word?)",
+                              self.last_line)
+            return Breach(StopReason.POWER, f"laser at S{power:g} at F{feed:g} where the "
+                          f"program's {self._asked_power(feed)} (corrupted S word?)",
+                          self.last_line)
         low, high = min(self.feeds), max(self.feeds)
         expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)
@@ -303,6 +336,36 @@ class Watchdog:
                           f"F{low:g} is reached within {self.feed_allowance:.2f} s "
                           "(corrupted F word?)", self.last_line)
         return None
+
+    def expected_power(self, feed: float) -> np.ndarray:
+        """The S a healthy GRBL reports for each of the program's (S, F) at reported ``feed``
+        (mm/min): S x feed / F under M4, never above S (the feed never exceeds F unasked);
+        S under M3."""
+        if not self.dynamic:
+            return self.pair_s.copy()
+        return self.pair_s * np.minimum(max(feed, 0.0), self.pair_f) / self.pair_f
+
+    def power_is_healthy(self, power: float, feed: float) -> bool:
+        """Whether a reported S fits one of the program's (S, F) at the report's own feed,
+        within the rounding and skew stated at POWER_SHARE (and $31's floor)."""
+        if not len(self.pair_s):
+            return False
+        expected = self.expected_power(feed)
+        skew = self.acceleration * 60.0 * POWER_SKEW_S * self.pair_s / self.pair_f \
+            if self.dynamic else 0.0
+        tolerance = 0.5 + POWER_SHARE * self.pair_s + skew
+        fits = np.abs(expected - power) <= tolerance
+        floor = (self.min_s > 0) & (abs(power - self.min_s) <= 0.5) & \
+            (expected <= self.min_s + tolerance)
+        return bool(np.any(fits | floor))
+
+    def _asked_power(self, feed: float) -> str:
+        """The program's S words and what they mean at ``feed``, for a breach's message."""
+        if not self.dynamic:
+            return "M3 asks for " + ", ".join(f"S{p:g}" for p in self.pair_s)
+        return "M4 " + ", ".join(f"S{p:g} at F{f:g} means S{e:.0f}" for p, f, e in
+                                 zip(self.pair_s, self.pair_f, self.expected_power(feed),
+                                     strict=True))
 
     def _override_breach(self, ovr: tuple[int, int, int]) -> Breach:
         """Feed, rapid and spindle overrides are real-time bytes this host never sends: one
@@ -345,7 +408,9 @@ class Watchdog:
     def _check_dark(self, inside: int | None, now: float) -> Breach | None:
         """The beam off in the middle of a move that cuts: a lost ``M4`` (flipped to
         ``M5``) would trace the piece without cutting it, and it would count as cut."""
-        if inside is None or inside == _LEG or self.line_power[inside] <= 0:
+        if inside is None:  # at a line's end (a corner, where the head may stop): the
+            return None  # timer runs on through the corners of one stroke, and stops nowhere
+        if inside == _LEG or self.line_power[inside] <= 0:
             self._dark_since = None
             return None
         if self._dark_since is None:

@@ -14,6 +14,11 @@ HELP = "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? ctrl-x]"
 
 RX_BUFFER_SIZE = 128  # "Grbl has a 128 character serial receive buffer" (interface.md)
 PLANNER_BLOCKS = 15  # `$I` reports "[OPT:V,15,128]": 15 usable planner blocks
+# The stepper's segment clock (stepper.c): a step segment lasts DT_SEGMENT = 1/(60 *
+# ACCELERATION_TICKS_PER_SECOND) min with ACCELERATION_TICKS_PER_SECOND 100, and the segment
+# buffer (SEGMENT_BUFFER_SIZE 6) holds 5 of them: the executing one and 4 prepared ahead.
+DT_SEGMENT = 0.01  # seconds
+SEGMENTS_AHEAD = 4
 LINE_BUFFER_SIZE = 80  # at most 79 significant characters per line, else error:11
 N_STARTUP_LINES = 2
 MAX_LINE_NUMBER = 9_999_999

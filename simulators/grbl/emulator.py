@@ -19,7 +19,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simulators.grbl import codes as C
-from simulators.grbl.motion import Block, Segment, exit_speed, make_block, phase
+from simulators.grbl.motion import (
+    Block,
+    Segment,
+    exit_speed,
+    make_block,
+    phase,
+    segment_ends,
+    speed_ahead,
+)
 from simulators.grbl.parser import (
     MM_PER_INCH,
     GrblError,
@@ -442,8 +450,8 @@ class GrblEmulator:
         if mask & 2:
             fields.append(f"Bf:{C.PLANNER_BLOCKS - len(self._planner)},"
                           f"{C.RX_BUFFER_SIZE - len(self._rx)}")
-        rate = self._v * 60.0 * scale
-        fields.append(f"FS:{fmt(rate, 1 if inches else 0)},{fmt(self._spindle_rpm(), 0)}")
+        speed, power = self._prepared()
+        fields.append(f"FS:{fmt(speed * 60.0 * scale, 1 if inches else 0)},{fmt(power, 0)}")
         busy = self._state in ("Run", "Hold", "Jog", "Home")
         if self._wco_counter > 0:
             self._wco_counter -= 1
@@ -716,13 +724,27 @@ class GrblEmulator:
             self._trace_block(b, b.start, self._pos.copy(), complete=False)
 
     def _trace_block(self, b: Block, p0: np.ndarray, p1: np.ndarray, complete: bool) -> None:
+        """Trace the block from ``p0`` (or where it was last traced) to ``p1``: one segment,
+        or under M4 one per step segment whose laser power differs from the one before."""
         if b.traced_to is not None:  # the part before a mid-block power change is traced
             p0 = b.traced_to
         feed = b.nominal(self._feed_ovr, self._rapid_ovr) * 60.0
-        power = 0.0 if self._spindle_stop else self._block_power(b)
-        self.trace.append(Segment(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
-                                  feed, power, b.feed is None,
-                                  float(p0[2]), float(p1[2]), b.jog, complete))
+        z0, z1 = float(p0[2]), float(p1[2])
+        if self._spindle_stop or not self._dynamic(b):
+            power = 0.0 if self._spindle_stop else self._block_power(b)
+            pieces = [(p0, p1, power)]
+        else:
+            along, speed = segment_ends(b.chunks, C.DT_SEGMENT)
+            power = np.array([self._laser_rpm(b, v) for v in speed[1:]])
+            keep = np.append(np.flatnonzero(np.diff(power) != 0), len(power) - 1)
+            ends = along[np.append(0, keep + 1)]
+            points = [p0, *(b.start + b.unit * e for e in ends[1:-1]), p1]
+            pieces = [(q0, q1, float(power[k])) for q0, q1, k in zip(points, points[1:], keep)
+                      if np.linalg.norm(q1[:2] - q0[:2]) > 1e-9]
+        b.chunks.clear()
+        for q0, q1, power in pieces:
+            self.trace.append(Segment(float(q0[0]), float(q0[1]), float(q1[0]), float(q1[1]),
+                                      feed, power, b.feed is None, z0, z1, b.jog, complete))
 
     def _split_trace(self) -> None:
         """Trace the running block up to here: the power is about to change mid-block (the
@@ -732,19 +754,42 @@ class GrblEmulator:
             self._trace_block(b, b.start, self._pos.copy(), complete=False)
             b.traced_to = self._pos.copy()
 
+    def _dynamic(self, b: Block) -> bool:
+        """M4 in laser mode: the power follows the speed, segment by segment (stepper.c's
+        ``is_pwm_rate_adjusted``)."""
+        return bool(self.settings[32]) and b.spindle == "M4" and b.feed is not None \
+            and not b.jog
+
+    def _laser_rpm(self, b: Block, v: float) -> float:
+        """The laser value of a step segment of ``b`` ending at speed ``v`` (mm/s) in laser
+        mode: 0 off G1/G2/G3 motion; under M4 "power based on the current speed relative to the
+        programmed rate" (laser_mode.md): S x speed / F (the programmed F: feed overrides do
+        not change the power), then the spindle override and $30/$31 as GRBL applies them."""
+        if b.feed is None or b.spindle == "M5" or b.jog:
+            return 0.0
+        s = b.speed * (v * 60.0 / b.feed if b.spindle == "M4" else 1.0)
+        return self._clamp_speed(s)
+
     def _block_power(self, b: Block) -> float:
-        """Power applied along a block; for M4 (dynamic laser power) the mean over the block,
-        since power follows the speed: "adjust laser power based on the current speed relative
-        to the programmed rate" (laser_mode.md)."""
-        if self.settings[32]:  # laser mode: on only in G1/G2/G3 motion, per block
-            if b.feed is None or b.spindle == "M5" or b.jog:
-                return 0.0
-            power = self._clamp_speed(b.speed)
-            if b.spindle == "M4" and b.elapsed > 0:
-                nominal = b.nominal(self._feed_ovr, self._rapid_ovr)
-                power *= min(1.0, (b.done / b.elapsed) / nominal)
-            return power
+        """The constant power along a block (M3, a rapid, or outside laser mode)."""
+        if self.settings[32]:
+            return self._laser_rpm(b, b.nominal(self._feed_ovr, self._rapid_ovr))
         return self._spindle_rpm()
+
+    def _prepared(self) -> tuple[float, float]:
+        """(speed mm/s, laser or spindle value) of the step segment prepared last, which is
+        what ``FS:`` reports: up to SEGMENTS_AHEAD segments ahead of the head."""
+        moving = self._planner and self._state in ("Run", "Jog", "Hold")
+        if not moving:
+            return (self._v if self._state in ("Run", "Jog", "Hold") else 0.0), \
+                self._spindle_rpm()
+        lead = (C.SEGMENTS_AHEAD + 1) * C.DT_SEGMENT - self.sim_time % C.DT_SEGMENT
+        v, k = speed_ahead(list(self._planner), self._v, lead, self._feed_ovr,
+                           self._rapid_ovr, self._hold)
+        b = self._planner[k]
+        if self._spindle_stop or not self.settings[32]:
+            return v, self._spindle_rpm()
+        return v, self._laser_rpm(b, v)
 
     # ------------------------------------------------------------------ system commands
     def _system(self, line: str) -> None:
@@ -1021,12 +1066,15 @@ class GrblEmulator:
         d = b.remaining
         acc, duration = phase(self._v, d, vn, ve, b.accel, self._hold)
         tt = min(end - self.sim_time, duration)
+        v_old = self._v
         s = min(max(self._v * tt + 0.5 * acc * tt * tt, 0.0), d)
         v_new = max(self._v + acc * tt, 0.0)
         finished_phase = tt >= duration
         if finished_phase and acc < 0 and (not self._hold) and duration > 0:
             v_new = min(ve, vn) if d - s < 1e-7 else v_new
         self._v = v_new
+        if tt > 0:
+            b.chunks.append((b.elapsed, b.done, tt, v_old, acc, v_new))
         b.done += s
         b.elapsed += tt
         self.sim_time += tt

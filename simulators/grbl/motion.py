@@ -6,12 +6,17 @@ overrides), an acceleration limited by `$120`-`$122` along its direction, and a 
 speed from the junction-deviation rule (`$11`). Exit speeds come from a backward pass over the
 queued blocks (the last one must stop); the running block is integrated piecewise analytically
 (accelerate / cruise / brake), so any speed-up factor gives the same path and timing.
+
+Two things GRBL's stepper does on its segment clock (10 ms step segments, stepper.c) are
+modelled here from that integration: the speed of the segment being *prepared* ahead of the
+one executing (`speed_ahead`: what `FS:` reports, and what M4 scales the laser with), and the
+per-segment laser power of a block's ramps (`segment_ends`: what the trace records).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -52,6 +57,8 @@ class Block:
     done: float = 0.0
     elapsed: float = 0.0  # simulated seconds spent moving along it
     traced_to: np.ndarray | None = None  # end of its part already in the trace
+    # its motion since it was last traced: (elapsed, done, duration, v0, acc, v1) per step
+    chunks: list[tuple[float, ...]] = field(default_factory=list)
 
     @property
     def remaining(self) -> float:
@@ -140,3 +147,57 @@ def phase(v: float, d: float, vn: float, ve: float, a: float, hold: bool) -> tup
         return -a, min((v - vn) / a, 2.0 * (d - d_brake) / (v + vn))
     d_cruise = d - max(vn * vn - ve * ve, 0.0) / (2.0 * a)
     return 0.0, max(d_cruise, 0.0) / vn
+
+
+def speed_ahead(blocks: list[Block], v: float, lead: float, feed_ovr: float, rapid_ovr: float,
+                hold: bool) -> tuple[float, int]:
+    """(speed mm/s, index into ``blocks``) where the motion will be ``lead`` seconds from now.
+
+    GRBL prepares step segments ahead of the one executing, and both the speed that ``FS:``
+    reports (``st_get_realtime_rate`` returns ``prep.current_speed``) and the M4 laser value
+    (``sys.spindle_speed``) are those of the last segment prepared, not of the head. The
+    motion is integrated forward on a copy of the plan; past the last block the speed is 0.
+    """
+    done, k = blocks[0].done, 0
+    for _ in range(4 * len(blocks) + 4):
+        if k >= len(blocks) or lead <= _EPS:
+            break
+        b = blocks[k]
+        d = max(b.length - done, 0.0)
+        if d <= 1e-7:
+            k, done = k + 1, 0.0
+            continue
+        vn, ve = b.nominal(feed_ovr, rapid_ovr), exit_speed(blocks[k:], feed_ovr, rapid_ovr)
+        acc, duration = phase(v, d, vn, ve, b.accel, hold)
+        if duration <= 0.0:  # at rest in a feed hold: nothing is prepared ahead
+            break
+        tt = min(lead, duration)
+        s = min(max(v * tt + 0.5 * acc * tt * tt, 0.0), d)
+        v, lead, done = max(v + acc * tt, 0.0), lead - tt, done + s
+        if d - s <= 1e-7 and acc < 0 and not hold:
+            v = min(ve, vn)
+    if k >= len(blocks):
+        return 0.0, len(blocks) - 1
+    return v, k
+
+
+def segment_ends(chunks: list[tuple[float, ...]], dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Distances along a block (mm from its start) where its step segments end, and the speed
+    (mm/s) at each end, from the motion ``chunks`` recorded since it was last traced.
+
+    GRBL cuts a block into segments of ``dt`` seconds from the block's start and computes each
+    segment's M4 laser power from the speed at its end (stepper.c, ``prep.current_speed``
+    after the segment's ramp). The first distance is where the chunks begin.
+    """
+    if not chunks:
+        return np.zeros(0), np.zeros(0)
+    ends_s, ends_v = [np.array([chunks[0][1]])], [np.array([chunks[0][3]])]
+    for n, (elapsed, done, duration, v0, acc, v1) in enumerate(chunks):
+        k = np.arange(math.floor(elapsed / dt) + 1, math.floor((elapsed + duration) / dt) + 1)
+        t = k * dt - elapsed
+        t = t[(t > 1e-12) & (t <= duration + 1e-12)]
+        if n == len(chunks) - 1 and not (len(t) and t[-1] >= duration - 1e-12):
+            t = np.append(t, duration)  # where the trace ends: the block's end, or a stop
+        ends_s.append(done + v0 * t + 0.5 * acc * t * t)
+        ends_v.append(np.where(t >= duration - 1e-12, v1, np.maximum(v0 + acc * t, 0.0)))
+    return np.concatenate(ends_s), np.concatenate(ends_v)

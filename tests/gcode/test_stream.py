@@ -4,6 +4,7 @@ fault, check mode, pause/resume/stop, character counting and the pty from anothe
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -41,12 +42,14 @@ def open_emulator(extra: str = "", speed: float = SPEED):
 
 #: Lines every connection sends before the program (M5, M9: see gcode.stream.BEAM_OFF).
 CONNECT_LINES = BEAM_OFF.count(b"\n")
+#: Lines a laser run sends before the program: $$, whose $32 must say laser mode.
+RUN_LINES = 1
 
 
 def stream_pos(prog: Program) -> dict[int, int]:
     """program line index -> 1-based number of that line as the controller counts it."""
     idx = [i for i, ln in enumerate(prog.lines) if strip_comment(ln)]
-    return {i: k + 1 + CONNECT_LINES for k, i in enumerate(idx)}
+    return {i: k + 1 + CONNECT_LINES + RUN_LINES for k, i in enumerate(idx)}
 
 
 def last_cut_point(prog: Program, piece) -> tuple[float, float]:
@@ -57,10 +60,23 @@ def last_cut_point(prog: Program, piece) -> tuple[float, float]:
     raise AssertionError("piece without cutting moves")
 
 
-def finished_on_machine(em, xy) -> bool:
-    """The machine really completed a powered move ending at ``xy``."""
-    return any(s.complete and s.power > 0 and abs(s.x1 - xy[0]) < 1e-3 and abs(s.y1 - xy[1])
-               < 1e-3 for s in em.trace)
+def finished_on_machine(em, xy, dark_mm: float = 0.1) -> bool:
+    """The machine really completed a powered move ending at ``xy``: a completed cut ends
+    there with the beam on to within ``dark_mm`` of it (under M4 GRBL gives each 10 ms step
+    segment the power of the speed at its end, so the one that brakes to a stop runs dark:
+    0.075 mm at 1500 mm/s^2)."""
+    trace = list(em.trace)
+    for i, s in enumerate(trace):
+        if s.rapid or not s.complete or math.hypot(s.x1 - xy[0], s.y1 - xy[1]) >= 1e-3:
+            continue
+        dark = 0.0
+        for t in reversed(trace[:i + 1]):  # back along the cut that ends there
+            if t.rapid or not t.complete or dark > dark_mm:
+                break
+            if t.power > 0:
+                return True
+            dark += math.hypot(t.x1 - t.x0, t.y1 - t.y0)
+    return False
 
 
 def run_job(port, prog, **kw):
@@ -78,8 +94,9 @@ def test_whole_job_cuts_every_piece(job):
     em = port.emulator
     assert res.completed and res.reason == "done"
     assert res.pieces_cut == len(job.pieces) == 3
-    # plus the M5 and M9 every connection starts with
-    assert res.lines_sent == res.lines_acked == res.lines_total == em.lines_executed - 2
+    # plus the M5 and M9 every connection starts with, and the $$ that checks laser mode
+    assert res.lines_sent == res.lines_acked == res.lines_total == \
+        em.lines_executed - CONNECT_LINES - RUN_LINES
     # each piece went pending -> cutting -> cut, in order, one change at a time
     assert changes == [(n, s) for n in (1, 2, 3) for s in ("cutting", "cut")] or \
         sorted(changes) == sorted((n, s) for n in (1, 2, 3) for s in ("cutting", "cut"))

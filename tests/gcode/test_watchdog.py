@@ -153,15 +153,16 @@ def short_segment_lines(seg: float = 0.1, length: float = 40.0) -> list[str]:
 
 def crawl(wd: Watchdog, feed: float, planner_free: int, seconds: float = 2.0) -> Breach | None:
     """Reports of a head cutting along the line at ``feed`` with ``planner_free`` free
-    planner blocks, every 0.1 mm (from x = 20.5 on), for ``seconds`` of machine time."""
+    planner blocks, every 0.1 mm (from x = 20.5 on), for ``seconds`` of machine time. M4
+    scales the reported S with the feed, as GRBL does."""
     v = feed / 60.0
     t = 0.0
     for x in np.arange(20.5, 59.0, 0.1):
         t = (x - 20.5) / v
         if t > seconds:
             break
-        st = Status("Run", wpos=(x, 20.0, 0.0), feed=feed, speed=POWER,
-                    planner_free=planner_free)
+        st = Status("Run", wpos=(x, 20.0, 0.0), feed=feed,
+                    speed=POWER * min(feed, FEED) / FEED, planner_free=planner_free)
         breach = wd.check(st, np.array([x, 20.0]), t, t)
         if breach is not None:
             return breach

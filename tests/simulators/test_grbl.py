@@ -524,19 +524,69 @@ def test_laser_mode_power_only_in_feed_motion(port):
     assert [s.rapid for s in port.emulator.trace] == [True, False, False, True, False, False]
 
 
-def test_laser_m4_power_follows_speed(port):
+def test_laser_m4_power_follows_speed_segment_by_segment(port):
     """laser_mode.md: "`M4` enables dynamic laser power mode. Dynamic laser power mode will
     automatically adjust laser power based on the current speed relative to the programmed
-    rate." A 1 mm cut never reaches F500 (acceleration 10 mm/s^2), so its mean power is far
-    below S; a 99 mm cut loses only its two ramps."""
+    rate." GRBL does it per 10 ms step segment, from the speed at the segment's end
+    (stepper.c: ``rpm *= current_speed * inv_rate``). From rest at a = 10 mm/s^2 the speed
+    at distance s is sqrt(2 a s), so the trace's power along a 100 mm cut at F500 ramps as
+    S sqrt(2 a s) / F up to S, holds, and ramps down to 0 at the stop."""
     assert send(port, "$32=1") == ["ok"]
     for line in ["G1 M4 S1000 F500 X-1", "G4 P0", "G1 X-1 Y-100", "G4 P0"]:
         assert send(port, line) == ["ok"], line
-    short, long = port.emulator.trace
-    v_peak = np.sqrt(10.0 * 1.0)  # accelerate over half, brake over the other half
-    assert short.power == pytest.approx(1000.0 * (v_peak / 2) / (500 / 60), rel=0.02)
-    v = 500 / 60
-    assert long.power == pytest.approx(1000.0 * (99.0 / (99.0 / v + v / 10.0)) / v, rel=0.01)
+    a, v_f = 10.0, 500.0 / 60.0
+    long = [seg for seg in port.emulator.trace if seg.x0 == -1.0]
+    s_end = np.array([-seg.y1 for seg in long])  # distance along the cut of each piece's end
+    assert len(long) > 20 and np.all(np.diff(s_end) > 0) and s_end[-1] == pytest.approx(100.0)
+    v_end = np.minimum(np.sqrt(2 * a * np.minimum(s_end, 100.0 - s_end)), v_f)
+    assert [seg.power for seg in long] == pytest.approx(1000.0 * v_end / v_f, abs=1.0)
+    powers = np.array([seg.power for seg in long])
+    ramp = powers[:np.argmax(powers)]
+    assert len(ramp) > 10 and np.all(np.diff(ramp) > 0) and powers.max() == 1000.0
+    assert powers[-1] == 0.0  # the segment that brakes to a stop runs dark
+    # the 1 mm cut never reaches F500: at most S x sqrt(a x 1 mm) / F
+    short = [seg.power for seg in port.emulator.trace if seg.x0 > -1.0 and seg.y0 == 0.0]
+    assert 0 < max(short) <= 1000.0 * np.sqrt(a * 1.0) / v_f + 1.0
+
+
+def test_laser_reports_the_prepared_segment_speed_and_m4_power():
+    """``FS:`` shows the speed and the laser value of the last step segment prepared
+    (``st_get_realtime_rate`` returns ``prep.current_speed``, and ``sys.spindle_speed`` is
+    computed from it): under M4 the reported S is S x reported feed / F, from rest up to S
+    at cruise, and ahead of the head (the feed already rising while MPos is still 0). M3
+    reports S whatever the speed. At rest the programmed S is shown with the beam off."""
+    emu = GrblEmulator(realtime=False, settings={32: 1, 110: 6000, 111: 6000, 120: 100,
+                                                 121: 100})
+    emu.take_output()
+
+    def report() -> tuple[str, float, float, float]:
+        emu.receive(b"?")
+        text = emu.take_output().decode()
+        state, *rest = text[text.index("<") + 1:text.index(">")].split("|")
+        fields = dict(f.split(":", 1) for f in rest)
+        feed, power = (float(v) for v in fields["FS"].split(","))
+        return state, float(fields["MPos"].split(",")[0]), feed, power
+
+    seen = []
+    for mode in ("M4", "M3"):
+        emu.receive(f"G1 {mode} S800 F1200 X-20\nG4 P0\n".encode())
+        emu.take_output()
+        while True:
+            state, x, feed, power = report()
+            if state != "Run":
+                break
+            seen.append((mode, x, feed, power))
+            emu.advance(0.02)
+        assert (state, feed, power) == ("Idle", 0.0, 800.0)  # at rest: S shown, beam off
+        emu.receive(b"G0 X0\nG4 P0\n")
+        emu.advance(5.0)
+        emu.take_output()
+    m4 = [r for r in seen if r[0] == "M4"]
+    assert m4[0][1] == 0.0 and m4[0][2] > 0  # prepared ahead of the head
+    for _, _, feed, power in m4:
+        assert power == pytest.approx(800.0 * feed / 1200.0, abs=1.0)
+    assert {r[3] for r in m4} > {800.0} and min(r[3] for r in m4) < 400
+    assert {r[3] for r in seen if r[0] == "M3"} == {800.0}
 
 
 # --------------------------------------------------------------------------- fault injection
