@@ -28,6 +28,7 @@ from enum import Enum
 
 import numpy as np
 
+from gcode.corners import DEFAULT_JUNCTION_DEVIATION
 from gcode.grbl import Response, Status, error_message, parse_settings, time_scale_of
 from gcode.program import Program, strip_comment
 from gcode.session import PortLost, ResponseReader
@@ -540,8 +541,8 @@ class Streamer:
         """
         job = _Run(self, program, self._wire_lines(program), check)
         self._refuse_state(check)
-        min_s = 0.0 if check else self._refuse_laser_settings(program)
-        wd = self._make_watchdog(program, min_s) if not check else None
+        settings = {} if check else self._refuse_laser_settings(program)
+        wd = self._make_watchdog(program, settings) if not check else None
         self._held = False
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
@@ -745,14 +746,14 @@ class Streamer:
                          line)
         return False
 
-    def _refuse_laser_settings(self, program: Program) -> float:
+    def _refuse_laser_settings(self, program: Program) -> dict[int, float]:
         """Refuse, before anything moves, a laser program the controller would not run as
         checked: M3/M4 outside laser mode ($32=0) keep the beam on through rapids and
         stops, and an S above $30 is clamped (the power watchdog would see it as corrupt).
-        Returns $31, the smallest non-zero value GRBL reports."""
+        Returns the settings read (none for a program without the beam)."""
         c = program.check
         if c is None or not c.cut_pairs:
-            return 0.0
+            return {}
         settings = self.read_settings()
         word = "M4" if c.dynamic_power else "M3"
         if settings.get(32) is None or int(settings[32]) != 1:
@@ -765,9 +766,10 @@ class Streamer:
         if settings.get(30) is not None and top > settings[30] + 1e-6:
             raise StreamError(f"{self.prefix}the program asks for S{top:g}, above the "
                               f"controller's $30={settings[30]:g}: GRBL would clamp it")
-        return float(settings.get(31, 0.0))
+        return settings
 
-    def _make_watchdog(self, program: Program, min_s: float = 0.0) -> Watchdog | None:
+    def _make_watchdog(self, program: Program,
+                       settings: dict[int, float]) -> Watchdog | None:
         """The watchdog over ``program``'s path, polls and port timeout set to its pace."""
         c = program.check
         self.watchdog = None
@@ -776,7 +778,9 @@ class Streamer:
         wd = Watchdog.for_program(c, self.acceleration, self.rapid_feed,
                                   time_scale=self.time_scale, deviation_mm=self.deviation_limit,
                                   watch_mm=self.watch_mm, baud=self.line_baud,
-                                  min_s=min_s)
+                                  min_s=settings.get(31, 0.0),  # the least non-zero S shown
+                                  junction_deviation=settings.get(
+                                      11, DEFAULT_JUNCTION_DEVIATION))
         wd.start_from(self._work_xy() if self.status is not None else None)
         try:  # never sleep in a read longer than the next poll is due
             self.port.timeout = min(0.02, wd.interval)

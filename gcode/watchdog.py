@@ -39,6 +39,7 @@ from enum import Enum
 
 import numpy as np
 
+from gcode.corners import DEFAULT_JUNCTION_DEVIATION, CornerSpeeds
 from gcode.grbl import Status
 
 __all__ = ["CATCH_MM", "REPORT_BYTES", "Breach", "StopReason", "Watchdog", "catch_travel_mm",
@@ -151,7 +152,7 @@ class Watchdog:
                  fastest: float, *, time_scale: float = 1.0, deviation_mm: float = 0.3,
                  watch_mm: float = 0.5, step: float = 1.0, baud: float | None = None,
                  pairs: tuple[tuple[float, float], ...] = (), dynamic: bool = True,
-                 min_s: float = 0.0):
+                 min_s: float = 0.0, junction_deviation: float = DEFAULT_JUNCTION_DEVIATION):
         self.path = np.asarray(path, float).reshape(-1, 2)
         self.path_line = np.asarray(path_line, int)
         self.line_power = np.asarray(line_power, float)
@@ -167,6 +168,7 @@ class Watchdog:
         self.step = float(step)
         self.fastest = float(fastest) / 60.0  # mm/s, the bound on how far the head can go
         self.acceleration = float(acceleration)
+        self.junction_deviation = float(junction_deviation)  # GRBL's $11
         self.interval = poll_interval(max(self.feeds, default=0.0), self.time_scale,
                                       watch_mm=watch_mm, baud=baud)
         self.catch_mm = catch_travel_mm(max(self.feeds, default=0.0), self.interval, baud,
@@ -208,6 +210,8 @@ class Watchdog:
         np.maximum.at(self._line_to, self.path_line[ok], self._along[ok])
         self._motion_lines = np.flatnonzero(np.isfinite(self._line_to))
         self._knots = np.unique(self._along)  # the samples' distances, repeats dropped
+        self.corners = CornerSpeeds(self.path, self.path_line, self._along, self.acceleration,
+                                    self.junction_deviation)
 
     def start_from(self, here: np.ndarray | None) -> None:
         """The first rapid starts wherever the head is: add that leg to the path."""
@@ -321,6 +325,10 @@ class Watchdog:
             # two blocks fewer than reported: the one being run is partly done, and one
             # more may end between GRBL sampling the speed and counting the free blocks
             expected = min(low, self.lookahead_feed(PLANNER_BLOCKS - st.planner_free - 2))
+        # the corners within reach cap the speed (the feed shown is up to PREP_LEAD_S ahead)
+        ahead = high / 60.0 * PREP_LEAD_S + 0.5
+        expected = min(expected, 60.0 * self.corners.cap(self._at - 0.5, self._at + ahead,
+                                                         high / 60.0))
         if starved:  # a machine the line cannot keep fed slows down, and M4 power with it
             self._slow_since = None
         if feed > high * 1.02 + 1.0:
