@@ -193,11 +193,13 @@ def segment_ends(chunks: list[tuple[float, ...]], dt: float) -> tuple[np.ndarray
         return np.zeros(0), np.zeros(0)
     ends_s, ends_v = [np.array([chunks[0][1]])], [np.array([chunks[0][3]])]
     for n, (elapsed, done, duration, v0, acc, v1) in enumerate(chunks):
-        k = np.arange(math.floor(elapsed / dt) + 1, math.floor((elapsed + duration) / dt) + 1)
-        t = k * dt - elapsed
-        t = t[(t > 1e-12) & (t <= duration + 1e-12)]
-        if n == len(chunks) - 1 and not (len(t) and t[-1] >= duration - 1e-12):
+        # grid points (k dt) within the chunk; a chunk often ends on one, up to rounding
+        k = np.arange(math.floor(elapsed / dt + 1e-6) + 1,
+                      math.floor((elapsed + duration) / dt + 1e-6) + 1)
+        t = np.minimum(k * dt - elapsed, duration)
+        t = t[t > 1e-9]
+        if n == len(chunks) - 1 and not (len(t) and t[-1] >= duration - 1e-9):
             t = np.append(t, duration)  # where the trace ends: the block's end, or a stop
         ends_s.append(done + v0 * t + 0.5 * acc * t * t)
-        ends_v.append(np.where(t >= duration - 1e-12, v1, np.maximum(v0 + acc * t, 0.0)))
+        ends_v.append(np.where(t >= duration - 1e-9, v1, np.maximum(v0 + acc * t, 0.0)))
     return np.concatenate(ends_s), np.concatenate(ends_v)

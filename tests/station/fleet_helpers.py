@@ -12,6 +12,7 @@ SIGTERM, for the tests that kill a station process.
 from __future__ import annotations
 
 import json
+import math
 import sys
 import threading
 from pathlib import Path
@@ -106,13 +107,22 @@ def beam_segments(trace) -> np.ndarray:
     return np.array(seg, float).reshape(-1, 4)
 
 
+def cutting(trace) -> np.ndarray:
+    """Per trace segment: the beam cuts along it. Under M4 GRBL gives each 10 ms step
+    segment the power of the speed at its end, so the one that brakes to a stop (a notch's
+    tip, a reversal, a stroke's end) runs dark for a few hundredths of a millimetre, inside
+    the kerf: such a step counts with the feed move it belongs to."""
+    return np.array([not s.rapid and (s.power > 0 or math.hypot(s.x1 - s.x0, s.y1 - s.y0)
+                                      <= 0.1) for s in trace], bool)
+
+
 def complete_runs(trace, contour: np.ndarray) -> int:
     """How many uninterrupted beam-on runs of ``trace`` cover the whole closed
     ``contour`` (k, 2) within 0.2 mm: once for a piece cut once."""
     seg = np.array([[s.x0, s.y0, s.x1, s.y1] for s in trace], float).reshape(-1, 4)
     if not len(seg):
         return 0
-    on_beam = np.array([s.power > 0 and not s.rapid for s in trace])
+    on_beam = cutting(trace)
     samples = densify(np.c_[contour, np.roll(contour, -1, axis=0)])
     tree = cKDTree(samples)
     near = on_beam & (np.maximum(tree.query(seg[:, :2])[0], tree.query(seg[:, 2:])[0]) < 0.4)
