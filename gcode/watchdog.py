@@ -21,6 +21,21 @@ sent proves nothing, so every status report is held against the program:
   the head can go no faster than ``sqrt(2 a d)`` over the distance ``d`` those blocks
   cover; the feed is held to that (a corrupted ``F1`` fills the planner, and is caught).
 
+What a healthy GRBL 1.1 reports, and how each rule allows for it:
+
+* corners: the planner brakes to ``a * $11 * sin / (1 - sin)`` at every junction, so a path
+  of short lines never reaches F; the expected feed is capped by ``gcode.corners``;
+* the end of a stroke (M5 and G10 lines sync the planner): the report shows the prepared
+  segment, so the feed and the M4 power read 0 up to PREP_LEAD_S before the head stops;
+  under M4 the segment that brakes to a stop also runs dark. The beam-off timer allows
+  that lead and runs on through the corners of one stroke;
+* feed hold: power and feed are judged only in Run (in Hold M4 power falls with the
+  braking head); a hold the host did not ask for is a recorded stop (``gcode.stream``);
+* overrides: ``Ov:`` comes every 20th report while busy, but at once after any change, so
+  the first report after a stray override byte shows it;
+* ``Bf:`` and ``WCO:``: the look-ahead bound above; ``WCO:`` only every 30th report while
+  busy, and the streamer keeps the last one to turn MPos into program coordinates.
+
 Polls are scheduled in machine time: ``watch_mm`` of travel at the fastest programmed
 cutting feed, divided by ``time_scale`` (simulated seconds per wall second: 1 on a real
 GRBL, the emulator's ``speed`` on ``grblsim://``). A deviation is therefore seen within

@@ -5,6 +5,29 @@ Behaviour follows the GRBL 1.1 documentation (gnea/grbl wiki and doc/markdown): 
 `ok` once it is parsed into the 15-block planner (not when it has run), motion takes simulated
 time (sim seconds = wall seconds x `speed`), and alarms lock the parser as on the controller.
 A background thread advances simulated time; every public method takes the machine's lock.
+
+What a sender sees, as GRBL 1.1h does it (checked against gnea/grbl's source):
+
+* status reports: ``FS:`` is the speed and the spindle/laser value of the step segment
+  prepared last, 40-50 ms ahead of the head (``st_get_realtime_rate``,
+  ``sys.spindle_speed``); both agree with each other, MPos is the head's own. ``WCO:`` comes
+  every 30th report while busy (10th idle) and at once after a change; ``Ov:`` every 20th
+  (10th idle) and at once after an override or spindle change; ``Bf:`` with ``$10`` bit 2;
+* laser mode (``$32=1``): the beam is on only in G1/G2/G3 motion; M4 scales S by speed /
+  programmed F for every 10 ms step segment, from the speed at the segment's end (so the
+  segment that brakes to a stop runs dark); M3 holds S; spindle state changes sync the
+  planner, a new S between moves does not; at rest the programmed S is reported, beam off;
+* the planner: 15 blocks, junction deviation ``$11`` at every corner, acceleration and
+  rates per axis (``$110``-``$122``), the last block planned to stop, overrides; feed hold
+  brakes at the acceleration and a resume continues the block; soft limits, homing,
+  alarms, check mode, the 128-byte receive buffer and the real-time bytes.
+
+Not modelled: the segment buffer's own timing (a feed hold brakes at once, not after the
+segments already prepared), step quantisation and AMASS, ``$12`` arc tolerance beyond
+splitting arcs into segments, the spindle PWM's 8-bit resolution, probing, the safety
+door, parking, sleep's power-down, tool length offsets beyond G43.1, and the EEPROM's
+write time. The trace records what ran: one segment per block, or under M4 one per run of
+step segments of equal power.
 """
 
 from __future__ import annotations
