@@ -42,13 +42,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simulators.grbl import codes as C
+from simulators.grbl.laser import is_dynamic, power_pieces, segment_value, spindle_value
 from simulators.grbl.motion import (
     Block,
     Segment,
     exit_speed,
     make_block,
     phase,
-    segment_ends,
     speed_ahead,
 )
 from simulators.grbl.parser import (
@@ -507,13 +507,7 @@ class GrblEmulator:
         state, s = self._spindle_out
         if state == "M5" or self._spindle_stop or self._state in ("Alarm", "Check"):
             return 0.0
-        return self._clamp_speed(s)
-
-    def _clamp_speed(self, s: float) -> float:
-        s = s * self._spindle_ovr / 100.0
-        if s <= 0:
-            return 0.0
-        return min(max(s, float(self.settings[31])), float(self.settings[30]))
+        return spindle_value(s, self._spindle_ovr, self.settings)
 
     # ------------------------------------------------------------------ line processing
     def _take_line(self) -> bytes | None:
@@ -753,17 +747,11 @@ class GrblEmulator:
             p0 = b.traced_to
         feed = b.nominal(self._feed_ovr, self._rapid_ovr) * 60.0
         z0, z1 = float(p0[2]), float(p1[2])
-        if self._spindle_stop or not self._dynamic(b):
+        if self._spindle_stop or not is_dynamic(b, bool(self.settings[32])):
             power = 0.0 if self._spindle_stop else self._block_power(b)
             pieces = [(p0, p1, power)]
         else:
-            along, speed = segment_ends(b.chunks, C.DT_SEGMENT)
-            power = np.array([self._laser_rpm(b, v) for v in speed[1:]])
-            keep = np.append(np.flatnonzero(np.diff(power) != 0), len(power) - 1)
-            ends = along[np.append(0, keep + 1)]
-            points = [p0, *(b.start + b.unit * e for e in ends[1:-1]), p1]
-            pieces = [(q0, q1, float(power[k])) for q0, q1, k in zip(points, points[1:], keep)
-                      if np.linalg.norm(q1[:2] - q0[:2]) > 1e-9]
+            pieces = power_pieces(b, p0, p1, self._spindle_ovr, self.settings)
         b.chunks.clear()
         for q0, q1, power in pieces:
             self.trace.append(Segment(float(q0[0]), float(q0[1]), float(q1[0]), float(q1[1]),
@@ -777,26 +765,11 @@ class GrblEmulator:
             self._trace_block(b, b.start, self._pos.copy(), complete=False)
             b.traced_to = self._pos.copy()
 
-    def _dynamic(self, b: Block) -> bool:
-        """M4 in laser mode: the power follows the speed, segment by segment (stepper.c's
-        ``is_pwm_rate_adjusted``)."""
-        return bool(self.settings[32]) and b.spindle == "M4" and b.feed is not None \
-            and not b.jog
-
-    def _laser_rpm(self, b: Block, v: float) -> float:
-        """The laser value of a step segment of ``b`` ending at speed ``v`` (mm/s) in laser
-        mode: 0 off G1/G2/G3 motion; under M4 "power based on the current speed relative to the
-        programmed rate" (laser_mode.md): S x speed / F (the programmed F: feed overrides do
-        not change the power), then the spindle override and $30/$31 as GRBL applies them."""
-        if b.feed is None or b.spindle == "M5" or b.jog:
-            return 0.0
-        s = b.speed * (v * 60.0 / b.feed if b.spindle == "M4" else 1.0)
-        return self._clamp_speed(s)
-
     def _block_power(self, b: Block) -> float:
         """The constant power along a block (M3, a rapid, or outside laser mode)."""
         if self.settings[32]:
-            return self._laser_rpm(b, b.nominal(self._feed_ovr, self._rapid_ovr))
+            return segment_value(b, b.nominal(self._feed_ovr, self._rapid_ovr),
+                                 self._spindle_ovr, self.settings)
         return self._spindle_rpm()
 
     def _prepared(self) -> tuple[float, float]:
@@ -812,7 +785,7 @@ class GrblEmulator:
         b = self._planner[k]
         if self._spindle_stop or not self.settings[32]:
             return v, self._spindle_rpm()
-        return v, self._laser_rpm(b, v)
+        return v, segment_value(b, v, self._spindle_ovr, self.settings)
 
     # ------------------------------------------------------------------ system commands
     def _system(self, line: str) -> None:

@@ -7,10 +7,9 @@ speed from the junction-deviation rule (`$11`). Exit speeds come from a backward
 queued blocks (the last one must stop); the running block is integrated piecewise analytically
 (accelerate / cruise / brake), so any speed-up factor gives the same path and timing.
 
-Two things GRBL's stepper does on its segment clock (10 ms step segments, stepper.c) are
-modelled here from that integration: the speed of the segment being *prepared* ahead of the
-one executing (`speed_ahead`: what `FS:` reports, and what M4 scales the laser with), and the
-per-segment laser power of a block's ramps (`segment_ends`: what the trace records).
+The speed of the step segment GRBL's stepper has *prepared* ahead of the one executing is
+modelled here from that integration (`speed_ahead`): it is what `FS:` reports, and what M4
+scales the laser with (`simulators.grbl.laser`).
 """
 
 from __future__ import annotations
@@ -179,27 +178,3 @@ def speed_ahead(blocks: list[Block], v: float, lead: float, feed_ovr: float, rap
     if k >= len(blocks):
         return 0.0, len(blocks) - 1
     return v, k
-
-
-def segment_ends(chunks: list[tuple[float, ...]], dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Distances along a block (mm from its start) where its step segments end, and the speed
-    (mm/s) at each end, from the motion ``chunks`` recorded since it was last traced.
-
-    GRBL cuts a block into segments of ``dt`` seconds from the block's start and computes each
-    segment's M4 laser power from the speed at its end (stepper.c, ``prep.current_speed``
-    after the segment's ramp). The first distance is where the chunks begin.
-    """
-    if not chunks:
-        return np.zeros(0), np.zeros(0)
-    ends_s, ends_v = [np.array([chunks[0][1]])], [np.array([chunks[0][3]])]
-    for n, (elapsed, done, duration, v0, acc, v1) in enumerate(chunks):
-        # grid points (k dt) within the chunk; a chunk often ends on one, up to rounding
-        k = np.arange(math.floor(elapsed / dt + 1e-6) + 1,
-                      math.floor((elapsed + duration) / dt + 1e-6) + 1)
-        t = np.minimum(k * dt - elapsed, duration)
-        t = t[t > 1e-9]
-        if n == len(chunks) - 1 and not (len(t) and t[-1] >= duration - 1e-9):
-            t = np.append(t, duration)  # where the trace ends: the block's end, or a stop
-        ends_s.append(done + v0 * t + 0.5 * acc * t * t)
-        ends_v.append(np.where(t >= duration - 1e-9, v1, np.maximum(v0 + acc * t, 0.0)))
-    return np.concatenate(ends_s), np.concatenate(ends_v)
