@@ -14,7 +14,6 @@ Run: ``python -m bench laser``.
 
 from __future__ import annotations
 
-import re
 import time
 
 import numpy as np
@@ -22,6 +21,7 @@ import serial
 
 import simulators.grbl  # noqa: F401  (registers grblsim://)
 from bench.stream import _big_table, _garments, _shelf_layout
+from gcode.grbl import Status
 from gcode.layout import Layout, LayoutPiece
 from gcode.program import Program, build_program
 from gcode.stream import Streamer
@@ -29,27 +29,6 @@ from gcode.toolpath import build_toolpaths
 from solver.garment import load_garment
 
 SETTINGS = "settings=32:1,130:6000,131:3000,110:12000,111:12000,120:1500,121:1500,10:3"
-_REPORT = re.compile(rb"<(\w+)[^>]*\|FS:([\d.]+),([\d.]+)")
-
-
-class _Reports:
-    """The port, keeping every status report's (state, feed, S)."""
-
-    def __init__(self, port):
-        self.__dict__.update(port=port, seen=[], tail=b"")
-
-    def __getattr__(self, name):
-        return getattr(self.port, name)
-
-    def __setattr__(self, name, value):
-        setattr(self.port, name, value)
-
-    def read(self, n: int = 1) -> bytes:
-        data = self.port.read(n)
-        text = self.tail + data
-        self.seen.extend((m[1], float(m[2]), float(m[3])) for m in _REPORT.finditer(text))
-        self.__dict__["tail"] = text[text.rfind(b">") + 1:] if b">" in text else text[-200:]
-        return data
 
 
 def _hard_programs() -> dict[str, Program]:
@@ -79,15 +58,15 @@ def _garment_programs() -> dict[str, Program]:
 
 
 def _stream(prog: Program, speed: float) -> tuple[bool, int, list[tuple[float, float]], float]:
-    port = _Reports(serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}",
-                                          timeout=0.02))
-    st = Streamer(port, response_timeout=5.0, stall_timeout=5.0)
+    port = serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}", timeout=0.02)
+    reports: list[Status] = []
+    st = Streamer(port, response_timeout=5.0, stall_timeout=5.0, on_status=reports.append)
     st.connect(quiet=0.05)
     t0 = time.perf_counter()
     res = st.run(prog)
     wall = time.perf_counter() - t0
     port.close()
-    on = [(f, s) for state, f, s in port.seen if state == b"Run" and s > 0]
+    on = [(r.feed or 0.0, r.speed) for r in reports if r.state == "Run" and r.speed]
     return res.completed and res.pieces_cut == len(prog.pieces), res.pieces_cut, on, wall
 
 

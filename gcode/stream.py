@@ -318,6 +318,7 @@ class Streamer:
                  on_progress: Callable[[Progress], None] | None = None,
                  on_fault: Callable[[dict], None] | None = None,
                  on_state: Callable[[StreamState], None] | None = None,
+                 on_status: Callable[[Status], None] | None = None,
                  name: str = "grbl"):
         if poll_hz <= 0 or poll_hz > 5.0:
             raise ValueError("poll_hz must be in (0, 5]: GRBL answers status queries within "
@@ -359,6 +360,7 @@ class Streamer:
         self.on_progress = on_progress
         self.on_fault = on_fault
         self.on_state = on_state
+        self.on_status = on_status  # every status report, as it is read
         self.state = StreamState.IDLE
         self.prefix = f"{name}: "
         # the one reader of the port: standing handlers here, each operation adds its own
@@ -691,6 +693,8 @@ class Streamer:
         if st.wco is not None:
             self._wco = np.asarray(st.wco[:2], float)
             self._wco_known = True
+        if self.on_status is not None:
+            self.on_status(st)
 
     def _work_xy(self) -> np.ndarray | None:
         """The head's X, Y in work coordinates (what the program speaks)."""

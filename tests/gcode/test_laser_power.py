@@ -6,7 +6,6 @@ the watchdog must still stop a corrupted S, power on a rapid and power after M5.
 
 from __future__ import annotations
 
-import re
 import sys
 from pathlib import Path
 
@@ -27,7 +26,6 @@ sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
 from gcode_helpers import make_layout, trace  # noqa: E402
 
 SETTINGS = "settings=32:1,130:1600,131:1000,110:12000,111:12000,120:1500,121:1500"
-_REPORT = re.compile(rb"<(\w+)[^>]*\|FS:([\d.]+),([\d.]+)")
 
 
 def _star(cx: float, cy: float, spikes: int = 10) -> list[list[float]]:
@@ -62,27 +60,6 @@ def station_job() -> Program:
                          machine)
 
 
-class _Recorder:
-    """The port, with every status report the controller sent kept as (state, F, S)."""
-
-    def __init__(self, port):
-        self.__dict__.update(port=port, reports=[], _tail=b"")
-
-    def __getattr__(self, name):
-        return getattr(self.port, name)
-
-    def __setattr__(self, name, value):
-        setattr(self.port, name, value)
-
-    def read(self, n: int = 1) -> bytes:
-        data = self.port.read(n)
-        text = self._tail + data
-        self.reports.extend((m[1].decode(), float(m[2]), float(m[3]))
-                            for m in _REPORT.finditer(text))
-        self.__dict__["_tail"] = text[text.rfind(b">") + 1:] if b">" in text else text[-200:]
-        return data
-
-
 def _cut_path(prog: Program) -> tuple[np.ndarray, np.ndarray]:
     moves = [mv["pts"] for mv in trace(prog.lines, step=0.2) if mv["on"] and len(mv["pts"]) > 1]
     return np.vstack([p[:-1] for p in moves]), np.vstack([p[1:] for p in moves])
@@ -95,13 +72,13 @@ def _off_path(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.hypot(*(ap - t[..., None] * ab[None]).transpose(2, 0, 1)).min(axis=1).max())
 
 
-def _cut_clean(prog: Program, speed: float) -> tuple[list, list]:
+def _cut_clean(prog: Program, speed: float) -> tuple[list[Status], list]:
     """Stream ``prog`` with the watchdog on; it must complete with every piece cut and the
     beam only on the program's path. Returns (status reports, traced segments)."""
-    port = _Recorder(serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}",
-                                           timeout=0.02))
+    port = serial.serial_for_url(f"grblsim://?speed={speed}&{SETTINGS}", timeout=0.02)
     em = port.emulator
-    st = Streamer(port, response_timeout=3.0, stall_timeout=3.0)
+    reports: list[Status] = []
+    st = Streamer(port, response_timeout=3.0, stall_timeout=3.0, on_status=reports.append)
     assert st.deviation_limit  # the watchdog is on
     st.connect(quiet=0.05)
     res = st.run(prog)
@@ -112,14 +89,14 @@ def _cut_clean(prog: Program, speed: float) -> tuple[list, list]:
     assert _off_path(ends, *_cut_path(prog)) <= 0.05
     assert not any(s.rapid and s.power > 0 for s in em.trace)
     port.close()
-    return port.reports, list(em.trace)
+    return reports, list(em.trace)
 
 
 @pytest.mark.parametrize("speed", [1, 50])
 def test_sharp_corners_and_short_segments_cut_to_the_end_with_the_watchdog(sharp, speed):
     reports, segments = _cut_clean(sharp, speed)
     power = 700.0  # the profile's S
-    running = [(f, s) for state, f, s in reports if state == "Run" and s > 0]
+    running = [(r.feed, r.speed) for r in reports if r.state == "Run" and r.speed]
     assert running, "no report while cutting"
     # what the machine reported is S scaled by its own feed ...
     assert all(abs(s - power * min(f, 3000.0) / 3000.0) <= 1.0 for f, s in running)
@@ -132,7 +109,7 @@ def test_sharp_corners_and_short_segments_cut_to_the_end_with_the_watchdog(sharp
 
 def test_the_stations_own_program_cuts_at_speed_50(station_job):
     reports, _ = _cut_clean(station_job, 50)
-    assert any(state == "Run" and 0 < s < 690 for state, _, s in reports)
+    assert any(r.state == "Run" and 0 < (r.speed or 0) < 690 for r in reports)
 
 
 def test_a_controller_outside_laser_mode_is_refused_before_anything_moves(sharp):
@@ -159,7 +136,7 @@ def test_constant_power_mode_writes_m3_and_is_watched_as_constant():
     assert not any(ln.startswith("M4") for ln in prog.lines)
     assert prog.check is not None and not prog.check.dynamic_power
     reports, _ = _cut_clean(prog, 50)
-    assert {s for state, _, s in reports if state == "Run" and s > 0} == {700.0}
+    assert {r.speed for r in reports if r.state == "Run" and r.speed} == {700.0}
     with pytest.raises(ValueError, match="power_mode"):
         default_machine().with_cut(power_mode="pulsed")
 
