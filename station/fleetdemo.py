@@ -18,12 +18,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from station.commands.demo import (
-    copy_job_files,
-    read_json_or_empty,
-    start_simulated_station,
-)
 from station.errors import UserError
+from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
 
 
 def run(args) -> int:

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simulators.grbl import codes as C
+import simulators.grbl.codes as C
 from simulators.grbl.laser import is_dynamic, power_pieces, segment_value, spindle_value
 from simulators.grbl.motion import (
     Block,

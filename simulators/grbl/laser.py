@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from simulators.grbl import codes as C
+import simulators.grbl.codes as C
 from simulators.grbl.motion import Block
 
 __all__ = ["is_dynamic", "power_pieces", "segment_ends", "segment_value", "spindle_value"]

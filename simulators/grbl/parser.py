@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simulators.grbl import codes as C
+import simulators.grbl.codes as C
 
 MM_PER_INCH = 25.4
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")

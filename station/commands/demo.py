@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
+
+from station.fleetdemo import run as run_fleet
+from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -80,8 +81,6 @@ def run(args: argparse.Namespace) -> int:
     args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
                          else 3.0 if fleet else 4.0)
     if fleet:
-        from station.fleetdemo import run as run_fleet
-
         args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
         if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
             raise ValueError("--restarts, --nest-seconds and --speed must be positive")
@@ -124,49 +123,6 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
-
-
-def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: dict[str, Any],
-                            *, thread: str = "daemon") -> tuple[Any, threading.Thread]:
-    """A daemon on its own simulated camera and GRBL (the emulator named ``emulator``), with
-    the demo's alignment, reshaping and nesting settings, recovered and running in the
-    thread ``thread``: the one start of both demos. ``overrides``: its store, socket and
-    station sections."""
-    from station.config import SCHEMA, load_config
-    from station.daemon import Daemon
-    from station.pipeline import StationPipeline
-
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
-    config = load_config(None, {
-        "serial": {"port": port.replace("name=station", f"name={emulator}")},
-        "align": {"restarts": args.restarts},
-        "reshape": {"enabled": not args.no_reshape},
-        "nest": {"seconds": args.nest_seconds},
-        **overrides,
-    })
-    daemon = Daemon(config, StationPipeline(config, simulate=True))
-    daemon.recover()
-    daemon.control.start()
-    worker = threading.Thread(target=daemon.run_loop, name=thread, daemon=True)
-    worker.start()
-    return daemon, worker
-
-
-def copy_job_files(workdir: Path, target: Path, names) -> list[str]:
-    """Copy the job's files ``names`` that exist out of its folder (the store's folders
-    are temporary) into ``target``; returns the names copied, in the order given."""
-    copied = [name for name in names if (workdir / name).is_file()]
-    for name in copied:
-        shutil.copyfile(workdir / name, target / name)
-    return copied
-
-
-def read_json_or_empty(path: Path) -> dict[str, Any]:
-    """A job's JSON file for the demo's report; {} when the job did not get to write it."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
-        return {}
 
 
 def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | None:
