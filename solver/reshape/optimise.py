@@ -41,6 +41,7 @@ import scipy.sparse as sp
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
+from solver.reshape.ease import across_only, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -50,6 +51,7 @@ from solver.reshape.energy import (
     signed_areas,
     stiffened_conformal_matrix,
     twin_length_mismatch,
+    twin_lengths,
 )
 from solver.reshape.ideal import (
     UNIT_MM,
@@ -61,6 +63,7 @@ from solver.reshape.ideal import (
 )
 from solver.reshape.outline import OutlineGuard
 from solver.reshape.pairs import PairTie
+from solver.reshape.quality import seam_side_lengths
 
 
 @dataclass(frozen=True)
@@ -87,11 +90,27 @@ class ReshapeOptions:
     eps_floor: float = 1e-3
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
-    smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
-    corner_smooth_mm: float = 12.0  # ... and shorter than this near seam-line ends
+    smooth_mm: float = 10.0  # outline zig-zags shorter than this are smoothed away
+    corner_smooth_mm: float = 14.0  # ... and shorter than this near seam-line ends
     max_move_mm: float = 10.0  # no pattern vertex moves farther (a constraint; inf: none)
     move_weight: float = 1.0  # strength of the move and area barriers in their last 10 %
     max_area_change: float = 0.01  # no piece's area changes by this fraction (inf: none)
+    # twins keep the length difference they were given (a seam's ease), per edge pair;
+    # False: they are pulled to equal lengths, as in the paper
+    keep_ease: bool = True
+    ease_tol_mm: float = 0.5  # ... and a round may end once every seam's is within this
+    blend_shapes: bool = True  # ideal lines average the twins' shapes (False: the paper's)
+
+    @classmethod
+    def paper(cls, **changes) -> ReshapeOptions:
+        """Sec. 5 as the paper writes it: Eq. (10) alone (no Dirichlet stiffness, outline
+        bending, move or area bound), twins pulled to equal lengths, the ideal lines only
+        (half the rigid motion each), the input mesh as it is. Flips and crossing
+        outlines stay forbidden: those patterns cannot be cut."""
+        preset = dict(dirichlet=0.0, smooth_mm=0.0, corner_smooth_mm=0.0,
+                      max_move_mm=np.inf, max_area_change=np.inf, keep_ease=False,
+                      blend_shapes=False, refinements=0, reach=np.inf, refine=False)
+        return cls(**{**preset, **changes})
 
 
 class _Preconditioner:
@@ -339,6 +358,7 @@ class OptimiseResult:
     eps_mm: float
     seconds: float
     flipped_triangles: int
+    ease_change_max_mm: float = 0.0  # the largest change of a seam line's ease
 
 
 def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> PatternEnergy:
@@ -381,6 +401,7 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         piece=garment.piece_of_face(),
         area0=garment.piece_areas(),
         area_tol=options.max_area_change,
+        ease=twin_lengths(uv0, e) if options.keep_ease else None,
     )
 
 
@@ -407,10 +428,11 @@ def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
-                  seam_edges: np.ndarray, eps: float, targets: str,
+                  mismatch: Callable[[np.ndarray], float],
+                  sewn: Callable[[np.ndarray], bool], targets: str,
                   e_fit: Callable[[np.ndarray], float],
                   progress: Callable[[dict], None] | None) -> None:
-    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps;
+    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma until ``sewn``;
     every round's record (with its E_fit) goes to ``state.history`` and ``progress``."""
     while True:
         state.round_iterations, state.round_done = 0, False
@@ -429,13 +451,13 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
             while not optimise_step(state, energy, options):
                 pass
         state.round += 1
-        length = twin_length_mismatch(state.uv, seam_edges)
+        length = mismatch(state.uv)
         state.history.append({"round": state.round, "targets": targets, "gamma": state.gamma,
                               "L_mm": length, "e_fit_mm2": e_fit(state.uv),
                               "energy": state.energy, "iterations": state.round_iterations})
         if progress is not None:
             progress(state.history[-1])
-        if length <= eps or state.round >= options.max_rounds:
+        if sewn(state.uv) or state.round >= options.max_rounds:
             return
         state.gamma *= 0.5
 
@@ -468,10 +490,13 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         raise ValueError("the input pattern has flipped or degenerate triangles; "
                          "reshaping needs a valid pattern to start from")
     unit = options.unit_mm
-    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit)
-    energy = build_energy(garment, initial_targets(garment, placement, ideal, fixed=fixed,
-                                                   unit_mm=unit, reach=options.reach),
-                          options)
+    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit,
+                        blend_shapes=options.blend_shapes)
+    eased = (eased_lines(garment) if options.keep_ease
+             else np.zeros(len(garment.seam_lines), bool))
+    energy = build_energy(garment, across_only(garment, initial_targets(
+        garment, placement, ideal, fixed=fixed, unit_mm=unit, reach=options.reach),
+        garment.uv, eased), options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
     moving = [p for p in pairs if not (fixed[p.first] or fixed[p.second])]
@@ -479,23 +504,43 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
                           dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
                           tie=PairTie(garment, moving) if moving else None)
     seams = garment.seam_edges
-    l_init = twin_length_mismatch(garment.uv, seams)
+    rest = twin_lengths(garment.uv, seams) if options.keep_ease and len(seams) else 0.0
+
+    def mismatch(uv: np.ndarray) -> float:
+        return twin_length_mismatch(uv, seams, rest)
+
+    l_init = mismatch(garment.uv)
     eps = max(0.5 * l_init, options.eps_floor * _seam_length(garment))
+    ease0 = np.subtract(*seam_side_lengths(garment, garment.uv))
+
+    def ease_change(uv: np.ndarray) -> float:
+        """The largest change of a seam line's ease (mm)."""
+        return float(np.abs(np.subtract(*seam_side_lengths(garment, uv)) - ease0).max(
+            initial=0.0))
+
+    def sewn(uv: np.ndarray) -> bool:
+        """Keeping ease: every seam line's ease within ``ease_tol_mm`` (what a sewer
+        feels; a per-edge sum can stall on a coarse mesh while every seam sews). The
+        paper's: L within eps."""
+        if options.keep_ease:
+            return ease_change(uv) <= options.ease_tol_mm
+        return mismatch(uv) <= eps
 
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2
 
-    _gamma_rounds(state, energy, options, seams, eps, "ideal", e_fit, progress)
+    _gamma_rounds(state, energy, options, mismatch, sewn, "ideal", e_fit, progress)
     best_uv, best_fit = state.uv, state.history[-1]["e_fit_mm2"]
     for _ in range(options.refinements):
-        targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed, unit_mm=unit)
+        targets = across_only(garment, matched_seams(garment, placement, uv=state.uv,
+                                                     fixed=fixed, unit_mm=unit),
+                              state.uv, eased)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
-        _gamma_rounds(state, energy, options, seams, eps, "matched", e_fit, progress)
+        _gamma_rounds(state, energy, options, mismatch, sewn, "matched", e_fit, progress)
         fit = state.history[-1]["e_fit_mm2"]
         gain = (best_fit - fit) / max(best_fit, 1e-12)
-        if fit < best_fit and twin_length_mismatch(state.uv, seams) <= max(
-                eps, twin_length_mismatch(best_uv, seams)):
+        if fit < best_fit and (sewn(state.uv) or mismatch(state.uv) <= mismatch(best_uv)):
             best_uv, best_fit = state.uv, fit
         if gain < options.refine_gain:
             break
@@ -505,8 +550,9 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         ideal=ideal,
         state=state,
         length_mismatch_initial_mm=l_init,
-        length_mismatch_final_mm=twin_length_mismatch(best_uv, seams),
+        length_mismatch_final_mm=mismatch(best_uv),
         eps_mm=eps,
         seconds=time.perf_counter() - start,
         flipped_triangles=flipped,
+        ease_change_max_mm=ease_change(best_uv),
     )

@@ -1,0 +1,57 @@
+"""Seams with ease: pull them across, never along.
+
+A seam whose two sides differ in length (a sleeve cap eased into its armhole, a waist
+gathered onto a band) cannot fit the print at every sewn vertex pair: the pairs drift
+apart along it by construction. The ideal lines and the matched targets still ask each
+side to take the other's spacing, while the twin-length term keeps each side's own edge
+lengths. The cheapest compromise is an accordion: the vertices reach their targets by
+zig-zagging across the seam. Keeping only the part of each target's pull that runs
+across the seam (along the outline's normal) removes that conflict; the fit is still
+pursued across the seam, where a mismatch shows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solver.reshape.ideal import SeamTargets
+from solver.reshape.quality import seam_side_lengths
+
+EASE_FRACTION = 0.02  # a seam whose sides differ by more than 2 % of their length is eased
+
+
+def eased_lines(garment, fraction: float = EASE_FRACTION) -> np.ndarray:
+    """(S,) bool: the seam lines whose two sides differ in length by more than
+    ``fraction`` of their mean length in the input pattern."""
+    a, b = seam_side_lengths(garment, garment.uv)
+    return np.abs(a - b) > fraction * 0.5 * (a + b)
+
+
+def outline_normals(garment, uv: np.ndarray) -> np.ndarray:
+    """(V,2) unit normal of the outline at every outline vertex of ``uv`` (central
+    difference along its loop); zero inside the pieces."""
+    out = np.zeros_like(uv)
+    for i in range(garment.n_pieces):
+        for loop in garment.piece_loops(i):
+            if len(loop) < 3:
+                continue
+            t = uv[np.roll(loop, -1)] - uv[np.roll(loop, 1)]
+            n = np.column_stack([t[:, 1], -t[:, 0]])
+            out[loop] = n / np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    return out
+
+
+def across_only(garment, targets: SeamTargets, uv: np.ndarray,
+                eased: np.ndarray) -> SeamTargets:
+    """``targets`` with the rows on ``eased`` seam lines moved to their vertex's position
+    in ``uv`` plus only the across-the-seam part of the pull."""
+    rows = np.flatnonzero(eased[targets.line]) if len(targets.line) else np.zeros(0, int)
+    if not rows.size:
+        return targets
+    v = targets.vertex[rows]
+    n = outline_normals(garment, uv)[v]
+    pull = targets.target[rows] - uv[v]
+    target = targets.target.copy()
+    target[rows] = uv[v] + np.einsum("ij,ij->i", pull, n)[:, None] * n
+    return SeamTargets(vertex=targets.vertex, target=target, weight=targets.weight,
+                       line=targets.line)
