@@ -13,6 +13,7 @@ from solver.garment import build_garment, load_garment, save_obj
 from solver.placement import Placement
 from solver.reshape import ReshapeOptions, ideal_seams, reshape
 from solver.reshape.energy import signed_areas, twin_length_mismatch, twin_lengths
+from solver.reshape.quality import outline_roughness, seam_ease_changes
 from solver.wallpaper import Wallpaper
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "garments"
@@ -155,3 +156,35 @@ def test_a_heavier_seam_fits_better(shorts, placement, shorts_run):
         return fit_report(g, placement, weights=np.ones(len(g.seam_edges))).distance[on].sum()
 
     assert mismatch(heavy) < mismatch(plain)
+
+
+def test_written_obj_has_fair_outlines_and_seams_that_sew(tmp_path, shorts, shorts_run):
+    """Issue 36's checks, measured as a pattern maker would: from the OBJ files (the input
+    and the reshaped garment written and read back, same numbering)."""
+    _, new, report = shorts_run
+    save_obj(shorts, tmp_path / "aligned.obj")
+    save_obj(new, tmp_path / "reshaped.obj")
+    before, after = load_garment(tmp_path / "aligned.obj"), load_garment(tmp_path / "reshaped.obj")
+    np.testing.assert_array_equal(before.faces, after.faces)
+    rough = outline_roughness(before, after.uv)
+    assert np.percentile(rough, 95) <= 0.3 and rough.max() <= 1.0
+    ease = [abs(s["ease_change_mm"]) for s in seam_ease_changes(before, after.uv)]
+    assert max(ease) <= 1.0
+    # the report says the same, seam by seam
+    assert report.ease_change_max_mm == pytest.approx(max(ease), abs=1e-3)
+    assert report.roughness_max_mm == pytest.approx(rough.max(), abs=1e-6)
+    assert len(report.seams) == len(shorts.seam_lines)
+    assert report.e_fit_after_mm2 <= 0.7 * report.e_fit_before_mm2
+
+
+def test_paper_method_pulls_twins_to_equal_lengths_unbounded(shorts, placement):
+    """Sec. 5 as written: eps is half the input's twin length mismatch, no move bound."""
+    new, report = reshape(shorts, placement, options=ReshapeOptions.paper())
+    assert report.epsilon_mm == pytest.approx(0.5 * report.length_mismatch_initial_mm)
+    assert report.length_mismatch_final_mm <= report.epsilon_mm
+    assert report.length_mismatch_final_mm == pytest.approx(
+        twin_length_mismatch(new.uv, new.seam_edges))
+    assert report.e_fit_after_mm2 <= 0.5 * report.e_fit_before_mm2
+    assert report.flipped_triangles == 0
+    assert report.max_move_bound_mm == np.inf
+    assert report.max_displacement_mm > 10.0  # beyond what our bound allows
