@@ -110,6 +110,21 @@ def _print_round(record: dict) -> None:
           f"{record['iterations']} iterations", file=sys.stderr)
 
 
+def _print_changes(report) -> None:
+    """Per piece and per seam what a pattern maker checks before signing off."""
+    print(f"  outlines: unexplained displacement {report.roughness_p95_mm:.2f} mm (95th "
+          f"percentile), {report.roughness_max_mm:.2f} mm at most; seams: ease changed "
+          f"{report.ease_change_max_mm:.2f} mm at most")
+    for p in report.pieces:
+        print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
+              f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
+              f" mm ({p['seam_length_change_pct']:+.2f} %)")
+    for s in report.seams:
+        a, b = s["side_change_mm"]
+        print(f"  seam {s['seam']:<28s} sides {a:+.2f} / {b:+.2f} mm  ease "
+              f"{s['ease_change_mm']:+.2f} mm")
+
+
 def _options(args: argparse.Namespace) -> ReshapeOptions:
     """The reshape options the command line asks for, checked before any work is done."""
     if args.method == "paper":
@@ -181,8 +196,5 @@ def run(args: argparse.Namespace) -> int:
               f"{report.max_displacement_mm:.2f} mm, {report.flipped_triangles} flipped "
               f"triangles, {report.iterations} iterations in {report.gamma_rounds} rounds, "
               f"{report.seconds:.2f} s")
-        for p in report.pieces:
-            print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
-                  f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
-                  f" mm ({p['seam_length_change_pct']:+.2f} %)")
+        _print_changes(report)
     return 0
