@@ -31,7 +31,9 @@ the same shape.
 - The twin-length penalty uses ``c_e = |e|^2 - |e'|^2`` as in the paper, divided by the
   input length ``l0_e`` of the pair so that gamma is dimensionless and means the same in
   mm or inches (the constraint c_e = 0 is unchanged); its weight ``w_e`` includes
-  ``unit / l0_e`` so that it, too, integrates along the seam.
+  ``unit / l0_e`` so that it, too, integrates along the seam. By default each pair keeps
+  instead the length difference it was drafted with (the seam's ease), in mm
+  (`length_penalty`).
 """
 
 from __future__ import annotations

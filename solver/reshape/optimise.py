@@ -21,7 +21,9 @@ Why our own L-BFGS rather than ``scipy.optimize.minimize(method="L-BFGS-B")``:
 
 The gamma loop: gamma starts at ``gamma0`` and is halved each round until the twin
 length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value
-(never below 1 mm per metre of seam), for at most 20 rounds, each warm-started.
+(never below 1 mm per metre of seam), for at most 20 rounds, each warm-started: that is
+the paper's (`ReshapeOptions.paper`). Ours keeps every twin pair's input length
+difference and stops once every seam line's ease is within ``ease_tol_mm``.
 
 The targets: first the paper's ideal seam lines (the matched targets on lines beyond
 reach, `solver.reshape.ideal.initial_targets`), then up to ``refinements`` rounds of
