@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from solver.reshape.energy import twin_length_mismatch, twin_lengths
 from solver.reshape.ideal import SeamTargets
 from solver.reshape.quality import seam_side_lengths
 
@@ -55,3 +56,42 @@ def across_only(garment, targets: SeamTargets, uv: np.ndarray,
     target[rows] = uv[v] + np.einsum("ij,ij->i", pull, n)[:, None] * n
     return SeamTargets(vertex=targets.vertex, target=target, weight=targets.weight,
                        line=targets.line)
+
+
+class SeamSewing:
+    """Whether the twins still sew, the gamma loop's test.
+
+    Keeping ease (ours): L measures how far each twin pair's length difference moved
+    from the input's, and the seams sew once every seam line's ease is within
+    ``ease_tol_mm`` (what a sewer feels; a per-edge sum can stall on a coarse mesh while
+    every seam sews). The paper's: L = sum |l_e - l_e'| within eps, half its input value
+    (never below ``eps_floor`` of the seam length).
+    """
+
+    def __init__(self, garment, *, keep_ease: bool, ease_tol_mm: float,
+                 eps_floor: float) -> None:
+        self._garment = garment
+        self._seams = garment.seam_edges
+        self.keep_ease, self.ease_tol_mm = keep_ease, ease_tol_mm
+        self._rest = (twin_lengths(garment.uv, self._seams)
+                      if keep_ease and len(self._seams) else 0.0)
+        self._ease0 = np.subtract(*seam_side_lengths(garment, garment.uv))
+        self.initial_mm = self.mismatch(garment.uv)
+        seam_length = float(np.hypot(*(garment.uv[self._seams[:, 1]]
+                                       - garment.uv[self._seams[:, 0]]).T).sum())
+        self.eps_mm = max(0.5 * self.initial_mm, eps_floor * seam_length)
+
+    def mismatch(self, uv: np.ndarray) -> float:
+        """L in mm (see the class docstring)."""
+        return twin_length_mismatch(uv, self._seams, self._rest)
+
+    def ease_change(self, uv: np.ndarray) -> float:
+        """The largest change of a seam line's ease in ``uv`` (mm)."""
+        ease = np.subtract(*seam_side_lengths(self._garment, uv))
+        return float(np.abs(ease - self._ease0).max(initial=0.0))
+
+    def __call__(self, uv: np.ndarray) -> bool:
+        """True when the seams in ``uv`` sew (see the class docstring)."""
+        if self.keep_ease:
+            return self.ease_change(uv) <= self.ease_tol_mm
+        return self.mismatch(uv) <= self.eps_mm

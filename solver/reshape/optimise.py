@@ -43,7 +43,7 @@ import scipy.sparse as sp
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
-from solver.reshape.ease import across_only, eased_lines
+from solver.reshape.ease import SeamSewing, across_only, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -52,7 +52,6 @@ from solver.reshape.energy import (
     outline_bending_matrix,
     signed_areas,
     stiffened_conformal_matrix,
-    twin_length_mismatch,
     twin_lengths,
 )
 from solver.reshape.ideal import (
@@ -65,7 +64,6 @@ from solver.reshape.ideal import (
 )
 from solver.reshape.outline import OutlineGuard
 from solver.reshape.pairs import PairTie
-from solver.reshape.quality import seam_side_lengths
 
 
 @dataclass(frozen=True)
@@ -430,8 +428,7 @@ def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
-                  mismatch: Callable[[np.ndarray], float],
-                  sewn: Callable[[np.ndarray], bool], targets: str,
+                  sewn: SeamSewing, targets: str,
                   e_fit: Callable[[np.ndarray], float],
                   progress: Callable[[dict], None] | None) -> None:
     """The paper's gamma loop from ``state.gamma``: minimise, halve gamma until ``sewn``;
@@ -453,7 +450,7 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
             while not optimise_step(state, energy, options):
                 pass
         state.round += 1
-        length = mismatch(state.uv)
+        length = sewn.mismatch(state.uv)
         state.history.append({"round": state.round, "targets": targets, "gamma": state.gamma,
                               "L_mm": length, "e_fit_mm2": e_fit(state.uv),
                               "energy": state.energy, "iterations": state.round_iterations})
@@ -462,12 +459,6 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
         if sewn(state.uv) or state.round >= options.max_rounds:
             return
         state.gamma *= 0.5
-
-
-def _seam_length(garment) -> float:
-    """Total length of the seams' first twins, mm."""
-    e = garment.seam_edges
-    return float(np.linalg.norm(garment.uv[e[:, 1]] - garment.uv[e[:, 0]], axis=1).sum())
 
 
 def optimise(garment, placement, *, fixed: np.ndarray | None = None,
@@ -505,33 +496,13 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
                           dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
                           tie=PairTie(garment, moving) if moving else None)
-    seams = garment.seam_edges
-    rest = twin_lengths(garment.uv, seams) if options.keep_ease and len(seams) else 0.0
-
-    def mismatch(uv: np.ndarray) -> float:
-        return twin_length_mismatch(uv, seams, rest)
-
-    l_init = mismatch(garment.uv)
-    eps = max(0.5 * l_init, options.eps_floor * _seam_length(garment))
-    ease0 = np.subtract(*seam_side_lengths(garment, garment.uv))
-
-    def ease_change(uv: np.ndarray) -> float:
-        """The largest change of a seam line's ease (mm)."""
-        return float(np.abs(np.subtract(*seam_side_lengths(garment, uv)) - ease0).max(
-            initial=0.0))
-
-    def sewn(uv: np.ndarray) -> bool:
-        """Keeping ease: every seam line's ease within ``ease_tol_mm`` (what a sewer
-        feels; a per-edge sum can stall on a coarse mesh while every seam sews). The
-        paper's: L within eps."""
-        if options.keep_ease:
-            return ease_change(uv) <= options.ease_tol_mm
-        return mismatch(uv) <= eps
+    sewn = SeamSewing(garment, keep_ease=options.keep_ease, ease_tol_mm=options.ease_tol_mm,
+                      eps_floor=options.eps_floor)
 
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2
 
-    _gamma_rounds(state, energy, options, mismatch, sewn, "ideal", e_fit, progress)
+    _gamma_rounds(state, energy, options, sewn, "ideal", e_fit, progress)
     best_uv, best_fit = state.uv, state.history[-1]["e_fit_mm2"]
     for _ in range(options.refinements):
         targets = across_only(garment, matched_seams(garment, placement, uv=state.uv,
@@ -539,10 +510,11 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
                               state.uv, eased)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
-        _gamma_rounds(state, energy, options, mismatch, sewn, "matched", e_fit, progress)
+        _gamma_rounds(state, energy, options, sewn, "matched", e_fit, progress)
         fit = state.history[-1]["e_fit_mm2"]
         gain = (best_fit - fit) / max(best_fit, 1e-12)
-        if fit < best_fit and (sewn(state.uv) or mismatch(state.uv) <= mismatch(best_uv)):
+        if fit < best_fit and (sewn(state.uv)
+                               or sewn.mismatch(state.uv) <= sewn.mismatch(best_uv)):
             best_uv, best_fit = state.uv, fit
         if gain < options.refine_gain:
             break
@@ -551,10 +523,10 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         uv=best_uv,
         ideal=ideal,
         state=state,
-        length_mismatch_initial_mm=l_init,
-        length_mismatch_final_mm=mismatch(best_uv),
-        eps_mm=eps,
+        length_mismatch_initial_mm=sewn.initial_mm,
+        length_mismatch_final_mm=sewn.mismatch(best_uv),
+        eps_mm=sewn.eps_mm,
         seconds=time.perf_counter() - start,
         flipped_triangles=flipped,
-        ease_change_max_mm=ease_change(best_uv),
+        ease_change_max_mm=sewn.ease_change(best_uv),
     )
