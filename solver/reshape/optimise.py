@@ -100,6 +100,7 @@ class ReshapeOptions:
     keep_ease: bool = True
     ease_tol_mm: float = 0.5  # ... and a round may end once every seam's is within this
     blend_shapes: bool = True  # ideal lines average the twins' shapes (False: the paper's)
+    never_worse: bool = True  # return the input when no round fits better than it
 
     @classmethod
     def paper(cls, **changes) -> ReshapeOptions:
@@ -109,7 +110,8 @@ class ReshapeOptions:
         outlines stay forbidden: those patterns cannot be cut."""
         preset = dict(dirichlet=0.0, smooth_mm=0.0, corner_smooth_mm=0.0,
                       max_move_mm=np.inf, max_area_change=np.inf, keep_ease=False,
-                      blend_shapes=False, refinements=0, reach=np.inf, refine=False)
+                      blend_shapes=False, refinements=0, reach=np.inf, refine=False,
+                      never_worse=False)
         return cls(**{**preset, **changes})
 
 
@@ -469,7 +471,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
 
     First towards the paper's ideal seam lines, then (``options.refinements`` times at
     most) towards the matched targets of the pattern reached so far, keeping the pattern
-    with the lowest E_fit among those whose twin length mismatch L is within eps.
+    with the lowest E_fit among those whose seams sew (the input included, unless
+    ``options.never_worse`` is off, so that reshaping never makes the fit worse).
     ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position;
     ``progress`` is called with each finished round's history entry; ``pairs`` (mirror
     pairs of `solver.garment.symmetry`) move as one: the second piece's displacement is
@@ -504,6 +507,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
 
     _gamma_rounds(state, energy, options, sewn, "ideal", e_fit, progress)
     best_uv, best_fit = state.uv, state.history[-1]["e_fit_mm2"]
+    if options.never_worse and best_fit > e_fit(garment.uv):  # the input sews, too
+        best_uv, best_fit = garment.uv.copy(), e_fit(garment.uv)
     for _ in range(options.refinements):
         targets = across_only(garment, matched_seams(garment, placement, uv=state.uv,
                                                      fixed=fixed, unit_mm=unit),
