@@ -18,7 +18,7 @@ from solver.reshape.energy import twin_length_mismatch, twin_lengths
 from solver.reshape.ideal import SeamTargets
 from solver.reshape.quality import seam_side_lengths
 
-EASE_FRACTION = 0.02  # a seam whose sides differ by more than 2 % of their length is eased
+EASE_FRACTION = 0.1  # a seam whose sides differ by more than 10 % of their length is eased
 
 
 def eased_lines(garment, fraction: float = EASE_FRACTION) -> np.ndarray:
