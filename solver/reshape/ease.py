@@ -28,6 +28,21 @@ def eased_lines(garment, fraction: float = EASE_FRACTION) -> np.ndarray:
     return np.abs(a - b) > fraction * 0.5 * (a + b)
 
 
+def ease_targets(garment, give_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(E,) per twin pair and (S,) per seam line: the length difference (mm) each keeps.
+
+    A seam line's drafted ease ``E`` may give up to ``give_mm`` to the fit: every pair's
+    own difference is scaled by ``max(0, 1 - give / |E|)``, so a seam drafted with
+    ease keeps all of it but ``give_mm``, and one whose sides differ by less (mesh
+    noise, not ease) is pulled to equal lengths, as the paper asks.
+    """
+    diff = twin_lengths(garment.uv, garment.seam_edges)
+    line = np.asarray(garment.seam_line_of_edge, np.int64)
+    drafted = np.bincount(line, weights=diff, minlength=len(garment.seam_lines))
+    scale = np.clip(1.0 - give_mm / np.maximum(np.abs(drafted), 1e-12), 0.0, 1.0)
+    return diff * scale[line], drafted * scale
+
+
 def outline_normals(garment, uv: np.ndarray) -> np.ndarray:
     """(V,2) unit normal of the outline at every outline vertex of ``uv`` (central
     difference along its loop); zero inside the pieces."""
@@ -61,21 +76,24 @@ def across_only(garment, targets: SeamTargets, uv: np.ndarray,
 class SeamSewing:
     """Whether the twins still sew, the gamma loop's test.
 
-    Keeping ease (ours): L measures how far each twin pair's length difference moved
-    from the input's, and the seams sew once every seam line's ease is within
-    ``ease_tol_mm`` (what a sewer feels; a per-edge sum can stall on a coarse mesh while
-    every seam sews). The paper's: L = sum |l_e - l_e'| within eps, half its input value
+    Keeping ease (ours): each pair keeps its `ease_targets` difference, L measures how
+    far the pairs are from it, and the seams sew once every seam line's ease is within
+    ``ease_tol_mm`` of its target (what a sewer feels; a per-edge sum can stall on a
+    coarse mesh while every seam sews), so within ``give_mm + ease_tol_mm`` of the
+    drafted ease. The paper's: L = sum |l_e - l_e'| within eps, half its input value
     (never below ``eps_floor`` of the seam length).
     """
 
-    def __init__(self, garment, *, keep_ease: bool, ease_tol_mm: float,
+    def __init__(self, garment, *, keep_ease: bool, give_mm: float, ease_tol_mm: float,
                  eps_floor: float) -> None:
         self._garment = garment
         self._seams = garment.seam_edges
         self.keep_ease, self.ease_tol_mm = keep_ease, ease_tol_mm
-        self._rest = (twin_lengths(garment.uv, self._seams)
-                      if keep_ease and len(self._seams) else 0.0)
-        self._ease0 = np.subtract(*seam_side_lengths(garment, garment.uv))
+        if keep_ease and len(self._seams):
+            self.pair_ease, self._line_ease = ease_targets(garment, give_mm)
+        else:
+            self.pair_ease, self._line_ease = None, None
+        self._drafted = np.subtract(*seam_side_lengths(garment, garment.uv))
         self.initial_mm = self.mismatch(garment.uv)
         seam_length = float(np.hypot(*(garment.uv[self._seams[:, 1]]
                                        - garment.uv[self._seams[:, 0]]).T).sum())
@@ -83,15 +101,18 @@ class SeamSewing:
 
     def mismatch(self, uv: np.ndarray) -> float:
         """L in mm (see the class docstring)."""
-        return twin_length_mismatch(uv, self._seams, self._rest)
+        rest = 0.0 if self.pair_ease is None else self.pair_ease
+        return twin_length_mismatch(uv, self._seams, rest)
 
-    def ease_change(self, uv: np.ndarray) -> float:
-        """The largest change of a seam line's ease in ``uv`` (mm)."""
+    def ease_change(self, uv: np.ndarray, target: bool = False) -> float:
+        """The largest change of a seam line's ease in ``uv`` (mm) from the drafted one,
+        or from its target with ``target``."""
         ease = np.subtract(*seam_side_lengths(self._garment, uv))
-        return float(np.abs(ease - self._ease0).max(initial=0.0))
+        ref = self._line_ease if target and self._line_ease is not None else self._drafted
+        return float(np.abs(ease - ref).max(initial=0.0))
 
     def __call__(self, uv: np.ndarray) -> bool:
         """True when the seams in ``uv`` sew (see the class docstring)."""
         if self.keep_ease:
-            return self.ease_change(uv) <= self.ease_tol_mm
+            return self.ease_change(uv, target=True) <= self.ease_tol_mm
         return self.mismatch(uv) <= self.eps_mm

@@ -23,7 +23,8 @@ The gamma loop: gamma starts at ``gamma0`` and is halved each round until the tw
 length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value
 (never below 1 mm per metre of seam), for at most 20 rounds, each warm-started: that is
 the paper's (`ReshapeOptions.paper`). Ours keeps every twin pair's input length
-difference and stops once every seam line's ease is within ``ease_tol_mm``.
+difference (less ``ease_give_mm`` per seam line, `solver.reshape.ease.ease_targets`) and
+stops once every seam line's ease is within ``ease_tol_mm`` of that.
 
 The targets: first the paper's ideal seam lines (the matched targets on lines beyond
 reach, `solver.reshape.ideal.initial_targets`), then up to ``refinements`` rounds of
@@ -43,7 +44,7 @@ import scipy.sparse as sp
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
-from solver.reshape.ease import SeamSewing, across_only, eased_lines
+from solver.reshape.ease import SeamSewing, across_only, ease_targets, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -52,7 +53,6 @@ from solver.reshape.energy import (
     outline_bending_matrix,
     signed_areas,
     stiffened_conformal_matrix,
-    twin_lengths,
 )
 from solver.reshape.ideal import (
     UNIT_MM,
@@ -98,6 +98,7 @@ class ReshapeOptions:
     # twins keep the length difference they were given (a seam's ease), per edge pair;
     # False: they are pulled to equal lengths, as in the paper
     keep_ease: bool = True
+    ease_give_mm: float = 0.5  # of which each seam line may give this much to the fit
     ease_tol_mm: float = 0.5  # ... and a round may end once every seam's is within this
     blend_shapes: bool = True  # ideal lines average the twins' shapes (False: the paper's)
     never_worse: bool = True  # return the input when no round fits better than it
@@ -403,7 +404,7 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         piece=garment.piece_of_face(),
         area0=garment.piece_areas(),
         area_tol=options.max_area_change,
-        ease=twin_lengths(uv0, e) if options.keep_ease else None,
+        ease=ease_targets(garment, options.ease_give_mm)[0] if options.keep_ease else None,
     )
 
 
@@ -499,8 +500,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
                           dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
                           tie=PairTie(garment, moving) if moving else None)
-    sewn = SeamSewing(garment, keep_ease=options.keep_ease, ease_tol_mm=options.ease_tol_mm,
-                      eps_floor=options.eps_floor)
+    sewn = SeamSewing(garment, keep_ease=options.keep_ease, give_mm=options.ease_give_mm,
+                      ease_tol_mm=options.ease_tol_mm, eps_floor=options.eps_floor)
 
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from solver.garment import build_garment
+from solver.reshape.ease import ease_targets
+from solver.reshape.energy import twin_lengths
 from solver.reshape.quality import outline_roughness, seam_ease_changes, seam_side_lengths
 
 
@@ -80,3 +82,18 @@ def test_ease_changes_name_both_sides(squares):
     left = (g.piece_of_vertex == 1) & (g.uv[:, 0] < 151.0)
     both[left, 1] *= 1.02  # ... and the second by as much: it sews as before
     assert seam_ease_changes(g, both)[0]["ease_change_mm"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_seam_gives_at_most_half_a_millimetre_of_its_ease(squares):
+    """A 2 mm ease keeps 1.5 mm, spread over the pairs as drafted; 0.3 mm of difference
+    (less than it may give) is pulled to equal lengths, as the paper asks."""
+    g = squares
+    for stretch, kept in ((1.02, 1.5), (1.003, 0.0)):
+        uv = g.uv.copy()
+        right = (g.piece_of_vertex == 0) & (g.uv[:, 0] > 99.0)
+        uv[right, 1] *= stretch
+        stretched = g.with_uv(uv)
+        pairs, (line,) = ease_targets(stretched, 0.5)
+        drafted = twin_lengths(uv, g.seam_edges)
+        assert abs(line) == pytest.approx(kept, abs=1e-9)
+        assert pairs == pytest.approx(drafted * kept / abs(drafted.sum()), abs=1e-12)
