@@ -31,16 +31,22 @@ def eased_lines(garment, fraction: float = EASE_FRACTION) -> np.ndarray:
 def ease_targets(garment, give_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """(E,) per twin pair and (S,) per seam line: the length difference (mm) each keeps.
 
-    A seam line's drafted ease ``E`` may give up to ``give_mm`` to the fit: every pair's
-    own difference is scaled by ``max(0, 1 - give / |E|)``, so a seam drafted with
-    ease keeps all of it but ``give_mm``, and one whose sides differ by less (mesh
-    noise, not ease) is pulled to equal lengths, as the paper asks.
+    A seam line may give up to ``give_mm`` of its drafted ease ``E`` to the fit, taken
+    from its pairs in proportion to their length; every pair keeps the rest of its own
+    difference, so no point of one side slides along the other by more than ``give_mm``
+    (`solver.reshape.quality.sewn_drift`), and a seam drafted with less ease than that is
+    pulled to equal side lengths, as the paper asks.
     """
-    diff = twin_lengths(garment.uv, garment.seam_edges)
+    e = garment.seam_edges
+    diff = twin_lengths(garment.uv, e)
     line = np.asarray(garment.seam_line_of_edge, np.int64)
-    drafted = np.bincount(line, weights=diff, minlength=len(garment.seam_lines))
-    scale = np.clip(1.0 - give_mm / np.maximum(np.abs(drafted), 1e-12), 0.0, 1.0)
-    return diff * scale[line], drafted * scale
+    n = len(garment.seam_lines)
+    drafted = np.bincount(line, weights=diff, minlength=n)
+    length = 0.5 * (np.linalg.norm(garment.uv[e[:, 1]] - garment.uv[e[:, 0]], axis=1)
+                    + np.linalg.norm(garment.uv[e[:, 3]] - garment.uv[e[:, 2]], axis=1))
+    given = np.sign(drafted) * np.minimum(give_mm, np.abs(drafted))
+    share = length / np.maximum(np.bincount(line, weights=length, minlength=n), 1e-12)[line]
+    return diff - given[line] * share, drafted - given
 
 
 def outline_normals(garment, uv: np.ndarray) -> np.ndarray:

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from solver.garment.notches import chain_seam_rows
+
 
 def _window_mean(s: np.ndarray, f: np.ndarray, period: float, width: float) -> np.ndarray:
     """(n,k) mean of the closed piecewise-linear function through (s, f) (period
@@ -78,16 +80,42 @@ def seam_side_lengths(garment, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.bincount(line, weights=second, minlength=n))
 
 
+def sewn_drift(garment, uv: np.ndarray) -> np.ndarray:
+    """(S,) mm: per seam line, how far a point of one side slides along the other when
+    the seam is sewn from one end: the largest change, over every station along the
+    seam, of the two sides' length difference up to it. A notch and its partner drifted
+    apart by at most this much; 0 when every twin pair keeps its length difference."""
+    uv = np.asarray(uv, float)
+    e = garment.seam_edges
+    out = np.zeros(len(garment.seam_lines))
+    if not len(e):
+        return out
+    change = (np.linalg.norm(uv[e[:, 1]] - uv[e[:, 0]], axis=1)
+              - np.linalg.norm(uv[e[:, 3]] - uv[e[:, 2]], axis=1)
+              - np.linalg.norm(garment.uv[e[:, 1]] - garment.uv[e[:, 0]], axis=1)
+              + np.linalg.norm(garment.uv[e[:, 3]] - garment.uv[e[:, 2]], axis=1))
+    line = np.asarray(garment.seam_line_of_edge, np.int64)
+    for k in range(len(out)):  # one short chain per seam line
+        rows = np.flatnonzero(line == k)
+        if not rows.size:
+            continue
+        order = chain_seam_rows(np.column_stack([e[rows, :2], rows]))[:, 2]
+        out[k] = float(np.abs(np.cumsum(change[order])).max())
+    return out
+
+
 def seam_ease_changes(garment, uv: np.ndarray) -> list[dict]:
     """Per seam line what reshaping to ``uv`` did to it: the length change of both sides
-    (mm) and the change of their difference, the ease (mm; 0 for a seam that sews as
-    before)."""
+    (mm), the change of their difference, the ease (mm; 0 for a seam that sews as
+    before), and `sewn_drift` (mm)."""
     a0, b0 = seam_side_lengths(garment, garment.uv)
     a1, b1 = seam_side_lengths(garment, np.asarray(uv, float))
+    drift = sewn_drift(garment, uv)
     return [{"seam": s.name or str(k), "pieces": [garment.piece_names[s.piece_a],
                                                   garment.piece_names[s.piece_b]],
              "length_mm": [round(float(a0[k]), 3), round(float(b0[k]), 3)],
              "side_change_mm": [round(float(a1[k] - a0[k]), 4),
                                 round(float(b1[k] - b0[k]), 4)],
-             "ease_change_mm": round(float((a1[k] - b1[k]) - (a0[k] - b0[k])), 4)}
+             "ease_change_mm": round(float((a1[k] - b1[k]) - (a0[k] - b0[k])), 4),
+             "sewn_drift_mm": round(float(drift[k]), 4)}
             for k, s in enumerate(garment.seam_lines)]

@@ -38,6 +38,7 @@ class ReshapeReport:
     # (`solver.reshape.quality.seam_ease_changes`), all mm
     seams: tuple[dict, ...] = ()
     ease_change_max_mm: float = 0.0  # the largest |ease change| of a seam line
+    sewn_drift_max_mm: float = 0.0  # the largest drift of a notch from its partner
     # the outline's displacement that its 10 mm moving average does not explain
     # (`solver.reshape.quality.outline_roughness`): 95th percentile and largest, mm
     roughness_p95_mm: float = 0.0
@@ -120,6 +121,7 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0,
         pieces=tuple(pieces),
         seams=tuple(seams),
         ease_change_max_mm=max((abs(s["ease_change_mm"]) for s in seams), default=0.0),
+        sewn_drift_max_mm=max((s["sewn_drift_mm"] for s in seams), default=0.0),
         roughness_p95_mm=float(np.percentile(rough, 95)) if len(rough) else 0.0,
         roughness_max_mm=float(rough.max(initial=0.0)),
     )

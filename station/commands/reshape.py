@@ -114,7 +114,8 @@ def _print_changes(report) -> None:
     """Per piece and per seam what a pattern maker checks before signing off."""
     print(f"  outlines: unexplained displacement {report.roughness_p95_mm:.2f} mm (95th "
           f"percentile), {report.roughness_max_mm:.2f} mm at most; seams: ease changed "
-          f"{report.ease_change_max_mm:.2f} mm at most")
+          f"{report.ease_change_max_mm:.2f} mm, notches drifted {report.sewn_drift_max_mm:.2f}"
+          " mm at most")
     for p in report.pieces:
         print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
               f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
@@ -122,7 +123,7 @@ def _print_changes(report) -> None:
     for s in report.seams:
         a, b = s["side_change_mm"]
         print(f"  seam {s['seam']:<28s} sides {a:+.2f} / {b:+.2f} mm  ease "
-              f"{s['ease_change_mm']:+.2f} mm")
+              f"{s['ease_change_mm']:+.2f} mm  notches drift {s['sewn_drift_mm']:.2f} mm")
 
 
 def _options(args: argparse.Namespace) -> ReshapeOptions:

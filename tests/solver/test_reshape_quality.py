@@ -8,7 +8,12 @@ import pytest
 from solver.garment import build_garment
 from solver.reshape.ease import ease_targets
 from solver.reshape.energy import twin_lengths
-from solver.reshape.quality import outline_roughness, seam_ease_changes, seam_side_lengths
+from solver.reshape.quality import (
+    outline_roughness,
+    seam_ease_changes,
+    seam_side_lengths,
+    sewn_drift,
+)
 
 
 def _sewn_squares(cells: int = 50) -> object:
@@ -97,3 +102,17 @@ def test_a_seam_gives_at_most_half_a_millimetre_of_its_ease(squares):
         drafted = twin_lengths(uv, g.seam_edges)
         assert abs(line) == pytest.approx(kept, abs=1e-9)
         assert pairs == pytest.approx(drafted * kept / abs(drafted.sum()), abs=1e-12)
+
+
+def test_sewn_drift_sees_what_the_ease_hides(squares):
+    """The first side's lower half stretched by 1 mm and its upper half shrunk by 1 mm:
+    the seam's ease is unchanged, but a notch at its middle slid 1 mm from its partner."""
+    g = squares
+    uv = g.uv.copy()
+    side = np.flatnonzero((g.piece_of_vertex == 0) & (g.uv[:, 0] > 99.0))
+    y = g.uv[side, 1]
+    uv[side, 1] = np.where(y <= 50.0, y * 51.0 / 50.0, 51.0 + (y - 50.0) * 49.0 / 50.0)
+    (seam,) = seam_ease_changes(g, uv)
+    assert seam["ease_change_mm"] == pytest.approx(0.0, abs=1e-9)
+    assert seam["sewn_drift_mm"] == pytest.approx(1.0, abs=1e-9)
+    assert sewn_drift(g, g.uv + [5.0, 2.0]) == pytest.approx([0.0], abs=1e-12)
