@@ -2,6 +2,7 @@
 
     from solver.reshape import reshape
     new_garment, report = reshape(garment, placement)   # placement from solver.align
+    report.seams, report.roughness_p95_mm                # what a pattern maker checks
 
 Wolff and Sorkine-Hornung, "Wallpaper Pattern Alignment along Garment Seams",
 ACM Trans. Graph. 38(4), 2019, Sec. 5.
@@ -20,6 +21,7 @@ from solver.reshape.optimise import (  # the driver optimise() stays in its modu
     ReshapeOptions,
     optimise_step,
 )
+from solver.reshape.quality import outline_roughness, seam_ease_changes, sewn_drift
 from solver.reshape.report import ReshapeReport, reshape_report
 
 __all__ = [
@@ -32,8 +34,11 @@ __all__ = [
     "ideal_seams",
     "matched_seams",
     "optimise_step",
+    "outline_roughness",
     "reshape",
     "reshape_report",
+    "seam_ease_changes",
+    "sewn_drift",
 ]
 
 
