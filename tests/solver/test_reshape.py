@@ -195,3 +195,19 @@ def test_paper_method_pulls_twins_to_equal_lengths_unbounded(shorts, placement):
     assert report.flipped_triangles == 0
     assert report.max_move_bound_mm == np.inf
     assert report.max_displacement_mm > 10.0  # beyond what our bound allows
+
+
+def test_notches_keep_their_place_along_their_edge():
+    """A notch halfway along a seam edge stays halfway along it on the reshaped outline,
+    on both sides of the seam, so the two still meet when sewn."""
+    g = _two_squares(212.0)
+    g.notches = {0: [(100.0, 50.0)], 1: [(212.0, 50.0)]}  # halfway between y = 40 and 60
+    placement = Placement.identity(g.n_pieces, P4M)
+    new, report = reshape(g, placement)
+    assert report.max_displacement_mm > 1.0
+    for piece, x in ((0, 100.0), (1, 212.0)):
+        ends = np.flatnonzero((g.piece_of_vertex == piece) & np.isclose(g.uv[:, 0], x)
+                              & np.isin(g.uv[:, 1], [40.0, 60.0]))
+        assert len(ends) == 2
+        np.testing.assert_allclose(new.notches[piece][0], new.uv[ends].mean(axis=0),
+                                   atol=1e-9)
