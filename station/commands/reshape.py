@@ -31,8 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "reshape",
         help="deform the pattern so the print fits perfectly along the seams (paper Sec. 5)",
         description="Keep the print's placement and move each seam towards its ideal line "
-        "(conformal, flip-free, twin seam lengths kept equal). Writes the reshaped garment as "
-        "OBJ (3D kept, pattern replaced), JSON specification (if the input was one) or "
+        "(conformal, flip-free, every seam keeping its ease, outlines kept fair). Writes the "
+        "reshaped garment as OBJ (3D kept, pattern replaced), JSON specification (if the "
+        "input was one) or "
         "DXF-AAMA.",
     )
     add_garment_arguments(p)
