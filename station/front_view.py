@@ -1,10 +1,12 @@
 """The "garment front view": left and right pieces side by side as they are worn.
 
 A person judges a garment's symmetry at a glance when the two halves of every pair stand
-mirrored next to each other, grain up, print on. Each piece is moved rigidly (so its print
-moves with it: the placement is carried along), the second piece of a pair is drawn as the
-mirror of the first across a vertical axis (the centre seam where the pair has one), and
-the panels are laid out in a row; then `station.render.draw_fit` draws them.
+mirrored next to each other, the right way up, print on. Each piece is turned rigidly so
+that what is up when the garment is worn points up (`worn_up_deg`: the neck at the top,
+a sleeve hanging from its cap), which moves its print with it (the placement is carried
+along); the second piece of a pair is drawn as the mirror of the first across a vertical
+axis (the centre seam where the pair has one), and the panels are laid out in a row;
+then `station.render.draw_fit` draws them.
 """
 
 from __future__ import annotations
@@ -15,8 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from solver.fit import fit_report
+from solver.garment.grain import drape_grain, panel_positions
 from solver.garment.symmetry import FLIP, MirrorPair, centre_seams
 from solver.placement import Placement, rotation_matrices
+from station.render import draw_fit
 
 GAP_MM = 60.0
 
@@ -28,21 +32,25 @@ def _rigid(angle: float, shift: np.ndarray) -> np.ndarray:
     return out
 
 
-def front_view(garment, placement: Placement, pairs: Sequence[MirrorPair], *,
-               grain_deg: float = 0.0):
-    """(garment, placement, axes) with every piece moved to its place in the front view;
-    ``axes`` maps each pair (first, second) to the x of its vertical mirror axis.
+def worn_up_deg(garment) -> np.ndarray:
+    """(P,) degrees: per piece the pattern direction that points up as the garment is
+    worn. From the drape (or a specification's panel placement): towards the neck or
+    waist on a body piece, towards the cap on a sleeve or leg, so that it hangs. Without
+    either, each piece's grain, whose sense a flat pattern does not tell."""
+    if garment.xyz is not None or panel_positions(garment) is not None:
+        return drape_grain(garment)[0]
+    return np.array([g.deg for g in garment.grains()])
 
-    ``grain_deg`` is the fabric grain's direction in the print's coordinates: each
-    piece is turned so that its grain (the fabric's, as the placement lays it) points up.
-    """
+
+def front_view(garment, placement: Placement, pairs: Sequence[MirrorPair]):
+    """(garment, placement, axes) with every piece moved to its place in the front view;
+    ``axes`` maps each pair (first, second) to the x of its vertical mirror axis."""
     g = garment
     n = g.n_pieces
     moves = np.tile(np.eye(3), (n, 1, 1))  # proper rigid motion of each piece
-    grain = np.radians(grain_deg)
+    worn = np.radians(worn_up_deg(g))
     for c in range(n):
-        up = np.pi / 2 - (placement.angles[c] + grain)
-        moves[c] = _rigid(up, np.zeros(2))
+        moves[c] = _rigid(np.pi / 2 - worn[c], np.zeros(2))
     panels: list[list[int]] = []
     paired: set[int] = set()
     axes: dict[tuple[int, int], float] = {}
@@ -94,11 +102,9 @@ def _mirror_axis_x(g, move: np.ndarray, i: int, j: int, centre: set[int]) -> flo
 
 
 def draw_front_view(garment, placement: Placement, pairs: Sequence[MirrorPair],
-                    path: str | Path, *, grain_deg: float = 0.0, **options) -> np.ndarray:
+                    path: str | Path, **options) -> np.ndarray:
     """Draw the front view (pairs mirrored side by side, print on, seams coloured)."""
-    from station.render import draw_fit
-
-    shown, moved, _ = front_view(garment, placement, pairs, grain_deg=grain_deg)
+    shown, moved, _ = front_view(garment, placement, pairs)
     kept = ", ".join(f"{p.first}~{p.second}" for p in pairs) or "no pairs"
     return draw_fit(shown, moved, fit_report(shown, moved), path,
                     title=f"{placement.fabric.group} front view, pairs {kept}", **options)

@@ -55,7 +55,7 @@ class Notch:
     t: float = 0.0  # ... at this fraction from edge[0] to edge[1]
 
 
-def _chain(rows: np.ndarray) -> np.ndarray:
+def chain_seam_rows(rows: np.ndarray) -> np.ndarray:
     """Order the twin pairs of one seam line along side A (a->b of one follows the last)."""
     nxt = {int(a): k for k, a in enumerate(rows[:, 0])}
     ends = set(rows[:, 1].tolist())
@@ -91,7 +91,7 @@ def _reference_side_first(uv: np.ndarray, rows: np.ndarray, forward) -> np.ndarr
 
     if length(2, 3) > length(0, 1) + 1e-6:
         rows = rows[:, [2, 3, 0, 1]]
-    return _chain(rows)
+    return chain_seam_rows(rows)
 
 
 def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) -> np.ndarray:

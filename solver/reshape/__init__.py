@@ -2,6 +2,7 @@
 
     from solver.reshape import reshape
     new_garment, report = reshape(garment, placement)   # placement from solver.align
+    report.seams, report.roughness_p95_mm                # what a pattern maker checks
 
 Wolff and Sorkine-Hornung, "Wallpaper Pattern Alignment along Garment Seams",
 ACM Trans. Graph. 38(4), 2019, Sec. 5.
@@ -20,6 +21,7 @@ from solver.reshape.optimise import (  # the driver optimise() stays in its modu
     ReshapeOptions,
     optimise_step,
 )
+from solver.reshape.quality import outline_roughness, seam_ease_changes, sewn_drift
 from solver.reshape.report import ReshapeReport, reshape_report
 
 __all__ = [
@@ -32,8 +34,11 @@ __all__ = [
     "ideal_seams",
     "matched_seams",
     "optimise_step",
+    "outline_roughness",
     "reshape",
     "reshape_report",
+    "seam_ease_changes",
+    "sewn_drift",
 ]
 
 
@@ -72,23 +77,39 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
 
 
 def _carry_marks(garment, uv: np.ndarray):
-    """Grain lines and notches moved with the displacement of their nearest pattern vertex,
-    so that notches stay on the reshaped outline and grain lines on their piece."""
+    """Grain lines moved with the displacement of their nearest pattern vertex (they stay
+    on their piece); notches kept at the same place along their outline edge (the same
+    fraction of the same edge), so a notch stays on the reshaped outline and, since twin
+    edges keep their lengths, at the same sewn position as its partner across the seam."""
     from scipy.spatial import cKDTree
 
     disp = uv - garment.uv
     grains, notches = {}, {}
-    for i in set(garment.grainlines) | set(garment.notches):
+    edges = garment.boundary_half_edges()
+    for i in set(garment.grainlines):
         verts = np.flatnonzero(garment.piece_of_vertex == i)
-        tree = cKDTree(garment.uv[verts])
-
-        def move(points, verts=verts, tree=tree):
-            p = np.asarray(points, float).reshape(-1, 2)
-            return p + disp[verts[tree.query(p)[1]]]
-
-        if i in garment.grainlines:
-            a, b = move(garment.grainlines[i])
-            grains[i] = (tuple(map(float, a)), tuple(map(float, b)))
-        if garment.notches.get(i):
-            notches[i] = [tuple(map(float, q)) for q in move(garment.notches[i])]
+        p = np.asarray(garment.grainlines[i], float).reshape(-1, 2)
+        a, b = p + disp[verts[cKDTree(garment.uv[verts]).query(p)[1]]]
+        grains[i] = (tuple(map(float, a)), tuple(map(float, b)))
+    for i, marks in garment.notches.items():
+        if marks:
+            own = edges[garment.piece_of_vertex[edges[:, 0]] == i]
+            notches[i] = [tuple(map(float, q))
+                          for q in _along_edges(garment.uv, uv, own, np.asarray(marks, float))]
     return grains, notches
+
+
+def _along_edges(before: np.ndarray, after: np.ndarray, edges: np.ndarray,
+                 points: np.ndarray) -> np.ndarray:
+    """(N,2) ``points`` moved from ``before`` to ``after`` at the same fraction of their
+    nearest edge of ``edges`` (B,2) (vectorised over points x edges)."""
+    a, b = before[edges[:, 0]], before[edges[:, 1]]
+    ab = b - a
+    t = np.einsum("nbk,bk->nb", points[:, None] - a[None], ab) / np.maximum(
+        np.einsum("bk,bk->b", ab, ab), 1e-24)
+    t = np.clip(t, 0.0, 1.0)
+    foot = a[None] + t[..., None] * ab[None]
+    k = np.argmin(np.linalg.norm(points[:, None] - foot, axis=-1), axis=1)
+    tk = t[np.arange(len(points)), k][:, None]
+    offset = points - foot[np.arange(len(points)), k]  # a notch drawn just off the line
+    return (1.0 - tk) * after[edges[k, 0]] + tk * after[edges[k, 1]] + offset

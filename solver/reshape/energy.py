@@ -31,7 +31,9 @@ the same shape.
 - The twin-length penalty uses ``c_e = |e|^2 - |e'|^2`` as in the paper, divided by the
   input length ``l0_e`` of the pair so that gamma is dimensionless and means the same in
   mm or inches (the constraint c_e = 0 is unchanged); its weight ``w_e`` includes
-  ``unit / l0_e`` so that it, too, integrates along the seam.
+  ``unit / l0_e`` so that it, too, integrates along the seam. By default each pair keeps
+  instead the length difference it was drafted with (the seam's ease), in mm
+  (`length_penalty`).
 """
 
 from __future__ import annotations
@@ -175,6 +177,12 @@ def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
     with ``kappa = smooth_mm^4 / unit`` features shorter than ``smooth_mm`` are smoothed
     away and longer moves are left to the fit. The outline's own corners are kept: only
     the displacement is smoothed. ``smooth_mm`` may be given per vertex (V,).
+
+    Outline edges longer than ``smooth_mm`` (a specification meshed at 2 cm along a
+    straight side) are weighed as if they were ``smooth_mm`` long: the integral would let
+    neighbouring vertices zig-zag by several millimetres there (an accordion that keeps
+    twin lengths while the ends follow their targets), and a tailor sees the kink at each
+    vertex however coarse the sampling is.
     """
     n = len(uv_ref)
     if np.all(np.asarray(smooth_mm) <= 0) or not loops:
@@ -186,7 +194,7 @@ def outline_bending_matrix(uv_ref: np.ndarray, loops: list[np.ndarray],
     h = 0.5 * (np.linalg.norm(uv_ref[here] - uv_ref[prev], axis=1)
                + np.linalg.norm(uv_ref[nxt] - uv_ref[here], axis=1))
     smooth = np.broadcast_to(np.asarray(smooth_mm, float), (n,))[here]
-    w = (smooth**4 / unit_mm) / np.maximum(h, 1e-9) ** 3
+    w = (smooth**4 / unit_mm) / np.minimum(np.maximum(h, 1e-9), np.maximum(smooth, 1e-9)) ** 3
     rows = np.repeat(np.arange(len(here)), 3)
     cols = np.column_stack([prev, here, nxt]).ravel()
     vals = np.tile([1.0, -2.0, 1.0], len(here)) * np.repeat(np.sqrt(w), 3)
@@ -351,21 +359,43 @@ def length_constraints(uv: np.ndarray, seam_edges: np.ndarray) -> tuple[np.ndarr
 
 
 def length_penalty(uv: np.ndarray, seam_edges: np.ndarray, weight: np.ndarray,
-                   ref_length: np.ndarray, gamma: float) -> tuple[float, np.ndarray]:
-    """1/(2 gamma) sum w (c_e / l0_e)^2 and its (V,2) gradient."""
+                   ref_length: np.ndarray, gamma: float,
+                   ease: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """1/(2 gamma) sum w r_e^2 and its (V,2) gradient.
+
+    Without ``ease``, r_e = c_e / l0_e, the paper's pull to equal lengths. With ``ease``
+    (E,), each pair's input length difference l0_e - l0_e', r_e = 2 (l_e - l_e' -
+    ease_e): the twins keep the difference their maker gave them (a sleeve cap eased into
+    an armhole), in millimetres, not in squared lengths, whose difference drifts when
+    both edges shrink. Both forms are about 2 (l_e - l_e') for equal input lengths.
+    """
     c, e1, e2 = length_constraints(uv, seam_edges)
-    cn = c / ref_length
-    e = float(np.sum(weight * cn * cn)) / (2.0 * gamma)
-    k = (weight * cn / ref_length / gamma)[:, None] * 2.0  # dE/dc * dc/d(e) factor
-    vals = np.concatenate([-k * e1, k * e1, k * e2, -k * e2])
+    if ease is None:
+        r = c / ref_length
+        d1, d2 = e1 * (2.0 / ref_length)[:, None], e2 * (2.0 / ref_length)[:, None]
+    else:
+        n1, n2 = np.hypot(*e1.T), np.hypot(*e2.T)
+        r = 2.0 * (n1 - n2 - ease)
+        d1 = e1 * (2.0 / np.maximum(n1, 1e-12))[:, None]
+        d2 = e2 * (2.0 / np.maximum(n2, 1e-12))[:, None]
+    e = float(np.sum(weight * r * r)) / (2.0 * gamma)
+    k = (weight * r / gamma)[:, None]  # dE/dr; dr/d(e) = d1, dr/d(e') = -d2
+    vals = np.concatenate([-k * d1, k * d1, k * d2, -k * d2])
     idx = seam_edges.T.ravel()
     return e, _scatter(len(uv), idx, vals)
 
 
-def twin_length_mismatch(uv: np.ndarray, seam_edges: np.ndarray) -> float:
-    """L = sum_e | l_e - l_e' | in mm (the paper's stopping measure)."""
+def twin_lengths(uv: np.ndarray, seam_edges: np.ndarray) -> np.ndarray:
+    """(E,) l_e - l_e', the length difference of every twin pair in mm."""
     _, e1, e2 = length_constraints(uv, seam_edges)
-    return float(np.sum(np.abs(np.hypot(*e1.T) - np.hypot(*e2.T))))
+    return np.hypot(*e1.T) - np.hypot(*e2.T)
+
+
+def twin_length_mismatch(uv: np.ndarray, seam_edges: np.ndarray,
+                         rest: np.ndarray | float = 0.0) -> float:
+    """L = sum_e | l_e - l_e' - rest_e | in mm (the paper's stopping measure, with
+    ``rest`` = 0; with the input's own differences it measures how far the ease moved)."""
+    return float(np.sum(np.abs(twin_lengths(uv, seam_edges) - rest)))
 
 
 # ---------------------------------------------------------------------- flips
@@ -427,6 +457,7 @@ class PatternEnergy:
     piece: np.ndarray | None = None  # (F,) piece of each face, for the area bound
     area0: np.ndarray | None = None  # (P,) input area of each piece
     area_tol: float = np.inf  # no piece's area changes by this fraction or more
+    ease: np.ndarray | None = None  # (E,) l0_e - l0_e' the twins keep; None: equal lengths
 
     def terms(self, uv: np.ndarray, gamma: float) -> dict[str, tuple[float, np.ndarray]]:
         """Each term's value and gradient (for reports and gradient checks)."""
@@ -435,7 +466,7 @@ class PatternEnergy:
             "conf": conformal_energy(uv, self.q, self.rest),
             "barrier": barrier_energy(uv, self.faces, self.threshold),
             "length": length_penalty(uv, self.seam_edges, self.edge_weight,
-                                     self.ref_length, gamma),
+                                     self.ref_length, gamma, self.ease),
             "move": move_barrier(uv, self.rest, self.max_move, self.move_weight),
             "area": self.area_term(uv),
         }
@@ -464,7 +495,8 @@ class PatternEnergy:
             return np.inf, gb
         ep, gp = prox_energy(uv, self.vertex, self.target, self.weight)
         ec, gc = conformal_energy(uv, self.q, self.rest)
-        el, gl = length_penalty(uv, self.seam_edges, self.edge_weight, self.ref_length, gamma)
+        el, gl = length_penalty(uv, self.seam_edges, self.edge_weight, self.ref_length, gamma,
+                                self.ease)
         em, gm = move_barrier(uv, self.rest, self.max_move, self.move_weight)
         ea, ga = self.area_term(uv)
         if not (np.isfinite(em) and np.isfinite(ea)):

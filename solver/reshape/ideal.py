@@ -159,12 +159,15 @@ def matched_seams(garment, placement: Placement, *, uv: np.ndarray | None = None
 
 
 def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
-                fixed: np.ndarray | None = None, unit_mm: float = UNIT_MM) -> IdealSeams:
+                fixed: np.ndarray | None = None, unit_mm: float = UNIT_MM,
+                blend_shapes: bool = True) -> IdealSeams:
     """Ideal seam lines of every weighted seam line of ``garment`` under ``placement``.
 
     ``uv`` (V,2) overrides the garment's pattern; ``fixed`` (n_pieces,) bool marks pieces
     that must not move (their twins take the whole displacement); ``unit_mm`` the seam
-    length that carries one unit of proximity weight.
+    length that carries one unit of proximity weight. ``blend_shapes=False`` is the
+    paper as written: both lines move by half the rigid motion, and S1's ideal line has
+    S2's shape.
     """
     uv = garment.uv if uv is None else np.asarray(uv, float)
     v1, v2, line, weight = _weighted_pairs(garment, unit_mm)
@@ -230,7 +233,8 @@ def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
     centre = c1[line] + share[:, None] * (cs - c1)[line]
     fwd = np.einsum("pij,pj->pi", rotation_matrices(share * theta[line]), x)
     bwd = np.einsum("pij,pj->pi", rotation_matrices((share - 1.0) * theta[line]), y)
-    s1_ideal = (1.0 - share)[:, None] * fwd + share[:, None] * bwd + centre
+    shape = share if blend_shapes else (share > 0).astype(float)  # S1*'s share of the shape
+    s1_ideal = (1.0 - shape)[:, None] * fwd + shape[:, None] * bwd + centre
     s2_ideal = _apply(np.linalg.inv(m), s1_ideal)
     stuck = (share == 0) & (share_j == 0)  # both pieces fixed: targets where they are
     s1_ideal[stuck] = s1[stuck]

@@ -21,7 +21,10 @@ Why our own L-BFGS rather than ``scipy.optimize.minimize(method="L-BFGS-B")``:
 
 The gamma loop: gamma starts at ``gamma0`` and is halved each round until the twin
 length mismatch ``L = sum_e |l_e - l_e'|`` is at most ``eps`` = half its initial value
-(never below 1 mm per metre of seam), for at most 20 rounds, each warm-started.
+(never below 1 mm per metre of seam), for at most 20 rounds, each warm-started: that is
+the paper's (`ReshapeOptions.paper`). Ours keeps every twin pair's input length
+difference (less ``ease_give_mm`` per seam line, `solver.reshape.ease.ease_targets`) and
+stops once every seam line's ease is within ``ease_tol_mm`` of that.
 
 The targets: first the paper's ideal seam lines (the matched targets on lines beyond
 reach, `solver.reshape.ideal.initial_targets`), then up to ``refinements`` rounds of
@@ -41,6 +44,7 @@ import scipy.sparse as sp
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
+from solver.reshape.ease import SeamSewing, across_only, ease_targets, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
     area_gradients,
@@ -49,7 +53,6 @@ from solver.reshape.energy import (
     outline_bending_matrix,
     signed_areas,
     stiffened_conformal_matrix,
-    twin_length_mismatch,
 )
 from solver.reshape.ideal import (
     UNIT_MM,
@@ -87,11 +90,30 @@ class ReshapeOptions:
     eps_floor: float = 1e-3
     refine: bool = True  # subdivide meshes whose seam edges outgrow the print's repeat
     dirichlet: float = 0.05  # Dirichlet stiffness added to E_conf (stiffened_conformal_matrix)
-    smooth_mm: float = 6.0  # outline notches shorter than this are smoothed away
-    corner_smooth_mm: float = 12.0  # ... and shorter than this near seam-line ends
+    smooth_mm: float = 10.0  # outline zig-zags shorter than this are smoothed away
+    corner_smooth_mm: float = 14.0  # ... and shorter than this near seam-line ends
     max_move_mm: float = 10.0  # no pattern vertex moves farther (a constraint; inf: none)
     move_weight: float = 1.0  # strength of the move and area barriers in their last 10 %
     max_area_change: float = 0.01  # no piece's area changes by this fraction (inf: none)
+    # twins keep the length difference they were given (a seam's ease), per edge pair;
+    # False: they are pulled to equal lengths, as in the paper
+    keep_ease: bool = True
+    ease_give_mm: float = 0.5  # of which each seam line may give this much to the fit
+    ease_tol_mm: float = 0.5  # ... and a round may end once every seam's is within this
+    blend_shapes: bool = True  # ideal lines average the twins' shapes (False: the paper's)
+    never_worse: bool = True  # return the input when no round fits better than it
+
+    @classmethod
+    def paper(cls, **changes) -> ReshapeOptions:
+        """Sec. 5 as the paper writes it: Eq. (10) alone (no Dirichlet stiffness, outline
+        bending, move or area bound), twins pulled to equal lengths, the ideal lines only
+        (half the rigid motion each), the input mesh as it is. Flips and crossing
+        outlines stay forbidden: those patterns cannot be cut."""
+        preset = dict(dirichlet=0.0, smooth_mm=0.0, corner_smooth_mm=0.0,
+                      max_move_mm=np.inf, max_area_change=np.inf, keep_ease=False,
+                      blend_shapes=False, refinements=0, reach=np.inf, refine=False,
+                      never_worse=False)
+        return cls(**{**preset, **changes})
 
 
 class _Preconditioner:
@@ -339,6 +361,7 @@ class OptimiseResult:
     eps_mm: float
     seconds: float
     flipped_triangles: int
+    ease_change_max_mm: float = 0.0  # the largest change of a seam line's ease
 
 
 def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> PatternEnergy:
@@ -381,6 +404,7 @@ def build_energy(garment, targets: SeamTargets, options: ReshapeOptions) -> Patt
         piece=garment.piece_of_face(),
         area0=garment.piece_areas(),
         area_tol=options.max_area_change,
+        ease=ease_targets(garment, options.ease_give_mm)[0] if options.keep_ease else None,
     )
 
 
@@ -407,10 +431,10 @@ def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
 
 
 def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeOptions,
-                  seam_edges: np.ndarray, eps: float, targets: str,
+                  sewn: SeamSewing, targets: str,
                   e_fit: Callable[[np.ndarray], float],
                   progress: Callable[[dict], None] | None) -> None:
-    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma while L > eps;
+    """The paper's gamma loop from ``state.gamma``: minimise, halve gamma until ``sewn``;
     every round's record (with its E_fit) goes to ``state.history`` and ``progress``."""
     while True:
         state.round_iterations, state.round_done = 0, False
@@ -429,21 +453,15 @@ def _gamma_rounds(state: OptimiseState, energy: PatternEnergy, options: ReshapeO
             while not optimise_step(state, energy, options):
                 pass
         state.round += 1
-        length = twin_length_mismatch(state.uv, seam_edges)
+        length = sewn.mismatch(state.uv)
         state.history.append({"round": state.round, "targets": targets, "gamma": state.gamma,
                               "L_mm": length, "e_fit_mm2": e_fit(state.uv),
                               "energy": state.energy, "iterations": state.round_iterations})
         if progress is not None:
             progress(state.history[-1])
-        if length <= eps or state.round >= options.max_rounds:
+        if sewn(state.uv) or state.round >= options.max_rounds:
             return
         state.gamma *= 0.5
-
-
-def _seam_length(garment) -> float:
-    """Total length of the seams' first twins, mm."""
-    e = garment.seam_edges
-    return float(np.linalg.norm(garment.uv[e[:, 1]] - garment.uv[e[:, 0]], axis=1).sum())
 
 
 def optimise(garment, placement, *, fixed: np.ndarray | None = None,
@@ -454,7 +472,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
 
     First towards the paper's ideal seam lines, then (``options.refinements`` times at
     most) towards the matched targets of the pattern reached so far, keeping the pattern
-    with the lowest E_fit among those whose twin length mismatch L is within eps.
+    with the lowest E_fit among those whose seams sew (the input included, unless
+    ``options.never_worse`` is off, so that reshaping never makes the fit worse).
     ``fixed`` (n_pieces,) bool: pieces that must keep their shape and position;
     ``progress`` is called with each finished round's history entry; ``pairs`` (mirror
     pairs of `solver.garment.symmetry`) move as one: the second piece's displacement is
@@ -468,34 +487,40 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         raise ValueError("the input pattern has flipped or degenerate triangles; "
                          "reshaping needs a valid pattern to start from")
     unit = options.unit_mm
-    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit)
-    energy = build_energy(garment, initial_targets(garment, placement, ideal, fixed=fixed,
-                                                   unit_mm=unit, reach=options.reach),
-                          options)
+    ideal = ideal_seams(garment, placement, fixed=fixed, unit_mm=unit,
+                        blend_shapes=options.blend_shapes)
+    eased = (eased_lines(garment) if options.keep_ease
+             else np.zeros(len(garment.seam_lines), bool))
+    energy = build_energy(garment, across_only(garment, initial_targets(
+        garment, placement, ideal, fixed=fixed, unit_mm=unit, reach=options.reach),
+        garment.uv, eased), options)
     free = ~fixed[garment.piece_of_vertex]
     idx = np.flatnonzero(free)
     moving = [p for p in pairs if not (fixed[p.first] or fixed[p.second])]
     state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
                           dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
                           tie=PairTie(garment, moving) if moving else None)
-    seams = garment.seam_edges
-    l_init = twin_length_mismatch(garment.uv, seams)
-    eps = max(0.5 * l_init, options.eps_floor * _seam_length(garment))
+    sewn = SeamSewing(garment, keep_ease=options.keep_ease, give_mm=options.ease_give_mm,
+                      ease_tol_mm=options.ease_tol_mm, eps_floor=options.eps_floor)
 
     def e_fit(uv: np.ndarray) -> float:
         return fit_report(garment, placement, uv=uv).e_fit_mm2
 
-    _gamma_rounds(state, energy, options, seams, eps, "ideal", e_fit, progress)
+    _gamma_rounds(state, energy, options, sewn, "ideal", e_fit, progress)
     best_uv, best_fit = state.uv, state.history[-1]["e_fit_mm2"]
+    if options.never_worse and best_fit > e_fit(garment.uv):  # the input sews, too
+        best_uv, best_fit = garment.uv.copy(), e_fit(garment.uv)
     for _ in range(options.refinements):
-        targets = matched_seams(garment, placement, uv=state.uv, fixed=fixed, unit_mm=unit)
+        targets = across_only(garment, matched_seams(garment, placement, uv=state.uv,
+                                                     fixed=fixed, unit_mm=unit),
+                              state.uv, eased)
         energy = replace(energy, vertex=targets.vertex, target=targets.target,
                          weight=targets.weight)
-        _gamma_rounds(state, energy, options, seams, eps, "matched", e_fit, progress)
+        _gamma_rounds(state, energy, options, sewn, "matched", e_fit, progress)
         fit = state.history[-1]["e_fit_mm2"]
         gain = (best_fit - fit) / max(best_fit, 1e-12)
-        if fit < best_fit and twin_length_mismatch(state.uv, seams) <= max(
-                eps, twin_length_mismatch(best_uv, seams)):
+        if fit < best_fit and (sewn(state.uv)
+                               or sewn.mismatch(state.uv) <= sewn.mismatch(best_uv)):
             best_uv, best_fit = state.uv, fit
         if gain < options.refine_gain:
             break
@@ -504,9 +529,10 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         uv=best_uv,
         ideal=ideal,
         state=state,
-        length_mismatch_initial_mm=l_init,
-        length_mismatch_final_mm=twin_length_mismatch(best_uv, seams),
-        eps_mm=eps,
+        length_mismatch_initial_mm=sewn.initial_mm,
+        length_mismatch_final_mm=sewn.mismatch(best_uv),
+        eps_mm=sewn.eps_mm,
         seconds=time.perf_counter() - start,
         flipped_triangles=flipped,
+        ease_change_max_mm=sewn.ease_change(best_uv),
     )

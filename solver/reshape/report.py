@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from solver.fit import fit_report
+from solver.reshape.quality import outline_roughness, seam_ease_changes
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,15 @@ class ReshapeReport:
     area_change_max_pct: float = 0.0  # largest |area change| of a piece, % of its area
     # per piece: name, largest move (mm), area change (%), seam length change (mm and %)
     pieces: tuple[dict, ...] = ()
+    # per seam line: its pieces, both sides' lengths and length changes, its ease change
+    # (`solver.reshape.quality.seam_ease_changes`), all mm
+    seams: tuple[dict, ...] = ()
+    ease_change_max_mm: float = 0.0  # the largest |ease change| of a seam line
+    sewn_drift_max_mm: float = 0.0  # the largest drift of a notch from its partner
+    # the outline's displacement that its 10 mm moving average does not explain
+    # (`solver.reshape.quality.outline_roughness`): 95th percentile and largest, mm
+    roughness_p95_mm: float = 0.0
+    roughness_max_mm: float = 0.0
 
     @property
     def e_fit_ratio(self) -> float:
@@ -42,6 +52,7 @@ class ReshapeReport:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["pieces"] = list(self.pieces)
+        d["seams"] = list(self.seams)
         d["max_move_bound_mm"] = (None if not np.isfinite(self.max_move_bound_mm)
                                   else self.max_move_bound_mm)
         d["e_fit_before_cm2"] = self.e_fit_before_mm2 / 100.0
@@ -82,6 +93,8 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0,
     """Measure ``result`` (an ``OptimiseResult``) against the ``garment`` it reshaped."""
     disp = np.hypot(*(result.uv - garment.uv).T)
     pieces = piece_changes(garment, result.uv)
+    seams = seam_ease_changes(garment, result.uv)
+    rough = outline_roughness(garment, result.uv)
     ideal = result.ideal
     ideal_disp = (np.hypot(*(ideal.target - garment.uv[ideal.vertex]).T)
                   if len(ideal.vertex) else np.zeros(1))
@@ -106,4 +119,9 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0,
         max_move_bound_mm=float(max_move_mm),
         area_change_max_pct=max((abs(p["area_change_pct"]) for p in pieces), default=0.0),
         pieces=tuple(pieces),
+        seams=tuple(seams),
+        ease_change_max_mm=max((abs(s["ease_change_mm"]) for s in seams), default=0.0),
+        sewn_drift_max_mm=max((s["sewn_drift_mm"] for s in seams), default=0.0),
+        roughness_p95_mm=float(np.percentile(rough, 95)) if len(rough) else 0.0,
+        roughness_max_mm=float(rough.max(initial=0.0)),
     )

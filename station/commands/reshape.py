@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from solver.placement import Placement
+from solver.reshape import ReshapeOptions
 from station.cli import UserError
 from station.cliargs import (
     add_allowance_arguments,
@@ -30,8 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "reshape",
         help="deform the pattern so the print fits perfectly along the seams (paper Sec. 5)",
         description="Keep the print's placement and move each seam towards its ideal line "
-        "(conformal, flip-free, twin seam lengths kept equal). Writes the reshaped garment as "
-        "OBJ (3D kept, pattern replaced), JSON specification (if the input was one) or "
+        "(conformal, flip-free, every seam keeping its ease, outlines kept fair). Writes the "
+        "reshaped garment as OBJ (3D kept, pattern replaced), JSON specification (if the "
+        "input was one) or "
         "DXF-AAMA.",
     )
     add_garment_arguments(p)
@@ -42,9 +44,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="reshaped garment; the suffix picks the format")
     p.add_argument("--fix", action="append", default=[], metavar="PIECE",
                    help="piece (name or index) that must keep its shape; repeatable")
-    p.add_argument("--max-move", type=float, default=10.0, metavar="MM",
-                   help="no pattern vertex moves farther than MM (default 10); each piece's "
-                   "area also stays within 1 %%")
+    p.add_argument("--method", choices=("ours", "paper"), default="ours",
+                   help="ours (default): bounded moves and areas, fair outlines, seams keep "
+                   "their ease; paper: Sec. 5 as written (Eq. 10, unbounded, twins pulled to "
+                   "equal lengths), to compare side by side")
+    p.add_argument("--max-move", type=float, default=None, metavar="MM",
+                   help="no pattern vertex moves farther than MM (default 10; not with "
+                   "--method paper); each piece's area also stays within 1 %%")
     add_grain_arguments(p)
     add_symmetrise_argument(p)
     p.add_argument("--no-symmetry", action="store_true",
@@ -105,16 +111,44 @@ def _print_round(record: dict) -> None:
           f"{record['iterations']} iterations", file=sys.stderr)
 
 
+def _print_changes(report) -> None:
+    """Per piece and per seam what a pattern maker checks before signing off."""
+    print(f"  outlines: unexplained displacement {report.roughness_p95_mm:.2f} mm (95th "
+          f"percentile), {report.roughness_max_mm:.2f} mm at most; seams: ease changed "
+          f"{report.ease_change_max_mm:.2f} mm, notches drifted {report.sewn_drift_max_mm:.2f}"
+          " mm at most")
+    for p in report.pieces:
+        print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
+              f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
+              f" mm ({p['seam_length_change_pct']:+.2f} %)")
+    for s in report.seams:
+        a, b = s["side_change_mm"]
+        print(f"  seam {s['seam']:<28s} sides {a:+.2f} / {b:+.2f} mm  ease "
+              f"{s['ease_change_mm']:+.2f} mm  notches drift {s['sewn_drift_mm']:.2f} mm")
+
+
+def _options(args: argparse.Namespace) -> ReshapeOptions:
+    """The reshape options the command line asks for, checked before any work is done."""
+    if args.method == "paper":
+        if args.max_move is not None:
+            raise UserError("--max-move: the paper's method has no move bound "
+                            "(drop --max-move or use --method ours)")
+        return ReshapeOptions.paper()
+    max_move = 10.0 if args.max_move is None else args.max_move
+    if not max_move > 0 or max_move == float("inf"):
+        raise ValueError(f"--max-move must be a positive number of mm, got {max_move}")
+    return ReshapeOptions(max_move_mm=max_move)
+
+
 def run(args: argparse.Namespace) -> int:
     from solver.garment.symmetry import fit_pairs
-    from solver.reshape import ReshapeOptions, reshape
+    from solver.reshape import reshape
 
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:
         raise UserError(f"{out}: unknown output format {out.suffix!r} "
                         f"(expected one of {', '.join(FORMATS)})")
-    if not args.max_move > 0 or args.max_move == float("inf"):
-        raise ValueError(f"--max-move must be a positive number of mm, got {args.max_move}")
+    options = _options(args)
     garment = load_garment_arg(args)
     fabric = load_fabric(args.fabric)
     placement = Placement.load(args.placement)
@@ -138,13 +172,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"station reshape: pairs {', '.join(f'{p.first}~{p.second}' for p in pairs)} "
               "(from the placement) move as mirror images", file=sys.stderr)
     new, report = reshape(garment, placement, fixed=fixed, progress=_print_round, pairs=pairs,
-                          options=ReshapeOptions(max_move_mm=args.max_move))
+                          options=options)
     if report.subdivisions:
         print(f"station reshape: seam edges too long for a {fabric.covering_radius:.0f} mm "
               f"covering radius: the mesh was subdivided {report.subdivisions}x "
               f"({report.faces} faces), and {out} has the finer mesh", file=sys.stderr)
     write_garment(new, out, allowance_rules(args) if out.suffix.lower() == ".dxf" else None)
     result = {"garment": str(args.garment), "output": str(out), "group": fabric.group,
+              "method": args.method,
               **report.to_dict()}
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
@@ -163,8 +198,5 @@ def run(args: argparse.Namespace) -> int:
               f"{report.max_displacement_mm:.2f} mm, {report.flipped_triangles} flipped "
               f"triangles, {report.iterations} iterations in {report.gamma_rounds} rounds, "
               f"{report.seconds:.2f} s")
-        for p in report.pieces:
-            print(f"  {p['piece']:<20s} largest move {p['max_move_mm']:6.2f} mm  area "
-                  f"{p['area_change_pct']:+.2f} %  seam length {p['seam_length_change_mm']:+.2f}"
-                  f" mm ({p['seam_length_change_pct']:+.2f} %)")
+        _print_changes(report)
     return 0

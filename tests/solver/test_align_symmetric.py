@@ -132,12 +132,19 @@ def test_station_align_records_pairs_and_their_price(tmp_path: Path) -> None:
 
 
 def test_front_view_shows_each_pair_mirrored(tshirt, tmp_path: Path) -> None:
-    from station.front_view import draw_front_view, front_view
+    from station.front_view import draw_front_view, front_view, worn_up_deg
 
     pairs = mirror_pairs(tshirt)
     placement = align_symmetric(tshirt, PRINTS["pmm"], pairs, compare=False, method="paper",
                                 restarts=2, grain_tol_deg=1.0)
     shown, moved, axes = front_view(tshirt, placement, pairs)
+    # the right way up, as worn: what is up on the body (the neck; a sleeve's cap, so it
+    # hangs) points up the page on every piece; a pair's second piece is its first's
+    # mirror image, so it is up only as far as the drape is symmetric
+    worn = worn_up_deg(tshirt) + np.degrees(moved.angles - placement.angles)
+    off = np.abs((worn - 90.0 + 180.0) % 360.0 - 180.0)
+    assert off[[p.first for p in pairs]].max() < 1e-6
+    assert off.max() < 15.0
     fabric = placement.fabric
     for p in pairs:
         i, j = p.first, p.second

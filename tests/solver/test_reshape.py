@@ -12,7 +12,9 @@ from solver.fit import fit_report
 from solver.garment import build_garment, load_garment, save_obj
 from solver.placement import Placement
 from solver.reshape import ReshapeOptions, ideal_seams, reshape
-from solver.reshape.energy import signed_areas, twin_length_mismatch
+from solver.reshape.ease import ease_targets
+from solver.reshape.energy import signed_areas, twin_length_mismatch, twin_lengths
+from solver.reshape.quality import outline_roughness, seam_ease_changes
 from solver.wallpaper import Wallpaper
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "garments"
@@ -67,9 +69,13 @@ def test_reshape_halves_e_fit_without_flips_and_meets_length_target(shorts, shor
     assert report.flipped_triangles == 0
     assert signed_areas(new.uv, new.faces).min() > 0
     assert report.length_mismatch_final_mm <= report.epsilon_mm
-    assert report.epsilon_mm == pytest.approx(0.5 * report.length_mismatch_initial_mm)
-    assert report.length_mismatch_final_mm == pytest.approx(
-        twin_length_mismatch(new.uv, new.seam_edges))
+    # L measures how far each twin pair's length difference is from the one it keeps:
+    # its drafted ease, less up to 0.5 mm per seam line given to the fit
+    kept, _ = ease_targets(shorts, ReshapeOptions().ease_give_mm)
+    assert report.length_mismatch_initial_mm == pytest.approx(np.abs(
+        twin_lengths(shorts.uv, shorts.seam_edges) - kept).sum())
+    assert report.length_mismatch_final_mm == pytest.approx(twin_length_mismatch(
+        new.uv, new.seam_edges, kept))
     np.testing.assert_array_equal(new.xyz, shorts.xyz)  # the drape is kept
     assert report.max_displacement_mm == pytest.approx(np.hypot(*(new.uv - shorts.uv).T).max())
     assert report.subdivisions == 0  # 20 mm seam edges are fine enough for a 50 mm repeat
@@ -154,3 +160,54 @@ def test_a_heavier_seam_fits_better(shorts, placement, shorts_run):
         return fit_report(g, placement, weights=np.ones(len(g.seam_edges))).distance[on].sum()
 
     assert mismatch(heavy) < mismatch(plain)
+
+
+def test_written_obj_has_fair_outlines_and_seams_that_sew(tmp_path, shorts, shorts_run):
+    """Issue 36's checks, measured as a pattern maker would: from the OBJ files (the input
+    and the reshaped garment written and read back, same numbering)."""
+    _, new, report = shorts_run
+    save_obj(shorts, tmp_path / "aligned.obj")
+    save_obj(new, tmp_path / "reshaped.obj")
+    before, after = load_garment(tmp_path / "aligned.obj"), load_garment(tmp_path / "reshaped.obj")
+    np.testing.assert_array_equal(before.faces, after.faces)
+    rough = outline_roughness(before, after.uv)
+    assert np.percentile(rough, 95) <= 0.3 and rough.max() <= 1.0
+    seams = seam_ease_changes(before, after.uv)
+    ease = [abs(s["ease_change_mm"]) for s in seams]
+    assert max(ease) <= 1.0
+    # and no point of a seam slid along its twin by more than 1 mm: notches still meet
+    assert max(s["sewn_drift_mm"] for s in seams) <= 1.0
+    # the report says the same, seam by seam
+    assert report.ease_change_max_mm == pytest.approx(max(ease), abs=1e-3)
+    assert report.roughness_max_mm == pytest.approx(rough.max(), abs=1e-6)
+    assert len(report.seams) == len(shorts.seam_lines)
+    assert report.e_fit_after_mm2 <= 0.7 * report.e_fit_before_mm2
+
+
+def test_paper_method_pulls_twins_to_equal_lengths_unbounded(shorts, placement):
+    """Sec. 5 as written: eps is half the input's twin length mismatch, no move bound."""
+    new, report = reshape(shorts, placement, options=ReshapeOptions.paper())
+    assert report.epsilon_mm == pytest.approx(0.5 * report.length_mismatch_initial_mm)
+    assert report.length_mismatch_final_mm <= report.epsilon_mm
+    assert report.length_mismatch_final_mm == pytest.approx(
+        twin_length_mismatch(new.uv, new.seam_edges))
+    assert report.e_fit_after_mm2 <= 0.5 * report.e_fit_before_mm2
+    assert report.flipped_triangles == 0
+    assert report.max_move_bound_mm == np.inf
+    assert report.max_displacement_mm > 10.0  # beyond what our bound allows
+
+
+def test_notches_keep_their_place_along_their_edge():
+    """A notch halfway along a seam edge stays halfway along it on the reshaped outline,
+    on both sides of the seam, so the two still meet when sewn."""
+    g = _two_squares(212.0)
+    g.notches = {0: [(100.0, 50.0)], 1: [(212.0, 50.0)]}  # halfway between y = 40 and 60
+    placement = Placement.identity(g.n_pieces, P4M)
+    new, report = reshape(g, placement)
+    assert report.max_displacement_mm > 1.0
+    for piece, x in ((0, 100.0), (1, 212.0)):
+        ends = np.flatnonzero((g.piece_of_vertex == piece) & np.isclose(g.uv[:, 0], x)
+                              & np.isin(g.uv[:, 1], [40.0, 60.0]))
+        assert len(ends) == 2
+        np.testing.assert_allclose(new.notches[piece][0], new.uv[ends].mean(axis=0),
+                                   atol=1e-9)

@@ -134,16 +134,18 @@ def test_berkeley_p4m_after_global_alignment_lowers_e_fit_within_the_bounds(name
     new, report = reshape(g, placement)
     assert report.subdivisions == 1  # 35-70 mm seam edges against a 50 mm repeat
     assert len(new.faces) == len(g.faces) * 4 ** report.subdivisions
-    # issue 4 asked for half; issue 13 bounds every move by 10 mm, which costs the pants
-    # (0.57) a little: the median over the Berkeley garments stays <= 0.5 (BENCHMARKS.md)
-    assert report.e_fit_after_mm2 <= 0.65 * report.e_fit_before_mm2
+    # issue 4 asked for half; issue 13 bounds every move by 10 mm and issue 36 keeps every
+    # seam's ease and the outlines fair, which costs these coarse garments most: the pants
+    # reach 0.69 here (0.70 after 15 starts, 0.37 with a 20 mm bound: BENCHMARKS.md, E_fit
+    # against the move bound)
+    assert report.e_fit_after_mm2 <= 0.7 * report.e_fit_before_mm2
     assert report.flipped_triangles == 0
     # a change a pattern maker accepts: every vertex within 10 mm, every area within 1 %
     assert np.hypot(*(new.uv - refined(g, P4M.covering_radius)[0].uv).T).max() <= 10.0
     assert report.area_change_max_pct <= 1.0
     assert max(p["max_move_mm"] for p in report.pieces) == pytest.approx(
         report.max_displacement_mm, abs=1e-4)
-    assert report.length_mismatch_final_mm <= report.epsilon_mm
+    assert report.ease_change_max_mm <= 1.0  # every seam still sews as it was drafted
     assert all(shapely.LinearRing(new.piece_outline(i)).is_simple
                for i in range(new.n_pieces))
     # the report's E_fit is what `station fit` measures on the written garment

@@ -115,6 +115,33 @@ def test_reshape_errors_name_the_fault(tmp_path, inputs, capsys):
                  "--placement", str(placement), "-o", str(tmp_path / "x.json")])
     assert code == 2
     assert "JSON output needs a JSON specification" in capsys.readouterr().err
+    code = main(["reshape", str(garment), "--units", "m", "--fabric", str(fabric),
+                 "--placement", str(placement), "-o", str(tmp_path / "x.obj"),
+                 "--method", "paper", "--max-move", "5"])
+    assert code == 2
+    assert "no move bound" in capsys.readouterr().err
+
+
+def test_paper_and_ours_side_by_side(tmp_path, inputs, capsys):
+    """`--method paper` runs Sec. 5 as written beside ours: unbounded, the twins pulled to
+    equal lengths; ours keeps the bound and every seam's ease, and says so per seam."""
+    garment, fabric, placement = inputs
+    common = [str(garment), "--units", "m", "--fabric", str(fabric), "--placement",
+              str(placement)]
+    paper = run_json(capsys, "reshape", *common, "-o", str(tmp_path / "paper.obj"),
+                     "--method", "paper", "--json")
+    assert main(["reshape", *common, "-o", str(tmp_path / "ours.obj")]) == 0
+    text = capsys.readouterr().out
+    assert paper["method"] == "paper" and paper["max_move_bound_mm"] is None
+    assert paper["flipped_triangles"] == 0
+    assert paper["length_mismatch_final_mm"] <= paper["epsilon_mm"]
+    g = load_garment(garment, units="m")
+    assert len(paper["seams"]) == len(g.seam_lines)
+    # the text report names every seam with both sides' length change and its ease
+    seam_lines = [ln for ln in text.splitlines() if ln.strip().startswith("seam ")]
+    assert len(seam_lines) == len(g.seam_lines)
+    assert all("sides" in ln and "ease" in ln for ln in seam_lines)
+    assert "unexplained displacement" in text
 
 
 def test_reshape_dxf_reimports_to_the_same_outlines(tmp_path, inputs, capsys):
