@@ -68,6 +68,7 @@ from vision.consistency import (
     rounding_slack,
 )
 from vision.lattice import LatticeResult, prepare_image
+from vision.neighbours import directional_likeness, neighbour_correlation
 from vision.subgroups import is_subgroup
 
 __all__ = ["Classification", "classify", "isometry_name", "lattice_whitening", "mean_cell",
@@ -234,24 +235,17 @@ def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
     return out
 
 
-def neighbour_correlation(cells: np.ndarray) -> float:
-    """Median correlation of each single repeat's cell (R, n, n) with the next one's:
-    how alike the repeats are (noise, distortion, print irregularity), 1 when exact.
-    ``cells`` may also be their spectra (R, ...), complex: the same by Parseval."""
-    flat = cells.reshape(len(cells), -1)
-    norm = np.sqrt((np.abs(flat) ** 2).sum(axis=1))
-    pair = np.real((flat * np.conj(np.roll(flat, -1, axis=0))).sum(axis=1)) / np.maximum(
-        norm * np.roll(norm, -1), 1e-12)
-    return float(np.median(pair))
-
-
-def _likeness(cells: np.ndarray, metric: np.ndarray, alpha: float) -> float:
-    """:func:`neighbour_correlation` of the cells whitened up to ``LIKENESS_BAND``
-    harmonics per repeat, summed over the harmonics that whitening keeps."""
+def _likeness(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: float
+              ) -> float:
+    """The worse of :func:`vision.neighbours.directional_likeness` along w1 and w2 of
+    the cells whitened up to ``LIKENESS_BAND`` harmonics per repeat (over the harmonics
+    that whitening keeps); the order's neighbours where neither direction is in view."""
     w = _whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel()
     keep = w > WEIGHT_FLOOR * w.max()
-    return neighbour_correlation(np.fft.fft2(cells).reshape(len(cells), -1)[:, keep]
-                                 * w[keep])
+    spectra = np.fft.fft2(cells).reshape(len(cells), -1)[:, keep] * w[keep]
+    along = np.array(directional_likeness(spectra, ij))
+    return float(np.nanmin(along)) if np.isfinite(along).any() else neighbour_correlation(
+        spectra)
 
 
 def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
@@ -278,6 +272,7 @@ class Classification:
     message: str = ""
     temperature: float = 1.0
     strain: float = 0.0  # stretch/shear of the measured lattice against the group's
+    likeness: float = float("nan")  # of neighbouring single repeats (LIKENESS_BAND)
 
     @property
     def posterior(self) -> dict[str, float]:
@@ -780,7 +775,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                                                          min(band, CONSISTENCY_BAND)),
                                  rounding=rounding)
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
-    likeness = _likeness(centred, metric, whiten) if len(cells) > 1 else 1.0
+    likeness = _likeness(centred, ij, metric, whiten) if len(cells) > 1 else 1.0
     if whiten:
         motif = _whiten(motif, metric, whiten, band)
         halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
@@ -858,7 +853,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                                   **{k: float(v[0]) for k, v in beyond.items()}},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
                           motif=motif, message=message, temperature=temperature,
-                          strain=strain)
+                          strain=strain, likeness=likeness)
 
 
 class _Refusal(NamedTuple):

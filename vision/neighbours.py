@@ -1,0 +1,57 @@
+"""How alike neighbouring single repeats of a lattice are, along each of its directions.
+
+A print repeats along both lattice vectors. Shading streaks, a camera's column bands or
+a tossed print do not: read on a "lattice" that the autocorrelation's smooth bumps
+suggest, their cells may still look alike along one vector (the streaks run along it)
+and unlike along the other. So the likeness of repeats is measured along ``w1`` and
+``w2`` apart, and the lattice is only as good as its worse direction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["MIN_PAIRS", "directional_likeness", "neighbour_correlation"]
+
+#: Neighbouring pairs a direction needs before its likeness is measured (a print one
+#: repeat tall, such as a sweater's row of argyle diamonds, is not measured across).
+MIN_PAIRS = 2
+
+
+def _pair_correlations(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Correlation of each row of ``a`` with the same row of ``b`` (real or complex:
+    spectra correlate as their cells do, by Parseval)."""
+    norm = np.sqrt((np.abs(a) ** 2).sum(axis=1) * (np.abs(b) ** 2).sum(axis=1))
+    return np.real((a * np.conj(b)).sum(axis=1)) / np.maximum(norm, 1e-12)
+
+
+def neighbour_correlation(cells: np.ndarray) -> float:
+    """Median correlation of each single repeat's cell (R, ...) with the next one's in
+    the given order: how alike the repeats are (noise, distortion, print irregularity),
+    1 when exact. ``cells`` may also be their spectra, complex."""
+    flat = cells.reshape(len(cells), -1)
+    return float(np.median(_pair_correlations(flat, np.roll(flat, -1, axis=0))))
+
+
+def directional_likeness(cells: np.ndarray, ij: np.ndarray) -> tuple[float, float]:
+    """Median correlation of each repeat (R, ...) with its neighbour one step along
+    ``w1`` and one step along ``w2`` (``ij`` (R, 2): the repeats' integer indices);
+    NaN for a direction with fewer than ``MIN_PAIRS`` such pairs in view."""
+    if len(cells) != len(ij):
+        raise ValueError(f"{len(cells)} cells but {len(ij)} repeat indices")
+    flat = cells.reshape(len(cells), -1)
+    idx = np.rint(ij).astype(np.int64)
+    lo = idx.min(axis=0) if len(idx) else np.zeros(2, np.int64)
+    span = idx.max(axis=0) - lo + 2 if len(idx) else np.ones(2, np.int64)
+    key = (idx[:, 0] - lo[0]) * span[1] + (idx[:, 1] - lo[1])
+    order = np.argsort(key)
+    out = []
+    for step in (span[1], 1):  # one step along w1, then along w2
+        at = np.searchsorted(key[order], key + step)
+        at = np.minimum(at, len(key) - 1)
+        has = key[order][at] == key + step  # the padded span keeps steps from wrapping
+        if has.sum() < MIN_PAIRS:
+            out.append(float("nan"))
+            continue
+        out.append(float(np.median(_pair_correlations(flat[has], flat[order][at[has]]))))
+    return out[0], out[1]
