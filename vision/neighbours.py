@@ -11,11 +11,21 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MIN_PAIRS", "directional_likeness", "neighbour_correlation"]
+from vision.consistency import WEIGHT_FLOOR
+from vision.whitening import whitening
+
+__all__ = ["BAND_LIKENESS", "BANDS", "MIN_PAIRS", "directional_likeness", "neighbour_correlation",
+           "print_band", "worse_likeness"]
 
 #: Neighbouring pairs a direction needs before its likeness is measured (a print one
 #: repeat tall, such as a sweater's row of argyle diamonds, is not measured across).
 MIN_PAIRS = 2
+
+#: How alike neighbouring repeats must be over the harmonics up to a band for the band
+#: to count as the print's (:func:`print_band`) ...
+BAND_LIKENESS = 0.75
+#: ... among these bands (harmonics per repeat).
+BANDS = (3.0, 4.0, 6.0, 8.0, 12.0)
 
 
 def _pair_correlations(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -55,3 +65,34 @@ def directional_likeness(cells: np.ndarray, ij: np.ndarray) -> tuple[float, floa
             continue
         out.append(float(np.median(_pair_correlations(flat[has], flat[order][at[has]]))))
     return out[0], out[1]
+
+
+def worse_likeness(spectra: np.ndarray, ij: np.ndarray, weights: np.ndarray) -> float:
+    """The worse of :func:`directional_likeness` along w1 and w2 of the repeats'
+    spectra (R, n*n) weighted by ``weights`` (n*n) over the harmonics it keeps; the
+    given order's neighbours where neither direction is in view."""
+    keep = weights > WEIGHT_FLOOR * weights.max()
+    kept = spectra[:, keep] * weights[keep]
+    along = np.array(directional_likeness(kept, ij))
+    return float(np.nanmin(along)) if np.isfinite(along).any() else neighbour_correlation(kept)
+
+
+def print_band(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: float,
+               most: float) -> float:
+    """Harmonics per repeat (of ``BANDS``, at most ``most``) up to which neighbouring
+    single repeats (R, n, n) still look alike (``BAND_LIKENESS``).
+
+    Finer detail that differs from repeat to repeat where the coarse design repeats
+    well is the cloth's, not the design's: a bobbin lace's hand-twisted threads, a
+    knit's stitches under drape. What of it is the same in every repeat (the twist's
+    handedness) still breaks the design's mirrors on the mean cell, so the symmetry is
+    read below it. Where even the coarsest band's repeats look unlike, noise covers
+    every band (a small print under blur and noise) and none is singled out: ``most``.
+    """
+    spectra = np.fft.fft2(cells).reshape(len(cells), -1)
+    n = cells.shape[-1]
+    alike = [worse_likeness(spectra, ij, whitening(n, metric, alpha, band).ravel())
+             >= BAND_LIKENESS for band in BANDS if band <= most]
+    if not alike or not alike[0] or all(alike):
+        return most
+    return BANDS[alike.index(False) - 1]
