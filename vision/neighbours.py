@@ -14,8 +14,8 @@ import numpy as np
 from vision.consistency import WEIGHT_FLOOR
 from vision.whitening import whitening
 
-__all__ = ["BAND_LIKENESS", "BANDS", "MIN_PAIRS", "directional_likeness", "neighbour_correlation",
-           "print_band", "worse_likeness"]
+__all__ = ["BAND_LIKENESS", "BANDS", "LOWEST_BAND", "MIN_PAIRS", "directional_likeness",
+           "neighbour_correlation", "print_band", "worse_likeness"]
 
 #: Neighbouring pairs a direction needs before its likeness is measured (a print one
 #: repeat tall, such as a sweater's row of argyle diamonds, is not measured across).
@@ -24,8 +24,12 @@ MIN_PAIRS = 2
 #: How alike neighbouring repeats must be over the harmonics up to a band for the band
 #: to count as the print's (:func:`print_band`) ...
 BAND_LIKENESS = 0.75
-#: ... among these bands (harmonics per repeat).
+#: ... among these bands (harmonics per repeat), the first also telling whether the
+#: coarse design repeats at all ...
 BANDS = (3.0, 4.0, 6.0, 8.0, 12.0)
+#: ... and never below this one: at 3-4 harmonics a jacquard's L-shaped brackets are
+#: blobs, and their half turn reads as mirrors (a photograph in perspective, p2 as pmm).
+LOWEST_BAND = 6.0
 
 
 def _pair_correlations(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -79,8 +83,9 @@ def worse_likeness(spectra: np.ndarray, ij: np.ndarray, weights: np.ndarray) -> 
 
 def print_band(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: float,
                most: float) -> float:
-    """Harmonics per repeat (of ``BANDS``, at most ``most``) up to which neighbouring
-    single repeats (R, n, n) still look alike (``BAND_LIKENESS``).
+    """Harmonics per repeat (of ``BANDS``, at most ``most``, at least ``LOWEST_BAND``)
+    up to which neighbouring single repeats (R, n, n) still look alike
+    (``BAND_LIKENESS``).
 
     Finer detail that differs from repeat to repeat where the coarse design repeats
     well is the cloth's, not the design's: a bobbin lace's hand-twisted threads, a
@@ -95,4 +100,4 @@ def print_band(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: flo
              >= BAND_LIKENESS for band in BANDS if band <= most]
     if not alike or not alike[0] or all(alike):
         return most
-    return BANDS[alike.index(False) - 1]
+    return min(max(BANDS[alike.index(False) - 1], LOWEST_BAND), most)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from vision.neighbours import BANDS, print_band
+from vision.neighbours import LOWEST_BAND, print_band
 
 N = 48
 SQUARE = np.eye(2) * 40.0 ** 2  # metric of a 40 px square cell
@@ -35,7 +35,7 @@ def test_repeats_alike_at_every_scale_keep_the_whole_band():
 def test_fine_detail_unlike_from_repeat_to_repeat_lowers_the_band():
     cells, ij = _cells(np.random.default_rng(1), fine=0.6, noise=0.02)
     band = print_band(cells, ij, SQUARE, 1.0, 12.0)
-    assert BANDS[0] <= band < 12.0
+    assert LOWEST_BAND <= band < 12.0
 
 
 def test_noise_over_every_band_singles_none_out():
