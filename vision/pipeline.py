@@ -394,9 +394,12 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
     replaced by ``group`` on the same measured lattice and origin (snapped to the new
     group's lattice; raises ValueError when that lattice cannot carry it). A snap that
     stretches the measured lattice beyond ``STRETCH_TOL`` is recorded in the
-    distortion's strain and warning, as detection records its own. A reading refused
-    for want of evidence of a repeat (``candidate``) is the operator's to confirm."""
+    distortion's strain and warning, as detection records its own. Cloth reported plain
+    for want of evidence of a repeat keeps the reading refused (``candidate``): the
+    operator accepts plain (no ``group``) or overrides with ``group`` on its lattice."""
     if doc.get("group") is None and doc.get("candidate"):
+        if group is None:
+            return {**doc, "confirmed": True}
         doc = {**{k: v for k, v in doc.items() if k != "candidate"}, **doc["candidate"],
                "kind": "lattice", "refused": doc.get("message")}
     if doc.get("group") is None:

@@ -84,6 +84,8 @@ def test_a_refused_reading_is_the_operators_to_confirm():
     assert confirmed["group"] == "p2" and confirmed["kind"] == "lattice"
     assert confirmed["w1"] == [20.0, 1.0] and confirmed["refused"] == "no repeat across"
     assert "candidate" not in confirmed and confirmed["confirmed"]
+    kept_plain = confirm_fabric(doc)  # the operator accepts: no print to cut to
+    assert kept_plain["group"] is None and kept_plain["kind"] == "plain"
     with pytest.raises(ValueError, match="no lattice was detected"):
         confirm_fabric({"group": None, "kind": "plain"})
 
@@ -96,7 +98,7 @@ def test_a_leopard_knit_reports_why_and_keeps_its_candidate():
     doc = det.fabric_json()
     assert doc["group"] is None and doc["kind"] == "plain"
     assert "no repeat across the frame" in doc["message"]
-    assert confirm_fabric(doc)["group"] == doc["candidate"]["group"]
+    assert confirm_fabric(doc, "p1")["w1"] == doc["candidate"]["w1"]
 
 
 def test_a_print_one_repeat_tall_keeps_its_lattice():
