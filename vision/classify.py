@@ -59,6 +59,7 @@ from solver.wallpaper import GROUP_NAMES, GROUPS, Wallpaper
 from vision.consistency import (
     EDGE_SLACK_PX,
     SAMPLE,
+    WEIGHT_FLOOR,
     RepeatSpectra,
     asymmetry,
     beyond_rounding,
@@ -207,11 +208,16 @@ def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
 
 
 def _likeness(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: float
-              ) -> float:
-    """:func:`vision.neighbours.worse_likeness` of the cells whitened up to ``LIKENESS_BAND``
-    harmonics per repeat."""
-    return worse_likeness(np.fft.fft2(cells).reshape(len(cells), -1), ij,
-                    whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel())
+              ) -> tuple[float, float]:
+    """How alike single repeats look up to ``LIKENESS_BAND`` harmonics per repeat: along
+    the worse lattice vector (:func:`vision.neighbours.worse_likeness`), and, as this
+    check has always read it, consecutive repeats in the order sampled (along w2; over
+    ``max_repeats``, pairs spread over the frame's centre, which a lattice drifting
+    off the print under a steep view fails)."""
+    spectra = np.fft.fft2(cells).reshape(len(cells), -1)
+    w = whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel()
+    keep = w > WEIGHT_FLOOR * w.max()
+    return worse_likeness(spectra, ij, w), neighbour_correlation(spectra[:, keep] * w[keep])
 
 
 def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
@@ -734,7 +740,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     metric = symmetric_metric(basis, holo)
     # A rendering repeats by whole pixels: its edges' rounding to the grid is the same
     # in every repeat, and is allowed (vision.consistency.EDGE_SLACK_PX).
-    rounding = pixel_rounding(basis, scale, ij, cell_n) if pixel_slack else None
+    rounding = pixel_rounding(basis, scale, ij, cell_n, half=True) if pixel_slack else None
     centred = cells - cells.mean(axis=(1, 2), keepdims=True)
     if adaptive_band and len(cells) >= 3:
         band = min(band, print_band(centred, ij, metric, whiten, band))
@@ -744,7 +750,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                                                         min(band, CONSISTENCY_BAND)),
                                  rounding=rounding)
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
-    likeness = _likeness(centred, ij, metric, whiten) if len(cells) > 1 else 1.0
+    likeness, sampled = _likeness(centred, ij, metric, whiten) if len(cells) > 1 else (1, 1)
     if whiten:
         motif = whitened(motif, metric, whiten, band)
         halves = tuple(whitened(hv, metric, whiten, band) for hv in halves)
@@ -768,7 +774,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # each repeat is registered onto the mean (a translation), its other operations are
     # not, so on real cloth they fall short of the translations by about as much.
     spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
-    unlike = len(cells) >= 3 and likeness < REPEAT_SUPPORT and "p1" in best
+    unlike = len(cells) >= 3 and min(likeness, sampled) < REPEAT_SUPPORT and "p1" in best
     message = ""
     if unlike:
         # The translations themselves fail, at the print's scale, the bar every
@@ -777,7 +783,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         # fit) and the mean cell's symmetry is the averaging's. Nothing can be
         # checked, so nothing is claimed.
         win = "p1"
-        message = (f"single repeats look little alike (correlation {likeness:.2f}, under "
+        message = (f"single repeats look little alike (correlation "
+                   f"{min(likeness, sampled):.2f}, under "
                    f"{REPEAT_SUPPORT:g}): no symmetry can be checked on them, none is "
                    "claimed")
     else:
