@@ -8,7 +8,7 @@ position of pixel (0, 0)'s centre, so the answer is in machine millimetres.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -190,9 +190,6 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
         # No one lattice holds over the whole frame: a steep view changes the repeat
         # too much, or the photo shows more than the cloth. The central part may show one.
         seed, *part = _central_part(flat, scale, mm_per_px, min_repeat_mm)
-        if seed.kind == "stripes":  # a striped garment amid the background around it
-            lat = replace(seed, message=f"{seed.message}, over the frame's central "
-                          f"{100 * part[0].size / flat.size:.0f} % only")
     if distortion and seed.found:
         local = local_lattices(flat, seed.basis / mm_per_px * scale)
         view = fit_view(*local, flat.shape, scale)
@@ -360,7 +357,7 @@ def _central_part(flat: np.ndarray, scale: float, mm_per_px: float, min_repeat_m
         part, corner = crop - np.float32(crop.mean()), (x0, y0)
         lat = detect_lattice(_frame_of(part, scale), mm_per_px=mm_per_px,
                              prepared=(part, scale), min_repeat_mm=min_repeat_mm)
-        if lat.kind != "plain":
+        if lat.found:
             break
     return lat, part, corner
 
