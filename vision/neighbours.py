@@ -27,7 +27,9 @@ MIN_PAIRS = 2
 MAX_PAIRS = 96
 
 #: How alike neighbouring repeats must be over the harmonics up to a band for the band
-#: to count as the print's (:func:`print_band`) ...
+#: to count as the print's (:func:`print_band`). Measured at 3/6/12 harmonics: the
+#: bobbin lace 0.79/0.55/0.35, the knitted checker 0.91/0.73/0.51; prints of the
+#: blurred, cloth and synthetic sources mostly above 0.9/0.9/0.85 ...
 BAND_LIKENESS = 0.75
 #: ... among these bands (harmonics per repeat), the first also telling whether the
 #: coarse design repeats at all ...
