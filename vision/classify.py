@@ -68,7 +68,9 @@ from vision.consistency import (
     rounding_slack,
 )
 from vision.lattice import LatticeResult, prepare_image
+from vision.neighbours import neighbour_correlation, print_band, worse_likeness
 from vision.subgroups import is_subgroup
+from vision.whitening import symmetric_metric, whitened, whitening
 
 __all__ = ["Classification", "classify", "isometry_name", "lattice_whitening", "mean_cell",
            "repeat_cells", "symmetric_metric", "symmetry_elements"]
@@ -116,40 +118,11 @@ SNAP_TOL = 0.2
 STRAIN_SIGMA = 0.1
 
 
-def symmetric_metric(basis: np.ndarray, holo: list[np.ndarray]) -> np.ndarray:
-    """The lattice metric averaged over the tested isometries: the metric of the
-    undistorted print, under which every tested isometry is exact."""
-    g = basis.T @ basis
-    return sum((a.T @ g @ a for a in holo), g) / (len(holo) + 1)
-
-
-def _whiten(motif: np.ndarray, metric: np.ndarray, alpha: float,
-            band: float = float("inf")) -> np.ndarray:
-    """The cell(s) (..., n, n) with |frequency|^alpha weighting, rolled off at ``band``."""
-    out = np.fft.ifft2(np.fft.fft2(motif) * _whitening(motif.shape[-1], metric, alpha,
-                                                       band)).real
-    return out - out.mean(axis=(-2, -1), keepdims=True)
-
-
-def _whitening(n: int, metric: np.ndarray, alpha: float, band: float) -> np.ndarray:
-    k = np.fft.fftfreq(n) * n
-    ka, kb = np.meshgrid(k, k, indexing="ij")
-    # Cartesian |frequency| of harmonic (ka, kb) of the cell: k^T G^-1 k (isometries of
-    # the metric G keep it, so the weighting keeps every symmetry).
-    gi = np.linalg.inv(metric)
-    f = np.sqrt(np.maximum(gi[0, 0] * ka**2 + 2 * gi[0, 1] * ka * kb + gi[1, 1] * kb**2,
-                           0.0))
-    # f in cycles per repeat length (sqrt of the cell area): the fine end is thread-scale
-    # texture (twill lines, yarn) that need not share the print's symmetry.
-    f = f * math.sqrt(math.sqrt(max(np.linalg.det(metric), 1e-12)))
-    return f**alpha * np.exp(-0.5 * (f / band) ** 2)
-
-
 def lattice_whitening(basis: np.ndarray, band: float, n: int = CELL_N) -> np.ndarray:
     """The whitening (n, n) of cells of the lattice ``basis``, rolled off at ``band``
     harmonics per repeat, under the metric of the undistorted print."""
-    return _whitening(n, symmetric_metric(basis, holohedry(basis, tol=HOLOHEDRY_TOL)),
-                      WHITEN, band)
+    return whitening(n, symmetric_metric(basis, holohedry(basis, tol=HOLOHEDRY_TOL)),
+                     WHITEN, band)
 
 
 #: An operation the mean cell shows must also hold on the single repeats, at least this
@@ -234,24 +207,17 @@ def repeat_support(cells: np.ndarray, ops: list[tuple[np.ndarray, np.ndarray]]
     return out
 
 
-def neighbour_correlation(cells: np.ndarray) -> float:
-    """Median correlation of each single repeat's cell (R, n, n) with the next one's:
-    how alike the repeats are (noise, distortion, print irregularity), 1 when exact.
-    ``cells`` may also be their spectra (R, ...), complex: the same by Parseval."""
-    flat = cells.reshape(len(cells), -1)
-    norm = np.sqrt((np.abs(flat) ** 2).sum(axis=1))
-    pair = np.real((flat * np.conj(np.roll(flat, -1, axis=0))).sum(axis=1)) / np.maximum(
-        norm * np.roll(norm, -1), 1e-12)
-    return float(np.median(pair))
-
-
-def _likeness(cells: np.ndarray, metric: np.ndarray, alpha: float) -> float:
-    """:func:`neighbour_correlation` of the cells whitened up to ``LIKENESS_BAND``
-    harmonics per repeat, summed over the harmonics that whitening keeps."""
-    w = _whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel()
+def _likeness(cells: np.ndarray, ij: np.ndarray, metric: np.ndarray, alpha: float
+              ) -> tuple[float, float]:
+    """How alike single repeats look up to ``LIKENESS_BAND`` harmonics per repeat: along
+    the worse lattice vector (:func:`vision.neighbours.worse_likeness`), and, as this
+    check has always read it, consecutive repeats in the order sampled (along w2; over
+    ``max_repeats``, pairs spread over the frame's centre, which a lattice drifting
+    off the print under a steep view fails)."""
+    spectra = np.fft.fft2(cells).reshape(len(cells), -1)
+    w = whitening(cells.shape[-1], metric, alpha, LIKENESS_BAND).ravel()
     keep = w > WEIGHT_FLOOR * w.max()
-    return neighbour_correlation(np.fft.fft2(cells).reshape(len(cells), -1)[:, keep]
-                                 * w[keep])
+    return worse_likeness(spectra, ij, w), neighbour_correlation(spectra[:, keep] * w[keep])
 
 
 def lattice_strain(measured: np.ndarray, ideal: np.ndarray) -> float:
@@ -278,6 +244,7 @@ class Classification:
     message: str = ""
     temperature: float = 1.0
     strain: float = 0.0  # stretch/shear of the measured lattice against the group's
+    likeness: float = float("nan")  # of neighbouring single repeats (LIKENESS_BAND)
 
     @property
     def posterior(self) -> dict[str, float]:
@@ -701,7 +668,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
              consistency: bool = True,
              own_asymmetry: float = OWN_ASYMMETRY,
              shared_asymmetry: float = SHARED_ASYMMETRY,
-             pixel_slack: bool = True) -> Classification:
+             pixel_slack: bool = True, adaptive_band: bool = True) -> Classification:
     """Wallpaper group, conventional lattice and origin of the print in ``image``.
 
     Parameters
@@ -719,9 +686,10 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         How far the measured lattice may be from each group's lattice (the print may
         be stretched or sheared by the cloth or the camera) and the prior width of
         that strain: the answer is the group the print was designed with.
-    band : float
+    band, adaptive_band
         Harmonics per repeat where the whitened motif rolls off (thread-scale texture
-        above it does not share the print's symmetry).
+        above it does not share the print's symmetry); lower where single repeats
+        differ below it (:func:`vision.neighbours.print_band`) unless not adaptive.
     lag, lag_spread : float
         How far the operations a group adds to a subgroup (or to the translations) may
         all score below the subgroup's before the group is not taken, and how much
@@ -772,19 +740,21 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     metric = symmetric_metric(basis, holo)
     # A rendering repeats by whole pixels: its edges' rounding to the grid is the same
     # in every repeat, and is allowed (vision.consistency.EDGE_SLACK_PX).
-    rounding = pixel_rounding(basis, scale, ij, cell_n) if pixel_slack else None
+    rounding = pixel_rounding(basis, scale, ij, cell_n, half=True) if pixel_slack else None
     centred = cells - cells.mean(axis=(1, 2), keepdims=True)
+    if adaptive_band and len(cells) >= 3:
+        band = min(band, print_band(centred, ij, metric, whiten, band))
     spectra = None
     if consistency:
-        spectra = repeat_spectra(centred, ij, _whitening(cell_n, metric, whiten,
-                                                         min(band, CONSISTENCY_BAND)),
+        spectra = repeat_spectra(centred, ij, whitening(cell_n, metric, whiten,
+                                                        min(band, CONSISTENCY_BAND)),
                                  rounding=rounding)
     # How alike single repeats are at the print's scale (see LIKENESS_BAND).
-    likeness = _likeness(centred, metric, whiten) if len(cells) > 1 else 1.0
+    likeness, sampled = _likeness(centred, ij, metric, whiten) if len(cells) > 1 else (1, 1)
     if whiten:
-        motif = _whiten(motif, metric, whiten, band)
-        halves = tuple(_whiten(hv, metric, whiten, band) for hv in halves)
-        cells = _whiten(centred, metric, whiten, band)
+        motif = whitened(motif, metric, whiten, band)
+        halves = tuple(whitened(hv, metric, whiten, band) for hv in halves)
+        cells = whitened(centred, metric, whiten, band)
     rel = split_half_reliability(*halves)
     if motif.std() < 1e-6:
         return Classification(None, None, 0.0, message="the mean cell is flat")
@@ -804,7 +774,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
     # each repeat is registered onto the mean (a translation), its other operations are
     # not, so on real cloth they fall short of the translations by about as much.
     spread = max(0.0, 1.0 - neighbour_correlation(cells)) if len(cells) > 1 else 0.0
-    unlike = len(cells) >= 3 and likeness < REPEAT_SUPPORT and "p1" in best
+    unlike = len(cells) >= 3 and min(likeness, sampled) < REPEAT_SUPPORT and "p1" in best
     message = ""
     if unlike:
         # The translations themselves fail, at the print's scale, the bar every
@@ -813,7 +783,8 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
         # fit) and the mean cell's symmetry is the averaging's. Nothing can be
         # checked, so nothing is claimed.
         win = "p1"
-        message = (f"single repeats look little alike (correlation {likeness:.2f}, under "
+        message = (f"single repeats look little alike (correlation "
+                   f"{min(likeness, sampled):.2f}, under "
                    f"{REPEAT_SUPPORT:g}): no symmetry can be checked on them, none is "
                    "claimed")
     else:
@@ -847,7 +818,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                           band=band, temperature=temperature, allowance=allowance,
                           lag=lag, lag_spread=lag_spread, consistency=consistency,
                           own_asymmetry=own_asymmetry, shared_asymmetry=shared_asymmetry,
-                          pixel_slack=False)
+                          pixel_slack=False, adaptive_band=adaptive_band)
         if strict.group != win:
             confidence = min(confidence, ROUNDING_CONFIDENCE)
             message = _joined(message, (
@@ -858,7 +829,7 @@ def classify(image: np.ndarray, lattice: LatticeResult, *, cell_n: int = CELL_N,
                                   **{k: float(v[0]) for k, v in beyond.items()}},
                           op_scores=op_scores, reliability=rel, n_repeats=nrep,
                           motif=motif, message=message, temperature=temperature,
-                          strain=strain)
+                          strain=strain, likeness=likeness)
 
 
 class _Refusal(NamedTuple):

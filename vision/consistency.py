@@ -109,13 +109,14 @@ def repeat_spectra(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None 
 
 
 def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int,
-                   min_span: int = MIN_SPAN) -> np.ndarray | None:
+                   min_span: int = MIN_SPAN, *, half: bool = False) -> np.ndarray | None:
     """What rounding to the pixel grid explains in the repeats ``ij`` (R, 2) of the
     lattice ``basis`` (columns w1, w2, working px; ``scale`` working px per input px)
     sampled on an ``n``-point cell: the (2, 2) map from a cell's gradient (per cell step
     along w1, w2) to the residual its edges' rounding explains; None unless the repeats,
-    ``min_span`` or more each way, lie whole input pixels apart along an image axis, as
-    only a rendering's do.
+    ``min_span`` or more each way, lie whole (or with ``half``, half) input pixels apart
+    along an image axis, as only a rendering's do (half: a hexagon drawn on a tile of
+    whole pixels, whose centre repeat sits half a pixel off where a side is odd).
 
     Along such an axis every repeat's edges are rounded alike; along the other (a
     hexagonal rendering's) the rounding differs from repeat to repeat and smears the
@@ -124,8 +125,8 @@ def pixel_rounding(basis: np.ndarray, scale: float, ij: np.ndarray, n: int,
     basis, ij = np.asarray(basis, float), np.asarray(ij, float)
     if len(ij) == 0 or np.ptp(ij, axis=0).min() < min_span:
         return None  # too few repeats to tell whole pixels from chance
-    offsets = (ij - ij[0]) @ (basis / scale).T
-    if not (np.abs(offsets - np.rint(offsets)).max(axis=0) < PIXEL_GRID_DRIFT).any():
+    steps = (2.0 if half else 1.0) * (ij - ij[0]) @ (basis / scale).T
+    if not (np.abs(steps - np.rint(steps)).max(axis=0) < PIXEL_GRID_DRIFT).any():
         return None
     return rounding_map(basis, n)
 

@@ -394,8 +394,7 @@ def detect_lattice(
         raise ValueError(f"mm_per_px must be a positive number, got {mm_per_px}")
     flat, scale = prepared or prepare_image(image, work_side=work_side)
     acf, wacf = _print_autocorrelation(image, flat, scale, smooth_px)
-    h2, w2 = acf.shape
-    center = np.array([h2 // 2, w2 // 2], float)
+    center = (np.array(acf.shape) // 2).astype(float)
     valid = wacf > 0.25
     px_mm = mm_per_px / scale  # mm per working pixel
 
@@ -407,7 +406,8 @@ def detect_lattice(
     weave = (lag >= 2.0) & (lag < min_repeat_mm / px_mm)
     weave_peak = float(vals[weave].max()) if weave.any() else 0.0
     keep = lag >= min_period_px
-    keep &= (d[:, 0] > 1e-9) | ((np.abs(d[:, 0]) <= 1e-9) & (d[:, 1] > 0))
+    # One of each +-pair; 1e-3: a row-axis pair's rounding noise must not drop both.
+    keep &= (d[:, 0] > 1e-3) | ((np.abs(d[:, 0]) <= 1e-3) & (d[:, 1] > 0))
     d, vals = d[keep], vals[keep]
 
     ridge_dir, ridge_score, ripple = _ridge_test(acf, min_period_px)
@@ -573,8 +573,8 @@ VERIFY_OVERLAP = 0.45
 @cache
 def _index_matrices(k: int) -> tuple[np.ndarray, ...]:
     """Integer matrices M (Hermite normal form) with det k: ``B M`` runs over every
-    sub-lattice of index k of the lattice with basis B, ``B M^-1`` over every
-    lattice that holds it with index k."""
+    sub-lattice of index k of the lattice with basis B, ``B M^-T`` (not ``B M^-1``,
+    which misses the centred one) over every lattice that holds it with index k."""
     return tuple(np.array([[a, b], [0, k // a]], float) for a in range(1, k + 1)
                  if k % a == 0 for b in range(a))
 
@@ -684,7 +684,7 @@ def _choose_basis(acf, valid, reliable, d, vals, min_strength):
     seen = {_key(current)}
     for _ in range(6):
         area = abs(np.linalg.det(current))
-        finer = [_canonical(current @ np.linalg.inv(m)) for k in NEST_INDEX
+        finer = [_canonical(current @ np.linalg.inv(m.T)) for k in NEST_INDEX
                  for m in _index_matrices(k)]
         finer += [b for b in bases.values() if abs(np.linalg.det(b)) < area - 0.5
                   and nested(b, current)]

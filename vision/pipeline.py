@@ -16,6 +16,7 @@ import numpy as np
 from solver.wallpaper import GROUPS, Wallpaper
 from vision.classify import Classification, classify, lattice_strain, symmetry_elements
 from vision.distortion import Distortion, local_lattices, measure_distortion
+from vision.evidence import missing_evidence, without_lattice
 from vision.lattice import (
     WORK_SIDE,
     LatticeResult,
@@ -79,6 +80,9 @@ class FabricDetection:
     #: Repeat of the yarn (mm) where the image shows it (:func:`vision.lattice.yarn_repeat`),
     #: smoothed away before the print was read unless nothing was above it; else NaN.
     yarn_mm: float = float("nan")
+    #: The reading refused for want of evidence of a repeat (:mod:`vision.evidence`),
+    #: which the operator may confirm; None otherwise.
+    candidate: Wallpaper | None = None
 
     @property
     def wallpaper(self) -> Wallpaper | None:
@@ -101,6 +105,8 @@ class FabricDetection:
             if self.lattice.kind == "stripes":
                 out["period"] = self.lattice.period
                 out["direction_deg"] = self.lattice.direction_deg
+            if self.candidate is not None:
+                out["candidate"] = _moved(self.candidate, self.offset).to_dict()
         out["confidence"] = round(float(self.classification.confidence), 4)
         out["group_confidence"] = {k: round(v, 4) for k, v in
                                    self.classification.posterior.items() if v >= 1e-4}
@@ -202,6 +208,9 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     if cls is None:
         view, local = None, local if lat.found else None
         cls = classify(image, lat, flat=flat, scale=scale)
+    candidate, why = None, missing_evidence(lat, cls)
+    if why:
+        candidate, (lat, cls) = cls.wallpaper, without_lattice(lat, why)
     dist = Distortion()
     if distortion and lat.found and cls.group is not None:
         dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
@@ -222,7 +231,7 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
             dist.warning = (f"{dist.warning}; {fault}" if dist.warning
                             else f"fabric lies distorted: {fault}")
     return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
-                           time.perf_counter() - t0, yarn_mm)
+                           time.perf_counter() - t0, yarn_mm, candidate)
 
 
 def _read_on_part(cls: Classification, why: str) -> None:
@@ -385,7 +394,14 @@ def confirm_fabric(doc: dict, group: str | None = None) -> dict:
     replaced by ``group`` on the same measured lattice and origin (snapped to the new
     group's lattice; raises ValueError when that lattice cannot carry it). A snap that
     stretches the measured lattice beyond ``STRETCH_TOL`` is recorded in the
-    distortion's strain and warning, as detection records its own."""
+    distortion's strain and warning, as detection records its own. Cloth reported plain
+    for want of evidence of a repeat keeps the reading refused (``candidate``): the
+    operator accepts plain (no ``group``) or overrides with ``group`` on its lattice."""
+    if doc.get("group") is None and doc.get("candidate"):
+        if group is None:
+            return {**doc, "confirmed": True}
+        doc = {**{k: v for k, v in doc.items() if k != "candidate"}, **doc["candidate"],
+               "kind": "lattice", "refused": doc.get("message")}
     if doc.get("group") is None:
         raise ValueError(f"no lattice was detected ({doc.get('kind', 'no print')}): "
                          "there is no group to confirm; give the job a FABRIC.json")

@@ -41,7 +41,7 @@ def test_hard_edged_renderings_get_their_group(group):
 
 
 def test_without_the_slack_most_renderings_lose_symmetries(monkeypatch):
-    monkeypatch.setattr(classify_module, "pixel_rounding", lambda *a: None)
+    monkeypatch.setattr(classify_module, "pixel_rounding", lambda *a, **kw: None)
     right = sum(detect_fabric(_rendering(g), mm_per_px=1.0).classification.group == g
                 for g in GROUPS_ON_WHOLE_PIXELS)
     assert right <= len(GROUPS_ON_WHOLE_PIXELS) // 2
