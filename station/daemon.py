@@ -38,7 +38,7 @@ from typing import Any, Protocol
 
 from station.config import Config
 from station.control import ControlError, ControlServer
-from station.daemon_lock import DaemonLock, lock_path
+from station.daemon_lock import lock_store
 from station.fleet import Fleet, open_store, station_info
 from station.fleetmember import FleetMember
 from station.intake import Intake
@@ -112,9 +112,14 @@ class Daemon:
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
-        # first of all: a second daemon on this store must leave everything untouched
-        self.lock = DaemonLock(lock_path(config)).acquire()
-        self.store = open_store(config)
+        # first of all: a second daemon on this store (by any path or name) must leave
+        # everything untouched
+        self.lock = lock_store(config)
+        try:
+            self.store = open_store(config)
+        except BaseException:
+            self.lock.release()
+            raise
         self.fleet: FleetMember | None = None
         if config["station"]["name"]:
             self.fleet = FleetMember(
@@ -152,6 +157,7 @@ class Daemon:
             self.control.stop()
             if self.fleet is not None:
                 self.fleet.stop()
+            self.store.close()  # before the lock: its release closes a descriptor of the file
             self.lock.release()
             log.info("stopped")
         return 0
@@ -163,6 +169,11 @@ class Daemon:
         """
         try:
             while not self._stop.is_set():
+                if not self.lock.still_held():
+                    log.error("another daemon took this station's name while the store was "
+                              "away; stopping")
+                    self.shutdown()
+                    break
                 job = self.fleet.claim() if self.fleet else self.store.next_job()
                 if job is None:
                     if once:

@@ -150,7 +150,7 @@ class PostgresEngine(Engine):
     def __init__(self, url: str, *, outage_seconds: float = 600.0,
                  on_outage: Callable[[bool], None] | None = None) -> None:
         self.url = url
-        self.location = _without_password(url)
+        self.location = without_password(url)
         self.outage_seconds = outage_seconds
         self.on_outage = on_outage
         self.retried = False  # the last write ran again after a lost connection
@@ -163,11 +163,7 @@ class PostgresEngine(Engine):
             raise StoreUnavailable(f"{self.location}: cannot connect ({first})") from None
 
     def _connect(self):
-        import psycopg
-        from psycopg.rows import dict_row
-
-        return psycopg.connect(self.url, autocommit=True, row_factory=dict_row,
-                               connect_timeout=5)
+        return connect_postgres(self.url)
 
     def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
         return self._retrying(work, readonly=False, patience=patience)
@@ -256,7 +252,7 @@ def _connection_lost(exc: Exception) -> bool:
     return sqlstate is None or sqlstate.startswith(("08", "57P"))
 
 
-def _without_password(url: str) -> str:
+def without_password(url: str) -> str:
     """The URL as logs may show it."""
     from urllib.parse import urlsplit, urlunsplit
 
@@ -265,6 +261,16 @@ def _without_password(url: str) -> str:
         return url
     netloc = parts.netloc.replace(f":{parts.password}@", ":***@")
     return urlunsplit(parts._replace(netloc=netloc))
+
+
+def connect_postgres(url: str, **options: Any):
+    """A psycopg connection in autocommit with dict rows; the password, if any, comes from
+    libpq's PGPASSWORD or PGPASSFILE, never from the command line."""
+    import psycopg
+    from psycopg.rows import dict_row
+
+    return psycopg.connect(url, autocommit=True, row_factory=dict_row, connect_timeout=5,
+                           **options)
 
 
 def open_engine(location: str | Path, **options: Any) -> Engine:
