@@ -103,23 +103,69 @@ class Intake:
 
 
 def _options(value: Any) -> dict[str, Any]:
-    """Job options: a small flat object of short scalars."""
+    """Job options: a small flat object of short scalars, except the few structured ones
+    (`STRUCTURED`), each of a bounded shape; the pipeline's check reads their meaning."""
     options = value or {}
     if not isinstance(options, dict) or len(options) > MAX_OPTIONS:
         raise ControlError(f"options must be a JSON object of at most {MAX_OPTIONS} keys")
     for key, v in options.items():
-        ok = (v is None or isinstance(v, bool) or (isinstance(v, str) and len(v) <= 100)
-              or (isinstance(v, int) and abs(v) < 2**53)
-              or (isinstance(v, float) and math.isfinite(v)))
-        if not ok or len(key) > 100:
-            raise ControlError(f"option {key[:100]!r} must be a short number, text or "
-                               "true/false")
+        if len(key) > 100:
+            raise ControlError(f"option {key[:100]!r}...: name longer than 100 characters")
+        if key in STRUCTURED and v is not None:
+            if not STRUCTURED[key](v):
+                raise ControlError(f"option {key} must be {SHAPES[key]}")
+            continue
+        if not _scalar(v):
+            raise ControlError(f"option {key!r} must be a short number, text or true/false")
         if key in INT_OPTIONS and v is not None:
             lo, hi = INT_OPTIONS[key]
             if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
                 raise ControlError(f"option {key} must be an integer {lo:,} to {hi:,}, "
                                    f"got {v!r}")
     return dict(options)
+
+
+def _scalar(v: Any) -> bool:
+    return (v is None or isinstance(v, bool) or (isinstance(v, str) and len(v) <= 100)
+            or (isinstance(v, int) and abs(v) < 2**53)
+            or (isinstance(v, float) and math.isfinite(v)))
+
+
+def _piece(v: Any) -> bool:
+    """A piece or seam line: its name (short text) or its index."""
+    return (isinstance(v, str) and 0 < len(v) <= 100) or \
+        (isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_NAMED)
+
+
+def _numbers_by_name(lo: float, hi: float) -> Callable[[Any], bool]:
+    def ok(v: Any) -> bool:
+        return isinstance(v, dict) and len(v) <= MAX_NAMED and all(
+            _piece(k) and isinstance(x, (int, float)) and not isinstance(x, bool)
+            and math.isfinite(x) and lo <= x <= hi for k, x in v.items())
+    return ok
+
+
+def _names(v: Any) -> bool:
+    return isinstance(v, list) and len(v) <= MAX_NAMED and all(_piece(x) for x in v)
+
+
+def _pairs(v: Any) -> bool:
+    return isinstance(v, dict) and set(v) <= {"pairs", "not_pairs"} and all(
+        isinstance(ps, list) and len(ps) <= MAX_NAMED and all(
+            isinstance(p, list) and len(p) == 2 and all(_piece(x) for x in p) for p in ps)
+        for ps in v.values())
+
+
+#: at most this many named entries in one structured option (pieces, seam lines)
+MAX_NAMED = 1000
+#: the structured job options (what `station submit` sends) and their shapes
+STRUCTURED: dict[str, Callable[[Any], bool]] = {
+    "allowance": _numbers_by_name(0.0, 1000.0), "grain_lines": _numbers_by_name(-360.0, 360.0),
+    "bias": _names, "pairs": _pairs}
+SHAPES = {"allowance": '{"seam line": mm 0 to 1000}',
+          "grain_lines": '{"piece": degrees -360 to 360}',
+          "bias": '["piece", ...]',
+          "pairs": '{"pairs": [[piece, piece], ...], "not_pairs": [...]}'}
 
 
 def _copy_garment(garment: Path, target: Path) -> Path:

@@ -313,3 +313,48 @@ def test_job_options_are_bounded_at_submit(station):
         with pytest.raises(ControlError, match=match):
             request(sock, "submit", garment=str(garment), fabric=str(fabric), options=options)
     assert request(sock, "jobs")["jobs"] == []
+
+
+class StationChecked(TickingPipeline):
+    """The stand-in's steps with the station's own check of a submission."""
+
+    def __init__(self, config) -> None:
+        super().__init__()
+        from station.pipeline import StationPipeline
+
+        self.check = StationPipeline(config).check
+
+
+def test_submit_with_allowance_pairs_grain_and_bias_is_accepted(tmp_path, capsys):
+    cfg = config_file(tmp_path)
+    config = load_config(cfg)
+    daemon = Daemon(config, StationChecked(config))
+    daemon.control.start()
+    sock = tmp_path / "station.sock"
+    try:
+        allowance = tmp_path / "allowance.json"
+        allowance.write_text('{"hem": 25, "3": 15}')
+        pairs = tmp_path / "pairs.json"
+        pairs.write_text('{"pairs": [["left_ftorso", "right_ftorso"]], "not_pairs": []}')
+        args = ["submit", str(SPEC), "--detect", "--socket", str(sock), "--allowance",
+                str(allowance),
+                "--pairs", str(pairs), "--grain-line", "right_sleeve_b=90", "--bias",
+                "left_sleeve_f"]
+        assert main(args) == 0, capsys.readouterr().err
+        job = request(sock, "jobs")["jobs"][0]
+        options = daemon.store.job(job["id"]).options
+        assert options["allowance"] == {"hem": 25, "3": 15}
+        assert options["grain_lines"] == {"right_sleeve_b": 90.0}
+        assert options["bias"] == ["left_sleeve_f"]
+        assert options["pairs"]["pairs"] == [["left_ftorso", "right_ftorso"]]
+        # the daemon's check still refuses a name the garment lacks, in one line
+        assert main(args[:-1] + ["no_such_piece"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "no_such_piece" in err[0], err
+        # and a shape no submit could send is refused before any check
+        with pytest.raises(ControlError, match=r"option grain_lines must be \{\"piece\""):
+            request(sock, "submit", garment=str(SPEC), options={"grain_lines": {"a": 1e300}})
+    finally:
+        daemon.control.stop()
+        daemon.store.close()
+        daemon.lock.release()
