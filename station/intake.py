@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -58,10 +59,10 @@ class Intake:
 
     def admit(self, req: dict[str, Any]) -> tuple[str, str | None, dict[str, Any]]:
         """(garment copy, fabric copy or None, options) of an accepted submission."""
-        garment = self._source(req.get("garment"), "garment", untrusted.limits.MAX_OBJ_BYTES)
+        garment = _source(req.get("garment"), "garment")
         fabric = req.get("fabric")
         if fabric is not None:
-            fabric = self._source(fabric, "fabric", untrusted.limits.MAX_JSON_BYTES)
+            fabric = _source(fabric, "fabric")
         for path in (garment, fabric):
             if path is not None and self.allowed and \
                     not any(path.is_relative_to(folder) for folder in self.allowed):
@@ -77,29 +78,50 @@ class Intake:
             if fabric is not None:
                 (target / "fabric").mkdir()
                 f_copy = target / "fabric" / fabric.name
-                shutil.copyfile(fabric, f_copy)
+                untrusted.copy_file(fabric, f_copy, what="fabric",
+                                    max_bytes=untrusted.limits.MAX_JSON_BYTES)
             if self.check is not None:
                 with self._turn:
                     run_limited(self.check, str(g_copy), None if f_copy is None else str(f_copy),
                                 options, seconds=self.seconds, memory_bytes=self.memory_bytes,
                                 on_child=self._track)
-        except (SandboxError, OSError) as exc:
+        except (SandboxError, OSError, untrusted.InputError) as exc:
+            message = withhold_content(str(exc), [c for c in (g_copy, f_copy) if c])
             shutil.rmtree(target, ignore_errors=True)
-            raise ControlError(_named(str(exc), garment, g_copy, fabric, f_copy)) from None
+            raise ControlError(_named(message, garment, g_copy, fabric, f_copy)) from None
         return str(g_copy), None if f_copy is None else str(f_copy), options
 
-    @staticmethod
-    def _source(value: Any, what: str, max_bytes: int) -> Path:
-        if not isinstance(value, str) or not value or len(value) > 4096 or "\0" in value:
-            raise ControlError(f"{what} must be a file path")
-        path = Path(value)
-        if not path.is_file():
-            raise ControlError(f"{value}: no such {what} file")
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise ControlError(f"{value}: {what} file of {size:,} bytes exceeds the limit of "
-                               f"{max_bytes:,}")
-        return path.resolve()
+
+def _source(value: Any, what: str) -> Path:
+    """The submitted path, resolved (its content is read only by the bounded copy)."""
+    if not isinstance(value, str) or not value or len(value) > 4096 or "\0" in value:
+        raise ControlError(f"{what} must be a file path")
+    path = Path(value)
+    if not path.exists():
+        raise ControlError(f"{value}: no such {what} file")
+    return path.resolve()
+
+
+_QUOTED = re.compile(r"'([^']{2,200})'|\"([^\"]{2,200})\"")
+
+
+def withhold_content(message: str, copies: list[Path]) -> str:
+    """``message`` with every quoted fragment that the submitted files (their copies)
+    contain replaced: a refusal names the file and the fault, never what the file holds
+    (the station may read files its submitter cannot)."""
+    fragments = {m.group(1) or m.group(2) for m in _QUOTED.finditer(message)}
+    found: set[str] = set()
+    for copy in copies if fragments else []:
+        try:
+            for chunk in untrusted.files.chunks(copy, what="file",
+                                                max_bytes=untrusted.limits.MAX_OBJ_BYTES):
+                found |= {f for f in fragments if f.encode() in chunk}
+        except untrusted.InputError:
+            continue
+    for fragment in found:
+        message = message.replace(f"'{fragment}'", "(content withheld)")
+        message = message.replace(f'"{fragment}"', "(content withheld)")
+    return message
 
 
 def _options(value: Any) -> dict[str, Any]:
@@ -173,12 +195,13 @@ def _copy_garment(garment: Path, target: Path) -> Path:
     from solver.garment.obj import pair_partner
 
     copy = target / garment.name
-    shutil.copyfile(garment, copy)
+    limit = untrusted.limits.MAX_OBJ_BYTES
+    untrusted.copy_file(garment, copy, what="garment", max_bytes=limit)
     partner = pair_partner(garment) if garment.suffix.lower() == ".obj" else None
     for extra in [partner] + [garment.parent / n for n in _COMPANIONS]:
-        if extra is not None and extra.is_file() and \
-                extra.stat().st_size <= untrusted.limits.MAX_OBJ_BYTES:
-            shutil.copyfile(extra, target / extra.name)
+        if extra is not None and extra.exists():
+            untrusted.copy_file(extra, target / extra.name, what="companion file",
+                                max_bytes=limit)
     return copy
 
 
