@@ -37,18 +37,24 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from station.config import Config
+from station.console_memory import AnswersFromMemory
 from station.control import ControlError, ControlServer
 from station.daemon_lock import lock_store
 from station.fleet import Fleet, open_store, station_info
 from station.fleetmember import FleetMember
 from station.intake import Intake
 from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
+from station.storeengine import StoreUnavailable
 
 log = logging.getLogger("station.daemon")
 
 
 #: Reason of a job paused until the operator confirms the detected print.
 CONFIRM_FABRIC = "confirm fabric"
+#: how long the console's status, jobs, pause and abort wait for the store before they
+#: answer from memory; how long the other commands wait before saying it is away
+MEMORY_PATIENCE_S = 0.5
+CONSOLE_PATIENCE_S = 4.0
 
 
 class JobInterrupted(Exception):
@@ -106,7 +112,7 @@ def setup_logging(level: int = logging.INFO) -> None:
     root.setLevel(level)
 
 
-class Daemon:
+class Daemon(AnswersFromMemory):
     """The station's job loop and its control endpoints."""
 
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
@@ -116,6 +122,8 @@ class Daemon:
         # everything untouched
         self.lock = lock_store(config)
         try:
+            self.control = ControlServer(config.resolve(config["control"]["socket"]),
+                                         self.handle, config["control"]["group"])
             self.store = open_store(config)
         except BaseException:
             self.lock.release()
@@ -127,11 +135,12 @@ class Daemon:
                 station_info(config, getattr(pipeline, "machine", None)),
                 self._doing, self.handle, config["station"]["heartbeat_s"],
                 wake=lambda: self._wake.set())
-            self.store.engine.on_outage = self._on_outage
+        self.store.engine.on_outage = self._on_outage  # a server store; SQLite never calls
         self.work_dir = config.resolve(config["store"]["work_dir"])
-        self.control = ControlServer(config.resolve(config["control"]["socket"]),
-                                     self.handle, config["control"]["group"])
         self.running: JobControl | None = None
+        # what the console last read from the store, to answer from while it is away
+        self._memory: dict[int, dict[str, Any]] = {}
+        self._owed_pause: int | None = None  # paused while the store was away: record it
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._lock = threading.Lock()
@@ -321,17 +330,40 @@ class Daemon:
         elif not down and running.progress.pop("held_for_store", False):
             log.warning("job store back: resuming the cut")
             running.pause.clear()
+        if not down and self._owed_pause is not None:
+            # not from inside the store's call that is telling us: a thread of its own
+            threading.Thread(target=self._record_owed_pause, daemon=True).start()
+
+    def _record_owed_pause(self) -> None:
+        job_id, self._owed_pause = self._owed_pause, None
+        try:
+            if job_id is not None and self.store.job(job_id).state == "cutting":
+                self.store.transition(job_id, "paused", "paused by the operator (feed hold) "
+                                      "while the job store was away")
+        except Exception:
+            log.exception("job %s: recording the operator's pause failed", job_id)
 
     # ------------------------------------------------------------------ control
     def handle(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Run a console command; status, jobs, pause and abort never wait for a store that
+        is away (they answer from memory), the others wait a few seconds at most."""
         cmd = request["cmd"]
         handler = getattr(self, f"cmd_{cmd}", None)
         if handler is None:
             raise ControlError(f"unknown command {cmd!r}")
+        remembered = getattr(self, f"memory_{cmd}", None)
         try:
-            return handler(request)
+            with self.store.engine.impatient(MEMORY_PATIENCE_S if remembered
+                                             else CONSOLE_PATIENCE_S):
+                return handler(request)
         except JobStoreError as exc:
             raise ControlError(str(exc)) from None
+        except StoreUnavailable:
+            if remembered is None:
+                raise ControlError(f"the job store is unreachable; {cmd} waits until it is "
+                                   "back (status, jobs, pause and abort answer meanwhile)"
+                                   ) from None
+            return {**remembered(request), "store": "unreachable: answered from memory"}
 
     def cmd_ping(self, _req: dict[str, Any]) -> dict[str, Any]:
         return {"pid": os.getpid(), "running": self.running.job_id if self.running else None}
@@ -348,7 +380,9 @@ class Daemon:
         return {"job": job.to_dict()}
 
     def cmd_jobs(self, _req: dict[str, Any]) -> dict[str, Any]:
-        return {"jobs": [self._summary(j) for j in self.store.jobs()]}
+        jobs = [self._summary(j) for j in self.store.jobs()]
+        self._memory = {j["id"]: {k: v for k, v in j.items() if k != "progress"} for j in jobs}
+        return {"jobs": jobs}
 
     def cmd_status(self, req: dict[str, Any]) -> dict[str, Any]:
         job_id = req.get("job")
@@ -363,7 +397,7 @@ class Daemon:
     def cmd_pause(self, req: dict[str, Any]) -> dict[str, Any]:
         """Cutting: feed hold in place. Earlier steps: shelve the job at the next step."""
         control = self._target(req)
-        if control.pause.is_set():
+        if control.pause.is_set() and not control.progress.pop("held_for_store", False):
             raise ControlError(f"job {control.job_id} is already paused")
         control.pause.set()
         if self.store.job(control.job_id).state == "cutting":
@@ -465,10 +499,8 @@ class Daemon:
 
     def _summary(self, job: Job) -> dict[str, Any]:
         out = self.store.summary(job)
-        running = self.running
-        if running is not None and running.job_id == job.id:
-            out["progress"] = dict(running.progress)
-        return out
+        self._memory[job.id] = dict(out)
+        return self._with_progress(out)
 
 
 def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:

@@ -20,6 +20,7 @@ from station.config import load_config
 from station.control import MAX_REQUEST, ControlError, request
 from station.daemon import Daemon, wait_until
 from station.daemon_lock import AlreadyRunning
+from station.errors import UserError
 from tests.station.test_daemon import TickingPipeline
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -95,17 +96,33 @@ def test_second_serve_refuses_and_the_first_keeps_answering_and_cutting(station)
         Daemon(load_config(cfg), CheckingPipeline())
 
 
-def test_the_lock_goes_with_the_daemon_so_a_stale_socket_is_replaced(tmp_path):
+def test_a_stale_socket_is_replaced_and_any_other_file_is_refused_untouched(tmp_path):
     cfg = config_file(tmp_path)
-    (tmp_path / "station.sock").write_text("left by a killed daemon")
+    sock = tmp_path / "station.sock"
+    stale = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    stale.bind(str(sock))  # bound, never listening: what a killed daemon leaves
+    stale.close()
     daemon = Daemon(load_config(cfg), CheckingPipeline())
     daemon.control.start()
     try:
-        assert request(tmp_path / "station.sock", "ping")["pid"] == os.getpid()
+        assert request(sock, "ping")["pid"] == os.getpid()
+        other = tmp_path / "other"
+        other.mkdir()
+        live = config_file(other)
+        live.write_text(live.read_text().replace(str(other / "station.sock"), str(sock)))
+        with pytest.raises(UserError, match="another daemon listens on this control socket"):
+            Daemon(load_config(live), CheckingPipeline())
     finally:
         daemon.control.stop()
+        daemon.store.close()
         daemon.lock.release()
-    again = Daemon(load_config(cfg), CheckingPipeline())  # released: a restart may take it
+    sock.write_text("the job store, by a slip of the configuration")
+    with pytest.raises(UserError, match="control.socket names a file, not a socket"):
+        Daemon(load_config(cfg), CheckingPipeline())
+    assert sock.read_text() == "the job store, by a slip of the configuration"
+    elsewhere = {"control": {"socket": str(tmp_path / "elsewhere.sock")}}
+    again = Daemon(load_config(cfg, elsewhere), CheckingPipeline())
+    again.store.close()  # the refused daemon released the store's lock
     again.lock.release()
 
 
