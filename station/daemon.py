@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from gcode.resume import OVERLAP_MM
 from station.config import Config
 from station.console_memory import AnswersFromMemory
 from station.control import ControlError, ControlServer
@@ -237,8 +238,10 @@ class Daemon(AnswersFromMemory):
             return
         for job in self.store.jobs(ACTIVE):
             reset = self.store.reset_unfinished_pieces(job.id)
+            where = interrupted_reason(self.store.pieces(job.id))
             self.store.transition(job.id, "paused", "interrupted: the daemon was not running"
-                                  + (f"; {reset} piece in progress not cut" if reset else ""))
+                                  + (f"; {where}" if where else
+                                     f"; {reset} piece in progress not cut" if reset else ""))
             log.warning("job %d was interrupted while %s; paused for the operator",
                         job.id, job.state)
 
@@ -501,6 +504,18 @@ class Daemon(AnswersFromMemory):
         out = self.store.summary(job)
         self._memory[job.id] = dict(out)
         return self._with_progress(out)
+
+
+def interrupted_reason(pieces: list[dict[str, Any]]) -> str:
+    """"interrupted at piece 4 (back), 62 % cut: resume continues from there" for the
+    piece the journal saw in progress; "" when none was."""
+    partial = [p for p in pieces if p["state"] != "cut" and (p.get("cut_mm") or 0) > 0]
+    if not partial:
+        return ""
+    p = partial[0]
+    share = 100.0 * p["cut_mm"] / p["path_mm"] if p.get("path_mm") else 0.0
+    return (f"interrupted at piece {p['piece']} ({p['name']}), {share:.0f} % cut: resume "
+            f"continues from there ({OVERLAP_MM:g} mm back for a clean join)")
 
 
 def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:

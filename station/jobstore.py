@@ -218,7 +218,8 @@ class JobStore:
 
     def pieces(self, job_id: int) -> list[dict[str, Any]]:
         return self.engine.read(lambda tx: tx.all(
-            "select piece, name, state, cut_at from pieces where job_id = ? order by piece",
+            "select piece, name, state, cut_at, cut_mm, path_mm from pieces where job_id = ? "
+            "order by piece",
             job_id))
 
     def set_piece_state(self, job_id: int, piece: int, state: str) -> None:
@@ -241,6 +242,15 @@ class JobStore:
             self._event(tx, job_id, "piece", f"piece {piece} ({row['name']}) {state}")
 
         self.engine.write(work)
+
+    def set_piece_progress(self, job_id: int, piece: int, cut_mm: float, path_mm: float
+                           ) -> None:
+        """Journal how far along its strokes an unfinished piece was cut (mm of ``path_mm``):
+        a resumed piece continues from there (see `gcode.resume`). No event: it is written
+        several times a second while cutting."""
+        self.engine.write(lambda tx: tx.run(
+            "update pieces set cut_mm = ?, path_mm = ? where job_id = ? and piece = ? "
+            "and state != 'cut'", float(cut_mm), float(path_mm), job_id, piece))
 
     def reset_unfinished_pieces(self, job_id: int) -> int:
         """After an interruption the piece in progress is not cut: back to pending."""
