@@ -4,9 +4,11 @@ One worker (the main thread) runs jobs; the control socket's threads only read t
 store and raise flags (pause, abort, stop) that the worker and the streamer act on, as
 huey's consumer does with signals. Every state change goes through the job store first,
 so a daemon killed at any moment restarts knowing where each job was: a job found in an
-active state is marked paused ("interrupted"), its piece in progress goes back to
-pending, and the operator's `resume` re-homes or unlocks the machine and cuts only the
-pieces not yet cut.
+active state is marked paused ("interrupted at piece 4, 62 % cut: resume continues from
+there"), its piece in progress goes back to pending with its progress kept, and the
+operator's `resume` re-homes or unlocks the machine, cuts the rest of that piece from a
+few millimetres before where it stopped (`station.cutting`) and then the pieces not yet
+cut.
 
 The piece in flight. A controller outlives its daemon: after a SIGKILL it runs the moves
 already in its buffers, so the piece being cut may be finished with nobody listening
@@ -19,8 +21,8 @@ else on resume, `StationPipeline.cut` waits for the machine to come to rest (sen
 only the real-time ``?``), reads the marker and the head's position, and records that
 piece cut exactly when the machine proves it (see `gcode.recovery.with_markers` and
 `StationPipeline.reconcile`); then it clears the marker, homes if the position was
-lost, and streams the rest. A piece the machine cannot prove finished is cut again in
-full. tests/station/test_crash.py checks all of it against the emulator's motion trace.
+lost, and streams the rest. A piece the machine cannot prove finished resumes where it
+stopped. tests/station/test_crash.py checks all of it against the emulator's motion trace.
 """
 
 from __future__ import annotations

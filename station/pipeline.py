@@ -43,7 +43,12 @@ from gcode.recovery import (
 )
 from solver.jsonfile import read_json
 from station.config import Config
-from station.cutting import PieceJournal, reconcile, resumed_program, stream_with_control
+from station.cutting import (
+    journal_safe_stop,
+    reconcile,
+    resumed_program,
+    stream_with_control,
+)
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
 from station.stripes import stripe_grain, stripe_print
@@ -547,19 +552,14 @@ class StationPipeline:
             job_dir = Path(plan["layout"]).parent
             toolpaths, _ = self.toolpaths_for(layout, todo, job_dir=job_dir)
             here = head_position(rest, alarm, params)
-            program, strokes = resumed_program(toolpaths, self.machine, store, job, index,
+            program, journal = resumed_program(toolpaths, self.machine, store, job, index,
                                                job_dir, here, f"station {job_dir.name}")
             program = with_markers(program, job.id, index)
+            journal.follow(program, self.machine.cut.feed / 60.0, streamer.time_scale)
             # The geometry a marker refers to, saved before a line goes out: the toolpath
             # order (and so where each contour starts and ends) depends on which pieces
             # are left, so the next start must judge by this program, not a fresh one.
             save_final_moves(job_dir / FINAL_MOVES, job.id, final_moves(program, index))
-            journal = PieceJournal(store, job.id, strokes, params,
-                                   feed_mm_s=self.machine.cut.feed / 60.0,
-                                   time_scale=streamer.time_scale)
-            for p in store.pieces(job.id):
-                if p["state"] != "cut" and p["cut_mm"]:
-                    journal.start_at(p["piece"], p["cut_mm"])
 
             def on_piece(piece) -> None:
                 store.set_piece_state(job.id, index[piece.id], piece.state)
@@ -568,7 +568,7 @@ class StationPipeline:
             planned = program.check.estimated_seconds if program.check is not None else None
 
             def on_progress(p) -> None:
-                journal.on_progress(streamer.status)
+                journal.update(p.lines_acked, streamer.status, params)
                 # The streamer's ETA extrapolates the time taken so far; before there is
                 # enough of it, the program's own time estimate stands in.
                 eta = p.eta_seconds
@@ -592,6 +592,8 @@ class StationPipeline:
             stage[0] = "cutting"
             start_step(control, "cutting", 0.0)
             result = stream_with_control(streamer, program, control)
+            if control.stop.is_set():
+                journal_safe_stop(journal, result, streamer.status, params, job_dir)
         if control.abort.is_set():
             raise JobInterrupted("aborted", "aborted by the operator (safe stop)")
         if control.stop.is_set():

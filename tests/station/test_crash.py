@@ -211,7 +211,8 @@ def check_cut_exactly_once(station: Station, job: int) -> list[float]:
                 hit = cKDTree(densify(seg[a:b])).query(samples)[0] < 0.2
                 covered += hit
                 runs += bool(hit.any())
-            assert covered.min() >= 1, (p["name"], c, "not cut everywhere")
+            assert covered.min() >= 1, (p["name"], c, "not cut everywhere",
+                                        samples[covered == 0][[0, -1]])
             closed = np.hypot(*(samples[0] - samples[-1])) < 0.05
             if closed:
                 twice = float(np.hypot(*np.diff(samples, axis=0).T)[
@@ -299,6 +300,10 @@ def test_sigterm_then_sigkill_at_random_moments_resumes_each_piece_where_it_stop
     # Kills come within the first 60 % of the cut left, so all of them fall during the cut.
     kills = windows = 0
     for _ in range(KILLS):
+        # once this attempt streams, the store holds where it started (the journal carried
+        # to the head's rest position), so what is left to cut is known
+        assert wait_until(lambda: any(p["state"] == "cutting"
+                                      for p in station.status_pieces(job)), 60)
         pieces = station.status_pieces(job)
         left = sum(p["state"] != "cut" for p in pieces)
         remaining = sum(lengths[p["name"]] - (p["cut_mm"] or 0.0) for p in pieces
@@ -314,8 +319,8 @@ def test_sigterm_then_sigkill_at_random_moments_resumes_each_piece_where_it_stop
                 return m[2] == 1 and not np.array_equal(m, marker0)
             return beam() >= target
 
-        assert wait_until(due, 120, 0.002), (kills, left, remaining, target - base, beam() - base,
-                                             window, station.status(job))
+        assert wait_until(due, 120, 0.002), (kills, left, remaining, target - base,
+                                             beam() - base, station.daemon_log())
         if window:
             time.sleep(rng.uniform(0.0, 0.06))
             windows += 1
