@@ -6,6 +6,7 @@ from __future__ import annotations
 import sqlite3
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -240,10 +241,18 @@ def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_lo
                                                                          capsys):
     from station.cli import main
 
-    assert main(["fleet", "--store", "postgresql://station:secret@127.0.0.1:1/none"]) == 2
+    assert main(["fleet", "--store", "postgresql://station@127.0.0.1:1/none"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("station fleet: error: postgresql://station:***@127.0.0.1:1/none: "
-                          "cannot connect") and err.count("\n") == 1 and "secret" not in err
+    assert err.startswith("station fleet: error: postgresql://station@127.0.0.1:1/none: "
+                          "cannot connect") and err.count("\n") == 1
+    # a password never goes on the command line, and nothing is created for a non-store
+    for store, fault in (("postgresql://station:secret@127.0.0.1:1/none", "PGPASSFILE"),
+                         ("mysql://root:secret@db/x", "not mysql://"),
+                         ("not a url", "no job store there")):
+        assert main(["fleet", "--store", store]) == 2
+        err = capsys.readouterr().err
+        assert fault in err and err.count("\n") == 1 and "secret" not in err, err
+    assert not Path("not a url").exists()
     store = JobStore(store_location)
     store.engine.write(lambda tx: tx.run(
         "insert into schema_version (version, description, applied_at) values (?, ?, ?)",
