@@ -31,6 +31,7 @@ from solver.units import mm_per_unit
 _UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
 _UNITS_HINT_RE = re.compile(r"\((mm|cm|m)[,)\s]|\bin (mm|cm|m)\b")
 _TWO_D_MARK = "station: 2d-only"
+_BARE_KEYWORD = re.compile(rb"(?m)^(v|vt|vn|f)[ \t]*\r?$")
 _VT_INDEXED_MARK = "station: one vt per pattern vertex"
 
 
@@ -257,8 +258,13 @@ def _check_complete(path: Path, data: bytes) -> None:
     """
     tail = data.rstrip(b" \t\r")
     last = tail[tail.rfind(b"\n") + 1 :]
-    if not data.endswith(b"\n") and last[:2] in (b"v ", b"vt", b"f ", b"vn"):
+    if not data.endswith(b"\n") and last.split()[:1] in ([b"v"], [b"vt"], [b"f"], [b"vn"]):
         raise GarmentError(path, "the last line has no line end: the file is truncated")
+    bare = _BARE_KEYWORD.search(data)
+    if bare is not None:  # a line cut right after its keyword would be silently skipped
+        line = data.count(b"\n", 0, bare.start()) + 1
+        raise GarmentError(path, f"line {line} is a bare {bare.group(1).decode()!r} with no "
+                           "numbers: the file is truncated or damaged")
     faces = data.count(b"\nf ") + data.startswith(b"f ")
     if faces > untrusted.limits.MAX_FACES:
         raise GarmentError(path, f"{faces:,} faces; a garment has at most "
