@@ -259,6 +259,8 @@ class Daemon(AnswersFromMemory):
             # Each step hands the next what it made (objects, inside this process); the
             # store keeps the paths of the files, from which another process resumes.
             fabric, plan = None, None
+            if job.state == "submitted" and not self._admitted(job):
+                job = self._admit_from_store(job)
             if job.state in ("submitted", "capturing"):
                 job = self.store.transition(job.id, "capturing")
                 fabric = self.pipeline.capture(job, workdir, control)
@@ -289,6 +291,22 @@ class Daemon(AnswersFromMemory):
         finally:
             with self._lock:
                 self.running = None
+
+    def _admitted(self, job: Job) -> bool:
+        """Whether the job's inputs are this station's checked copies."""
+        folder = self.intake.folder.resolve()
+        return all(Path(p).resolve().is_relative_to(folder)
+                   for p in (job.garment, job.fabric) if p is not None)
+
+    def _admit_from_store(self, job: Job) -> Job:
+        """A job queued straight into a shared store (`station submit --fleet`, or anyone
+        who reaches the database) is taken in as the socket takes one, before this
+        station reads a byte of it with its own rights: the files copied within limits
+        (and from the allowed folders only), checked in a bounded child."""
+        garment, fabric, _ = self.intake.admit({"garment": job.garment, "fabric": job.fabric,
+                                                "options": job.options})
+        self.store.set_inputs(job.id, garment, fabric)
+        return self.store.job(job.id)
 
     def _fail(self, job_id: int, reason: str) -> None:
         """Record a failure; a fault while recording it (say the job is already failed) is

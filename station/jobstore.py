@@ -189,6 +189,16 @@ class JobStore:
                     + (f": {reason}" if reason else ""))
         return old
 
+    def set_inputs(self, job_id: int, garment: str, fabric: str | None) -> None:
+        """The job's checked copies of its inputs replace the paths it was queued with."""
+        def work(tx: Tx) -> None:
+            tx.run("update jobs set garment = ?, fabric = ?, updated_at = ? where id = ?",
+                   garment, fabric, time.time(), job_id)
+            self._event(tx, job_id, "intake", f"inputs copied and checked: {garment}"
+                        + (f", {fabric}" if fabric else ""))
+
+        self.engine.write(work)
+
     def set_plan(self, job_id: int, plan: dict[str, Any]) -> None:
         self.engine.write(lambda tx: tx.run(
             "update jobs set plan = ?, updated_at = ? where id = ?",

@@ -90,3 +90,34 @@ def test_quoted_content_of_the_file_is_withheld_from_any_message(tmp_path):
     copy.write_text('{"group": "p4-SECRET-TOKEN"}')
     said = withhold_content("g.json: unknown group 'p4-SECRET-TOKEN'; 'p4m' is near", [copy])
     assert said == "g.json: unknown group (content withheld); 'p4m' is near"
+
+
+def test_a_job_queued_straight_into_the_store_is_checked_as_the_socket_checks(tmp_path):
+    """Anyone who reaches a shared store can queue a job: its files are copied within
+    limits and from the allowed folders only, before the station reads them."""
+    from tests.station.test_daemon import TickingPipeline
+
+    allowed = tmp_path / "patterns"
+    allowed.mkdir()
+    (allowed / "shirt.obj").write_text("# stand-in\n")
+    (tmp_path / "secret.obj").write_text("# not the submitter's to read\n")
+    config = load_config(None, {
+        "store": {"path": str(tmp_path / "jobs.db"), "work_dir": str(tmp_path / "work")},
+        "control": {"socket": str(tmp_path / "station.sock"),
+                    "submit_folders": [str(allowed)]}})
+    daemon = Daemon(config, TickingPipeline(tick=0.01))
+    outside = daemon.store.submit(str(tmp_path / "secret.obj"), None, {})
+    inside = daemon.store.submit(str(allowed / "shirt.obj"), None, {})
+    proc = daemon.store.submit("/proc/self/pagemap", None, {})
+    daemon.run_loop(once=True)
+    try:
+        refused = daemon.store.job(outside.id)
+        assert refused.state == "failed" and "submissions are accepted only from" in \
+            refused.reason, refused.reason
+        done = daemon.store.job(inside.id)
+        assert done.state == "done"
+        assert Path(done.garment).is_relative_to(tmp_path / "work" / "inputs")
+        assert daemon.store.job(proc.id).state == "failed"
+    finally:
+        daemon.store.close()
+        daemon.lock.release()
