@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from gcode.resume import OVERLAP_MM
 from station.config import Config
 from station.console_memory import AnswersFromMemory
 from station.control import ControlError, ControlServer
@@ -46,7 +45,15 @@ from station.daemon_lock import lock_store
 from station.fleet import Fleet, open_store, station_info
 from station.fleetmember import FleetMember
 from station.intake import Intake
-from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
+from station.jobstore import (
+    ACTIVE,
+    FINAL,
+    TRANSITIONS,
+    Job,
+    JobStore,
+    JobStoreError,
+    interrupted_reason,
+)
 from station.storeengine import StoreUnavailable
 
 log = logging.getLogger("station.daemon")
@@ -524,18 +531,6 @@ class Daemon(AnswersFromMemory):
         out = self.store.summary(job)
         self._memory[job.id] = dict(out)
         return self._with_progress(out)
-
-
-def interrupted_reason(pieces: list[dict[str, Any]]) -> str:
-    """"interrupted at piece 4 (back), 62 % cut: resume continues from there" for the
-    piece the journal saw in progress; "" when none was."""
-    partial = [p for p in pieces if p["state"] != "cut" and (p.get("cut_mm") or 0) > 0]
-    if not partial:
-        return ""
-    p = partial[0]
-    share = 100.0 * p["cut_mm"] / p["path_mm"] if p.get("path_mm") else 0.0
-    return (f"interrupted at piece {p['piece']} ({p['name']}), {share:.0f} % cut: resume "
-            f"continues from there ({OVERLAP_MM:g} mm back for a clean join)")
 
 
 def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:

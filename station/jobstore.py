@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from gcode.resume import OVERLAP_MM
 from station.storeengine import Engine, Tx, open_engine
 from station.storeschema import migrate
 
@@ -315,3 +316,15 @@ def job_from_row(row: dict[str, Any]) -> Job:
                                   (x, y) if x is not None and y is not None else None,
                                   row.get("req_station")),
     )
+
+
+def interrupted_reason(pieces: list[dict[str, Any]]) -> str:
+    """"interrupted at piece 4 (back), 62 % cut: resume continues from there" for the
+    piece the journal saw in progress; "" when none was."""
+    partial = [p for p in pieces if p["state"] != "cut" and (p.get("cut_mm") or 0) > 0]
+    if not partial:
+        return ""
+    p = partial[0]
+    share = 100.0 * p["cut_mm"] / p["path_mm"] if p.get("path_mm") else 0.0
+    return (f"interrupted at piece {p['piece']} ({p['name']}), {share:.0f} % cut: resume "
+            f"continues from there ({OVERLAP_MM:g} mm back for a clean join)")
