@@ -214,6 +214,10 @@ def _check_control(config: Config, where: str) -> None:
     if len(sock) > MAX_SOCKET_PATH_BYTES:
         raise ConfigError(f"{where}: control.socket resolves to a path of {len(sock)} bytes; "
                           f"a Unix socket path holds at most {MAX_SOCKET_PATH_BYTES}")
+    name = config["station"]["name"]
+    if len(name) > 64 or not all(ch.isprintable() for ch in name):
+        raise ConfigError(f"{where}: station.name must be at most 64 printable characters, "
+                          f"got {name[:64]!r}")
     url = config["store"]["url"]
     if url and not url.startswith(("postgresql://", "postgres://")):
         scheme = url.split("://", 1)[0] if "://" in url else ""

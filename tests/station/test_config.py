@@ -105,6 +105,7 @@ def test_cut_section_is_refused_by_file_and_key(tmp_path, toml, key):
     ("[store]\numask = 0o022\n", "store.umask must keep every permission from others"),
     ('[store]\nurl = "mysql://root:pw@db/jobs"\n', "store.url must be a postgresql:// URL, "
      "not mysql://"),
+    ('[station]\nname = "a\\u0000b"\n', "station.name must be at most 64 printable"),
 ])
 def test_every_limit_is_stated_and_no_password_is_echoed(tmp_path, text, fault):
     path = tmp_path / "station.toml"

@@ -238,7 +238,7 @@ def test_a_transaction_rolled_back_for_a_deadlock_runs_again(pg_url):
 
 
 def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_location,
-                                                                         capsys):
+                                                                         capsys, tmp_path):
     from station.cli import main
 
     assert main(["fleet", "--store", "postgresql://station@127.0.0.1:1/none"]) == 2
@@ -253,6 +253,10 @@ def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_lo
         err = capsys.readouterr().err
         assert fault in err and err.count("\n") == 1 and "secret" not in err, err
     assert not Path("not a url").exists()
+    spec = tmp_path / "spec.json"
+    spec.write_text('{"not": "a job store"}')
+    assert main(["fleet", "--store", str(spec)]) == 2
+    assert "not a job store (file is not a database)" in capsys.readouterr().err
     store = JobStore(store_location)
     store.engine.write(lambda tx: tx.run(
         "insert into schema_version (version, description, applied_at) values (?, ?, ?)",
