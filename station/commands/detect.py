@@ -8,6 +8,7 @@ from pathlib import Path
 
 import cv2
 
+from station.cliargs import picture_path
 from untrusted import read_image
 from untrusted.limits import MAX_REPEAT_MM
 
@@ -29,7 +30,7 @@ def register(sub) -> None:
                    help="write the fabric description here")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object: group, w1, w2, origin, confidence, seconds")
-    p.add_argument("--png", metavar="OUT.png",
+    p.add_argument("--png", metavar="OUT.png", type=picture_path,
                    help="write the image with lattice, symmetry elements and distortion grid")
     p.add_argument("--skew-tol", type=float, default=1.0, metavar="DEG",
                    help="warn when the cloth is skewed more than this (default 1 degree)")
