@@ -155,6 +155,8 @@ class AdvisoryLock:
     def __init__(self, url: str, name: str) -> None:
         self.url = url
         self.name = name
+        #: how this daemon's lock session names itself on the server (refusals show it)
+        self.app_name = f"station lock pid {os.getpid()} on {os.uname().nodename}"[:63]
         self._conn: Any = None
 
     def acquire(self) -> AdvisoryLock:
@@ -167,8 +169,7 @@ class AdvisoryLock:
     def _try(self) -> bool:
         self._close()
         try:
-            self._conn = connect_postgres(self.url, application_name=f"station lock pid "
-                                          f"{os.getpid()} on {os.uname().nodename}"[:63])
+            self._conn = connect_postgres(self.url, application_name=self.app_name)
             row = self._conn.execute(f"select pg_try_advisory_lock({_KEY_SQL}) as ok",
                                      (self.name,)).fetchone()
         except Exception as exc:  # psycopg.Error: the server is not there
@@ -181,6 +182,11 @@ class AdvisoryLock:
 
     def _holder(self) -> str:
         """" (held by <application name>)", when the server tells us who holds it."""
+        who = self._holder_name()
+        return f" (held by {who})" if who else ""
+
+    def _holder_name(self) -> str | None:
+        """The application name of the session holding the lock, if the server says."""
         try:
             conn = connect_postgres(self.url)
             with conn:
@@ -190,8 +196,8 @@ class AdvisoryLock:
                     f"((l.classid::bigint << 32) | l.objid::bigint) = {_KEY_SQL}",
                     (self.name,)).fetchone()
         except Exception:
-            return ""
-        return f" (held by {row['who']})" if row and row["who"] else ""
+            return None
+        return row["who"] if row else None
 
     def still_held(self) -> bool:
         """Whether this daemon still holds its name: after the session was lost (an outage,
@@ -208,6 +214,8 @@ class AdvisoryLock:
         if held:
             log.warning("job store session lost and back: station %s holds its name again",
                         self.name)
+        elif self._holder_name() == self.app_name:
+            return True  # our own lost session, not yet gone on the server: nobody else's
         return held
 
     def _close(self) -> None:
