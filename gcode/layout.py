@@ -56,13 +56,13 @@ def _points(value, source: str, where: str, *, min_len: int = 1) -> np.ndarray:
     return untrusted.points(value, source, where, min_len=min_len)
 
 
-def _listed(piece: dict, key: str, source: str, where: str) -> list:
+def _listed(piece: dict, key: str, source: str, where: str,
+            max_len: int = untrusted.limits.MAX_PANEL_POINTS) -> list:
     """``piece[key]`` as a list (absent or null: empty); a number or text there is a fault."""
     value = piece.get(key)
     if value is None:
         return []
-    return untrusted.sequence(value, source, f"{where}.{key}",
-                              max_len=untrusted.limits.MAX_PANEL_POINTS)
+    return untrusted.sequence(value, source, f"{where}.{key}", max_len=max_len)
 
 
 def _ring(value, source: str, where: str) -> np.ndarray:
@@ -121,6 +121,7 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
     off = untrusted.vector(data.get("origin") or [0.0, 0.0], source, "origin")
     pieces: list[LayoutPiece] = []
     seen: set[str] = set()
+    total = 0
     for i, p in enumerate(pieces_in):
         where = f"pieces[{i}]"
         if not isinstance(p, dict) or "outline" not in p:
@@ -131,12 +132,19 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
             raise untrusted.InputError(source, f"{where}: duplicate id {pid!r}")
         seen.add(pid)
         outline = _ring(p["outline"], source, f"{where}.outline") + off
+        features = {key: _listed(p, key, source, where, lim.MAX_FEATURES_PER_PIECE)
+                    for key in ("holes", "notches", "marks")}
+        total += sum(map(len, features.values()))
+        if total > lim.MAX_LAYOUT_FEATURES:
+            raise untrusted.InputError(source, f"{where}: more than "
+                                       f"{lim.MAX_LAYOUT_FEATURES:,} marks, notches and holes "
+                                       "in the layout")
         holes = [_ring(h, source, f"{where}.holes[{k}]") + off
-                 for k, h in enumerate(_listed(p, "holes", source, where))]
+                 for k, h in enumerate(features["holes"])]
         _check_holes_inside(outline, holes, source, where)
         notches = [_notch(n, source, f"{where}.notches[{k}]", off)
-                   for k, n in enumerate(_listed(p, "notches", source, where))]
-        marks_in = _listed(p, "marks", source, where)
+                   for k, n in enumerate(features["notches"])]
+        marks_in = features["marks"]
         marks = (_points(marks_in, source, f"{where}.marks") + off) if marks_in \
             else np.zeros((0, 2))
         grain = p.get("grainline")

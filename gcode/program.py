@@ -36,12 +36,16 @@ __all__ = [
     "parse_pieces",
     "program_moves",
     "sanitize_comment",
+    "STROKE_SYNC",
     "strip_comment",
     "validate",
 ]
 
 MAX_LINE = 79  # GRBL's line buffer holds 79 characters plus the terminator
 SYNC = "G4 P0.01"
+#: after every stroke: answered once the stroke has run, so the station knows exactly which
+#: strokes of a piece are cut (gcode.resume); the piece's own SYNC stays its last G4
+STROKE_SYNC = "G4 P0"
 _ALLOWED = re.compile(r"[^A-Za-z0-9 _.,:#+/=-]")
 _PIECE = re.compile(r"^\(piece (\d+) (begin|end)(?: (.*))?\)$")
 
@@ -236,6 +240,7 @@ def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: st
                                   1 if is_mark else c.passes, closed)
                 else:
                     _knife_stroke(w, stroke)
+                w.emit(STROKE_SYNC)
         sync = w.emit(SYNC)
         last = w.emit(f"(piece {number} end)")
         pieces.append(PieceRange(number, tp.id, tp.name, first, sync, last))

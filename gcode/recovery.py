@@ -61,8 +61,8 @@ def with_markers(program: Program, job_id: int, index: dict[str, int]) -> Progra
     opening its port), leaves a finished piece unproven: it is cut again, and the
     operator is told in the log. At most this one piece can
     be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
-    answered and stored. A piece interrupted before its final move is cut again in full
-    (its open kerf is retraced; it is separated from the cloth exactly once).
+    answered and stored. A piece interrupted before its final move resumes where its cut
+    stopped (`gcode.resume`).
     """
     lines: list[str] = []
     new_index = np.zeros(len(program.lines), int)  # old line -> its line in the new program

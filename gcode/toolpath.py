@@ -18,7 +18,7 @@ from gcode.layout import Layout, LayoutPiece
 from gcode.machine import Machine
 
 __all__ = ["Contour", "PieceToolpath", "build_toolpaths", "check_on_table", "fabric_box",
-           "order_pieces", "two_opt"]
+           "open_contour", "order_pieces", "two_opt"]
 
 
 @dataclass
@@ -410,6 +410,11 @@ def build_piece(piece: LayoutPiece, index: int, machine: Machine, pos: np.ndarra
         closed = _lead_in(ring, min(c.lead_in, lead_room), waste)
         tp.contours.append(_contour("outline", True, closed, machine))
     return tp
+
+
+def open_contour(kind: str, points: np.ndarray, machine: Machine) -> Contour:
+    """One run of ``kind`` along ``points`` as a single stroke (a resumed remainder)."""
+    return Contour(kind, False, [_fit(points, machine)], points)
 
 
 def _contour(kind: str, closed: bool, points: np.ndarray, machine: Machine) -> Contour:

@@ -221,3 +221,16 @@ def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs
     for line in sym.lines():
         print(f"  {line}", file=sys.stderr)
     return sym.garment, sym
+
+
+#: what the pictures can be written as (OpenCV's writers; anything else failed at the end)
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+
+
+def picture_path(text: str) -> str:
+    """An ``OUT.png`` option: refused at once unless it names a picture format, rather
+    than after the work, when the writer finds no format for ``x.json``."""
+    if not text.lower().endswith(PICTURE_SUFFIXES):
+        raise argparse.ArgumentTypeError(f"{text}: a picture is written as "
+                                         f"{', '.join(PICTURE_SUFFIXES)}")
+    return text

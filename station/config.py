@@ -18,6 +18,9 @@ from typing import Any
 import untrusted
 from untrusted.limits import MAX_PASSES, MAX_SOCKET_PATH_BYTES
 
+#: the widest seam allowance any setting may ask for (a hem of a heavy coat is ~80 mm)
+MAX_ALLOWANCE_MM = 1000.0
+
 
 @dataclass(frozen=True)
 class Key:
@@ -60,18 +63,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
                    "SQLite file at path)"),
         "path": Key(str, "station-data/jobs.db", "SQLite job store"),
         "work_dir": Key(str, "station-data/jobs", "per-job files (frames, plans, G-code)"),
-        "umask": Key(int, 0o027, "the daemon's umask (0o027: job files 0640, folders 0750)",
-                     minimum=0, maximum=0o777),
+        "umask": Key(int, 0o027, "the daemon's umask (0o027: job files 0640, folders 0750; "
+                     "it must keep every permission from others: 0o007 at least)",
+                     minimum=0o007, maximum=0o777),
     },
     "station": {
         "name": Key(str, "", "this station's name in a fleet sharing one job store (empty: "
                     "a lone station taking every job in order)"),
         "heartbeat_s": Key(float, 0.5, "heartbeat and remote-command poll interval",
-                           minimum=0.05),
+                           minimum=0.05, maximum=60.0),
         "lost_after_s": Key(float, 30.0, "a station silent this long is lost: its job "
-                            "becomes interrupted", minimum=1.0),
+                            "becomes interrupted", minimum=1.0, maximum=86_400.0),
         "outage_s": Key(float, 600.0, "how long to hold the machine and wait for an "
-                        "unreachable database server before failing", minimum=1.0),
+                        "unreachable database server before failing", minimum=1.0,
+                        maximum=86_400.0),
     },
     "control": {
         "socket": Key(str, "station-data/station.sock", "Unix socket of the operator console"),
@@ -115,15 +120,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1, maximum=3600.0),
     },
     "allowance": {
-        "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0),
+        "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0,
+                       maximum=MAX_ALLOWANCE_MM),
         "hem_mm": Key(float, 20.0, "allowance on hems: bottom, sleeve and leg ends (mm)",
-                      minimum=0.0),
+                      minimum=0.0, maximum=MAX_ALLOWANCE_MM),
         "opening_mm": Key(float, 10.0, "allowance on other open edges: necklines, waists, "
-                          "finished with a facing or band (mm)", minimum=0.0),
+                          "finished with a facing or band (mm)", minimum=0.0,
+                          maximum=MAX_ALLOWANCE_MM),
         "notch_depth_mm": Key(float, 3.0, "notch slit depth (mm; never over half the "
-                              "allowance)", minimum=0.0),
+                              "allowance)", minimum=0.0, maximum=MAX_ALLOWANCE_MM),
         "notch_spacing_mm": Key(float, 100.0, "balance notches along a seam at most this "
-                                "far apart (mm; 0: only at seam ends)", minimum=0.0),
+                                "far apart (mm; 0: only at seam ends)", minimum=0.0,
+                                maximum=100_000.0),
     },
     # Every program the station cuts uses these (over the machine profile's [cut]); the
     # profile's ranges apply (power up to max_s, feed from min_cut_feed to max_feed).
@@ -206,6 +214,16 @@ def _check_control(config: Config, where: str) -> None:
     if len(sock) > MAX_SOCKET_PATH_BYTES:
         raise ConfigError(f"{where}: control.socket resolves to a path of {len(sock)} bytes; "
                           f"a Unix socket path holds at most {MAX_SOCKET_PATH_BYTES}")
+    name = config["station"]["name"]
+    if len(name) > 64 or not all(ch.isprintable() for ch in name):
+        raise ConfigError(f"{where}: station.name must be at most 64 printable characters, "
+                          f"got {name[:64]!r}")
+    url = config["store"]["url"]
+    if url and not url.startswith(("postgresql://", "postgres://")):
+        scheme = url.split("://", 1)[0] if "://" in url else ""
+        raise ConfigError(f"{where}: store.url must be a postgresql:// URL"
+                          + (f", not {scheme[:20]}://..." if scheme else "")
+                          + " (leave it empty for the SQLite file at store.path)")
     group = config["control"]["group"]
     if group:
         try:
@@ -232,6 +250,9 @@ def _check(where: str, section: str, name: str, key: Key, value: Any) -> Any:
                           f"got {value!r}")
     if isinstance(value, float) and not math.isfinite(value):
         raise ConfigError(f"{label} must be a finite number, got {value!r}")
+    if name == "umask" and value & 0o007 != 0o007:
+        raise ConfigError(f"{label} must keep every permission from others (0o007 set, e.g. "
+                          f"0o027), got 0o{value:03o}")
     if key.minimum is not None and value < key.minimum:
         raise ConfigError(f"{label} must be at least {key.minimum:g}, got {value!r}")
     if key.maximum is not None and value > key.maximum:

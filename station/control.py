@@ -15,13 +15,16 @@ import logging
 import os
 import socket
 import socketserver
+import stat
 import struct
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from station.errors import UserError
 from untrusted import InputError, decode_text, parse_json
 from untrusted.limits import MAX_REQUEST_BYTES, MAX_SOCKET_PATH_BYTES
 
@@ -29,8 +32,9 @@ log = logging.getLogger("station.control")
 
 Handler = Callable[[dict[str, Any]], dict[str, Any]]
 MAX_REQUEST = MAX_REQUEST_BYTES  # one request line, refused before it is buffered whole
-MAX_CONNECTIONS = 32  # concurrent console connections; more are told to retry
-IDLE_SECONDS = 300.0  # a connection silent this long is closed
+MAX_CONNECTIONS = 64  # console connections at once, all users together
+MAX_PER_PEER = 8  # console connections of one user (uid) at once
+IDLE_SECONDS = 5.0  # between requests, and to send one whole request line
 MAX_ANSWER_BYTES = 256 << 20  # what a client accepts back (job lists, logs)
 
 
@@ -44,6 +48,100 @@ def peer_credentials(sock: socket.socket) -> tuple[int, int, int]:
     return struct.unpack("3i", creds)
 
 
+class RequestTooLong(Exception):
+    """A request line longer than MAX_REQUEST: refused before it is buffered whole."""
+
+
+class LineReader:
+    """Request lines from a socket, each within a time limit from when it is awaited: a
+    client trickling one byte at a time holds its connection no longer than an idle one."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+        self.buf = bytearray()
+
+    def next(self, seconds: float) -> bytes | None:
+        """The next line (with its newline), or None once the client is silent for
+        ``seconds`` or gone."""
+        deadline = time.monotonic() + seconds
+        while True:
+            end = self.buf.find(b"\n")
+            if 0 <= end < MAX_REQUEST:
+                line = bytes(self.buf[: end + 1])
+                del self.buf[: end + 1]
+                return line
+            if end >= MAX_REQUEST or len(self.buf) > MAX_REQUEST:
+                raise RequestTooLong
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self.sock.settimeout(left)
+            try:
+                chunk = self.sock.recv(65536)
+            except TimeoutError:
+                return None
+            if not chunk:
+                return None
+            self.buf += chunk
+
+
+@dataclass(eq=False)
+class Seat:
+    """One console connection: its user, and whether a request is being answered."""
+
+    uid: int
+    sock: socket.socket
+    working: bool = False
+    since: float = field(default_factory=time.monotonic)
+
+
+class Seats:
+    """Console connections per user and in all. A newcomer over a limit takes the seat of
+    the longest idle connection (closed: it was between requests, nothing is lost), so
+    idle or trickling connections can never lock the operator out; only connections all
+    busy answering requests make a newcomer retry."""
+
+    def __init__(self, per_peer: int, total: int) -> None:
+        self.per_peer = per_peer
+        self.total = total
+        self._seats: list[Seat] = []
+        self._lock = threading.Lock()
+
+    def take(self, uid: int, sock: socket.socket) -> Seat | None:
+        with self._lock:
+            mine = [s for s in self._seats if s.uid == uid]
+            pool = mine if len(mine) >= self.per_peer else \
+                self._seats if len(self._seats) >= self.total else None
+            if pool is not None:
+                idle = [s for s in pool if not s.working]
+                if not idle:
+                    return None
+                victim = min(idle, key=lambda s: s.since)
+                self._seats.remove(victim)
+                try:
+                    victim.sock.shutdown(socket.SHUT_RDWR)  # its reader sees the end at once
+                except OSError:
+                    pass
+            seat = Seat(uid, sock)
+            self._seats.append(seat)
+            return seat
+
+    def busy(self, seat: Seat, working: bool) -> bool:
+        """Mark a request begun or answered; False if the seat was given away meanwhile."""
+        with self._lock:
+            seat.working = working
+            seat.since = time.monotonic()
+            return seat in self._seats
+
+    def leave(self, seat: Seat) -> None:
+        with self._lock:
+            if seat in self._seats:
+                self._seats.remove(seat)
+
+    def __len__(self) -> int:
+        return len(self._seats)
+
+
 class ControlServer:
     """Serves ``handler`` on a Unix socket in background threads."""
 
@@ -54,7 +152,8 @@ class ControlServer:
         self.allowed_gid = grp.getgrnam(group).gr_gid if group else None
         self._server: socketserver.ThreadingUnixStreamServer | None = None
         self._thread: threading.Thread | None = None
-        self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+        self.seats = Seats(MAX_PER_PEER, MAX_CONNECTIONS)
+        stale_socket(self.path)  # refuse a wrong control.socket before anything is touched
 
     def allowed(self, uid: int, gid: int) -> bool:
         if uid in self.allowed_uids:
@@ -72,11 +171,11 @@ class ControlServer:
         return name in grp.getgrgid(self.allowed_gid).gr_mem
 
     def start(self) -> None:
-        """Listen; only call this while holding the daemon lock (station.daemon_lock), since
-        an existing socket is then known to be stale and is replaced."""
+        """Listen, replacing a stale socket left by a killed daemon; anything else at the
+        path (a file, a link, a live daemon's socket) is refused and left untouched."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        if self.path.exists() or self.path.is_symlink():
-            self.path.unlink()  # a stale socket left by a killed daemon
+        if stale_socket(self.path):
+            self.path.unlink()  # left by a killed daemon
         outer = self
 
         class _Request(socketserver.StreamRequestHandler):
@@ -87,30 +186,32 @@ class ControlServer:
                     self._send({"ok": False, "error": "permission denied: not the station's "
                                 "user or group"})
                     return
-                if not outer._slots.acquire(blocking=False):
-                    self._send({"ok": False, "error": "too many console connections; retry"})
+                seat = outer.seats.take(uid, self.request)
+                if seat is None:
+                    self._send({"ok": False, "error": "too many console connections busy "
+                                "at once; retry"})
                     return
                 try:
-                    self.request.settimeout(IDLE_SECONDS)
+                    lines = LineReader(self.request)
                     while True:
-                        # readline(limit) never buffers more than the limit, newline or not
-                        line = self.rfile.readline(MAX_REQUEST + 1)
-                        if not line:
-                            return
-                        if len(line) > MAX_REQUEST or not line.endswith(b"\n"):
-                            if len(line) > MAX_REQUEST:
-                                self._send({"ok": False, "error": "request longer than "
-                                            f"{MAX_REQUEST} bytes refused"})
-                            return
-                        self._send(outer.answer(line))
-                except (OSError, TimeoutError):
-                    return  # the client went away or fell silent
+                        line = lines.next(IDLE_SECONDS)
+                        if line is None or not outer.seats.busy(seat, True):
+                            return  # silent, gone, or its seat was given to a newcomer
+                        try:
+                            self._send(outer.answer(line))
+                        finally:
+                            outer.seats.busy(seat, False)
+                except RequestTooLong:
+                    self._send({"ok": False, "error": f"request longer than {MAX_REQUEST} "
+                                "bytes refused"})
+                except OSError:
+                    return  # the client went away, or did not read its answer
                 finally:
-                    outer._slots.release()
+                    outer.seats.leave(seat)
 
             def _send(self, obj: dict[str, Any]) -> None:
-                self.wfile.write((json.dumps(obj) + "\n").encode())
-                self.wfile.flush()
+                self.request.settimeout(IDLE_SECONDS)  # a client that never reads is dropped
+                self.request.sendall((json.dumps(obj) + "\n").encode())
 
         old_umask = os.umask(0o117)  # the socket is born 0660, never world-accessible
         try:
@@ -146,6 +247,33 @@ class ControlServer:
             self._server = None
         if self.path.exists():
             self.path.unlink()
+
+
+class SocketInUse(UserError):
+    """control.socket names something that is not a stale socket: left untouched."""
+
+
+def stale_socket(path: Path) -> bool:
+    """Whether ``path`` is a socket nobody listens on (False: nothing there); SocketInUse
+    for anything else, which the configuration must have named by mistake."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return False
+    if not stat.S_ISSOCK(st.st_mode):
+        kind = "a link" if stat.S_ISLNK(st.st_mode) else "a folder" if stat.S_ISDIR(
+            st.st_mode) else "a file"
+        raise SocketInUse(f"{path}: control.socket names {kind}, not a socket; refusing to "
+                          "replace it (choose another control.socket)")
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    probe.settimeout(1.0)
+    try:
+        probe.connect(str(path))
+    except OSError:
+        return True
+    finally:
+        probe.close()
+    raise SocketInUse(f"{path}: another daemon listens on this control socket")
 
 
 def request(path: str | Path, cmd: str, timeout: float = 5.0,

@@ -4,9 +4,11 @@ One worker (the main thread) runs jobs; the control socket's threads only read t
 store and raise flags (pause, abort, stop) that the worker and the streamer act on, as
 huey's consumer does with signals. Every state change goes through the job store first,
 so a daemon killed at any moment restarts knowing where each job was: a job found in an
-active state is marked paused ("interrupted"), its piece in progress goes back to
-pending, and the operator's `resume` re-homes or unlocks the machine and cuts only the
-pieces not yet cut.
+active state is marked paused ("interrupted at piece 4, 62 % cut: resume continues from
+there"), its piece in progress goes back to pending with its progress kept, and the
+operator's `resume` re-homes or unlocks the machine, cuts the rest of that piece from a
+few millimetres before where it stopped (`station.cutting`) and then the pieces not yet
+cut.
 
 The piece in flight. A controller outlives its daemon: after a SIGKILL it runs the moves
 already in its buffers, so the piece being cut may be finished with nobody listening
@@ -19,8 +21,8 @@ else on resume, `StationPipeline.cut` waits for the machine to come to rest (sen
 only the real-time ``?``), reads the marker and the head's position, and records that
 piece cut exactly when the machine proves it (see `gcode.recovery.with_markers` and
 `StationPipeline.reconcile`); then it clears the marker, homes if the position was
-lost, and streams the rest. A piece the machine cannot prove finished is cut again in
-full. tests/station/test_crash.py checks all of it against the emulator's motion trace.
+lost, and streams the rest. A piece the machine cannot prove finished resumes where it
+stopped. tests/station/test_crash.py checks all of it against the emulator's motion trace.
 """
 
 from __future__ import annotations
@@ -37,18 +39,32 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from station.config import Config
+from station.console_memory import AnswersFromMemory
 from station.control import ControlError, ControlServer
-from station.daemon_lock import DaemonLock, lock_path
+from station.daemon_lock import lock_store
 from station.fleet import Fleet, open_store, station_info
 from station.fleetmember import FleetMember
 from station.intake import Intake
-from station.jobstore import ACTIVE, FINAL, TRANSITIONS, Job, JobStore, JobStoreError
+from station.jobstore import (
+    ACTIVE,
+    FINAL,
+    TRANSITIONS,
+    Job,
+    JobStore,
+    JobStoreError,
+    interrupted_reason,
+)
+from station.storeengine import StoreUnavailable
 
 log = logging.getLogger("station.daemon")
 
 
 #: Reason of a job paused until the operator confirms the detected print.
 CONFIRM_FABRIC = "confirm fabric"
+#: how long the console's status, jobs, pause and abort wait for the store before they
+#: answer from memory; how long the other commands wait before saying it is away
+MEMORY_PATIENCE_S = 0.5
+CONSOLE_PATIENCE_S = 4.0
 
 
 class JobInterrupted(Exception):
@@ -106,15 +122,22 @@ def setup_logging(level: int = logging.INFO) -> None:
     root.setLevel(level)
 
 
-class Daemon:
+class Daemon(AnswersFromMemory):
     """The station's job loop and its control endpoints."""
 
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
-        # first of all: a second daemon on this store must leave everything untouched
-        self.lock = DaemonLock(lock_path(config)).acquire()
-        self.store = open_store(config)
+        # first of all: a second daemon on this store (by any path or name) must leave
+        # everything untouched
+        self.lock = lock_store(config)
+        try:
+            self.control = ControlServer(config.resolve(config["control"]["socket"]),
+                                         self.handle, config["control"]["group"])
+            self.store = open_store(config)
+        except BaseException:
+            self.lock.release()
+            raise
         self.fleet: FleetMember | None = None
         if config["station"]["name"]:
             self.fleet = FleetMember(
@@ -122,11 +145,12 @@ class Daemon:
                 station_info(config, getattr(pipeline, "machine", None)),
                 self._doing, self.handle, config["station"]["heartbeat_s"],
                 wake=lambda: self._wake.set())
-            self.store.engine.on_outage = self._on_outage
+        self.store.engine.on_outage = self._on_outage  # a server store; SQLite never calls
         self.work_dir = config.resolve(config["store"]["work_dir"])
-        self.control = ControlServer(config.resolve(config["control"]["socket"]),
-                                     self.handle, config["control"]["group"])
         self.running: JobControl | None = None
+        # what the console last read from the store, to answer from while it is away
+        self._memory: dict[int, dict[str, Any]] = {}
+        self._owed_pause: int | None = None  # paused while the store was away: record it
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._lock = threading.Lock()
@@ -152,6 +176,7 @@ class Daemon:
             self.control.stop()
             if self.fleet is not None:
                 self.fleet.stop()
+            self.store.close()  # before the lock: its release closes a descriptor of the file
             self.lock.release()
             log.info("stopped")
         return 0
@@ -163,6 +188,11 @@ class Daemon:
         """
         try:
             while not self._stop.is_set():
+                if not self.lock.still_held():
+                    log.error("another daemon took this station's name while the store was "
+                              "away; stopping")
+                    self.shutdown()
+                    break
                 job = self.fleet.claim() if self.fleet else self.store.next_job()
                 if job is None:
                     if once:
@@ -217,8 +247,10 @@ class Daemon:
             return
         for job in self.store.jobs(ACTIVE):
             reset = self.store.reset_unfinished_pieces(job.id)
+            where = interrupted_reason(self.store.pieces(job.id))
             self.store.transition(job.id, "paused", "interrupted: the daemon was not running"
-                                  + (f"; {reset} piece in progress not cut" if reset else ""))
+                                  + (f"; {where}" if where else
+                                     f"; {reset} piece in progress not cut" if reset else ""))
             log.warning("job %d was interrupted while %s; paused for the operator",
                         job.id, job.state)
 
@@ -234,6 +266,8 @@ class Daemon:
             # Each step hands the next what it made (objects, inside this process); the
             # store keeps the paths of the files, from which another process resumes.
             fabric, plan = None, None
+            if job.state == "submitted" and not self._admitted(job):
+                job = self._admit_from_store(job)
             if job.state in ("submitted", "capturing"):
                 job = self.store.transition(job.id, "capturing")
                 fabric = self.pipeline.capture(job, workdir, control)
@@ -264,6 +298,22 @@ class Daemon:
         finally:
             with self._lock:
                 self.running = None
+
+    def _admitted(self, job: Job) -> bool:
+        """Whether the job's inputs are this station's checked copies."""
+        folder = self.intake.folder.resolve()
+        return all(Path(p).resolve().is_relative_to(folder)
+                   for p in (job.garment, job.fabric) if p is not None)
+
+    def _admit_from_store(self, job: Job) -> Job:
+        """A job queued straight into a shared store (`station submit --fleet`, or anyone
+        who reaches the database) is taken in as the socket takes one, before this
+        station reads a byte of it with its own rights: the files copied within limits
+        (and from the allowed folders only), checked in a bounded child."""
+        garment, fabric, _ = self.intake.admit({"garment": job.garment, "fabric": job.fabric,
+                                                "options": job.options})
+        self.store.set_inputs(job.id, garment, fabric)
+        return self.store.job(job.id)
 
     def _fail(self, job_id: int, reason: str) -> None:
         """Record a failure; a fault while recording it (say the job is already failed) is
@@ -310,17 +360,40 @@ class Daemon:
         elif not down and running.progress.pop("held_for_store", False):
             log.warning("job store back: resuming the cut")
             running.pause.clear()
+        if not down and self._owed_pause is not None:
+            # not from inside the store's call that is telling us: a thread of its own
+            threading.Thread(target=self._record_owed_pause, daemon=True).start()
+
+    def _record_owed_pause(self) -> None:
+        job_id, self._owed_pause = self._owed_pause, None
+        try:
+            if job_id is not None and self.store.job(job_id).state == "cutting":
+                self.store.transition(job_id, "paused", "paused by the operator (feed hold) "
+                                      "while the job store was away")
+        except Exception:
+            log.exception("job %s: recording the operator's pause failed", job_id)
 
     # ------------------------------------------------------------------ control
     def handle(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Run a console command; status, jobs, pause and abort never wait for a store that
+        is away (they answer from memory), the others wait a few seconds at most."""
         cmd = request["cmd"]
         handler = getattr(self, f"cmd_{cmd}", None)
         if handler is None:
             raise ControlError(f"unknown command {cmd!r}")
+        remembered = getattr(self, f"memory_{cmd}", None)
         try:
-            return handler(request)
+            with self.store.engine.impatient(MEMORY_PATIENCE_S if remembered
+                                             else CONSOLE_PATIENCE_S):
+                return handler(request)
         except JobStoreError as exc:
             raise ControlError(str(exc)) from None
+        except StoreUnavailable:
+            if remembered is None:
+                raise ControlError(f"the job store is unreachable; {cmd} waits until it is "
+                                   "back (status, jobs, pause and abort answer meanwhile)"
+                                   ) from None
+            return {**remembered(request), "store": "unreachable: answered from memory"}
 
     def cmd_ping(self, _req: dict[str, Any]) -> dict[str, Any]:
         return {"pid": os.getpid(), "running": self.running.job_id if self.running else None}
@@ -337,7 +410,9 @@ class Daemon:
         return {"job": job.to_dict()}
 
     def cmd_jobs(self, _req: dict[str, Any]) -> dict[str, Any]:
-        return {"jobs": [self._summary(j) for j in self.store.jobs()]}
+        jobs = [self._summary(j) for j in self.store.jobs()]
+        self._memory = {j["id"]: {k: v for k, v in j.items() if k != "progress"} for j in jobs}
+        return {"jobs": jobs}
 
     def cmd_status(self, req: dict[str, Any]) -> dict[str, Any]:
         job_id = req.get("job")
@@ -352,7 +427,7 @@ class Daemon:
     def cmd_pause(self, req: dict[str, Any]) -> dict[str, Any]:
         """Cutting: feed hold in place. Earlier steps: shelve the job at the next step."""
         control = self._target(req)
-        if control.pause.is_set():
+        if control.pause.is_set() and not control.progress.pop("held_for_store", False):
             raise ControlError(f"job {control.job_id} is already paused")
         control.pause.set()
         if self.store.job(control.job_id).state == "cutting":
@@ -454,10 +529,8 @@ class Daemon:
 
     def _summary(self, job: Job) -> dict[str, Any]:
         out = self.store.summary(job)
-        running = self.running
-        if running is not None and running.job_id == job.id:
-            out["progress"] = dict(running.progress)
-        return out
+        self._memory[job.id] = dict(out)
+        return self._with_progress(out)
 
 
 def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:

@@ -29,6 +29,7 @@ heartbeat finds it within ``interval`` seconds (0.5 s by default).
 from __future__ import annotations
 
 import json
+import sqlite3
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -270,6 +271,8 @@ def open_store(config) -> JobStore:
                                      if is_server_url(url) else {}))
     except (StoreUnavailable, SchemaTooNew) as exc:
         raise JobStoreError(str(exc)) from None  # one line for the operator, exit 2
+    except sqlite3.DatabaseError as exc:  # a JSON file, a folder: anything but a job store
+        raise JobStoreError(f"{location}: not a job store ({exc})") from None
 
 
 def station_info(config, machine=None) -> StationInfo:

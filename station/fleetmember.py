@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from station.fleet import Fleet, StationInfo, channel
-from station.jobstore import ACTIVE, JOBS_CHANNEL, Job, JobStore
+from station.jobstore import ACTIVE, JOBS_CHANNEL, Job, JobStore, interrupted_reason
 
 log = logging.getLogger("station.fleet")
 
@@ -52,9 +52,10 @@ class FleetMember:
         for job in self.fleet.store.jobs(ACTIVE):
             if job.owner == self.info.name:
                 self.fleet.store.reset_unfinished_pieces(job.id)
+                where = interrupted_reason(self.fleet.store.pieces(job.id))
                 out.append(self.fleet.store.transition(
                     job.id, "interrupted", f"interrupted: station {self.info.name} was not "
-                    "running; it resumes the job"))
+                    "running; it resumes the job" + (f"; {where}" if where else "")))
         return out
 
     def start(self) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -58,10 +59,10 @@ class Intake:
 
     def admit(self, req: dict[str, Any]) -> tuple[str, str | None, dict[str, Any]]:
         """(garment copy, fabric copy or None, options) of an accepted submission."""
-        garment = self._source(req.get("garment"), "garment", untrusted.limits.MAX_OBJ_BYTES)
+        garment = _source(req.get("garment"), "garment")
         fabric = req.get("fabric")
         if fabric is not None:
-            fabric = self._source(fabric, "fabric", untrusted.limits.MAX_JSON_BYTES)
+            fabric = _source(fabric, "fabric")
         for path in (garment, fabric):
             if path is not None and self.allowed and \
                     not any(path.is_relative_to(folder) for folder in self.allowed):
@@ -77,43 +78,67 @@ class Intake:
             if fabric is not None:
                 (target / "fabric").mkdir()
                 f_copy = target / "fabric" / fabric.name
-                shutil.copyfile(fabric, f_copy)
+                untrusted.copy_file(fabric, f_copy, what="fabric",
+                                    max_bytes=untrusted.limits.MAX_JSON_BYTES)
             if self.check is not None:
                 with self._turn:
                     run_limited(self.check, str(g_copy), None if f_copy is None else str(f_copy),
                                 options, seconds=self.seconds, memory_bytes=self.memory_bytes,
                                 on_child=self._track)
-        except (SandboxError, OSError) as exc:
+        except (SandboxError, OSError, untrusted.InputError) as exc:
+            message = withhold_content(str(exc), [c for c in (g_copy, f_copy) if c])
             shutil.rmtree(target, ignore_errors=True)
-            raise ControlError(_named(str(exc), garment, g_copy, fabric, f_copy)) from None
+            raise ControlError(_named(message, garment, g_copy, fabric, f_copy)) from None
         return str(g_copy), None if f_copy is None else str(f_copy), options
 
-    @staticmethod
-    def _source(value: Any, what: str, max_bytes: int) -> Path:
-        if not isinstance(value, str) or not value or len(value) > 4096 or "\0" in value:
-            raise ControlError(f"{what} must be a file path")
-        path = Path(value)
-        if not path.is_file():
-            raise ControlError(f"{value}: no such {what} file")
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise ControlError(f"{value}: {what} file of {size:,} bytes exceeds the limit of "
-                               f"{max_bytes:,}")
-        return path.resolve()
+
+def _source(value: Any, what: str) -> Path:
+    """The submitted path, resolved (its content is read only by the bounded copy)."""
+    if not isinstance(value, str) or not value or len(value) > 4096 or "\0" in value:
+        raise ControlError(f"{what} must be a file path")
+    path = Path(value)
+    if not path.exists():
+        raise ControlError(f"{value}: no such {what} file")
+    return path.resolve()
+
+
+_QUOTED = re.compile(r"'([^']{2,200})'|\"([^\"]{2,200})\"")
+
+
+def withhold_content(message: str, copies: list[Path]) -> str:
+    """``message`` with every quoted fragment that the submitted files (their copies)
+    contain replaced: a refusal names the file and the fault, never what the file holds
+    (the station may read files its submitter cannot)."""
+    fragments = {m.group(1) or m.group(2) for m in _QUOTED.finditer(message)}
+    found: set[str] = set()
+    for copy in copies if fragments else []:
+        try:
+            for chunk in untrusted.files.chunks(copy, what="file",
+                                                max_bytes=untrusted.limits.MAX_OBJ_BYTES):
+                found |= {f for f in fragments if f.encode() in chunk}
+        except untrusted.InputError:
+            continue
+    for fragment in found:
+        message = message.replace(f"'{fragment}'", "(content withheld)")
+        message = message.replace(f'"{fragment}"', "(content withheld)")
+    return message
 
 
 def _options(value: Any) -> dict[str, Any]:
-    """Job options: a small flat object of short scalars."""
+    """Job options: a small flat object of short scalars, except the few structured ones
+    (`STRUCTURED`), each of a bounded shape; the pipeline's check reads their meaning."""
     options = value or {}
     if not isinstance(options, dict) or len(options) > MAX_OPTIONS:
         raise ControlError(f"options must be a JSON object of at most {MAX_OPTIONS} keys")
     for key, v in options.items():
-        ok = (v is None or isinstance(v, bool) or (isinstance(v, str) and len(v) <= 100)
-              or (isinstance(v, int) and abs(v) < 2**53)
-              or (isinstance(v, float) and math.isfinite(v)))
-        if not ok or len(key) > 100:
-            raise ControlError(f"option {key[:100]!r} must be a short number, text or "
-                               "true/false")
+        if len(key) > 100:
+            raise ControlError(f"option {key[:100]!r}...: name longer than 100 characters")
+        if key in STRUCTURED and v is not None:
+            if not STRUCTURED[key](v):
+                raise ControlError(f"option {key} must be {SHAPES[key]}")
+            continue
+        if not _scalar(v):
+            raise ControlError(f"option {key!r} must be a short number, text or true/false")
         if key in INT_OPTIONS and v is not None:
             lo, hi = INT_OPTIONS[key]
             if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
@@ -122,17 +147,61 @@ def _options(value: Any) -> dict[str, Any]:
     return dict(options)
 
 
+def _scalar(v: Any) -> bool:
+    return (v is None or isinstance(v, bool) or (isinstance(v, str) and len(v) <= 100)
+            or (isinstance(v, int) and abs(v) < 2**53)
+            or (isinstance(v, float) and math.isfinite(v)))
+
+
+def _piece(v: Any) -> bool:
+    """A piece or seam line: its name (short text) or its index."""
+    return (isinstance(v, str) and 0 < len(v) <= 100) or \
+        (isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_NAMED)
+
+
+def _numbers_by_name(lo: float, hi: float) -> Callable[[Any], bool]:
+    def ok(v: Any) -> bool:
+        return isinstance(v, dict) and len(v) <= MAX_NAMED and all(
+            _piece(k) and isinstance(x, (int, float)) and not isinstance(x, bool)
+            and math.isfinite(x) and lo <= x <= hi for k, x in v.items())
+    return ok
+
+
+def _names(v: Any) -> bool:
+    return isinstance(v, list) and len(v) <= MAX_NAMED and all(_piece(x) for x in v)
+
+
+def _pairs(v: Any) -> bool:
+    return isinstance(v, dict) and set(v) <= {"pairs", "not_pairs"} and all(
+        isinstance(ps, list) and len(ps) <= MAX_NAMED and all(
+            isinstance(p, list) and len(p) == 2 and all(_piece(x) for x in p) for p in ps)
+        for ps in v.values())
+
+
+#: at most this many named entries in one structured option (pieces, seam lines)
+MAX_NAMED = 1000
+#: the structured job options (what `station submit` sends) and their shapes
+STRUCTURED: dict[str, Callable[[Any], bool]] = {
+    "allowance": _numbers_by_name(0.0, 1000.0), "grain_lines": _numbers_by_name(-360.0, 360.0),
+    "bias": _names, "pairs": _pairs}
+SHAPES = {"allowance": '{"seam line": mm 0 to 1000}',
+          "grain_lines": '{"piece": degrees -360 to 360}',
+          "bias": '["piece", ...]',
+          "pairs": '{"pairs": [[piece, piece], ...], "not_pairs": [...]}'}
+
+
 def _copy_garment(garment: Path, target: Path) -> Path:
     """Copy the garment (with its pair partner and licence note) into ``target``."""
     from solver.garment.obj import pair_partner
 
     copy = target / garment.name
-    shutil.copyfile(garment, copy)
+    limit = untrusted.limits.MAX_OBJ_BYTES
+    untrusted.copy_file(garment, copy, what="garment", max_bytes=limit)
     partner = pair_partner(garment) if garment.suffix.lower() == ".obj" else None
     for extra in [partner] + [garment.parent / n for n in _COMPANIONS]:
-        if extra is not None and extra.is_file() and \
-                extra.stat().st_size <= untrusted.limits.MAX_OBJ_BYTES:
-            shutil.copyfile(extra, target / extra.name)
+        if extra is not None and extra.exists():
+            untrusted.copy_file(extra, target / extra.name, what="companion file",
+                                max_bytes=limit)
     return copy
 
 

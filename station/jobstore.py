@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from gcode.resume import OVERLAP_MM
 from station.storeengine import Engine, Tx, open_engine
 from station.storeschema import migrate
 
@@ -189,6 +190,16 @@ class JobStore:
                     + (f": {reason}" if reason else ""))
         return old
 
+    def set_inputs(self, job_id: int, garment: str, fabric: str | None) -> None:
+        """The job's checked copies of its inputs replace the paths it was queued with."""
+        def work(tx: Tx) -> None:
+            tx.run("update jobs set garment = ?, fabric = ?, updated_at = ? where id = ?",
+                   garment, fabric, time.time(), job_id)
+            self._event(tx, job_id, "intake", f"inputs copied and checked: {garment}"
+                        + (f", {fabric}" if fabric else ""))
+
+        self.engine.write(work)
+
     def set_plan(self, job_id: int, plan: dict[str, Any]) -> None:
         self.engine.write(lambda tx: tx.run(
             "update jobs set plan = ?, updated_at = ? where id = ?",
@@ -218,7 +229,8 @@ class JobStore:
 
     def pieces(self, job_id: int) -> list[dict[str, Any]]:
         return self.engine.read(lambda tx: tx.all(
-            "select piece, name, state, cut_at from pieces where job_id = ? order by piece",
+            "select piece, name, state, cut_at, cut_mm, path_mm from pieces where job_id = ? "
+            "order by piece",
             job_id))
 
     def set_piece_state(self, job_id: int, piece: int, state: str) -> None:
@@ -241,6 +253,15 @@ class JobStore:
             self._event(tx, job_id, "piece", f"piece {piece} ({row['name']}) {state}")
 
         self.engine.write(work)
+
+    def set_piece_progress(self, job_id: int, piece: int, cut_mm: float, path_mm: float
+                           ) -> None:
+        """Journal how far along its strokes an unfinished piece was cut (mm of ``path_mm``):
+        a resumed piece continues from there (see `gcode.resume`). No event: it is written
+        several times a second while cutting."""
+        self.engine.write(lambda tx: tx.run(
+            "update pieces set cut_mm = ?, path_mm = ? where job_id = ? and piece = ? "
+            "and state != 'cut'", float(cut_mm), float(path_mm), job_id, piece))
 
     def reset_unfinished_pieces(self, job_id: int) -> int:
         """After an interruption the piece in progress is not cut: back to pending."""
@@ -295,3 +316,15 @@ def job_from_row(row: dict[str, Any]) -> Job:
                                   (x, y) if x is not None and y is not None else None,
                                   row.get("req_station")),
     )
+
+
+def interrupted_reason(pieces: list[dict[str, Any]]) -> str:
+    """"interrupted at piece 4 (back), 62 % cut: resume continues from there" for the
+    piece the journal saw in progress; "" when none was."""
+    partial = [p for p in pieces if p["state"] != "cut" and (p.get("cut_mm") or 0) > 0]
+    if not partial:
+        return ""
+    p = partial[0]
+    share = 100.0 * p["cut_mm"] / p["path_mm"] if p.get("path_mm") else 0.0
+    return (f"interrupted at piece {p['piece']} ({p['name']}), {share:.0f} % cut: resume "
+            f"continues from there ({OVERLAP_MM:g} mm back for a clean join)")

@@ -13,7 +13,8 @@ machine may have finished on its buffered moves after the daemon died. The progr
 carries markers the controller stores in EEPROM around each piece's final move
 (`gcode.recovery.with_markers`), the geometry those markers refer to is saved before streaming
 (`save_final_moves`), and on the next start the machine is asked (`wait_at_rest`,
-`read_params`, `StationPipeline.reconcile`) before anything moves or resets it.
+`read_params`, `station.cutting.reconcile`) before anything moves or resets it; the piece
+in progress then continues where its cut stopped (`station.cutting.resumed_program`).
 """
 
 from __future__ import annotations
@@ -35,9 +36,6 @@ from gcode.recovery import (
     MARKER_SYSTEM,
     final_moves,
     head_position,
-    load_final_moves,
-    piece_finished,
-    read_marker,
     read_params,
     save_final_moves,
     wait_at_rest,
@@ -45,6 +43,12 @@ from gcode.recovery import (
 )
 from solver.jsonfile import read_json
 from station.config import Config
+from station.cutting import (
+    journal_safe_stop,
+    reconcile,
+    resumed_program,
+    stream_with_control,
+)
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
 from station.stripes import stripe_grain, stripe_print
@@ -449,8 +453,15 @@ class StationPipeline:
         """The checked program for the pieces ``only`` (None: all) of a layout: the
         nesting's own layout document while planning (no trip through the disk), the
         job's LAYOUT.json when a stopped job resumes."""
-        from gcode.layout import layout_from_dict, load_layout
         from gcode.program import build_program
+
+        toolpaths, where = self.toolpaths_for(layout, only, job_dir=job_dir)
+        return build_program(toolpaths, self.machine, title=f"station {where.name}")
+
+    def toolpaths_for(self, layout: str | Path | dict, only: set[str] | None, *,
+                      job_dir: Path | None = None):
+        """(toolpaths of the pieces ``only`` in cut order, the job's folder)."""
+        from gcode.layout import layout_from_dict, load_layout
         from gcode.toolpath import build_toolpaths
 
         if isinstance(layout, dict):
@@ -461,8 +472,7 @@ class StationPipeline:
             layout = load_layout(layout)
         origin = self.config["machine"]["fabric_origin"]
         layout.origin = (float(origin[0]), float(origin[1]))
-        toolpaths = build_toolpaths(layout, self.machine, only=only)
-        return build_program(toolpaths, self.machine, title=f"station {where.name}")
+        return build_toolpaths(layout, self.machine, only=only), where
 
     # ------------------------------------------------------------------ cut
     @property
@@ -539,21 +549,26 @@ class StationPipeline:
             # the layout planned in this process, else (resumed after a restart) LAYOUT.json
             held = plan if isinstance(plan, Planned) else self._planned.get(job.id)
             layout = held.layout_doc if held is not None and held == plan else plan["layout"]
-            program = with_markers(self.program_for(layout, todo,
-                                                    job_dir=Path(plan["layout"]).parent),
-                                   job.id, index)
+            job_dir = Path(plan["layout"]).parent
+            toolpaths, _ = self.toolpaths_for(layout, todo, job_dir=job_dir)
+            here = head_position(rest, alarm, params)
+            program, journal = resumed_program(toolpaths, self.machine, store, job, index,
+                                               job_dir, here, f"station {job_dir.name}")
+            program = with_markers(program, job.id, index)
+            journal.follow(program, self.machine.cut.feed / 60.0, streamer.time_scale)
             # The geometry a marker refers to, saved before a line goes out: the toolpath
             # order (and so where each contour starts and ends) depends on which pieces
             # are left, so the next start must judge by this program, not a fresh one.
-            save_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id,
-                             final_moves(program, index))
+            save_final_moves(job_dir / FINAL_MOVES, job.id, final_moves(program, index))
 
             def on_piece(piece) -> None:
                 store.set_piece_state(job.id, index[piece.id], piece.state)
+                journal.on_piece(index[piece.id], piece.state)
 
             planned = program.check.estimated_seconds if program.check is not None else None
 
             def on_progress(p) -> None:
+                journal.update(p.lines_acked, streamer.status, params)
                 # The streamer's ETA extrapolates the time taken so far; before there is
                 # enough of it, the program's own time estimate stands in.
                 eta = p.eta_seconds
@@ -576,7 +591,9 @@ class StationPipeline:
             streamer.on_piece = on_piece
             stage[0] = "cutting"
             start_step(control, "cutting", 0.0)
-            result = self._stream(streamer, program, control)
+            result = stream_with_control(streamer, program, control)
+            if control.stop.is_set():
+                journal_safe_stop(journal, result, streamer.status, params, job_dir)
         if control.abort.is_set():
             raise JobInterrupted("aborted", "aborted by the operator (safe stop)")
         if control.stop.is_set():
@@ -586,55 +603,8 @@ class StationPipeline:
                                f"{(result.fault or {}).get('detail', '')}".strip())
         self._planned.pop(job.id, None)  # every piece cut: nothing left to resume
 
-    def reconcile(self, job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool,
-                  params: dict[str, tuple[float, ...]]) -> None:
-        """Record the piece the machine finished after the last daemon stopped listening.
-
-        The marker (G59) names the last piece whose final move was reached: phase 2 means
-        its final move finished (GRBL writes it only after the motion before it), phase 1
-        means every move but the final one finished, and then the head at rest (no alarm:
-        the position is trusted) at the final move's end, not its start, proves the final
-        move ran too. Anything else leaves the piece pending: it is cut again in full.
-        ``rest`` is the status read before anything reset the controller, ``alarm`` says
-        whether its position can be trusted, ``params`` is ``$#``.
-        """
-        marker = read_marker(params)
-        if marker is None or marker.job != job.id:
-            return
-        piece = marker.piece
-        record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
-        if record is None or record["state"] == "cut" or marker.phase not in (1, 2):
-            return
-        path = load_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id).get(piece)
-        done, why = piece_finished(marker.phase, path, head_position(rest, alarm, params))
-        if done:
-            store.set_piece_state(job.id, piece, "cut")
-        store.log(job.id, "recovery", f"piece {piece} ({record['name']}): the machine "
-                  f"reports {'it cut' if done else 'it not cut'}: {why}")
-        log.warning("job %d piece %d: recovered from the machine: %s", job.id, piece,
-                    "cut" if done else "not cut")
-
-    @staticmethod
-    def _stream(streamer, program, control: JobControl):
-        """Run the streamer in a worker thread while this one relays pause/resume/stop."""
-        import threading
-
-        out: dict[str, Any] = {}
-        worker = threading.Thread(target=lambda: out.update(result=streamer.run(program)),
-                                  name="stream", daemon=True)
-        worker.start()
-        held = False
-        while worker.is_alive():
-            if control.abort.is_set() or control.stop.is_set():
-                streamer.stop()
-            elif control.pause.is_set() and not held:
-                streamer.pause()
-                held = True
-            elif not control.pause.is_set() and held:
-                streamer.resume()
-                held = False
-            worker.join(0.05)
-        return out["result"]
+    #: what the machine finished after the last daemon stopped listening (station.cutting)
+    reconcile = staticmethod(reconcile)
 
 
 # ---------------------------------------------------------------------- planning steps

@@ -21,7 +21,8 @@ import logging
 import sqlite3
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -81,6 +82,7 @@ class Engine:
 
     dialect = ""
     location = ""
+    _local = threading.local()  # per thread: the patience `impatient` set
     #: time.monotonic() when the store last became reachable (opened, or back after an
     #: outage): heartbeats older than that say nothing about the other stations
     reachable_since = 0.0
@@ -93,6 +95,18 @@ class Engine:
     def read(self, work: Callable[[Tx], T]) -> T:
         """Run ``work`` on a consistent snapshot (no writes)."""
         return self.write(work)
+
+    @contextmanager
+    def impatient(self, seconds: float) -> Iterator[None]:
+        """Within this block, this thread waits at most ``seconds`` for the store (the
+        server, or the connection another thread holds while the server is away), then
+        gets StoreUnavailable: the console answers from memory instead of waiting."""
+        before = getattr(self._local, "patience", None)
+        self._local.patience = seconds
+        try:
+            yield
+        finally:
+            self._local.patience = before
 
     def close(self) -> None:
         raise NotImplementedError
@@ -150,10 +164,11 @@ class PostgresEngine(Engine):
     def __init__(self, url: str, *, outage_seconds: float = 600.0,
                  on_outage: Callable[[bool], None] | None = None) -> None:
         self.url = url
-        self.location = _without_password(url)
+        self.location = without_password(url)
         self.outage_seconds = outage_seconds
         self.on_outage = on_outage
         self.retried = False  # the last write ran again after a lost connection
+        self.down_since: float | None = None  # time.monotonic() when an outage began
         self._lock = threading.RLock()
         self.reachable_since = time.monotonic()
         try:
@@ -163,11 +178,7 @@ class PostgresEngine(Engine):
             raise StoreUnavailable(f"{self.location}: cannot connect ({first})") from None
 
     def _connect(self):
-        import psycopg
-        from psycopg.rows import dict_row
-
-        return psycopg.connect(self.url, autocommit=True, row_factory=dict_row,
-                               connect_timeout=5)
+        return connect_postgres(self.url)
 
     def write(self, work: Callable[[Tx], T], patience: float | None = None) -> T:
         return self._retrying(work, readonly=False, patience=patience)
@@ -177,52 +188,68 @@ class PostgresEngine(Engine):
 
     def _retrying(self, work: Callable[[Tx], T], readonly: bool,
                   patience: float | None = None) -> T:
+        if patience is None:
+            patience = getattr(self._local, "patience", None) or self.outage_seconds
+        if not self._lock.acquire(timeout=patience):
+            raise StoreUnavailable(f"{self.location}: no answer within {patience:g} s")
+        try:
+            return self._retrying_locked(work, readonly, patience)
+        finally:
+            self._lock.release()
+
+    def _retrying_locked(self, work: Callable[[Tx], T], readonly: bool, patience: float) -> T:
         import psycopg
 
-        patience = self.outage_seconds if patience is None else patience
-        with self._lock:
-            self.retried = False
-            down_since: float | None = None
-            delay = 0.05
-            conflicts = 0
-            while True:
-                try:
-                    if self._conn is None or self._conn.closed:
-                        self._conn = self._connect()
-                    with self._conn.transaction(), self._conn.cursor() as cur:
-                        if readonly:
-                            cur.execute("set transaction read only")
-                        result = work(Tx(cur, self.dialect))
-                    if down_since is not None:
-                        self.reachable_since = time.monotonic()
-                        log.warning("job store %s is back after %.1f s", self.location,
-                                    time.monotonic() - down_since)
-                        self._tell(False)
-                    return result
-                except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
-                    sqlstate = getattr(exc, "sqlstate", None) or ""
-                    if sqlstate.startswith("40") and conflicts < 10:
-                        # deadlock or serialisation failure: the server rolled this
-                        # transaction back and the other went on; run it again
-                        conflicts += 1
-                        time.sleep(0.01 * conflicts)
-                        continue
-                    if self._conn is not None and not self._conn.closed and \
-                            not _connection_lost(exc):
-                        raise  # a real fault of this statement, not of the link
-                    now = time.monotonic()
-                    if down_since is None:
-                        down_since = now
-                        log.warning("job store %s unreachable (%s); waiting", self.location,
-                                    str(exc).strip().splitlines()[0] if str(exc) else exc)
-                        self._tell(True)
-                    if now - down_since > patience:
-                        raise StoreUnavailable(f"{self.location}: unreachable for "
-                                               f"{patience:g} s") from exc
-                    self._close_quietly()
-                    time.sleep(delay)
-                    delay = min(delay * 2, 1.0)
-                    self.retried = True
+        self.retried = False
+        started = time.monotonic()
+        delay = 0.05
+        conflicts = 0
+        while True:
+            try:
+                if self._conn is None or self._conn.closed:
+                    self._conn = self._connect()
+                with self._conn.transaction(), self._conn.cursor() as cur:
+                    if readonly:
+                        cur.execute("set transaction read only")
+                    result = work(Tx(cur, self.dialect))
+                self._back()
+                return result
+            except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
+                sqlstate = getattr(exc, "sqlstate", None) or ""
+                if sqlstate.startswith("40") and conflicts < 10:
+                    # deadlock or serialisation failure: the server rolled this
+                    # transaction back and the other went on; run it again
+                    conflicts += 1
+                    time.sleep(0.01 * conflicts)
+                    continue
+                if self._conn is not None and not self._conn.closed and \
+                        not _connection_lost(exc):
+                    raise  # a real fault of this statement, not of the link
+                self._gone(exc)
+                if time.monotonic() - started > patience:
+                    raise StoreUnavailable(f"{self.location}: unreachable for "
+                                           f"{patience:g} s") from exc
+                self._close_quietly()
+                time.sleep(delay)
+                delay = min(delay * 2, 1.0)
+                self.retried = True
+
+    def _gone(self, exc: Exception) -> None:
+        """The first failure of an outage (whichever thread saw it): say so once."""
+        if self.down_since is None:
+            self.down_since = time.monotonic()
+            log.warning("job store %s unreachable (%s); waiting", self.location,
+                        str(exc).strip().splitlines()[0] if str(exc) else exc)
+            self._tell(True)
+
+    def _back(self) -> None:
+        """The first success after an outage: say so once."""
+        if self.down_since is not None:
+            self.reachable_since = time.monotonic()
+            log.warning("job store %s is back after %.1f s", self.location,
+                        self.reachable_since - self.down_since)
+            self.down_since = None
+            self._tell(False)
 
     def _tell(self, down: bool) -> None:
         if self.on_outage is not None:
@@ -256,7 +283,7 @@ def _connection_lost(exc: Exception) -> bool:
     return sqlstate is None or sqlstate.startswith(("08", "57P"))
 
 
-def _without_password(url: str) -> str:
+def without_password(url: str) -> str:
     """The URL as logs may show it."""
     from urllib.parse import urlsplit, urlunsplit
 
@@ -265,6 +292,16 @@ def _without_password(url: str) -> str:
         return url
     netloc = parts.netloc.replace(f":{parts.password}@", ":***@")
     return urlunsplit(parts._replace(netloc=netloc))
+
+
+def connect_postgres(url: str, **options: Any):
+    """A psycopg connection in autocommit with dict rows; the password, if any, comes from
+    libpq's PGPASSWORD or PGPASSFILE, never from the command line."""
+    import psycopg
+    from psycopg.rows import dict_row
+
+    return psycopg.connect(url, autocommit=True, row_factory=dict_row, connect_timeout=5,
+                           **options)
 
 
 def open_engine(location: str | Path, **options: Any) -> Engine:

@@ -76,6 +76,10 @@ create table commands (
 );
 create index commands_open on commands(station, answered_at, id)
 """),
+    (3, "progress within a piece", """
+alter table pieces add column cut_mm {real};
+alter table pieces add column path_mm {real}
+"""),
 ]
 
 SCHEMA_VERSION = MIGRATIONS[-1][0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Iterator
 from pathlib import Path
 
 from untrusted.errors import InputError
@@ -14,15 +15,68 @@ class MissingInput(InputError, FileNotFoundError):
     """The file is not there (still a FileNotFoundError for callers that test for it)."""
 
 
+#: bytes read at a time; also the most a lying file (one whose size says 0) can cost
+CHUNK = 1 << 20
+
+
 def read_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
     """The content of ``path``; a folder, device, unreadable or oversized file is an InputError.
 
-    The size is checked on the open descriptor before reading, and the read itself is capped,
-    so a file that grows meanwhile (or a FIFO) cannot make it read without end.
+    The limit holds for the bytes actually read, not for what the file's size claims: a
+    file in /proc says 0 bytes and gives gigabytes, so reading stops one chunk past the
+    size the file stated (see :func:`chunks`).
     """
-    path = Path(path)
+    return b"".join(chunks(path, what=what, max_bytes=max_bytes))
+
+
+def copy_file(src: str | Path, dst: str | Path, *, what: str, max_bytes: int) -> int:
+    """Copy a regular file of at most ``max_bytes`` to ``dst`` (created, never followed if
+    it exists as a link); the bytes copied. A refused source leaves no ``dst``."""
+    dst = Path(dst)
+    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o640)
+    done = 0
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "wb") as out:
+            for chunk in chunks(src, what=what, max_bytes=max_bytes):
+                out.write(chunk)
+                done += len(chunk)
+    except BaseException:
+        dst.unlink(missing_ok=True)
+        raise
+    return done
+
+
+def chunks(path: str | Path, *, what: str, max_bytes: int) -> Iterator[bytes]:
+    """The bytes of a regular file in chunks, stopping with an InputError as soon as more
+    came than ``max_bytes`` or than the size the file stated when opened."""
+    path = Path(path)
+    fd = _open_regular(path, what=what, max_bytes=max_bytes)
+    try:
+        stated = os.fstat(fd).st_size
+        total = 0
+        while True:
+            try:
+                chunk = os.read(fd, CHUNK)
+            except OSError as exc:
+                raise InputError(path, f"cannot read the {what} ({exc.strerror})") from None
+            if not chunk:
+                return
+            total += len(chunk)
+            if total > max_bytes:
+                raise InputError(path, f"{what} exceeds the limit of {max_bytes:,} bytes")
+            if total > stated:
+                raise InputError(path, f"{what} gives more bytes than its size of {stated:,} "
+                                 "(a device or /proc file, or one still being written)")
+            yield chunk
+    finally:
+        os.close(fd)
+
+
+def _open_regular(path: Path, *, what: str, max_bytes: int) -> int:
+    """A descriptor of ``path`` once it is known to be a regular file within the limit (a
+    FIFO is opened without blocking, then refused)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
     except FileNotFoundError:
         raise MissingInput(path, f"{what} not found") from None
     except IsADirectoryError:
@@ -31,15 +85,10 @@ def read_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
         raise InputError(path, f"cannot open the {what} ({exc.strerror})") from None
     try:
         _check_stat(path, os.fstat(fd), what=what, max_bytes=max_bytes)
-        with os.fdopen(os.dup(fd), "rb") as fh:
-            data = fh.read(max_bytes + 1)
-    except OSError as exc:
-        raise InputError(path, f"cannot read the {what} ({exc.strerror})") from None
-    finally:
+    except BaseException:
         os.close(fd)
-    if len(data) > max_bytes:
-        raise InputError(path, f"{what} exceeds the limit of {max_bytes:,} bytes")
-    return data
+        raise
+    return fd
 
 
 def check_file(path: str | Path, *, what: str, max_bytes: int) -> Path:

@@ -31,6 +31,7 @@ from solver.units import mm_per_unit
 _UNITS_RE = re.compile(r"units?\s*[:=]\s*(mm|cm|m|in)\b", re.IGNORECASE)
 _UNITS_HINT_RE = re.compile(r"\((mm|cm|m)[,)\s]|\bin (mm|cm|m)\b")
 _TWO_D_MARK = "station: 2d-only"
+_BARE_KEYWORD = re.compile(rb"(?m)^(v|vt|vn|f)[ \t]*\r?$")
 _VT_INDEXED_MARK = "station: one vt per pattern vertex"
 
 
@@ -64,11 +65,23 @@ def _floats(path: Path, lines: list[str], width: int, what: str) -> np.ndarray:
     except ValueError as exc:
         if isinstance(exc, GarmentError):
             raise
-        raise GarmentError(path, f"bad number in {what} lines ({exc})") from None
+        raise GarmentError(path, f"bad number in {what} line {_first_bad(lines, width)}"
+                           ) from None
     if not np.isfinite(arr).all():
         bad = int(np.argmax(~np.isfinite(arr).all(axis=1)))
         raise GarmentError(path, f"{what} {bad + 1} is not finite (NaN or inf)")
     return arr
+
+
+def _first_bad(lines: list[str], width: int) -> int:
+    """The 1-based number of the first line whose leading numbers do not parse (named in
+    the error instead of the text, which may be anything the file holds)."""
+    for i, line in enumerate(lines):
+        try:
+            [float(t) for t in line.split()[:width]]
+        except ValueError:
+            return i + 1
+    return 1
 
 
 def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]:
@@ -103,7 +116,7 @@ def _faces(path: Path, lines: list[str]) -> tuple[np.ndarray, np.ndarray | None]
     except ValueError as exc:
         if isinstance(exc, GarmentError):
             raise
-        raise GarmentError(path, f"bad face line ({exc})") from None
+        raise GarmentError(path, "bad face line (a corner is not a vertex number)") from None
     return f_v, f_vt
 
 
@@ -116,7 +129,7 @@ def _faces_slow(
     for i, line in enumerate(lines):
         corners = [c.split("/") for c in line.split()]
         if len(corners) < 3 or any(len(c) != len(corners[0]) or c[0] == "" for c in corners):
-            raise GarmentError(path, f"face line {i + 1} is incomplete (truncated?): 'f {line}'")
+            raise GarmentError(path, f"face line {i + 1} is incomplete (truncated?)")
         vi = [int(c[0]) for c in corners]
         ti = [int(c[1]) for c in corners] if has_vt else vi
         for k in range(1, len(corners) - 1):
@@ -245,8 +258,13 @@ def _check_complete(path: Path, data: bytes) -> None:
     """
     tail = data.rstrip(b" \t\r")
     last = tail[tail.rfind(b"\n") + 1 :]
-    if not data.endswith(b"\n") and last[:2] in (b"v ", b"vt", b"f ", b"vn"):
+    if not data.endswith(b"\n") and last.split()[:1] in ([b"v"], [b"vt"], [b"f"], [b"vn"]):
         raise GarmentError(path, "the last line has no line end: the file is truncated")
+    bare = _BARE_KEYWORD.search(data)
+    if bare is not None:  # a line cut right after its keyword would be silently skipped
+        line = data.count(b"\n", 0, bare.start()) + 1
+        raise GarmentError(path, f"line {line} is a bare {bare.group(1).decode()!r} with no "
+                           "numbers: the file is truncated or damaged")
     faces = data.count(b"\nf ") + data.startswith(b"f ")
     if faces > untrusted.limits.MAX_FACES:
         raise GarmentError(path, f"{faces:,} faces; a garment has at most "

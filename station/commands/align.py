@@ -16,6 +16,7 @@ from station.cliargs import (
     grain_tolerance,
     load_fabric,
     load_garment_arg,
+    picture_path,
     symmetrised_garment,
 )
 
@@ -63,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, metavar="PLACEMENT.json",
                    help="where to write the placement (angles in degrees, mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--png", metavar="OUT.png",
+    p.add_argument("--png", metavar="OUT.png", type=picture_path,
                    help="draw the pieces over the print, seams coloured by mismatch")
     p.set_defaults(func=run)
 

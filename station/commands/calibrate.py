@@ -74,10 +74,18 @@ def _simulated_views(board_spec, n: int):
     return views, table
 
 
+#: a printed ChArUco board has far fewer: 7 x 5 is usual, 20 x 15 is already fine
+MAX_BOARD_SQUARES = 50
+
+
 def run(args) -> int:
     from station.cli import UserError
     from vision.calibration import BoardSpec, Calibration
 
+    if not all(2 <= n <= MAX_BOARD_SQUARES for n in args.squares):
+        # 100000 x 100000 squares allocated past 6 GB before anything was said
+        raise UserError(f"--squares must be 2 to {MAX_BOARD_SQUARES} columns and rows, got "
+                        f"{args.squares[0]} {args.squares[1]}")
     try:
         spec = BoardSpec(tuple(args.squares), args.square_mm, args.marker_mm, args.dictionary)
     except ValueError as exc:

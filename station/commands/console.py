@@ -132,8 +132,39 @@ def open_fleet_store(args: argparse.Namespace):
     """The shared job store named by ``--store`` or the configuration."""
     from station.fleet import open_store
 
-    overrides = {"store": {"url": args.store}} if getattr(args, "store", None) else None
+    store = getattr(args, "store", None)
+    overrides = None
+    if store:
+        store = checked_store_arg(store)
+        overrides = {"store": {"url": store} if "://" in store
+                     else {"url": "", "path": str(Path(store).resolve())}}
     return open_store(load_config_arg(args, overrides))
+
+
+def checked_store_arg(value: str) -> str:
+    """``--store``: a postgresql:// URL without a password (the command line is visible to
+    every user through ps; libpq reads PGPASSWORD or PGPASSFILE), or an existing store file
+    (a console never creates one)."""
+    from urllib.parse import urlsplit
+
+    from station.storeengine import is_server_url
+
+    if is_server_url(value):
+        try:
+            password = urlsplit(value).password
+        except ValueError:
+            raise UserError("--store: not a valid postgresql:// URL") from None
+        if password is not None:
+            raise UserError("--store: a password on the command line is visible to every "
+                            "user; put it in PGPASSFILE (~/.pgpass) or PGPASSWORD instead")
+        return value
+    if "://" in value:
+        raise UserError(f"--store: a postgresql:// URL or a job store file, not "
+                        f"{value.split('://', 1)[0][:20]}://...")
+    if not Path(value).is_file():
+        raise UserError(f"{value}: no job store there (--store names an existing store "
+                        "file or a postgresql:// URL)")
+    return value
 
 
 def _check_job(args: argparse.Namespace, fields: dict[str, Any]) -> None:

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import cv2
 
+from station.cliargs import picture_path
 from untrusted import read_image
+from untrusted.limits import MAX_REPEAT_MM
 
 
 def register(sub) -> None:
@@ -28,7 +30,7 @@ def register(sub) -> None:
                    help="write the fabric description here")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object: group, w1, w2, origin, confidence, seconds")
-    p.add_argument("--png", metavar="OUT.png",
+    p.add_argument("--png", metavar="OUT.png", type=picture_path,
                    help="write the image with lattice, symmetry elements and distortion grid")
     p.add_argument("--skew-tol", type=float, default=1.0, metavar="DEG",
                    help="warn when the cloth is skewed more than this (default 1 degree)")
@@ -46,6 +48,13 @@ def run(args) -> int:
     from vision.pipeline import detect_fabric, draw_overlay
     from vision.rectify import rectify
 
+    # checked before any work: NaN passes "<= 0", and 1e-300 mm per pixel or a 1e300 mm
+    # repeat made the detector fail deep inside (exit 70)
+    if args.mm_per_px is not None and not 1e-3 <= args.mm_per_px <= 100.0:
+        raise UserError(f"--mm-per-px must be 0.001 to 100 mm per pixel, got {args.mm_per_px}")
+    if not 0.0 <= args.min_repeat <= MAX_REPEAT_MM:
+        raise UserError(f"--min-repeat must be 0 to {MAX_REPEAT_MM:g} mm, got "
+                        f"{args.min_repeat}")
     path = Path(args.image)
     image = read_image(path)
     offset = (0.0, 0.0)
@@ -59,10 +68,6 @@ def run(args) -> int:
         offset = region[:2]
     else:
         mm_per_px = args.mm_per_px
-        if not mm_per_px or mm_per_px <= 0:
-            raise UserError(f"--mm-per-px must be positive, got {args.mm_per_px}")
-    if not args.min_repeat >= 0:
-        raise UserError(f"--min-repeat must not be negative, got {args.min_repeat}")
     det = detect_fabric(image, mm_per_px=mm_per_px, offset=offset,
                         skew_tol_deg=args.skew_tol, bow_tol_mm=args.bow_tol,
                         min_repeat_mm=args.min_repeat)

@@ -20,6 +20,7 @@ from station.cliargs import (
     garment_with_grain,
     load_fabric,
     load_garment_arg,
+    picture_path,
     symmetrised_garment,
 )
 
@@ -38,10 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_grain_arguments(p)
     add_symmetrise_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--png", metavar="OUT.png",
+    p.add_argument("--png", metavar="OUT.png", type=picture_path,
                    help="draw the pieces over the print, seams coloured by mismatch, with "
                    "the cut line (solid), the sew line (dashed) and the notches")
-    p.add_argument("--front-view", metavar="OUT.png",
+    p.add_argument("--front-view", metavar="OUT.png", type=picture_path,
                    help="draw left/right pairs side by side as worn, grain up, print on")
     add_allowance_arguments(p)
     add_config_argument(p)

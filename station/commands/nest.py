@@ -11,6 +11,7 @@ from station.cliargs import (
     add_config_argument,
     allowance_rules,
     load_config_arg,
+    picture_path,
 )
 
 
@@ -61,7 +62,7 @@ def register(sub) -> None:
     add_allowance_arguments(p)
     add_config_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    p.add_argument("--png", metavar="OUT.png", help="draw the marker")
+    p.add_argument("--png", metavar="OUT.png", type=picture_path, help="draw the marker")
     p.set_defaults(func=run)
 
 

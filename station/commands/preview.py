@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from station.cliargs import add_config_argument, load_config_arg
+from station.cliargs import add_config_argument, load_config_arg, picture_path
 from station.control import ControlError, request
 from station.errors import UserError
 
@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "rendered print when the job was given a FABRIC.json), seams coloured from green "
         "(matching) to red (20 mm or more off).")
     p.add_argument("job", type=int, metavar="JOB")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.png")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.png", type=picture_path)
     p.add_argument("--width", type=int, default=1600, help="picture width in pixels")
     add_config_argument(p)
     p.add_argument("--socket", metavar="PATH", help="control socket (default: from the config)")

@@ -20,6 +20,7 @@ from station.cliargs import (
     garment_with_grain,
     load_fabric,
     load_garment_arg,
+    picture_path,
     symmetrised_garment,
 )
 
@@ -58,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "pairs move as mirror images)")
     add_allowance_arguments(p)  # a DXF output carries the cut lines
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--png", metavar="OUT.png",
+    p.add_argument("--png", metavar="OUT.png", type=picture_path,
                    help="draw the reshaped pieces over the print, seams coloured by mismatch")
     p.set_defaults(func=run)
 

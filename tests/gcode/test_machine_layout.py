@@ -11,6 +11,8 @@ import pytest
 
 from gcode.layout import layout_from_dict, load_layout
 from gcode.machine import default_machine, load_machine
+from untrusted import InputError
+from untrusted.limits import MAX_FEATURES_PER_PIECE, MAX_LAYOUT_FEATURES
 
 sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
 from gcode_helpers import make_layout  # noqa: E402
@@ -129,3 +131,16 @@ def test_layout_file_errors(tmp_path):
         load_layout(p)
     with pytest.raises(FileNotFoundError, match="layout not found"):
         load_layout(tmp_path / "missing.json")
+
+
+def test_marks_and_notches_are_bounded_before_any_quadratic_work():
+    """5,000 marks took 24 s to plan (ordering is quadratic): refused at reading."""
+    square = [[100, 100], [900, 100], [900, 700], [100, 700]]
+    many = [[500.0, 400.0]] * (MAX_FEATURES_PER_PIECE + 1)
+    with pytest.raises(InputError, match=r"pieces\[0\]\.marks has 1,001 elements"):
+        layout_from_dict({"pieces": [{"outline": square, "marks": many}]}, "l.json")
+    per_piece = [[500.0, 400.0]] * MAX_FEATURES_PER_PIECE
+    pieces = [{"id": f"p{i}", "outline": square, "marks": per_piece}
+              for i in range(MAX_LAYOUT_FEATURES // MAX_FEATURES_PER_PIECE + 1)]
+    with pytest.raises(InputError, match="more than 20,000 marks, notches and holes"):
+        layout_from_dict({"pieces": pieces}, "l.json")

@@ -247,3 +247,13 @@ def test_unused_vertices_are_dropped(tmp_path: Path, data_dir: Path) -> None:
     # pattern vertices come from face corners: stray v/vt lines change nothing
     assert msgs == []
     assert g.n_vertices == 170 and np.isfinite(g.uv).all()
+
+
+def test_a_bare_keyword_line_is_refused_not_skipped(tmp_path):
+    """A line cut right after its keyword (``v`` alone) was skipped: 8 pieces, not 6."""
+    src = (Path(__file__).resolve().parents[1] / "data" / "garments" / "berkeley" /
+           "tshirt-coarse.obj").read_bytes()
+    path = tmp_path / "damaged.obj"
+    path.write_bytes(src.replace(b"\nf ", b"\nv\nf ", 1))
+    with pytest.raises(ValueError, match=r"line \d+ is a bare 'v' with no numbers"):
+        load_garment(path, units="m")

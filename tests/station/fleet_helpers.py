@@ -37,8 +37,19 @@ def spot(job_id: int, piece: int, pieces: int) -> tuple[float, float]:
     return 20.0 + (k % COLUMNS) * PITCH_MM, 20.0 + (k // COLUMNS) * PITCH_MM
 
 
+def stand_in_garment(tmp: Path) -> str:
+    """A garment file for the tiny jobs (a station takes in a job's files before it runs
+    it, whoever queued it; TinyJobs never parses them)."""
+    path = tmp / "g.obj"
+    path.write_text("# stand-in: TinyJobs plans squares\n")
+    return str(path)
+
+
 class TinyJobs(StationPipeline):
     """The real cut on planned-in-a-millisecond jobs of ``pieces`` squares."""
+
+    def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
+        """Nothing to check: the squares are planned from the options alone."""
 
     def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
         start_step(control, "photographing")
@@ -130,6 +141,27 @@ def complete_runs(trace, contour: np.ndarray) -> int:
     runs = zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))
     return sum(bool(cKDTree(densify(seg[a:b])).query(samples)[0].max() < 0.3)
                for a, b in runs)
+
+
+def coverage(trace, contour: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Samples of the closed ``contour`` (k, 2), how many beam-on runs of ``trace`` cover
+    each within 0.3 mm, and how many runs touch it: a piece resumed where it stopped is
+    covered by two runs that overlap only where the second joins the first."""
+    samples = densify(np.c_[contour, np.roll(contour, -1, axis=0)])
+    seg = np.array([[s.x0, s.y0, s.x1, s.y1] for s in trace], float).reshape(-1, 4)
+    covered = np.zeros(len(samples), int)
+    if not len(seg):
+        return samples, covered, 0
+    on_beam = np.array([s.power > 0 and not s.rapid for s in trace])
+    tree = cKDTree(samples)
+    near = on_beam & (np.maximum(tree.query(seg[:, :2])[0], tree.query(seg[:, 2:])[0]) < 0.4)
+    edges = np.diff(np.concatenate([[0], near.astype(int), [0]]))
+    runs = 0
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        hit = cKDTree(densify(seg[a:b])).query(samples)[0] < 0.3
+        covered += hit
+        runs += bool(hit.any())
+    return samples, covered, runs
 
 
 def densify(seg: np.ndarray, step: float = 0.25) -> np.ndarray:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from station.config import ConfigError, example_toml, load_config
@@ -92,3 +94,22 @@ def test_cut_section_is_refused_by_file_and_key(tmp_path, toml, key):
         _program_for(tmp_path, toml)
     msg = str(exc.value)
     assert msg.startswith(str(tmp_path / "station.toml")) and key in msg, msg
+
+
+@pytest.mark.parametrize(("text", "fault"), [
+    ("[station]\nheartbeat_s = 1e300\n", "station.heartbeat_s must be at most 60"),
+    ("[station]\nlost_after_s = 1e300\n", "station.lost_after_s must be at most 86400"),
+    ("[station]\noutage_s = 1e300\n", "station.outage_s must be at most 86400"),
+    ("[allowance]\nseam_mm = 1e300\n", "allowance.seam_mm must be at most 1000"),
+    ("[store]\numask = 0\n", "store.umask must keep every permission from others"),
+    ("[store]\numask = 0o022\n", "store.umask must keep every permission from others"),
+    ('[store]\nurl = "mysql://root:pw@db/jobs"\n', "store.url must be a postgresql:// URL, "
+     "not mysql://"),
+    ('[station]\nname = "a\\u0000b"\n', "station.name must be at most 64 printable"),
+])
+def test_every_limit_is_stated_and_no_password_is_echoed(tmp_path, text, fault):
+    path = tmp_path / "station.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(fault)) as refused:
+        load_config(path)
+    assert "pw" not in str(refused.value).replace(str(tmp_path), "")

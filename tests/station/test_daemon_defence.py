@@ -20,6 +20,7 @@ from station.config import load_config
 from station.control import MAX_REQUEST, ControlError, request
 from station.daemon import Daemon, wait_until
 from station.daemon_lock import AlreadyRunning
+from station.errors import UserError
 from tests.station.test_daemon import TickingPipeline
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -95,17 +96,33 @@ def test_second_serve_refuses_and_the_first_keeps_answering_and_cutting(station)
         Daemon(load_config(cfg), CheckingPipeline())
 
 
-def test_the_lock_goes_with_the_daemon_so_a_stale_socket_is_replaced(tmp_path):
+def test_a_stale_socket_is_replaced_and_any_other_file_is_refused_untouched(tmp_path):
     cfg = config_file(tmp_path)
-    (tmp_path / "station.sock").write_text("left by a killed daemon")
+    sock = tmp_path / "station.sock"
+    stale = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    stale.bind(str(sock))  # bound, never listening: what a killed daemon leaves
+    stale.close()
     daemon = Daemon(load_config(cfg), CheckingPipeline())
     daemon.control.start()
     try:
-        assert request(tmp_path / "station.sock", "ping")["pid"] == os.getpid()
+        assert request(sock, "ping")["pid"] == os.getpid()
+        other = tmp_path / "other"
+        other.mkdir()
+        live = config_file(other)
+        live.write_text(live.read_text().replace(str(other / "station.sock"), str(sock)))
+        with pytest.raises(UserError, match="another daemon listens on this control socket"):
+            Daemon(load_config(live), CheckingPipeline())
     finally:
         daemon.control.stop()
+        daemon.store.close()
         daemon.lock.release()
-    again = Daemon(load_config(cfg), CheckingPipeline())  # released: a restart may take it
+    sock.write_text("the job store, by a slip of the configuration")
+    with pytest.raises(UserError, match="control.socket names a file, not a socket"):
+        Daemon(load_config(cfg), CheckingPipeline())
+    assert sock.read_text() == "the job store, by a slip of the configuration"
+    elsewhere = {"control": {"socket": str(tmp_path / "elsewhere.sock")}}
+    again = Daemon(load_config(cfg, elsewhere), CheckingPipeline())
+    again.store.close()  # the refused daemon released the store's lock
     again.lock.release()
 
 
@@ -256,7 +273,7 @@ def test_serve_writes_job_files_0640(tmp_path):
                           env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert done.returncode == 0, done.stderr
     assert os.stat(tmp_path / "jobs.db").st_mode & 0o777 == 0o640
-    assert os.stat(tmp_path / "jobs.db.lock").st_mode & 0o777 == 0o640
+    assert not (tmp_path / "jobs.db.lock").exists()  # the lock is on the store itself
 
 
 def test_submissions_can_be_limited_to_configured_folders(tmp_path):
@@ -313,3 +330,48 @@ def test_job_options_are_bounded_at_submit(station):
         with pytest.raises(ControlError, match=match):
             request(sock, "submit", garment=str(garment), fabric=str(fabric), options=options)
     assert request(sock, "jobs")["jobs"] == []
+
+
+class StationChecked(TickingPipeline):
+    """The stand-in's steps with the station's own check of a submission."""
+
+    def __init__(self, config) -> None:
+        super().__init__()
+        from station.pipeline import StationPipeline
+
+        self.check = StationPipeline(config).check
+
+
+def test_submit_with_allowance_pairs_grain_and_bias_is_accepted(tmp_path, capsys):
+    cfg = config_file(tmp_path)
+    config = load_config(cfg)
+    daemon = Daemon(config, StationChecked(config))
+    daemon.control.start()
+    sock = tmp_path / "station.sock"
+    try:
+        allowance = tmp_path / "allowance.json"
+        allowance.write_text('{"hem": 25, "3": 15}')
+        pairs = tmp_path / "pairs.json"
+        pairs.write_text('{"pairs": [["left_ftorso", "right_ftorso"]], "not_pairs": []}')
+        args = ["submit", str(SPEC), "--detect", "--socket", str(sock), "--allowance",
+                str(allowance),
+                "--pairs", str(pairs), "--grain-line", "right_sleeve_b=90", "--bias",
+                "left_sleeve_f"]
+        assert main(args) == 0, capsys.readouterr().err
+        job = request(sock, "jobs")["jobs"][0]
+        options = daemon.store.job(job["id"]).options
+        assert options["allowance"] == {"hem": 25, "3": 15}
+        assert options["grain_lines"] == {"right_sleeve_b": 90.0}
+        assert options["bias"] == ["left_sleeve_f"]
+        assert options["pairs"]["pairs"] == [["left_ftorso", "right_ftorso"]]
+        # the daemon's check still refuses a name the garment lacks, in one line
+        assert main(args[:-1] + ["no_such_piece"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "no_such_piece" in err[0], err
+        # and a shape no submit could send is refused before any check
+        with pytest.raises(ControlError, match=r"option grain_lines must be \{\"piece\""):
+            request(sock, "submit", garment=str(SPEC), options={"grain_lines": {"a": 1e300}})
+    finally:
+        daemon.control.stop()
+        daemon.store.close()
+        daemon.lock.release()

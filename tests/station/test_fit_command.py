@@ -109,3 +109,14 @@ def test_an_allowance_without_a_picture_is_checked_and_said_to_change_nothing(
     bad.write_text('{"seam": -4}')
     assert main([*common, "--allowance", str(bad)]) == 2
     assert str(bad) in capsys.readouterr().err
+
+
+def test_a_picture_option_naming_no_picture_format_is_refused_before_any_work(tmp_path, capsys):
+    """`fit --png x.json` computed the fit, then died in the image writer (exit 70)."""
+    from station.cli import main
+
+    with pytest.raises(SystemExit) as refused:
+        main(["fit", "spec.json", "--fabric", "fabric.json", "--png", str(tmp_path / "x.json")])
+    assert refused.value.code == 2
+    assert "x.json: a picture is written as .png" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()

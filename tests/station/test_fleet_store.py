@@ -6,6 +6,7 @@ from __future__ import annotations
 import sqlite3
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -237,13 +238,25 @@ def test_a_transaction_rolled_back_for_a_deadlock_runs_again(pg_url):
 
 
 def test_an_unreachable_server_or_a_newer_schema_is_one_line_and_exit_2(store_location,
-                                                                         capsys):
+                                                                         capsys, tmp_path):
     from station.cli import main
 
-    assert main(["fleet", "--store", "postgresql://station:secret@127.0.0.1:1/none"]) == 2
+    assert main(["fleet", "--store", "postgresql://station@127.0.0.1:1/none"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("station fleet: error: postgresql://station:***@127.0.0.1:1/none: "
-                          "cannot connect") and err.count("\n") == 1 and "secret" not in err
+    assert err.startswith("station fleet: error: postgresql://station@127.0.0.1:1/none: "
+                          "cannot connect") and err.count("\n") == 1
+    # a password never goes on the command line, and nothing is created for a non-store
+    for store, fault in (("postgresql://station:secret@127.0.0.1:1/none", "PGPASSFILE"),
+                         ("mysql://root:secret@db/x", "not mysql://"),
+                         ("not a url", "no job store there")):
+        assert main(["fleet", "--store", store]) == 2
+        err = capsys.readouterr().err
+        assert fault in err and err.count("\n") == 1 and "secret" not in err, err
+    assert not Path("not a url").exists()
+    spec = tmp_path / "spec.json"
+    spec.write_text('{"not": "a job store"}')
+    assert main(["fleet", "--store", str(spec)]) == 2
+    assert "not a job store (file is not a database)" in capsys.readouterr().err
     store = JobStore(store_location)
     store.engine.write(lambda tx: tx.run(
         "insert into schema_version (version, description, applied_at) values (?, ?, ?)",

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from gcode.layout import load_layout
@@ -245,3 +245,25 @@ def test_control_requests(line):
     assert isinstance(answer, dict) and isinstance(answer["ok"], bool)
     assert answer["ok"] or isinstance(answer["error"], str)
     json.dumps(answer)
+
+
+TSHIRT = DATA / "garments" / "berkeley" / "tshirt-coarse.obj"
+
+
+@FUZZ
+@given(cut=st.floats(0.0, 1.0))
+def test_an_obj_cut_mid_line_is_refused_never_read_as_another_garment(tmp_path, cut):
+    """A copy cut short anywhere but at a line's end is a one-line error (a line cut right
+    after its keyword, a bare ``v``, once read as 8 pieces instead of 6)."""
+    data = TSHIRT.read_bytes()
+    k = int(cut * (len(data) - 2)) + 1
+    while data[k - 1:k] in (b"\n", b" ", b"\t", b"\r"):
+        k -= 1  # end inside a line's text: the case no reader may take as complete
+    line = data[data.rfind(b"\n", 0, k) + 1:k]
+    assume(line.split()[:1] in ([b"v"], [b"vt"], [b"vn"], [b"f"]))  # a data line, cut
+    path = tmp_path / "cut.obj"
+    path.write_bytes(data[:k])
+    with pytest.raises(ValueError) as refused:
+        load_garment(path, units="m")
+    text = str(refused.value)
+    assert text.startswith(str(path)) and "\n" not in text, text

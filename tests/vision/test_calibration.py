@@ -167,3 +167,13 @@ def test_cli_calibrate_simulated_and_from_a_folder(tmp_path, capsys):
                  "-o", str(out2)]) == 0
     assert Calibration.load(out2).focal_px == pytest.approx(cam.K[0, 0], rel=0.02)
     assert main(["calibrate", "--images", str(tmp_path / "nope")]) == 2
+
+
+def test_a_board_beyond_any_print_is_refused_before_rendering(tmp_path, capsys):
+    """--squares 100000 100000 allocated past 6 GB before anything was said."""
+    from station.cli import main
+
+    assert main(["calibrate", "--simulate", "--squares", "100000", "100000",
+                 "-o", str(tmp_path / "c.json")]) == 2
+    err = capsys.readouterr().err
+    assert "--squares must be 2 to 50 columns and rows" in err and err.count("\n") == 1

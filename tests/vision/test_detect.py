@@ -84,3 +84,17 @@ def test_cli_errors_name_the_file(tmp_path, capsys):
     bad.write_text("not an image")
     assert main(["detect", str(bad), "--mm-per-px", "1"]) == 2
     assert "bad.png: not an image" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("option", "value", "fault"), [
+    ("--mm-per-px", "nan", "--mm-per-px must be 0.001 to 100 mm per pixel, got nan"),
+    ("--mm-per-px", "1e-300", "--mm-per-px must be 0.001 to 100 mm per pixel"),
+    ("--mm-per-px", "inf", "--mm-per-px must be 0.001 to 100 mm per pixel, got inf"),
+    ("--min-repeat", "1e300", "--min-repeat must be 0 to 2000 mm"),
+])
+def test_a_scale_or_repeat_beyond_any_table_is_one_line_before_any_work(tmp_path, capsys,
+                                                                        option, value, fault):
+    args = ["detect", str(tmp_path / "none.png"), "--mm-per-px", "1", option, value]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert fault in err and err.count("\n") == 1, err
