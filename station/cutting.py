@@ -207,10 +207,18 @@ class PieceJournal:
 
 
 def stream_with_control(streamer, program, control: JobControl):
-    """Run the streamer in a worker thread while this one relays pause/resume/stop."""
+    """Run the streamer in a worker thread while this one relays pause/resume/stop. What
+    the run raises (a controller refused before anything moved: $32=0, an alarm) is raised
+    here, so that the job records it."""
     out: dict[str, Any] = {}
-    worker = threading.Thread(target=lambda: out.update(result=streamer.run(program)),
-                              name="stream", daemon=True)
+
+    def work() -> None:
+        try:
+            out["result"] = streamer.run(program)
+        except Exception as exc:  # noqa: BLE001 - handed to the caller's thread as it is
+            out["error"] = exc
+
+    worker = threading.Thread(target=work, name="stream", daemon=True)
     worker.start()
     held = False
     while worker.is_alive():
@@ -223,4 +231,6 @@ def stream_with_control(streamer, program, control: JobControl):
             streamer.resume()
             held = False
         worker.join(0.05)
+    if "error" in out:
+        raise out["error"]
     return out["result"]
