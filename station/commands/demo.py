@@ -17,9 +17,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from station.fleetdemo import run as run_fleet
-from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
-
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
 #: What the demo leaves in --out, from the job's folder (missing optional ones are named).
@@ -69,9 +66,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import logging
 
+    # Here, not at the top: every command module is imported when `station` starts, and
+    # the daemon behind the demo pulls in SciPy and Shapely (test_cli_chain measures it).
     from station.control import request
     from station.daemon import setup_logging
+    from station.fleetdemo import run as run_fleet
     from station.progress import follow
+    from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
 
     garment = Path(args.garment)
     if not garment.is_file():

@@ -6,9 +6,9 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from solver.placement import Placement
-from solver.reshape import ReshapeOptions
 from station.cli import UserError
 from station.cliargs import (
     add_allowance_arguments,
@@ -23,6 +23,9 @@ from station.cliargs import (
     picture_path,
     symmetrised_garment,
 )
+
+if TYPE_CHECKING:
+    from solver.reshape import ReshapeOptions
 
 FORMATS = (".obj", ".json", ".dxf")
 
@@ -130,6 +133,10 @@ def _print_changes(report) -> None:
 
 def _options(args: argparse.Namespace) -> ReshapeOptions:
     """The reshape options the command line asks for, checked before any work is done."""
+    # Here, not at the top: solver.reshape pulls in SciPy, and every command module is
+    # imported when `station` starts (test_cli_chain measures it).
+    from solver.reshape import ReshapeOptions
+
     if args.method == "paper":
         if args.max_move is not None:
             raise UserError("--max-move: the paper's method has no move bound "
