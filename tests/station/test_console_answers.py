@@ -84,7 +84,11 @@ def test_a_silent_or_trickling_connection_is_closed_within_seconds(lone_station,
     assert silent.recv(100) == b""  # closed, having said nothing
     assert time.monotonic() - t0 < 2.0
     trickler.settimeout(1.0)
-    assert trickler.recv(100) == b""
+    try:
+        said = trickler.recv(100)
+    except ConnectionResetError:  # closed with our bytes unread: the kernel resets it
+        said = b""
+    assert said == b""  # closed, having said nothing
     silent.close()
     trickler.close()
 
