@@ -69,6 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import logging
 
+    from solver.garment import load_garment
     from station.control import request
     from station.daemon import setup_logging
     from station.progress import follow
@@ -76,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     garment = Path(args.garment)
     if not garment.is_file():
         raise FileNotFoundError(f"{garment}: no such garment file")
+    load_garment(garment, units=args.units)  # a bad garment is one line before any station starts
     fleet = args.fleet > 0
     args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
     args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
