@@ -85,6 +85,8 @@ REPRODUCERS: dict[str, tuple[Callable[[Path], list], str]] = {
     "seam_mm 1e300": (_toml("[allowance]\nseam_mm = 1e300\n"), "at most 1000"),
     "umask 0": (_toml("[store]\numask = 0\n"), "store.umask"),
     "mysql url": (_toml('[store]\nurl = "mysql://root:pw@db/jobs"\n'), "not mysql://"),
+    "password in store.url": (_toml('[store]\nurl = "postgresql://root:pw@db/jobs"\n'),
+                              "store.url holds a password; put it in PGPASSFILE"),
     "NUL in the station name": (_toml('[station]\nname = "a\\u0000b"\n'), "station.name"),
     "100k marks": (_layout(marks=[[500.0, 400.0]] * 100_000), "marks has 100,000"),
     "20k notches": (_layout(notches=[[500.0, 100.0]] * 20_000), "notches has 20,000"),
