@@ -16,16 +16,19 @@ from tests.untrusted.test_reproducers import TSHIRT, refused
 _ORIGIN = "FRONT\n 10\n0.0\n 20\n0.0\n 30\n0.0\n"
 
 
-def dxf_with_insert(path: Path, extra_group_codes: str) -> Path:
+RECTANGLE = [(0.0, 0.0), (100.0, 0.0), (100.0, 50.0), (0.0, 50.0)]
+
+
+def dxf_with_insert(path: Path, extra_group_codes: str = "", *, outline=RECTANGLE,
+                    quantity: str = "1") -> Path:
     """A one-piece DXF-AAMA file whose INSERT carries ``extra_group_codes`` (41-43 scale,
     50 rotation)."""
     doc = ezdxf.new("R12")
     doc.modelspace().add_text("Units: METRIC", dxfattribs={"layer": "1", "height": 5})
     block = doc.blocks.new(name="FRONT")
-    block.add_polyline2d([(0, 0), (100, 0), (100, 50), (0, 50)], close=True,
-                         dxfattribs={"layer": "1"})
-    block.add_text("Piece Name: front", dxfattribs={"layer": "1", "height": 3,
-                                                    "insert": (0, -5)})
+    block.add_polyline2d(outline, close=True, dxfattribs={"layer": "1"})
+    for k, line in enumerate(["Piece Name: front", f"Quantity: {quantity}"]):
+        block.add_text(line, dxfattribs={"layer": "1", "height": 3, "insert": (0, -5 * k - 5)})
     doc.modelspace().add_blockref("FRONT", (0, 0), dxfattribs={"layer": "1"})
     doc.saveas(path)
     text = path.read_text()
@@ -48,6 +51,19 @@ def test_dxf_insert_of_degenerate_scale_or_rotation(tmp_path, capsys, codes, mat
     last = refused(capsys, bad, "nest", bad, "-o", tmp_path / "l.json", "--width", "1000",
                    match=match)
     assert "INSERT of block 'FRONT'" in last
+
+
+@pytest.mark.parametrize("outline,quantity,match", [
+    (RECTANGLE[:2] + [(100.0, float("nan")), (0.0, 50.0)], "1",
+     "piece 'front': a boundary point is not a finite number"),
+    (RECTANGLE, "inf", "piece 'front': quantity is over 10000 copies"),
+    (RECTANGLE, "1e9", "piece 'front': quantity is over 10000 copies"),
+])
+def test_dxf_block_of_a_nan_point_or_endless_quantity(tmp_path, capsys, outline, quantity,
+                                                      match):
+    bad = dxf_with_insert(tmp_path / "piece.dxf", outline=outline, quantity=quantity)
+    refused(capsys, bad, "nest", bad, "-o", tmp_path / "l.json", "--width", "1000",
+            match=match)
 
 
 def test_dxf_insert_of_a_plain_placement_is_read(tmp_path, capsys):
