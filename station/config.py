@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import untrusted
+from station.storeengine import PASSWORD_ADVICE, holds_password
 from untrusted.limits import MAX_PASSES, MAX_SOCKET_PATH_BYTES
 
 #: the widest seam allowance any setting may ask for (a hem of a heavy coat is ~80 mm)
@@ -207,6 +208,20 @@ def load_config(path: str | Path | None, overrides: dict[str, dict[str, Any]] | 
     return config
 
 
+def _check_no_password(url: str, where: str) -> None:
+    """A password written in station.toml is refused, never echoed: the file is read by
+    the operators' group and copied into bug reports; libpq reads it from elsewhere."""
+    if not url:
+        return
+    try:
+        password = holds_password(url)
+    except ValueError as exc:
+        raise ConfigError(f"{where}: store.url: {exc}") from None
+    if password:
+        raise ConfigError(f"{where}: store.url holds a password; {PASSWORD_ADVICE} "
+                          "(the URL keeps only user, host and database)")
+
+
 def _check_control(config: Config, where: str) -> None:
     """The socket path must fit a Unix socket address and the group must exist, so that
     ``station serve`` fails at startup with the key named, not deep inside bind()."""
@@ -224,6 +239,7 @@ def _check_control(config: Config, where: str) -> None:
         raise ConfigError(f"{where}: store.url must be a postgresql:// URL"
                           + (f", not {scheme[:20]}://..." if scheme else "")
                           + " (leave it empty for the SQLite file at store.path)")
+    _check_no_password(url, where)
     group = config["control"]["group"]
     if group:
         try:

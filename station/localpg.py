@@ -8,8 +8,10 @@ the permissions of every folder above its data folder and adds users, which a te
 no business doing. PostgreSQL refuses to run as root, so under root (CI) the server runs
 as the ``postgres`` user, else ``nobody``.
 
-The server listens on 127.0.0.1 only, on a free port, with trust authentication: it is a
-throw-away server for one test session or one demo, never a shop's database.
+The server listens on no TCP address at all, only on a Unix socket in a folder of its own
+(mode 0700, owned by the user it runs as), with trust authentication: only that user (and
+root) can reach it. It is a throw-away server for one test session or one demo, never a
+shop's database.
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ import importlib.util
 import os
 import pwd
 import shutil
-import socket
 import subprocess
 import tempfile
 from pathlib import Path
@@ -75,18 +76,12 @@ def _server_user() -> pwd.struct_passwd | None:
                               "exists to run the server")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 class LocalPostgres:
     """initdb, start, stop, crash and restart one server; ``url`` connects to it.
 
-    ``folder`` (default: a new one under the system's temporary folder) holds the data,
-    the log and the socket; under root every folder above it must be open to the server's
-    user, so leave the default there.
+    ``folder`` (default: a new one under the system's temporary folder) holds the data
+    and the log; the socket is in a short folder of its own. Under root every folder above
+    the data must be open to the server's user, so leave the default there.
     """
 
     def __init__(self, folder: str | Path | None = None) -> None:
@@ -96,17 +91,21 @@ class LocalPostgres:
         self.folder.mkdir(parents=True, exist_ok=True)
         self.data = self.folder / "data"
         self.logfile = self.folder / "server.log"
-        self.port = _free_port()
+        # the socket's own short folder: a Unix socket path is at most 107 bytes
+        self.socket_dir = Path(tempfile.mkdtemp(prefix="station-pg-socket-"))
+        self.port = 5432  # names the socket file only (.s.PGSQL.5432): no TCP port is opened
+        os.chmod(self.socket_dir, 0o700)
         if self._user is not None:
             os.chmod(self.folder, 0o755)
             os.chown(self.folder, self._user.pw_uid, self._user.pw_gid)
+            os.chown(self.socket_dir, self._user.pw_uid, self._user.pw_gid)
 
     @property
     def url(self) -> str:
-        return f"postgresql://postgres@127.0.0.1:{self.port}/postgres"
+        return self.url_for("postgres")
 
     def url_for(self, database: str) -> str:
-        return f"postgresql://postgres@127.0.0.1:{self.port}/{database}"
+        return f"postgresql://postgres@/{database}?host={self.socket_dir}&port={self.port}"
 
     def _run(self, *args: str, timeout: float = 60.0) -> None:
         kwargs = {}
@@ -128,8 +127,8 @@ class LocalPostgres:
         if not (self.data / "PG_VERSION").exists():
             self._run("initdb", "-D", str(self.data), "-U", "postgres", "--auth=trust",
                       "-E", "UTF8", "--no-sync")
-        options = (f"-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1 "
-                   "-c max_connections=200")
+        options = (f"-p {self.port} -k {self.socket_dir} -c listen_addresses='' "
+                   "-c unix_socket_permissions=0700 -c max_connections=200")
         self._run("pg_ctl", "-D", str(self.data), "-l", str(self.logfile), "-o", options,
                   "-w", "-t", "60", "start")
         return self
@@ -157,6 +156,7 @@ class LocalPostgres:
             self.stop("immediate")
         finally:
             shutil.rmtree(self.folder, ignore_errors=True)
+            shutil.rmtree(self.socket_dir, ignore_errors=True)
 
     def __enter__(self) -> LocalPostgres:
         return self.start()

@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
+from urllib.parse import parse_qs, urlsplit, urlunsplit
 
 log = logging.getLogger("station.store")
 
@@ -46,6 +47,22 @@ class StoreUnavailable(RuntimeError):
 
 def is_server_url(location: str | Path) -> bool:
     return str(location).startswith(("postgresql://", "postgres://"))
+
+
+PASSWORD_ADVICE = "put it in PGPASSFILE (~/.pgpass) or PGPASSWORD instead"
+
+
+def holds_password(url: str) -> bool:
+    """Whether a postgresql:// URL carries a password (``user:pw@`` or ``?password=``):
+    a command line is visible to every user and a config file is read by many, so the
+    station takes passwords only the libpq way. Raises ValueError (without the URL) if the
+    URL cannot be parsed."""
+    try:
+        parts = urlsplit(url)
+        password = parts.password
+    except ValueError:
+        raise ValueError("not a valid postgresql:// URL") from None
+    return password is not None or "password" in parse_qs(parts.query)
 
 
 class Tx:
@@ -285,8 +302,6 @@ def _connection_lost(exc: Exception) -> bool:
 
 def without_password(url: str) -> str:
     """The URL as logs may show it."""
-    from urllib.parse import urlsplit, urlunsplit
-
     parts = urlsplit(url)
     if parts.password is None:
         return url

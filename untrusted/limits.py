@@ -19,6 +19,7 @@ MAX_DEPTH = 32  # JSON/TOML nesting; real files nest at most 6 deep
 MAX_INT_DIGITS = 19  # every integer the station reads fits int64
 
 MAX_GARMENT_MM = 10_000.0  # a garment (3D or its pattern) spans at most 10 m
+MIN_PATTERN_MM = 1.0  # a sewing pattern narrower than 1 mm is degenerate (scaled UVs)
 MAX_FACES = 2_000_000
 MAX_PANEL_POINTS = 100_000  # outline points of one piece / keep-out / instance shape
 MIN_REPEAT_MM = 1.0  # the print's lattice vectors

@@ -308,6 +308,17 @@ def _check_extent(source: str | Path, points: np.ndarray, what: str) -> None:
                            "(wrong --units?)")
 
 
+def _check_not_degenerate(source: str | Path, uv: np.ndarray) -> None:
+    """A pattern narrower than :data:`untrusted.limits.MIN_PATTERN_MM` is no garment: texture
+    coordinates scaled far down (1e-9) would make every later size and ratio zero."""
+    least = untrusted.limits.MIN_PATTERN_MM
+    span = float(np.ptp(uv, axis=0).max()) if len(uv) else 0.0
+    if not span >= least:
+        raise GarmentError(source, f"the sewing pattern spans only {span:.3g} mm; a pattern "
+                           f"is at least {least:g} mm across (texture coordinates scaled "
+                           "wrong, or wrong --units?)")
+
+
 def build_garment(
     uv: np.ndarray,
     faces: np.ndarray,
@@ -339,6 +350,7 @@ def build_garment(
     if faces.size == 0:
         raise GarmentError(source, "no faces")
     _check_extent(source, uv, "sewing pattern")
+    _check_not_degenerate(source, uv)
     if xyz is not None:
         _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
 

@@ -143,6 +143,8 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
     boundary = polylines("1") or polylines("84")
     if not boundary:
         raise ValueError(f"{where}: piece {name!r} has no boundary on layer 1")
+    if not np.isfinite(np.vstack(boundary)).all():
+        raise ValueError(f"{where}: piece {name!r}: a boundary point is not a finite number")
     span = max(float(np.ptp(np.vstack(boundary), axis=0).max()), 1e-9)
     rings = _chain(boundary, 1e-6 * span + 1e-6)
     if not rings:
@@ -191,6 +193,11 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
         quantity = int(float(text.get("quantity", "1") or 1))
     except ValueError:
         quantity = 1
+    except OverflowError:  # "inf"
+        quantity = untrusted.limits.MAX_DEMAND + 1
+    if quantity > untrusted.limits.MAX_DEMAND:
+        raise ValueError(f"{where}: piece {name!r}: quantity is over "
+                         f"{untrusted.limits.MAX_DEMAND} copies")
     outline = np.asarray(outline, float)
     if sew_line is None:
         sew_line = _sew_inward(outline, allowance_mm, f"{where}: piece {name!r}")
@@ -209,15 +216,42 @@ def _piece_from_block(entities: list, name_default: str, scale: float, unfold: b
     return piece
 
 
+class _BadPlacement(ValueError):
+    """An INSERT whose placement no pattern CAD writes (kept apart from ezdxf's own errors)."""
+
+
+# A piece is placed at scale 1 (rarely a grading or unit factor) and turned within a turn;
+# beyond these bounds the transform is degenerate or its float rounding meaningless.
+_SCALE_RANGE = (1e-6, 1e6)
+_MAX_ROTATION_DEG = 3600.0
+
+
+def _check_placement(ins, path: Path) -> None:
+    """Refuse an INSERT of scale 0, NaN or huge, or of a NaN or huge rotation, by name."""
+    where = f"{path}: INSERT of block {str(ins.dxf.name)[:80]!r}"
+    for axis in ("xscale", "yscale", "zscale"):
+        s = float(ins.dxf.get(axis, 1.0))
+        if not _SCALE_RANGE[0] <= abs(s) <= _SCALE_RANGE[1]:  # False for NaN
+            raise _BadPlacement(f"{where}: {axis} {s:g} is not usable (its size must be "
+                                f"{_SCALE_RANGE[0]:g} to {_SCALE_RANGE[1]:g})")
+    turn = float(ins.dxf.get("rotation", 0.0))
+    if not abs(turn) <= _MAX_ROTATION_DEG:
+        raise _BadPlacement(f"{where}: rotation {turn:g} degrees is not usable (at most "
+                            f"{_MAX_ROTATION_DEG:g} either way)")
+
+
 def _blocks(path: str | Path):
     path = untrusted.check_file(path, what="DXF file", max_bytes=untrusted.limits.MAX_DXF_BYTES)
     out = []
     try:
         doc = ezdxf.readfile(path)
         for ins in doc.modelspace().query("INSERT"):
+            _check_placement(ins, path)
             ents = list(ins.virtual_entities())  # applies the INSERT's placement
             if any(str(e.dxf.layer) in ("1", "84") for e in ents):
                 out.append((ins.dxf.name, ents))
+    except _BadPlacement:
+        raise
     except OSError as exc:
         raise ValueError(f"{path}: not a readable DXF file ({exc})") from None
     except (ezdxf.DXFError, ValueError, TypeError, IndexError, KeyError, AttributeError,

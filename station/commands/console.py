@@ -145,18 +145,16 @@ def checked_store_arg(value: str) -> str:
     """``--store``: a postgresql:// URL without a password (the command line is visible to
     every user through ps; libpq reads PGPASSWORD or PGPASSFILE), or an existing store file
     (a console never creates one)."""
-    from urllib.parse import urlsplit
-
-    from station.storeengine import is_server_url
+    from station.storeengine import PASSWORD_ADVICE, holds_password, is_server_url
 
     if is_server_url(value):
         try:
-            password = urlsplit(value).password
-        except ValueError:
-            raise UserError("--store: not a valid postgresql:// URL") from None
-        if password is not None:
+            password = holds_password(value)
+        except ValueError as exc:
+            raise UserError(f"--store: {exc}") from None
+        if password:
             raise UserError("--store: a password on the command line is visible to every "
-                            "user; put it in PGPASSFILE (~/.pgpass) or PGPASSWORD instead")
+                            f"user; {PASSWORD_ADVICE}")
         return value
     if "://" in value:
         raise UserError(f"--store: a postgresql:// URL or a job store file, not "

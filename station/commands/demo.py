@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 import tempfile
 import time
@@ -64,10 +65,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import logging
-
     # Here, not at the top: every command module is imported when `station` starts, and
     # the daemon behind the demo pulls in SciPy and Shapely (test_cli_chain measures it).
+    from solver.garment import load_garment
     from station.control import request
     from station.daemon import setup_logging
     from station.fleetdemo import run as run_fleet
@@ -77,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     garment = Path(args.garment)
     if not garment.is_file():
         raise FileNotFoundError(f"{garment}: no such garment file")
+    load_garment(garment, units=args.units)  # a bad garment is one line before any station starts
     fleet = args.fleet > 0
     args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
     args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None

@@ -106,6 +106,11 @@ def test_cut_section_is_refused_by_file_and_key(tmp_path, toml, key):
     ('[store]\nurl = "mysql://root:pw@db/jobs"\n', "store.url must be a postgresql:// URL, "
      "not mysql://"),
     ('[station]\nname = "a\\u0000b"\n', "station.name must be at most 64 printable"),
+    ('[store]\nurl = "postgresql://station:pw-1234@db/jobs"\n', "store.url holds a password; "
+     "put it in PGPASSFILE (~/.pgpass) or PGPASSWORD instead"),
+    ('[store]\nurl = "postgresql://station@db/jobs?password=pw-1234"\n',
+     "store.url holds a password"),
+    ('[store]\nurl = "postgresql://station@[db/jobs"\n', "store.url: not a valid postgresql"),
 ])
 def test_every_limit_is_stated_and_no_password_is_echoed(tmp_path, text, fault):
     path = tmp_path / "station.toml"
