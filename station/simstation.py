@@ -11,7 +11,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from station.config import SCHEMA, load_config
+from station.config import EMULATOR_PORT, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
 
@@ -24,7 +24,7 @@ def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: 
     the demo's alignment, reshaping and nesting settings, recovered and running in the
     thread ``thread``: the one start of both demos. ``overrides``: its store, socket and
     station sections."""
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
+    port = EMULATOR_PORT.replace("speed=50", f"speed={args.speed:g}")
     config = load_config(None, {
         "serial": {"port": port.replace("name=station", f"name={emulator}")},
         "align": {"restarts": args.restarts},
