@@ -23,7 +23,7 @@ COMMANDS: dict[str, Command] = {
     "calibrate": Command("calibrate", "calibrate the camera to the table with a ChArUco board"),
     "confirm": Command("confirm", "accept or correct the detected print of a job waiting at "
                        "'confirm fabric'"),
-    "submit": Command("console", "queue a garment to be aligned, nested and cut"),
+    "submit": Command("submit", "queue a garment to be aligned, nested and cut"),
     "jobs": Command("console", "list every job"),
     "status": Command("console", "state, pieces and progress"),
     "pause": Command("console", "feed hold now (cutting) or after the current step"),
