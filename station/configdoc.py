@@ -1,4 +1,4 @@
-"""The configuration reference in README.md, generated from the one schema (`station.config.SCHEMA`).
+"""README.md's configuration reference, generated from the one schema (`config.SCHEMA`).
 
 `python -m station.configdoc` prints it; tests/station/test_configdoc.py keeps README's copy equal
 to it, so the reference cannot drift from what `load_config` accepts.
@@ -44,7 +44,8 @@ def markdown_reference() -> str:
     for section, keys in SCHEMA.items():
         for name, key in keys.items():
             text = " ".join(key.help.split()).replace("|", "\\|")
-            rows.append(f"| `{section}.{name}` | `{_value(name, key.default)}` | {_bounds(name, key)} | {text} |")
+            default = _value(name, key.default)
+            rows.append(f"| `{section}.{name}` | `{default}` | {_bounds(name, key)} | {text} |")
     rows += ["", END]
     return "\n".join(rows)
 

@@ -1,4 +1,4 @@
-"""README's configuration reference is the schema's own (`station.configdoc`), so it cannot drift."""
+"""README's configuration reference is the schema's own (`station.configdoc`): it cannot drift."""
 
 from pathlib import Path
 
