@@ -17,10 +17,10 @@ therefore writes a marker into the controller's EEPROM (G59 offsets) just before
 just after each piece's final move, and GRBL writes it only once every move before it
 has run. At most one piece can be finished but unrecorded (the next piece's lines go out
 only after this one's markers and sync line were answered and stored). Before anything
-else on resume, `StationPipeline.cut` waits for the machine to come to rest (sending
+else on resume, `station.steps.cut.cut_job` waits for the machine to come to rest (sending
 only the real-time ``?``), reads the marker and the head's position, and records that
 piece cut exactly when the machine proves it (see `gcode.recovery.with_markers` and
-`StationPipeline.reconcile`); then it clears the marker, homes if the position was
+`station.cutting.reconcile`); then it clears the marker, homes if the position was
 lost, and streams the rest. A piece the machine cannot prove finished resumes where it
 stopped. tests/station/test_crash.py checks all of it against the emulator's motion trace.
 """
@@ -55,6 +55,7 @@ from station.jobstore import (
     interrupted_reason,
 )
 from station.storeengine import StoreUnavailable
+from vision.pipeline import confirm_fabric
 
 log = logging.getLogger("station.daemon")
 
@@ -506,8 +507,6 @@ class Daemon(AnswersFromMemory):
         if job.state != "paused" or not job.reason.startswith(CONFIRM_FABRIC):
             raise ControlError(f"job {job.id} is {job.state}, not waiting at "
                                f"'{CONFIRM_FABRIC}'")
-        from vision.pipeline import confirm_fabric
-
         path = self.work_dir / f"job-{job.id}" / "fabric.json"
         try:
             doc = confirm_fabric(json.loads(path.read_text()), req.get("group"))

@@ -166,21 +166,17 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from station.cliargs import garment_with_grain, load_garment_arg
+    from solver.garment.grain import paired_grains
+    from station.cliargs import cli_pairs, garment_with_grain, load_garment_arg
+    from station.steps.garment import symmetrised
 
     start = time.perf_counter()
-    from solver.garment.grain import paired_grains
-    from solver.garment.symmetry import mirror_pairs, read_pairs_file
-
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
-    declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
-    pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
+    pairs = cli_pairs(args, g)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
     if args.symmetrise:
-        from solver.garment.symmetrise import symmetrise
-
-        summary["symmetrise"] = symmetrise(g, pairs).to_dict()
+        summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))
