@@ -1,4 +1,9 @@
-"""Arguments and loaders shared by the `station` commands that read garments and fabrics."""
+"""Arguments and loaders shared by the `station` commands that read garments and fabrics.
+
+Every command imports this module, the console's (`station status`, `pause`, ...) too, so
+the garment stack (solver.garment, station.allowance: SciPy and Shapely, about 0.4 s on
+this machine under load) is imported inside the loaders that need it, not here.
+"""
 
 from __future__ import annotations
 

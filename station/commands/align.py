@@ -6,6 +6,9 @@ import argparse
 import json
 import sys
 
+import untrusted
+from solver.fit import fit_report
+from solver.placement import Placement
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
@@ -18,8 +21,11 @@ from station.cliargs import (
     load_fabric,
     load_garment_arg,
     picture_path,
+    read_name_map,
     symmetrised_garment,
 )
+from station.render import draw_fit
+from station.steps.place import align_garment
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -72,8 +78,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _load_weights(path: str, garment) -> dict:
     """The seam weights of W.json, their names and indices checked against the garment."""
-    import untrusted
-    from station.cliargs import read_name_map
 
     weights = read_name_map(path, "weight", hi=1e6)
     try:
@@ -84,10 +88,6 @@ def _load_weights(path: str, garment) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    # Imported here: solver.align pulls in SciPy, which every other command can skip.
-    from solver.placement import Placement
-    from station.steps.place import align_garment
-
     if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
         raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     tol = grain_tolerance(args.grain)
@@ -118,8 +118,6 @@ def run(args: argparse.Namespace) -> int:
     rep = dict(placement.report)
     rep["output"] = str(args.output)
     if args.png:
-        from solver.fit import fit_report
-        from station.render import draw_fit
 
         draw_fit(garment, placement, fit_report(garment, placement), args.png)
         rep["png"] = str(args.png)

@@ -7,6 +7,10 @@ import json
 import sys
 import time
 
+from gcode.layout import load_layout
+from gcode.machine import default_machine, load_machine
+from station.steps.program import program_of
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -32,11 +36,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # Imported here so that `station --help` and the other commands start fast.
-    from gcode.layout import load_layout
-    from gcode.machine import default_machine, load_machine
-    from station.steps.program import program_of
-
     start = time.perf_counter()
     machine = load_machine(args.machine) if args.machine else default_machine()
     changes = {}

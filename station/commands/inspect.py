@@ -9,7 +9,17 @@ import time
 
 import numpy as np
 
-from station.cliargs import add_garment_arguments, add_grain_arguments
+from solver.garment.allowance import open_edges
+from solver.garment.grain import paired_grains
+from solver.garment.symmetry import centre_seams, mirror_pairs
+from station.cliargs import (
+    add_garment_arguments,
+    add_grain_arguments,
+    cli_pairs,
+    garment_with_grain,
+    load_garment_arg,
+)
+from station.steps.garment import symmetrised
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,7 +47,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def garment_summary(g, pairs=None) -> dict:
     """Plain-JSON description of a garment: counts, units, per-piece sizes in mm, and its
     left/right pairs (``pairs``: MirrorPair list, found when not given)."""
-    from solver.garment.symmetry import centre_seams, mirror_pairs
 
     if pairs is None:
         pairs = mirror_pairs(g)
@@ -103,7 +112,6 @@ def garment_summary(g, pairs=None) -> dict:
 def openings(g) -> list[dict]:
     """The garment's openings (open edges chained through the seams), named as
     ``--allowance`` takes them, with their kind (hem or opening) and length."""
-    from solver.garment.allowance import open_edges
 
     edges, opening, is_hem = open_edges(g)
     length = np.bincount(opening, weights=np.linalg.norm(
@@ -166,9 +174,6 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from solver.garment.grain import paired_grains
-    from station.cliargs import cli_pairs, garment_with_grain, load_garment_arg
-    from station.steps.garment import symmetrised
 
     start = time.perf_counter()
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
