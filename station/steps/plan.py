@@ -75,19 +75,17 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
     garment, garment_path, symmetrised = job_garment(job, workdir)
     kind = captured.fabric.get("kind")
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment})
+    stages: list[Stage] = []  # the states of the fit, for the pictures
     if kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes", True)):
-        cloth = stripe_grain(captured.fabric, config["align"]["fabric_grain_deg"])
-        report.data["fabric"] = cloth
-        garment = grained(garment, config, job.options)
-        placement = plain_placement(garment, config, cloth["grain_deg"])
-        chosen, stages, wallpaper = Pattern(garment, garment_path), [], None
+        wallpaper = None  # nothing to align: the pieces are nested on grain as drawn
+        chosen = Pattern(grained(garment, config, job.options), garment_path)
+        placement = _on_grain(chosen, captured, config, report)
         control.start_step("nesting", 0.0)
         layout = _nest(chosen, placement, workdir, config, job.options, None, plain=True)
     else:
         wallpaper = print_of(captured, config, report)
         if symmetrised is not None:
             report.data["symmetrise"] = symmetrised.to_dict()
-        stages: list[Stage] = []
         try:
             patterns, placement = _place(job, Pattern(garment, garment_path), wallpaper,
                                          config, control, report, stages)
@@ -120,6 +118,15 @@ def print_of(captured: Captured, config: Config, report: JobReport) -> Wallpaper
     if captured.wallpaper is not None and fabric is captured.fabric:
         return captured.wallpaper
     return Wallpaper.from_dict(fabric, captured.path)  # a file: checked as untrusted
+
+
+def _on_grain(pattern: Pattern, captured: Captured, config: Config, report: JobReport
+              ) -> Placement:
+    """Plain cloth (the camera found only the weave), or stripes the job does not match:
+    each piece turned so that its grain runs along the cloth's (stripes set it)."""
+    cloth = stripe_grain(captured.fabric, config["align"]["fabric_grain_deg"])
+    report.data["fabric"] = cloth
+    return plain_placement(pattern.garment, config, cloth["grain_deg"])
 
 
 def _place(job: Job, pattern: Pattern, wallpaper: Wallpaper, config: Config,
