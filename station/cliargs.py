@@ -83,8 +83,6 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def load_config_arg(args: argparse.Namespace, overrides=None):
-
-
     path = getattr(args, "config", None) or os.environ.get("STATION_CONFIG")
     if path is None and Path("station.toml").is_file():
         path = "station.toml"

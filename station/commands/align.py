@@ -118,7 +118,6 @@ def run(args: argparse.Namespace) -> int:
     rep = dict(placement.report)
     rep["output"] = str(args.output)
     if args.png:
-
         draw_fit(garment, placement, fit_report(garment, placement), args.png)
         rep["png"] = str(args.png)
     if args.json:

@@ -47,7 +47,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-
     # checked before any work: NaN passes "<= 0", and 1e-300 mm per pixel or a 1e300 mm
     # repeat made the detector fail deep inside (exit 70)
     if args.mm_per_px is not None and not 1e-3 <= args.mm_per_px <= 100.0:

@@ -84,12 +84,10 @@ def run(args: argparse.Namespace) -> int:
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
-
         cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.front_view:
-
         draw_front_view(garment, placement, symmetrised.pairs if symmetrised is not None
                         else mirror_pairs(garment), args.front_view)
         result["front_view"] = str(args.front_view)

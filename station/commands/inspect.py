@@ -174,7 +174,6 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
     start = time.perf_counter()
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     pairs = cli_pairs(args, g)

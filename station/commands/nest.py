@@ -78,8 +78,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-
-
     if not 0 < args.time <= 3600:  # also refuses NaN; sparrow cannot take more than an hour
         raise UserError("--time must be above 0 and at most 3600 seconds")
     if args.gap < 0:
@@ -122,7 +120,6 @@ def run(args) -> int:
     layout.save(args.output)
     _warn_past_table(layout.length, args.length, config["nest"]["length_mm"])
     if args.png:
-
         draw_marker(layout.to_dict(), args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),

@@ -73,7 +73,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _fixed_mask(garment, names: list[str]):
-
     mask = np.zeros(garment.n_pieces, bool)
     for name in names:
         if name in garment.piece_names:
@@ -91,7 +90,6 @@ def write_garment(garment, path: Path, rules=None) -> None:
     allowances a DXF's cut lines get; default the built-in ones)."""
     suffix = path.suffix.lower()
     if suffix == ".obj":
-
         save_obj(garment, path)
     elif suffix == ".json":
         if garment.kind != "spec":
@@ -100,7 +98,6 @@ def write_garment(garment, path: Path, rules=None) -> None:
 
         save_spec(garment, path)
     elif suffix == ".dxf":
-
         # layer 1 the cut line (it follows the reshaped sew line), layer 14 the sew line
         write_dxf_aama(garment_pieces(garment, rules), path)
     else:
@@ -145,7 +142,6 @@ def _options(args: argparse.Namespace) -> ReshapeOptions:
 
 
 def run(args: argparse.Namespace) -> int:
-
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:
         raise UserError(f"{out}: unknown output format {out.suffix!r} "
@@ -186,7 +182,6 @@ def run(args: argparse.Namespace) -> int:
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
-
         draw_fit(new, placement, fit_report(new, placement), args.png, original=garment)
         result["png"] = str(args.png)
     if args.json:
