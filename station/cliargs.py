@@ -44,7 +44,6 @@ def load_garment_arg(args: argparse.Namespace, **options):
     (the Berkeley files are in metres and do not say so).
     """
 
-
     from solver.garment import load_garment
 
     path = Path(args.garment)
@@ -66,7 +65,6 @@ def load_garment_arg(args: argparse.Namespace, **options):
 def load_fabric(path: str | Path) -> Wallpaper:
     """The print of a FABRIC.json; a stripe print (``kind: stripes``, as `station detect`
     writes it) as the 1-D lattice that matches stripes across the seams."""
-
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such fabric file")
@@ -138,7 +136,6 @@ def garment_with_grain(garment, args: argparse.Namespace):
 def fabric_grain_deg(path: str | Path) -> float:
     """The fabric's grain direction in fabric space: FABRIC.json ``grain_deg``, else 0
     (the roll's length, fabric x)."""
-
     doc = read_json(Path(path))
     value = doc.get("grain_deg", 0.0) if isinstance(doc, dict) else 0.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:

@@ -78,7 +78,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _load_weights(path: str, garment) -> dict:
     """The seam weights of W.json, their names and indices checked against the garment."""
-
     weights = read_name_map(path, "weight", hi=1e6)
     try:
         garment.with_seam_weights(weights)

@@ -132,7 +132,6 @@ def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | No
     """Largest distance (mm) between the detected and true lattices' reduced basis
     vectors, matched up to order and sign (the same lattice has many bases)."""
 
-
     try:
         d = Wallpaper.from_dict(detected).reduced()
         t = Wallpaper.from_dict(truth).reduced()
