@@ -17,7 +17,7 @@ from solver.jsonfile import read_json
 from station.cliargs import load_config_arg, read_name_map
 from station.commands.console import add_console_arguments, ask
 from station.errors import UserError
-from station.pipeline import StationPipeline
+from station.steps.submission import check_job
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -69,12 +69,12 @@ def _table(text: str) -> tuple[float, float]:
 
 
 def _check_job(args: argparse.Namespace, fields: dict[str, Any]) -> None:
-    """Refuse here what no station could run, as the daemon does before queueing."""
+    """Refuse here what no station could run, with the daemon's own submission step."""
     for key in ("garment", "fabric"):
         if fields.get(key) is not None and not Path(fields[key]).is_file():
             raise UserError(f"{fields[key]}: no such {key} file")
-    StationPipeline(load_config_arg(args)).check(fields["garment"], fields.get("fabric"),
-                                                 fields.get("options") or {})
+    check_job(fields["garment"], fields.get("fabric"), fields.get("options") or {},
+              load_config_arg(args))
 
 
 class _Patience:
