@@ -38,11 +38,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
 from solver.align.brute import brute_force
-from solver.align.problem import AlignProblem, rot
+from solver.align.problem import AlignProblem
 from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
 from solver.align.tree_dp import tree_dp_placement
+from solver.geometry import rotation_matrices
 
 #: joint-grid points per cell axis inside the global method, by number of movable pieces,
 #: coarse first: each size searches the best candidate while the previous one found a
@@ -104,9 +105,9 @@ def _best_offset(problem: AlignProblem, angles, t, c: int, rec: np.ndarray, cell
         rec = rec[np.linspace(0, len(rec) - 1, score_sample).astype(int)]
     src = rec[np.linspace(0, len(rec) - 1, min(sample, len(rec))).astype(int)]
     o = fr.other[src]
-    q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[src] - t[o])
+    q_o = np.einsum("nji,nj->ni", rotation_matrices(angles[o]), fr.mid_other[src] - t[o])
     g_q = np.einsum("kij,nj->nki", ops[:, :2, :2], q_o) + ops[None, :, :2, 2]
-    rc = rot(angles[c])
+    rc = rotation_matrices(angles[c])
     zeros = fr.mid[src][:, None, :] - g_q @ rc.T  # t_c with q_c = g(q_o) exactly
     cand = np.concatenate([zeros.reshape(-1, 2), t[c] - cell @ rc.T, t[c][None]])
     cost = _cost(problem, angles, t, c, cand, rec)

@@ -17,12 +17,6 @@ from solver.align.kernels import seam_points
 from solver.wallpaper import Wallpaper
 
 
-def rot(angles: np.ndarray) -> np.ndarray:
-    """(..., ) angles -> (..., 2, 2) rotation matrices."""
-    c, s = np.cos(angles), np.sin(angles)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
-
-
 def apply_rt(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
     """R(angles)^T x for (...) angles and (..., 2) vectors, without building matrices."""
     c, s = np.cos(angles), np.sin(angles)

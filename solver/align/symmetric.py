@@ -28,14 +28,22 @@ minimises the garment's own E_fit over the same unknowns, j following i (`PairTi
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from solver.align.driver import align, grain_report, parse_fix
+from solver.align.grain import GrainRule
+from solver.align.problem import AlignProblem
+from solver.align.refine import _energy_grad, bfgs_refine
+from solver.fit import fit_report
+from solver.garment.grain import paired_grains
 from solver.garment.model import Garment
-from solver.garment.symmetry import FLIP, MirrorPair
-from solver.placement import Placement, rotation_matrices
+from solver.garment.symmetry import MirrorPair
+from solver.geometry import FLIP, rotation_matrices
+from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 
 MODES = ("mirror", "same")
@@ -205,12 +213,6 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     constraint's price: ``symmetry.e_fit_unconstrained_mm2`` beside ``e_fit_aligned_mm2``.
     ``fix`` names pieces as `align` does; the second piece of a pair follows its first.
     """
-    import time
-
-    from solver.align.driver import align, grain_report
-    from solver.fit import fit_report
-    from solver.garment.grain import paired_grains
-
     start = time.perf_counter()
     garment = garment.copy()  # the pairs' two pieces take mirrored grains
     garment.grain = paired_grains(garment.grains(), pairs)
@@ -305,11 +307,6 @@ def search_tied(garment: Garment, quotient: Garment, fabric: Wallpaper, tie: Pai
     every candidate scored on the whole garment in one batch), then BFGS over angles and
     translations within the grain limits. Returns (angles, translations, E_fit before).
     """
-    from solver.align.driver import parse_fix
-    from solver.align.grain import GrainRule
-    from solver.align.problem import AlignProblem
-    from solver.align.refine import _energy_grad, bfgs_refine
-
     weighted = garment.with_seam_weights(weights) if weights else garment
     full = AlignProblem.build(weighted, fabric, use_drape=use_drape)
     fix_rot, fix_trans = parse_fix(quotient, fix)
@@ -354,8 +351,6 @@ def _pair_grain_disagreement(garment: Garment, fabric: Wallpaper, rules: Sequenc
                              keep: np.ndarray) -> float:
     """Degrees by which a pair's second piece lies off its grain when its first lies
     exactly on grain (0 for a pair whose grain lines mirror each other)."""
-    from solver.align.grain import GrainRule
-
     if not rules:
         return 0.0
     grain = GrainRule.from_garment(garment, 0.0)  # the turns, whatever the fabric's grain

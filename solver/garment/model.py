@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.grain import PieceGrain, piece_grains
+from solver.garment.mesh import boundary_half_edges, connected_components
+from solver.geometry import polygon_area, signed_areas
 
 
 @dataclass(frozen=True)
@@ -184,7 +185,7 @@ class Garment:
     def boundary_half_edges(self) -> np.ndarray:
         """(B,2) int pattern boundary edges oriented as in their face (interior on the left)."""
         he = self.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        return _boundary_half_edges(he, self.n_vertices)
+        return boundary_half_edges(he, self.n_vertices)
 
     def piece_loops(self, i: int) -> list[np.ndarray]:
         """Vertex-index loops of piece ``i``: outer boundary first (CCW), then holes (CW)."""
@@ -204,7 +205,7 @@ class Garment:
 
     def piece_areas(self) -> np.ndarray:
         """(n_pieces,) float pattern area of each piece in mm^2."""
-        area = triangle_areas(self.uv, self.faces)
+        area = signed_areas(self.uv, self.faces)
         return np.bincount(self.piece_of_face(), weights=area, minlength=self.n_pieces)
 
     def piece_bboxes(self) -> np.ndarray:
@@ -219,14 +220,6 @@ class Garment:
 
 
 # ---------------------------------------------------------------------- helpers
-
-
-def triangle_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F,) signed area of each triangle in ``uv`` (positive = counter-clockwise)."""
-    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
-    return 0.5 * (
-        (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    )
 
 
 def unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -246,21 +239,6 @@ def unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     inv = np.empty(len(a), dtype=np.int64)
     inv[order] = np.cumsum(new) - 1
     return srt[new], inv
-
-
-def _boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    key = lo.astype(np.int64) * n + hi
-    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return he[counts[inv] == 1]
-
-
-def _components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of an n-vertex graph given (k,2) vertex pairs."""
-    graph = coo_matrix(
-        (np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n)
-    )
-    return connected_components(graph, directed=False)
 
 
 def _piece_loops(g: Garment) -> list[list[np.ndarray]]:
@@ -283,15 +261,10 @@ def _piece_loops(g: Garment) -> list[list[np.ndarray]]:
         if not loops:
             out.append([np.zeros(0, dtype=np.int64)])
             continue
-        areas = [_polygon_area(g.uv[lp]) for lp in loops]
+        areas = [polygon_area(g.uv[lp]) for lp in loops]
         order = np.argsort(-np.abs(areas), kind="stable")
         out.append([loops[k] for k in order])
     return out
-
-
-def _polygon_area(p: np.ndarray) -> float:
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def _check_extent(source: str | Path, points: np.ndarray, what: str) -> None:
@@ -355,7 +328,7 @@ def build_garment(
         _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
 
     # degenerate slivers: repeated corner or (numerically) zero pattern area
-    area = triangle_areas(uv, faces)
+    area = signed_areas(uv, faces)
     scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if n else 0.0
     repeated = (
         (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
@@ -372,7 +345,7 @@ def build_garment(
 
     # orientation: make every piece counter-clockwise in the pattern (before renumbering,
     # so that the numbering below is that of the faces as they will be written out)
-    _, comp = _components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
+    _, comp = connected_components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
     comp_of_face = comp[faces[:, 0]]
     comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
     flip = comp_area[comp_of_face] < 0
@@ -401,7 +374,7 @@ def build_garment(
     # pieces: connected components of the pattern mesh (labels follow vertex order, which
     # is the order in which pieces first appear in the faces)
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    n_pieces, piece_of_vertex = _components(n, he)
+    n_pieces, piece_of_vertex = connected_components(n, he)
 
     # pattern edges used by more than two faces make no sense in a sewing pattern
     lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
@@ -474,7 +447,7 @@ def _seam_lines(
     inc.data[:] = 1
     adj = (inc @ inc.T).tocoo()
     keep = pair_key[adj.row] == pair_key[adj.col]
-    _, label = _components(e, np.column_stack([adj.row[keep], adj.col[keep]]))
+    _, label = connected_components(e, np.column_stack([adj.row[keep], adj.col[keep]]))
     # number seam lines by their first seam edge
     _, first, inv = np.unique(label, return_index=True, return_inverse=True)
     rank = np.empty(len(first), dtype=np.int64)

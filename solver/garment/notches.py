@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from solver.garment.allowance import CutLine, dart_runs
+from solver.garment.allowance import CutLine, cut_lines, dart_runs
+from solver.garment.mesh import connected_components
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, fit_pairs, mirror_pairs, mirrored_edges
 
@@ -76,11 +77,9 @@ def _reference_side_first(uv: np.ndarray, rows: np.ndarray, forward) -> np.ndarr
     piece with itself may list either side first row by row); the longer one is the same
     on a seam and on its mirror image, so a pair's notches mirror. ``forward(u, v)``
     tells whether edges u->v run as in their faces."""
-    from solver.garment.model import _components
-
     verts, local = np.unique(rows, return_inverse=True)
     local = local.reshape(rows.shape)
-    _, comp = _components(len(verts), np.concatenate([local[:, :2], local[:, 2:]]))
+    _, comp = connected_components(len(verts), np.concatenate([local[:, :2], local[:, 2:]]))
     other = comp[local[:, 0]] != comp[local[0, 0]]  # a row listing the other side first
     rows = np.where(other[:, None], rows[:, [2, 3, 0, 1]], rows)
     as_in_face = forward(rows[:, 0], rows[:, 1])  # so that the first side chains
@@ -283,8 +282,6 @@ def cut_ready(garment: Garment, rules, placement=None,
     placement the balance notches sit on the print's lattice lines. Mirror ``pairs`` get
     mirrored allowances and notches; by default the pairs the placement records, else
     the garment's own (:func:`~solver.garment.symmetry.mirror_pairs`)."""
-    from solver.garment.allowance import cut_lines
-
     if pairs is None:
         pairs = placement_pairs(garment, placement)
     cuts = cut_lines(garment, rules, pairs)

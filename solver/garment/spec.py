@@ -33,10 +33,13 @@ from typing import Any
 import numpy as np
 import shapely
 import triangle
+from scipy.spatial.transform import Rotation
 
 import untrusted
 from solver.garment.errors import GarmentError
-from solver.garment.model import Garment, _boundary_half_edges, _components, build_garment
+from solver.garment.mesh import boundary_half_edges, connected_components
+from solver.garment.model import Garment, build_garment
+from solver.geometry import polygon_area, resample_polyline
 from solver.units import mm_per_unit, units_from_meter_fraction
 
 DEFAULT_RESOLUTION_MM = 20.0
@@ -113,18 +116,6 @@ def edge_polyline(
             raise ValueError(f"{where}: circle curvature needs [radius, large_arc, right]")
         return _arc(start, end, params, t)
     raise ValueError(f"{where}: unknown curvature type {kind!r}")
-
-
-def resample(poly: np.ndarray, n: int) -> np.ndarray:
-    """n+1 points at equal arc length along a polyline (ends kept exactly)."""
-    seg = np.linalg.norm(np.diff(poly, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if s[-1] == 0:
-        return np.repeat(poly[:1], n + 1, axis=0)
-    target = np.linspace(0.0, s[-1], n + 1)
-    out = np.column_stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])])
-    out[0], out[-1] = poly[0], poly[-1]
-    return out
 
 
 def _length(poly: np.ndarray) -> float:
@@ -210,10 +201,7 @@ def _check_size(path: Path, verts_mm: list[np.ndarray], res: float) -> None:
         if not span <= lim.MAX_GARMENT_MM:
             raise GarmentError(path, f"a panel spans {span:.3g} mm; a garment is at most "
                                f"{lim.MAX_GARMENT_MM:g} mm across (wrong units_in_meter?)")
-    x = [v[:, 0] for v in verts_mm]
-    y = [v[:, 1] for v in verts_mm]
-    area = sum(abs(float(np.dot(a, np.roll(b, -1)) - np.dot(np.roll(a, -1), b))) / 2
-               for a, b in zip(x, y))
+    area = sum(abs(polygon_area(v)) for v in verts_mm)
     faces = 2.3 * area / res**2
     if faces > lim.MAX_FACES:
         raise GarmentError(path, f"meshing at {res:g} mm would make about {faces:.3g} faces, "
@@ -288,7 +276,7 @@ def _panel_mesh(
             )
     tri = tri.astype(np.int64)
     total = n + len(interior)
-    bhe = _boundary_half_edges(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), total)
+    bhe = boundary_half_edges(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), total)
     on_boundary = np.minimum(bhe[:, 0], bhe[:, 1]) * total + np.maximum(bhe[:, 0], bhe[:, 1])
     k = np.arange(n)
     loop_keys = np.minimum(k, (k + 1) % n) * total + np.maximum(k, (k + 1) % n)
@@ -394,7 +382,7 @@ def load_spec(
         pts, starts = [], []
         for e, poly in enumerate(polys):
             starts.append(len(pts))
-            samples = resample(poly, counts[p][e])[:-1]
+            samples = resample_polyline(poly, counts[p][e])[:-1]
             pts.extend(samples)
             if _length(poly) == 0:
                 zero_edges += 1
@@ -441,7 +429,7 @@ def load_spec(
         pairs.append(np.column_stack([ia, ib]))
         twins.append(np.column_stack([ia[:-1], ia[1:], ib[:-1], ib[1:]]))
     all_pairs = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
-    _, point = _components(len(uv), all_pairs)
+    _, point = connected_components(len(uv), all_pairs)
     all_twins = np.concatenate(twins) if twins else np.zeros((0, 4), dtype=np.int64)
     return build_garment(
         uv,
@@ -473,8 +461,6 @@ def _panel_frame(panel: dict, k: float, shift: float) -> np.ndarray | None:
     if not (np.isfinite(rot).all() and np.isfinite(trans).all()) or not (
             rot.any() or trans.any()):
         return None
-    from scipy.spatial.transform import Rotation
-
     r = Rotation.from_euler("XYZ", rot, degrees=True).as_matrix()
     return np.column_stack([r[:, 0], r[:, 1], trans * k - r[:, 0] * shift])
 

@@ -13,7 +13,6 @@ vectors when a print is present.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +20,7 @@ import numpy as np
 import shapely
 
 import untrusted
+from solver.geometry import rotation_affine as rotation  # dxf_aama imports it from here
 from solver.jsonfile import read_json
 from solver.wallpaper import gauss_reduce
 
@@ -43,11 +43,6 @@ def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def invert(m: np.ndarray) -> np.ndarray:
     inv = np.linalg.inv(m[:, :2])
     return np.column_stack([inv, -inv @ m[:, 2]])
-
-
-def rotation(deg: float) -> np.ndarray:
-    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
-    return np.array([[c, -s, 0.0], [s, c, 0.0]])
 
 
 def angle_of(m: np.ndarray, mirrored: bool) -> float:

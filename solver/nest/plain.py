@@ -21,8 +21,9 @@ import numpy as np
 import shapely
 import spyrrow
 
+from solver.geometry import rotation_affine
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose, rotation
+from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose
 from solver.nest.layout import Layout, build_layout
 
 #: sparrow's constructive start plus how far it runs past its own clock, about this much
@@ -223,7 +224,7 @@ def _moves(items: list[Item], placed: dict, g: float) -> list[np.ndarray]:
     for it in items:
         ang, t = placed[it.key][used[it.key]]
         used[it.key] += 1
-        m = rotation(ang)
+        m = rotation_affine(ang)
         m[:, 2] = np.asarray(t) + shift
         moves.append(compose(m, MIRROR_X) if it.mirrored else m)
     return moves

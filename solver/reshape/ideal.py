@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.placement import Placement, rotation_matrices
+from solver.geometry import rotation_matrices
+from solver.placement import Placement
 
 # seam length (mm) that carries one unit of proximity weight: E_prox integrates along the
 # seams in these units, which sets its balance with the conformal, Dirichlet and bending

@@ -41,9 +41,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
+from cholespy import CholeskySolverD, MatrixType
+from scipy.spatial import cKDTree
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
+from solver.geometry import signed_areas
 from solver.reshape.ease import SeamSewing, across_only, ease_targets, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
@@ -51,7 +54,6 @@ from solver.reshape.energy import (
     length_constraints,
     move_barrier_diagonal,
     outline_bending_matrix,
-    signed_areas,
     stiffened_conformal_matrix,
 )
 from solver.reshape.ideal import (
@@ -123,8 +125,6 @@ class _Preconditioner:
     and scale pieces, so L-BFGS needs many more iterations.)"""
 
     def __init__(self, matrix: sp.spmatrix) -> None:
-        from cholespy import CholeskySolverD, MatrixType
-
         c = sp.coo_matrix(matrix)
         self.n = c.shape[0]
         self._chol = CholeskySolverD(self.n, c.row.astype(np.int32), c.col.astype(np.int32),
@@ -422,8 +422,6 @@ def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
     ends = np.unique(keys[counts == 1] // n_lines)
     if not len(ends):
         return smooth
-    from scipy.spatial import cKDTree
-
     boundary = np.unique(garment.boundary_half_edges())
     d, _ = cKDTree(garment.uv[ends]).query(garment.uv[boundary])
     smooth[boundary[d < options.corner_smooth_mm]] = options.corner_smooth_mm

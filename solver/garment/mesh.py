@@ -1,0 +1,31 @@
+"""Topology of a triangle mesh given as index arrays: its connected components and its
+boundary half-edges.
+
+The garment model, the specification importer, the openings and the symmetriser all ask
+these two questions; they live here, below every garment module, so that none of those
+imports another only for them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components as _scipy_components
+
+
+def connected_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of an n-vertex graph given (k, 2) vertex pairs: their number
+    and the (n,) label of each vertex."""
+    graph = coo_matrix(
+        (np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n)
+    )
+    return _scipy_components(graph, directed=False)
+
+
+def boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
+    """The (k, 2) half-edges of ``he`` (all half-edges of an n-vertex mesh) that have no
+    twin, i.e. whose undirected edge occurs once."""
+    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
+    key = lo.astype(np.int64) * n + hi
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return he[counts[inv] == 1]
