@@ -11,7 +11,8 @@ from pathlib import Path
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, SeamLine, build_garment
 from solver.garment.obj import load_obj, pair_partner, save_obj
-from solver.garment.spec import load_spec, save_spec
+from solver.garment.spec import load_spec
+from solver.garment.spec_save import save_spec
 from solver.units import MM_PER_UNIT, UNIT_CHOICES, mm_per_unit
 
 __all__ = [

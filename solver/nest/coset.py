@@ -38,11 +38,11 @@ from solver.nest.engine import (
     Board,
     Filler,
     clear_of,
-    default_resolution,
     exact_batches,
     moves_of,
     stamp,
 )
+from solver.nest.fill import default_resolution
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice

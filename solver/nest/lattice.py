@@ -22,7 +22,7 @@ from __future__ import annotations
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
 from solver.nest.dotted import MAX_OPTIONS, dotted_nest, positions
-from solver.nest.engine import fill_search, first_fill_estimate, problem_density
+from solver.nest.fill import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.naive import naive_moves

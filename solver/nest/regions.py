@@ -18,7 +18,7 @@ import shapely
 import untrusted
 from solver.jsonfile import read_json
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.engine import fill_search, first_fill_estimate
+from solver.nest.fill import fill_search, first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
 from solver.nest.plain import plain_moves
 

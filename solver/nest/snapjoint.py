@@ -19,7 +19,7 @@ import numpy as np
 import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.engine import first_fill_estimate
+from solver.nest.fill import first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice
