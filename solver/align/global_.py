@@ -195,50 +195,15 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     kw = {} if rotation_eps is None else {"rotation_eps": rotation_eps}
     paper = align_paper(problem, restarts=restarts, seed=seed, rotation=rotation,
                         translation=translation, progress=progress, **kw)
-    best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
     if not translation:  # rotations alone: E_fit needs positions, nothing more to search
-        return _result(paper, best_a, best_t, problem)
-    # distinct rotation solutions, best first
-    order = np.argsort(paper.energies, kind="stable")
-    picks = []
-    for k in order:
-        a = paper.all_angles[k]
-        if all(np.abs(np.angle(np.exp(1j * (a - paper.all_angles[j])))).max() > 1e-3
-               for j in picks):
-            picks.append(int(k))
-        if len(picks) >= candidates:
-            break
-    ang = paper.all_angles[picks]
-    t0 = paper.all_translations[picks]
-    # The rotational energy hardly sees one rotation common to all pieces, so the
-    # paper's fields come out at a random overall angle to the print; E_fit does see
-    # it. Screen a grid of common turns over one r-th of a turn (Eq. 9 + IRLS, batched)
-    # and carry the best few on.
+        return _result(paper, paper.angles, paper.translations, problem)
+    ang, t0 = _distinct_rotations(paper, candidates)
     if rotation and not problem.fix_rot.any():
-        steps = max(8, 24 // problem.rosy)
-        beta = 2 * np.pi * np.arange(steps) / (steps * problem.rosy)
-        free = ~problem.fix_rot
-        ang_b = (ang[:, None, :] + beta[None, :, None] * free).reshape(-1, problem.n_pieces)
-        if problem.grain is not None:
-            ang_b = problem.grain.project(ang_b, problem.rosy, problem.fix_rot)
-        t_b = np.repeat(t0, steps, axis=0)
-        t_b = optimise_translations(problem, ang_b, t_b, polish_rounds=1).t
-        t_b = irls_translations(problem, ang_b, t_b, iterations=8)
-        keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
-        ang, t0 = ang_b[keep], t_b[keep]
-    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
-                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
-    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
-    cand_t = np.concatenate([ts.t, t0])
-    cand_a = np.concatenate([ang, ang, ang])
-    cand_t = irls_translations(problem, cand_a, cand_t)
+        ang, t0 = _screen_common_turns(problem, ang, t0, candidates)
+    cand_a, cand_t = _tree_candidates(problem, ang, t0)
     zero = 1e-9 * float(paper.random_energies.mean())  # nothing below this matters
     for _ in range(sweeps if problem.energy(cand_a, cand_t).min() > zero else 0):
-        e = problem.energy(cand_a, cand_t)
-        top = np.argsort(e, kind="stable")[:candidates]
-        moved = cand_t.copy()
-        moved[top] = np.stack([exhaustive_sweep(problem, cand_a[i], cand_t[i]) for i in top])
-        cand_t = irls_translations(problem, cand_a, moved)
+        cand_t = _sweep_best(problem, cand_a, cand_t, candidates)
     e = problem.energy(cand_a, cand_t)
     if rotation and (~problem.fix_rot).any() and e.min() > zero:
         i = int(np.argmin(e))
@@ -248,49 +213,120 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         cand_t = np.concatenate([cand_t, t_h[None]])
         e = np.append(e, e_h)
     perfect = float(e.min()) <= zero
-    small = int((~problem.fix_trans).sum()) in GLOBAL_GRID and not perfect
-    if small:
-        # few movable pieces: the joint grid over all their translations is affordable;
-        # grids of several sizes, as their sample points interleave and a basin narrower
-        # than one grid step ranks among the best grid points of one size, not another.
-        # The grid is worth its cost only where the tree, sweeps and hops missed a basin:
-        # the sizes are tried in turn while they find a better one
-        i = int(np.argmin(e))
-        e_best = float(e[i])
-        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())]:
-            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid, polish=False)
-            cand_a = np.concatenate([cand_a, cand_a[i][None]])
-            cand_t = np.concatenate([cand_t, tb[None]])
-            e = np.append(e, eb)
-            if eb >= e_best * (1 - GRID_GAIN):
-                break
-            e_best = eb
-    top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
-    for i in top:
+    grids = GLOBAL_GRID.get(int((~problem.fix_trans).sum())) if not perfect else None
+    if grids:
+        cand_a, cand_t, e = _joint_grids(problem, cand_a, cand_t, e, grids)
+    _refine_best(problem, cand_a, cand_t, e, 0 if perfect else 2, rotation)
+    i = int(np.argmin(e))
+    if grids:
+        cand_a[i], cand_t[i], e[i] = _alternate(problem, cand_a[i], cand_t[i], float(e[i]),
+                                                grids, rotation)
+    best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
+    if e[i] < best_e:
+        best_a, best_t = cand_a[i], cand_t[i]
+    best_a, best_t = enforce_fixed(problem, best_a, best_t)
+    out = _result(paper, best_a, best_t, problem)
+    out.info["paper_energy"] = paper.energy
+    return out
+
+
+def _distinct_rotations(paper: AlignResult, candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``candidates`` of the paper's restarts with distinct rotations, best first:
+    their angles (c, P) and translations (c, P, 2)."""
+    picks: list[int] = []
+    for k in np.argsort(paper.energies, kind="stable"):
+        a = paper.all_angles[k]
+        if all(np.abs(np.angle(np.exp(1j * (a - paper.all_angles[j])))).max() > 1e-3
+               for j in picks):
+            picks.append(int(k))
+        if len(picks) >= candidates:
+            break
+    return paper.all_angles[picks], paper.all_translations[picks]
+
+
+def _screen_common_turns(problem: AlignProblem, ang: np.ndarray, t0: np.ndarray,
+                         candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rotational energy hardly sees one rotation common to all pieces, so the
+    paper's fields come out at a random overall angle to the print; E_fit does see it.
+    Screen a grid of common turns over one r-th of a turn (Eq. 9 + IRLS, batched) and
+    carry the best few on."""
+    steps = max(8, 24 // problem.rosy)
+    beta = 2 * np.pi * np.arange(steps) / (steps * problem.rosy)
+    free = ~problem.fix_rot
+    ang_b = (ang[:, None, :] + beta[None, :, None] * free).reshape(-1, problem.n_pieces)
+    if problem.grain is not None:
+        ang_b = problem.grain.project(ang_b, problem.rosy, problem.fix_rot)
+    t_b = np.repeat(t0, steps, axis=0)
+    t_b = optimise_translations(problem, ang_b, t_b, polish_rounds=1).t
+    t_b = irls_translations(problem, ang_b, t_b, iterations=8)
+    keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
+    return ang_b[keep], t_b[keep]
+
+
+def _tree_candidates(problem: AlignProblem, ang: np.ndarray, t0: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Per rotation three translation starts (the greedy tree, the tree DP, as given),
+    each optimised (Eq. 9 from the trees) and IRLS-polished."""
+    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
+                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
+    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
+    cand_a = np.concatenate([ang, ang, ang])
+    return cand_a, irls_translations(problem, cand_a, np.concatenate([ts.t, t0]))
+
+
+def _sweep_best(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                candidates: int) -> np.ndarray:
+    """One exhaustive sweep of the best ``candidates`` placements, then IRLS for all."""
+    top = np.argsort(problem.energy(cand_a, cand_t), kind="stable")[:candidates]
+    moved = cand_t.copy()
+    moved[top] = np.stack([exhaustive_sweep(problem, cand_a[i], cand_t[i]) for i in top])
+    return irls_translations(problem, cand_a, moved)
+
+
+def _joint_grids(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                 e: np.ndarray, grids: tuple[int, ...]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Few movable pieces: the joint grid over all their translations is affordable;
+    grids of several sizes, as their sample points interleave and a basin narrower than
+    one grid step ranks among the best grid points of one size, not another. The grid is
+    worth its cost only where the tree, sweeps and hops missed a basin: the sizes are
+    tried in turn while they find a better one. Each grid's answer is a new candidate."""
+    i = int(np.argmin(e))
+    e_best = float(e[i])
+    for grid in grids:
+        tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid, polish=False)
+        cand_a = np.concatenate([cand_a, cand_a[i][None]])
+        cand_t = np.concatenate([cand_t, tb[None]])
+        e = np.append(e, eb)
+        if eb >= e_best * (1 - GRID_GAIN):
+            break
+        e_best = eb
+    return cand_a, cand_t, e
+
+
+def _refine_best(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                 e: np.ndarray, n: int, rotation: bool) -> None:
+    """BFGS on the ``n`` best candidates, kept (in place) where it lowers E_fit."""
+    for i in np.argsort(e, kind="stable")[:n]:
         a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
                                 max_iter=60)
         if ei < e[i]:
             tt = irls_translations(problem, a[None], tt[None])[0]
             cand_a[i], cand_t[i] = a, tt
             e[i] = float(problem.energy(a[None], tt[None])[0])
-    i = int(np.argmin(e))
-    if small:
-        # alternate: the polished angles may open a better joint-grid basin; repeat while
-        # the grid finds one, so the answer is grid-optimal for its own final angles
-        a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
-        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())][:ALTERNATE_ROUNDS]:
-            tb, eb = brute_force(problem, a_i, t_i, grid=grid, polish=False)
-            if eb >= e_i * (1 - 1e-9):
-                break
-            a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
-            a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
-        cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i
-    if e[i] < best_e:
-        best_a, best_t, best_e = cand_a[i], cand_t[i], float(e[i])
-    best_a, best_t = enforce_fixed(problem, best_a, best_t)
-    out = _result(paper, best_a, best_t, problem)
-    out.info["paper_energy"] = paper.energy
-    return out
+
+
+def _alternate(problem: AlignProblem, a_i: np.ndarray, t_i: np.ndarray, e_i: float,
+               grids: tuple[int, ...], rotation: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    """The polished angles may open a better joint-grid basin: grid and BFGS in turn
+    while the grid finds one, so the answer is grid-optimal for its own final angles."""
+    for grid in grids[:ALTERNATE_ROUNDS]:
+        tb, eb = brute_force(problem, a_i, t_i, grid=grid, polish=False)
+        if eb >= e_i * (1 - 1e-9):
+            break
+        a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
+        a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
+    return a_i, t_i, e_i
 
 
 def _result(paper: AlignResult, a, t, problem: AlignProblem) -> AlignResult:

@@ -319,75 +319,24 @@ def build_garment(
     uv = np.asarray(uv, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
     point_of_vertex = np.asarray(point_of_vertex, dtype=np.int64)
-    n = uv.shape[0]
     if faces.size == 0:
         raise GarmentError(source, "no faces")
     _check_extent(source, uv, "sewing pattern")
     _check_not_degenerate(source, uv)
     if xyz is not None:
         _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
-
-    # degenerate slivers: repeated corner or (numerically) zero pattern area
-    area = signed_areas(uv, faces)
-    scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if n else 0.0
-    repeated = (
-        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    )
-    degenerate = repeated | (np.abs(area) <= 1e-14 * max(scale2, 1e-300))
-    if degenerate.any():
-        warnings.warn(
-            f"{source}: removed {int(degenerate.sum())} degenerate (zero-area) faces",
-            stacklevel=3,
-        )
-        faces, area = faces[~degenerate], area[~degenerate]
-        if faces.size == 0:
-            raise GarmentError(source, "all faces are degenerate")
-
-    # orientation: make every piece counter-clockwise in the pattern (before renumbering,
-    # so that the numbering below is that of the faces as they will be written out)
-    _, comp = connected_components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
-    comp_of_face = comp[faces[:, 0]]
-    comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
-    flip = comp_area[comp_of_face] < 0
-    if flip.any():
-        faces[flip] = faces[flip][:, [0, 2, 1]]
-
-    # renumber vertices by first appearance so that exports re-import in the same order
-    flat = faces.ravel()
-    used, first = np.unique(flat, return_index=True)
-    order = used[np.argsort(first, kind="stable")]
-    if len(order) < n:
-        warnings.warn(f"{source}: removed {n - len(order)} unused vertices", stacklevel=3)
-    remap = np.full(n, -1, dtype=np.int64)
-    remap[order] = np.arange(len(order))
-    faces = remap[faces]
-    uv = uv[order]
-    xyz = None if xyz is None else np.asarray(xyz, dtype=float)[order]
-    # compact 3D point ids too, numbered by first appearance
-    pts = point_of_vertex[order]
-    _, pfirst, pinv = np.unique(pts, return_index=True, return_inverse=True)
-    prank = np.empty(len(pfirst), dtype=np.int64)
-    prank[np.argsort(pfirst, kind="stable")] = np.arange(len(pfirst))
-    point_of_vertex = prank[pinv.ravel()]
-    n = len(order)
-
+    faces, area = _without_degenerate_faces(source, uv, faces)
+    # orientation before renumbering, so that the numbering below is that of the faces
+    # as they will be written out
+    _orient_counter_clockwise(len(uv), faces, area)
+    uv, faces, xyz, point_of_vertex, remap = _renumbered(source, uv, faces, xyz,
+                                                         point_of_vertex)
+    n = len(uv)
     # pieces: connected components of the pattern mesh (labels follow vertex order, which
     # is the order in which pieces first appear in the faces)
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     n_pieces, piece_of_vertex = connected_components(n, he)
-
-    # pattern edges used by more than two faces make no sense in a sewing pattern
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    _, inv, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
-    if counts.max() > 2:
-        bad = he[np.argmax(counts[inv])]
-        raise GarmentError(
-            source,
-            f"pattern edge {int(bad[0]) + 1}-{int(bad[1]) + 1} is used by "
-            f"{int(counts.max())} faces (non-manifold pattern)",
-        )
-    bhe = he[counts[inv] == 1]
-
+    bhe = _manifold_boundary(source, he, n)
     if twins is None:
         seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
     else:
@@ -395,10 +344,9 @@ def build_garment(
     # keep seam edges in a stable, readable order: by piece, then by vertex
     so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
     seam_edges = seam_edges[so]
-
     names = list(piece_names) if piece_names is not None else []
     panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
-    if len(names) != n_pieces:
+    if not panels_are_pieces:
         if piece_names is not None:
             warnings.warn(
                 f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
@@ -406,7 +354,6 @@ def build_garment(
                 stacklevel=3,
             )
         names = [f"piece{i}" for i in range(n_pieces)]
-
     seam_line_of_edge, seam_lines = _seam_lines(seam_edges, piece_of_vertex, n, names)
     return Garment(
         uv=uv,
@@ -427,6 +374,72 @@ def build_garment(
         source=str(source),
         kind=kind,
     )
+
+
+def _without_degenerate_faces(source: str | Path, uv: np.ndarray, faces: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """Faces without slivers (a repeated corner or numerically zero pattern area), with
+    a warning that says how many, and their (F,) signed areas."""
+    area = signed_areas(uv, faces)
+    scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if len(uv) else 0.0
+    repeated = (
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    )
+    degenerate = repeated | (np.abs(area) <= 1e-14 * max(scale2, 1e-300))
+    if degenerate.any():
+        warnings.warn(
+            f"{source}: removed {int(degenerate.sum())} degenerate (zero-area) faces",
+            stacklevel=4,
+        )
+        faces, area = faces[~degenerate], area[~degenerate]
+        if faces.size == 0:
+            raise GarmentError(source, "all faces are degenerate")
+    return faces, area
+
+
+def _orient_counter_clockwise(n: int, faces: np.ndarray, area: np.ndarray) -> None:
+    """Turn (in place) the faces of every piece whose pattern area is negative."""
+    _, comp = connected_components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
+    comp_of_face = comp[faces[:, 0]]
+    comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
+    flip = comp_area[comp_of_face] < 0
+    if flip.any():
+        faces[flip] = faces[flip][:, [0, 2, 1]]
+
+
+def _renumbered(source: str | Path, uv: np.ndarray, faces: np.ndarray,
+                xyz: np.ndarray | None, point_of_vertex: np.ndarray) -> tuple:
+    """Vertices renumbered by first appearance in the faces, so that exports re-import in
+    the same order (unused ones dropped, with a warning), 3D point ids compacted the
+    same way: ``(uv, faces, xyz, point_of_vertex, remap)``, ``remap`` old -> new id."""
+    n = len(uv)
+    used, first = np.unique(faces.ravel(), return_index=True)
+    order = used[np.argsort(first, kind="stable")]
+    if len(order) < n:
+        warnings.warn(f"{source}: removed {n - len(order)} unused vertices", stacklevel=4)
+    remap = np.full(n, -1, dtype=np.int64)
+    remap[order] = np.arange(len(order))
+    xyz = None if xyz is None else np.asarray(xyz, dtype=float)[order]
+    pts = point_of_vertex[order]
+    _, pfirst, pinv = np.unique(pts, return_index=True, return_inverse=True)
+    prank = np.empty(len(pfirst), dtype=np.int64)
+    prank[np.argsort(pfirst, kind="stable")] = np.arange(len(pfirst))
+    return uv[order], remap[faces], xyz, prank[pinv.ravel()], remap
+
+
+def _manifold_boundary(source: str | Path, he: np.ndarray, n: int) -> np.ndarray:
+    """The boundary half-edges of ``he``; a pattern edge used by more than two faces
+    makes no sense in a sewing pattern and is an error."""
+    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
+    _, inv, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
+    if counts.max() > 2:
+        bad = he[np.argmax(counts[inv])]
+        raise GarmentError(
+            source,
+            f"pattern edge {int(bad[0]) + 1}-{int(bad[1]) + 1} is used by "
+            f"{int(counts.max())} faces (non-manifold pattern)",
+        )
+    return he[counts[inv] == 1]
 
 
 def _seam_lines(
