@@ -336,24 +336,10 @@ def build_garment(
     # is the order in which pieces first appear in the faces)
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     n_pieces, piece_of_vertex = connected_components(n, he)
-    bhe = _manifold_boundary(source, he, n)
-    if twins is None:
-        seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
-    else:
-        seam_edges, boundary_3d = _explicit_twins(bhe, remap[np.asarray(twins)], source)
-    # keep seam edges in a stable, readable order: by piece, then by vertex
-    so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
-    seam_edges = seam_edges[so]
-    names = list(piece_names) if piece_names is not None else []
-    panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
-    if not panels_are_pieces:
-        if piece_names is not None:
-            warnings.warn(
-                f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
-                "connected pieces; using generic names",
-                stacklevel=3,
-            )
-        names = [f"piece{i}" for i in range(n_pieces)]
+    seam_edges, boundary_3d = _seam_edges(source, _manifold_boundary(source, he, n),
+                                          point_of_vertex, piece_of_vertex, twins, remap)
+    names = _piece_names(source, piece_names, n_pieces)
+    panels_are_pieces = piece_names is not None and len(piece_names) == n_pieces
     seam_line_of_edge, seam_lines = _seam_lines(seam_edges, piece_of_vertex, n, names)
     return Garment(
         uv=uv,
@@ -368,12 +354,43 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
+        # per-panel facts are kept only when the panels are the pieces
         panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),
         kind=kind,
     )
+
+
+def _seam_edges(source: str | Path, bhe: np.ndarray, point_of_vertex: np.ndarray,
+                piece_of_vertex: np.ndarray, twins: np.ndarray | None, remap: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Seam edges (E,4) from the importer's ``twins`` (input numbering) or inferred from
+    shared 3D points, in a stable, readable order (by piece, then by vertex), and the
+    boundary edges of the 3D garment."""
+    if twins is None:
+        seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
+    else:
+        seam_edges, boundary_3d = _explicit_twins(bhe, remap[np.asarray(twins)], source)
+    so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
+    return seam_edges[so], boundary_3d
+
+
+def _piece_names(source: str | Path, piece_names: list[str] | None, n_pieces: int
+                 ) -> list[str]:
+    """The importer's names when there is one per piece, else generic ones (with a
+    warning when names were given)."""
+    names = list(piece_names) if piece_names is not None else []
+    if len(names) != n_pieces:
+        if piece_names is not None:
+            warnings.warn(
+                f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
+                "connected pieces; using generic names",
+                stacklevel=4,
+            )
+        names = [f"piece{i}" for i in range(n_pieces)]
+    return names
 
 
 def _without_degenerate_faces(source: str | Path, uv: np.ndarray, faces: np.ndarray

@@ -330,25 +330,11 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     start_len = math.inf if start is None else max(
         float(shapely.Polygon(affine(m, it.ref)).bounds[2])
         for it, m in zip(items, start)) + problem.gap
-    cap = min(start_len, free_len * GROW_TARGET[-1])
-    search = CosetSearch(problem, items, cap, res, rng)
+    search = CosetSearch(problem, items, min(start_len, free_len * GROW_TARGET[-1]), res, rng)
     best = None if start is None else [search.filler.pose(k, m) for k, m in enumerate(start)]
     if free is not None:
-        snapped = [search.filler.pose(k, m)
-                   for k, m in enumerate(snap_to_lattice(problem, items, free))]
-        tries = [grow for grow in GROW_TARGET for _ in range(TRIES)]
-        for grow in tries:
-            target = min(free_len * grow, problem.length or math.inf)
-            if target >= start_len or deadline.expired():
-                break
-            trial = list(snapped)
-            attempt = deadline.within(max(ATTEMPT_MIN, ATTEMPT * deadline.left()))
-            if search.squeeze(trial, target, attempt):
-                best = trial
-                if progress:
-                    progress(f"coset search: snapped free nest separated at "
-                             f"{search.length_of(trial):.4g} (free {free_len:.4g})")
-                break
+        separated = _separated(search, free, free_len, start_len, deadline, progress)
+        best = best if separated is None else separated
     if best is None and free is not None:  # each piece to the free position nearest its own
         r = repair(problem, items, snap_to_lattice(problem, items, free),
                    time_limit=deadline, seed=seed, everything=True)
@@ -360,3 +346,25 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     if length >= start_len - 1e-9:
         return None  # nothing shorter than the marker it was given
     return moves_of(search.filler, best), length
+
+
+def _separated(search: CosetSearch, free: list[np.ndarray], free_len: float,
+               start_len: float, deadline: Deadline, progress: Progress | None
+               ) -> list | None:
+    """The free nest snapped to the lattice and separated on a strip a little longer than
+    it (longer after each failure, never as long as ``start_len``); None if it is not."""
+    problem, items = search.problem, search.items
+    snapped = [search.filler.pose(k, m)
+               for k, m in enumerate(snap_to_lattice(problem, items, free))]
+    for grow in [grow for grow in GROW_TARGET for _ in range(TRIES)]:
+        target = min(free_len * grow, problem.length or math.inf)
+        if target >= start_len or deadline.expired():
+            return None
+        trial = list(snapped)
+        attempt = deadline.within(max(ATTEMPT_MIN, ATTEMPT * deadline.left()))
+        if search.squeeze(trial, target, attempt):
+            if progress:
+                progress(f"coset search: snapped free nest separated at "
+                         f"{search.length_of(trial):.4g} (free {free_len:.4g})")
+            return trial
+    return None
