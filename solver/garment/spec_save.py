@@ -25,7 +25,8 @@ def save_spec(g: Garment, path: str | Path) -> None:
     writes); each seam twin pair becomes one stitch, with ``right_wrong`` where the two
     edges run the same way round their panels. Grain lines and notches are kept as panel
     entries ``grainline`` and ``notches``, the triangle mesh as ``mesh`` so that
-    :func:`load_spec` reads back exactly this pattern (any outline, any segment lengths).
+    :func:`~solver.garment.spec.load_spec` reads back exactly this pattern (any outline,
+    any segment lengths).
     Seams on holes cannot be expressed and are dropped with a warning. An outline that
     crosses itself (a reshaping artefact CAD cannot cut) is written as it is, with a warning.
     """
@@ -38,43 +39,14 @@ def save_spec(g: Garment, path: str | Path) -> None:
     crossed = []
     for i in range(g.n_pieces):
         loop = g.piece_loops(i)[0]
-        n = len(loop)
-        # panel-local numbering: outline first (the panel vertices), then the interior
-        mine = np.flatnonzero(g.piece_of_vertex == i)
-        interior = mine[~np.isin(mine, loop)]
-        local[loop] = np.arange(n)
-        local[interior] = n + np.arange(len(interior))
-        panels[names[i]] = {
-            "translation": [0.0, 0.0, 0.0],
-            "rotation": [0.0, 0.0, 0.0],
-            "vertices": (g.uv[loop] / 10.0).tolist(),
-            "edges": [{"endpoints": [k, (k + 1) % n]} for k in range(n)],
-            "mesh": {
-                "interior": (g.uv[interior] / 10.0).tolist(),
-                "triangles": local[g.faces[face_piece == i]].tolist(),
-            },
-        }
-        if n >= 3 and not shapely.LinearRing(g.uv[loop]).is_simple:
+        panels[names[i]] = _panel(g, i, loop, face_piece, local)
+        if len(loop) >= 3 and not shapely.LinearRing(g.uv[loop]).is_simple:
             crossed.append(names[i])
-        if i in g.grainlines:
-            panels[names[i]]["grainline"] = (np.asarray(g.grainlines[i]) / 10.0).tolist()
-        if g.notches.get(i):
-            panels[names[i]]["notches"] = (np.asarray(g.notches[i]) / 10.0).tolist()
-        for k in range(n):
-            a, b = int(loop[k]), int(loop[(k + 1) % n])
+        for k in range(len(loop)):
+            a, b = int(loop[k]), int(loop[(k + 1) % len(loop)])
             edge_of[(a, b)] = (names[i], k, +1)
             edge_of[(b, a)] = (names[i], k, -1)
-    stitches = []
-    lost = 0
-    for a, b, a2, b2 in g.seam_edges.tolist():
-        e1, e2 = edge_of.get((a, b)), edge_of.get((a2, b2))
-        if e1 is None or e2 is None:
-            lost += 1
-            continue
-        st: list[Any] = [{"panel": e1[0], "edge": e1[1]}, {"panel": e2[0], "edge": e2[1]}]
-        if e1[2] == e2[2]:
-            st.append("right_wrong")
-        stitches.append(st)
+    stitches, lost = _stitches(g, edge_of)
     if lost:
         warnings.warn(f"{path}: dropped {lost} seam edges that lie on holes", stacklevel=2)
     if crossed:
@@ -96,6 +68,48 @@ def save_spec(g: Garment, path: str | Path) -> None:
         },
     }
     path.write_text(json.dumps(spec, indent=1) + "\n", encoding="utf-8")
+
+
+def _panel(g: Garment, i: int, loop: np.ndarray, face_piece: np.ndarray,
+           local: np.ndarray) -> dict:
+    """Piece i as a panel (cm): its outline's straight edges, its mesh in panel-local
+    numbering (the outline first, then the interior; ``local`` is filled in), its grain
+    line and notches."""
+    n = len(loop)
+    mine = np.flatnonzero(g.piece_of_vertex == i)
+    interior = mine[~np.isin(mine, loop)]
+    local[loop] = np.arange(n)
+    local[interior] = n + np.arange(len(interior))
+    panel = {
+        "translation": [0.0, 0.0, 0.0],
+        "rotation": [0.0, 0.0, 0.0],
+        "vertices": (g.uv[loop] / 10.0).tolist(),
+        "edges": [{"endpoints": [k, (k + 1) % n]} for k in range(n)],
+        "mesh": {
+            "interior": (g.uv[interior] / 10.0).tolist(),
+            "triangles": local[g.faces[face_piece == i]].tolist(),
+        },
+    }
+    if i in g.grainlines:
+        panel["grainline"] = (np.asarray(g.grainlines[i]) / 10.0).tolist()
+    if g.notches.get(i):
+        panel["notches"] = (np.asarray(g.notches[i]) / 10.0).tolist()
+    return panel
+
+
+def _stitches(g: Garment, edge_of: dict) -> tuple[list, int]:
+    """One stitch per seam twin pair of outline edges; how many lie on holes (dropped)."""
+    stitches, lost = [], 0
+    for a, b, a2, b2 in g.seam_edges.tolist():
+        e1, e2 = edge_of.get((a, b)), edge_of.get((a2, b2))
+        if e1 is None or e2 is None:
+            lost += 1
+            continue
+        st: list[Any] = [{"panel": e1[0], "edge": e1[1]}, {"panel": e2[0], "edge": e2[1]}]
+        if e1[2] == e2[2]:
+            st.append("right_wrong")
+        stitches.append(st)
+    return stitches, lost
 
 
 def _unique_names(names: list[str]) -> list[str]:
