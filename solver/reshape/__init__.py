@@ -19,12 +19,12 @@ from solver.fit import fit_report
 from solver.garment.refine import refined
 from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams
 from solver.reshape.optimise import (  # the driver optimise() stays in its module, so
-    OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module
-    OptimiseState,
+    OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module: bound
+    OptimiseState,  # here under another name
     ReshapeOptions,
-    optimise,
     optimise_step,
 )
+from solver.reshape.optimise import optimise as _optimise
 from solver.reshape.quality import outline_roughness, seam_ease_changes, sewn_drift
 from solver.reshape.report import ReshapeReport, reshape_report
 
@@ -68,7 +68,7 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     levels = 0
     if options.refine and fit_report(garment, placement).e_fit_mm2 > 0:
         garment, levels = refined(garment, placement.fabric.covering_radius)
-    result = optimise(garment, placement, fixed=fixed, options=options, progress=progress,
+    result = _optimise(garment, placement, fixed=fixed, options=options, progress=progress,
                       pairs=pairs)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
