@@ -34,6 +34,7 @@ import numpy as np
 import shapely
 
 from solver.garment.drape import _edge_key, drape_up, limb_end_axes, open_edges
+from solver.garment.mesh import loop_edge_keys
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, mirror_pairs, mirrored_edges
 
@@ -189,7 +190,7 @@ def pair_allowances(garment: Garment, per_piece: list[list[np.ndarray]],
     """
     g, n = garment, garment.n_vertices
     loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
-    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
+    keys = loop_edge_keys(loops, n)
     values = np.concatenate([a for per_loop in per_piece for a in per_loop]).astype(float)
     order = np.argsort(keys)
     for pair in pairs:

@@ -41,7 +41,7 @@ from solver.garment.drape import (
     limb_end_axes,
     panel_positions,
 )
-from solver.geometry import FLIP
+from solver.geometry import FLIP, signed_areas
 
 SOURCES = ("file", "operator", "drape", "outline")
 LIMB_SPREAD = 0.45  # normals' 2nd / 1st spread above which a piece wraps around an axis
@@ -168,8 +168,7 @@ def outline_grain(garment) -> np.ndarray:
     """(P,) degrees: each piece's longest principal axis (area second moments), a guess."""
     f, uv = garment.faces, garment.uv
     p = uv[f]  # (F,3,2)
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    area = np.abs(signed_areas(uv, f))
     # second moment of a triangle about the origin: A/12 (sum v v^T + (sum v)(sum v)^T)
     s = p.sum(1)
     m2 = area[:, None, None] / 12.0 * (np.einsum("fki,fkj->fij", p, p)

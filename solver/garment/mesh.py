@@ -22,6 +22,13 @@ def connected_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     return _scipy_components(graph, directed=False)
 
 
+def loop_edge_keys(loops: list[np.ndarray], n: int) -> np.ndarray:
+    """Key ``a * n + b`` of every edge a->b of the closed vertex ``loops`` of an n-vertex
+    mesh (directed as the loops run, which is as in the faces for a piece's outline),
+    loop after loop."""
+    return np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])
+
+
 def boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
     """The (k, 2) half-edges of ``he`` (all half-edges of an n-vertex mesh) that have no
     twin, i.e. whose undirected edge occurs once."""

@@ -30,7 +30,7 @@ import numpy as np
 import shapely
 
 from solver.garment.allowance import CutLine, cut_lines, dart_runs
-from solver.garment.mesh import connected_components
+from solver.garment.mesh import connected_components, loop_edge_keys
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, fit_pairs, mirror_pairs, mirrored_edges
 
@@ -142,7 +142,7 @@ class _Notcher:
         self.depth_mm = depth_mm
         n = g.n_vertices
         loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
-        keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # as in the faces
+        keys = loop_edge_keys(loops, n)
         values = np.concatenate([a for c in cuts for a in (c.allowance, *c.hole_allowance)])
         order = np.argsort(keys)
         self.keys, self.values = keys[order], values[order]

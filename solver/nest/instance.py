@@ -20,6 +20,7 @@ import numpy as np
 import shapely
 
 import untrusted
+from solver.geometry import polygon_area
 from solver.geometry import rotation_affine as rotation  # dxf_aama imports it from here
 from solver.jsonfile import read_json
 from solver.wallpaper import gauss_reduce
@@ -64,8 +65,7 @@ def ccw_ring(points) -> np.ndarray:
         p = p[:-1]
     if len(p) < 3:
         raise ValueError(f"a piece outline needs at least 3 points, got {len(p)}")
-    x, y = p[:, 0], p[:, 1]
-    if np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) < 0:
+    if polygon_area(p) < 0:
         p = p[::-1]
     return p
 
