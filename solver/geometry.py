@@ -27,6 +27,19 @@ def rotation_matrices(angles: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
 
 
+def rotate(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``R(angles) x`` for ``(...)`` angles and ``(..., 2)`` vectors, without building
+    matrices."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], -1)
+
+
+def rotate_back(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``R(angles)^T x``: the inverse rotation of :func:`rotate`."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c * x[..., 0] + s * x[..., 1], c * x[..., 1] - s * x[..., 0]], -1)
+
+
 def rotation_matrix(angle: float) -> np.ndarray:
     """(2, 2) rotation by one scalar ``angle`` (radians), computed with :mod:`math`
     (a scalar path: no array dispatch for one matrix)."""
