@@ -55,14 +55,6 @@ ALTERNATE_ROUNDS = 3
 GRID_GAIN = 1e-3  # a joint grid "finds a better basin" when it lowers E_fit this much
 
 
-def _piece_graph(problem: AlignProblem) -> np.ndarray:
-    fr = problem.frames
-    rec = problem.live_records()
-    w = np.zeros((problem.n_pieces, problem.n_pieces))
-    np.add.at(w, (fr.piece[rec], fr.other[rec]), problem.record_weight[rec])
-    return w
-
-
 def _tree_order(problem: AlignProblem, w: np.ndarray):
     """Pieces in placement order with their tree parent (-1 for roots)."""
     p = problem.n_pieces
@@ -124,7 +116,7 @@ def tree_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
                    grid: int = 6, sample: int = 16, score_sample: int = 64) -> np.ndarray:
     """Translations (P,2) placed piece by piece along the seam tree (module docstring)."""
     fr = problem.frames
-    order, _ = _tree_order(problem, _piece_graph(problem))
+    order, _ = _tree_order(problem, problem.piece_weights())
     t = t.copy()
     placed = np.zeros(problem.n_pieces, bool)
     live = problem.live_records()

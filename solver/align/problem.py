@@ -125,6 +125,15 @@ class AlignProblem:
             ok &= np.isin(fr.piece, pieces)
         return np.flatnonzero(ok)
 
+    def piece_weights(self) -> np.ndarray:
+        """(P, P) summed weight of the live seam records of piece i facing piece j: the
+        piece graph the tree placements span."""
+        fr = self.frames
+        rec = self.live_records()
+        w = np.zeros((self.n_pieces, self.n_pieces))
+        np.add.at(w, (fr.piece[rec], fr.other[rec]), self.record_weight[rec])
+        return w
+
     # -------------------------------------------------------------- random starts
     def random_starts(self, rng: np.random.Generator, n: int):
         """(n,P) angles and (n,P,2) translations: uniform angle, uniform offset in a cell.

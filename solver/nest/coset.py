@@ -45,7 +45,7 @@ from solver.nest.engine import (
 from solver.nest.fill import default_resolution
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
-from solver.nest.regions import repair, snap_to_lattice
+from solver.nest.regions import near_pairs, repair, snap_to_lattice
 
 SHRINK = (0.03, 0.015, 0.007, 0.003)  # strip steps tried in turn, fraction of the length
 GROW = 1.5  # weight factor of a pair still colliding after a round of moves (sparrow: 1.2-2)
@@ -125,11 +125,7 @@ class CosetSearch:
         g = self.gap
         n = len(polys)
         polys = np.concatenate([polys, self.fixed])  # keep-outs never move (j >= n)
-        tree = shapely.STRtree(polys)
-        if g > 0:
-            i, j = tree.query(polys, predicate="dwithin", distance=g * (1 - 1e-7))
-        else:
-            i, j = tree.query(polys, predicate="intersects")
+        i, j = near_pairs(polys, g)
         keep = (i < j) & (i < n)
         i, j = i[keep], j[keep]
         if not len(i):
