@@ -338,15 +338,22 @@ class Filler:
         ci = np.concatenate([o[1] for o in options])
         t = np.concatenate([o[2] for o in options])
         order = np.argsort(sc, kind="stable")
+        return self._first_clear(item, board, order, ci, t, EXACT_CHECKS, deadline)
+
+    def _first_clear(self, item: Item, board: Board, order: np.ndarray, ci: np.ndarray,
+                     t: np.ndarray, limit: int, deadline: Deadline | None = None,
+                     ) -> tuple[int, np.ndarray] | None:
+        """The first of the first ``limit`` positions (candidate map ``ci``, translation
+        ``t``) in ``order`` that is clear of ``board`` by the exact check, in batches
+        with the deadline read between them; None if none is."""
         area = self.area[item.key]
-        for batch in exact_batches(min(len(order), EXACT_CHECKS)):
+        for batch in exact_batches(min(len(order), limit)):
             if deadline is not None and deadline.expired():
                 return None
             idx = order[batch]
-            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
             # all candidate maps of one item share the ring length
-            polys = shapely.polygons(rings + t[idx][:, None, :])
-            ok = board.clear_of(polys, area)
+            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
+            ok = board.clear_of(shapely.polygons(rings + t[idx][:, None, :]), area)
             if ok.any():
                 k = idx[np.argmax(ok)]
                 return int(ci[k]), t[k]
@@ -427,15 +434,7 @@ class Filler:
             options.append((top, np.full(len(t), ci), t))
         top, ci, t = (np.concatenate(o) for o in zip(*options))
         order = np.argsort(top, kind="stable")
-        for batch in exact_batches(min(len(order), 2 * EXACT_BATCH)):
-            idx = order[batch]
-            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
-            ok = board.clear_of(shapely.polygons(rings + t[idx][:, None, :]),
-                                self.area[item.key])
-            if ok.any():
-                pick = idx[np.argmax(ok)]
-                return int(ci[pick]), t[pick]
-        return None
+        return self._first_clear(item, board, order, ci, t, 2 * EXACT_BATCH)
 
     def pose(self, k: int, move: np.ndarray) -> tuple[int, np.ndarray]:
         """(candidate index, translation) of a given move of item ``k``."""
