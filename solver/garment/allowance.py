@@ -33,8 +33,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from solver.garment.drape import _edge_key, drape_up, limb_end_axes, open_edges
-from solver.garment.mesh import loop_edge_keys
+from solver.garment.drape import drape_up, limb_end_axes, open_edges
+from solver.garment.mesh import edge_keys, loop_edge_keys
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, mirror_pairs, mirrored_edges
 
@@ -154,9 +154,9 @@ def edge_allowances(garment: Garment, rules: AllowanceRules,
             raise ValueError(f"{where}no seam line, opening or piece {key!r}; seam lines are "
                              f"{', '.join(names) or 'none'}, openings open#0..open#"
                              f"{len(open_mm) - 1}, pieces take PIECE/open")
-    keys = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
-                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n),
-                           _edge_key(edges[:, 0], edges[:, 1], n)])
+    keys = np.concatenate([edge_keys(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
+                           edge_keys(g.seam_edges[:, 2], g.seam_edges[:, 3], n),
+                           edge_keys(edges[:, 0], edges[:, 1], n)])
     values = np.concatenate([seam_mm[g.seam_line_of_edge], seam_mm[g.seam_line_of_edge],
                              open_mm[opening]])
     order = np.argsort(keys, kind="stable")
@@ -167,7 +167,7 @@ def edge_allowances(garment: Garment, rules: AllowanceRules,
     for i in range(g.n_pieces):
         per_loop = []
         for loop in g.piece_loops(i):
-            k = _edge_key(loop, np.roll(loop, -1), n)
+            k = edge_keys(loop, np.roll(loop, -1), n)
             pos = np.clip(np.searchsorted(keys, k), 0, max(len(keys) - 1, 0))
             a = values[pos].copy() if len(keys) else np.full(len(loop), rules.opening_mm)
             if i in piece_open:

@@ -4,7 +4,8 @@ its openings (the open edges chained into necklines, hems and cuffs).
 The grain (:mod:`solver.garment.grain`) needs the up axis and a sleeve's axis; the seam
 allowance (:mod:`solver.garment.allowance`) needs to know which opening is a hem. Both
 read them here, so neither imports the other. Functions take any garment-like object
-(:class:`solver.garment.model.Garment`); this module imports no garment module.
+(:class:`solver.garment.model.Garment`); of the garment modules this one imports only
+the mesh helpers.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from solver.garment.mesh import connected_components
+from solver.garment.mesh import connected_components, edge_keys
 
 LIMB_ANGLE_DEG = 30.0  # a wrapped piece whose axis is this far from vertical is a limb
 PANEL_UP = np.array([0.0, 1.0, 0.0])  # specifications place their panels y-up (GarmentCode)
@@ -46,10 +47,6 @@ def panel_positions(garment) -> np.ndarray | None:
     return np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
 
 
-def _edge_key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
-
-
 def open_edges(garment, up: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Open boundary edges (sewn to nothing), the opening each belongs to, and whether hem.
@@ -60,9 +57,9 @@ def open_edges(garment, up: np.ndarray | None = None
     """
     g, n = garment, garment.n_vertices
     bhe = g.boundary_half_edges()
-    seam = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
-                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n)])
-    edges = bhe[~np.isin(_edge_key(bhe[:, 0], bhe[:, 1], n), seam)]
+    seam = np.concatenate([edge_keys(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
+                           edge_keys(g.seam_edges[:, 2], g.seam_edges[:, 3], n)])
+    edges = bhe[~np.isin(edge_keys(bhe[:, 0], bhe[:, 1], n), seam)]
     if len(edges) == 0:
         return edges, np.zeros(0, np.int64), np.zeros(0, bool)
     pts = g.point_of_vertex[edges]

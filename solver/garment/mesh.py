@@ -29,10 +29,14 @@ def loop_edge_keys(loops: list[np.ndarray], n: int) -> np.ndarray:
     return np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])
 
 
+def edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """Key of each undirected edge a-b of an n-vertex mesh (the same both ways round)."""
+    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+
+
 def boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
     """The (k, 2) half-edges of ``he`` (all half-edges of an n-vertex mesh) that have no
     twin, i.e. whose undirected edge occurs once."""
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    key = lo.astype(np.int64) * n + hi
+    key = edge_keys(he[:, 0], he[:, 1], n)
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     return he[counts[inv] == 1]

@@ -23,7 +23,7 @@ from scipy.sparse import coo_matrix
 import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.grain import PieceGrain, piece_grains
-from solver.garment.mesh import boundary_half_edges, connected_components
+from solver.garment.mesh import boundary_half_edges, connected_components, edge_keys
 from solver.geometry import polygon_area, signed_areas
 
 
@@ -447,8 +447,8 @@ def _renumbered(source: str | Path, uv: np.ndarray, faces: np.ndarray,
 def _manifold_boundary(source: str | Path, he: np.ndarray, n: int) -> np.ndarray:
     """The boundary half-edges of ``he``; a pattern edge used by more than two faces
     makes no sense in a sewing pattern and is an error."""
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    _, inv, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
+    _, inv, counts = np.unique(edge_keys(he[:, 0], he[:, 1], n), return_inverse=True,
+                               return_counts=True)
     if counts.max() > 2:
         bad = he[np.argmax(counts[inv])]
         raise GarmentError(
@@ -511,7 +511,7 @@ def _infer_twins(
         )
         bhe, pa, pb = bhe[~collapsed], pa[~collapsed], pb[~collapsed]
     n_points = int(point_of_vertex.max()) + 1
-    key3 = np.minimum(pa, pb) * n_points + np.maximum(pa, pb)
+    key3 = edge_keys(pa, pb, n_points)
     # sort by 3D key, then piece, then vertex so the first twin is deterministic
     order = np.lexsort((bhe[:, 0], piece_of_vertex[bhe[:, 0]], key3))
     bhe, key3 = bhe[order], key3[order]
@@ -554,14 +554,8 @@ def _explicit_twins(
     if not ((ok1_f | ok1_r) & ok2).all():
         raise GarmentError(source, "a stitched edge is not on a panel boundary")
     out = np.where(ok1_f[:, None], twins, twins[:, [1, 0, 3, 2]]).astype(np.int64)
-    used = np.unique(
-        np.concatenate(
-            [
-                np.minimum(out[:, 0], out[:, 1]) * n + np.maximum(out[:, 0], out[:, 1]),
-                np.minimum(out[:, 2], out[:, 3]) * n + np.maximum(out[:, 2], out[:, 3]),
-            ]
-        )
-    )
+    used = np.unique(np.concatenate([edge_keys(out[:, 0], out[:, 1], n),
+                                     edge_keys(out[:, 2], out[:, 3], n)]))
     if len(used) < 2 * len(out):
         raise GarmentError(source, "a pattern edge is sewn more than once")
     return out, len(bhe) - 2 * len(out)

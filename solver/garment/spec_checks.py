@@ -18,7 +18,7 @@ import shapely
 
 import untrusted
 from solver.garment.errors import GarmentError
-from solver.garment.mesh import boundary_half_edges
+from solver.garment.mesh import boundary_half_edges, edge_keys
 from solver.geometry import polygon_area
 
 
@@ -182,9 +182,9 @@ def panel_mesh(
     tri = tri.astype(np.int64)
     total = n + len(interior)
     bhe = boundary_half_edges(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), total)
-    on_boundary = np.minimum(bhe[:, 0], bhe[:, 1]) * total + np.maximum(bhe[:, 0], bhe[:, 1])
+    on_boundary = edge_keys(bhe[:, 0], bhe[:, 1], total)
     k = np.arange(n)
-    loop_keys = np.minimum(k, (k + 1) % n) * total + np.maximum(k, (k + 1) % n)
+    loop_keys = edge_keys(k, (k + 1) % n, total)
     missing = np.flatnonzero(~np.isin(loop_keys, on_boundary))
     if missing.size:
         raise GarmentError(
