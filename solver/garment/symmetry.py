@@ -86,16 +86,27 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
     n = garment.n_pieces
     declared = [_ordered(p, n) for p in declared]
     vetoed_set = {_ordered(p, n) for p in vetoed}
-    outlines = [garment.piece_outline(i) for i in range(n)]
-    labels = _seam_partner_per_boundary_edge(garment)
     out = fit_pairs(garment, declared)
     taken = {k for p in out for k in (p.first, p.second)}
+    for pair in _candidates(garment, taken, vetoed_set, tolerance):
+        if pair.first in taken or pair.second in taken:
+            continue
+        out.append(pair)
+        taken.update((pair.first, pair.second))
+    return _with_corresponding_seams(garment, out)
 
+
+def _candidates(garment: Garment, taken: set[int], vetoed: set[tuple[int, int]],
+                tolerance: float) -> list[MirrorPair]:
+    """Every pair of pieces not ``taken`` nor ``vetoed`` whose mirrored outlines fit within
+    ``tolerance``, best fit first."""
+    n = garment.n_pieces
+    outlines = [garment.piece_outline(i) for i in range(n)]
     area = np.abs(garment.piece_areas())
     candidates: list[MirrorPair] = []
     for i in range(n):
         for j in range(i + 1, n):
-            if {i, j} & taken or (i, j) in vetoed_set:
+            if {i, j} & taken or (i, j) in vetoed:
                 continue
             if abs(area[i] - area[j]) > 4 * tolerance * max(area[i], area[j]):
                 continue  # area differs more than a 1 % outline offset allows
@@ -103,15 +114,17 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
             rot, t, rms = _exact_or(garment, i, j, *_mirror_fit(outlines[i], outlines[j]))
             if rms <= tolerance * size:
                 candidates.append(MirrorPair(i, j, rms, size, rot, t))
-    for pair in sorted(candidates, key=lambda p: p.relative_rms):
-        if pair.first in taken or pair.second in taken:
-            continue
-        out.append(pair)
-        taken.update((pair.first, pair.second))
-    # Seams must correspond under the pairing itself: drop the worst pair until they do (a
-    # skirt's front and back are congruent, but sewn to different pieces than a pair is).
+    return sorted(candidates, key=lambda p: p.relative_rms)
+
+
+def _with_corresponding_seams(garment: Garment, pairs: list[MirrorPair]) -> list[MirrorPair]:
+    """Seams must correspond under the pairing itself: the worst pair is dropped until
+    they do (a skirt's front and back are congruent, but sewn to different pieces than a
+    pair is). Declared pairs stay."""
+    labels = _seam_partner_per_boundary_edge(garment)
+    out = list(pairs)
     while True:
-        sigma = _partner_map(out, n)
+        sigma = _partner_map(out, garment.n_pieces)
         score = [1.0 if p.declared else _seams_correspond(garment, p, labels, sigma)
                  for p in out]
         worst = int(np.argmin(score)) if out else -1
