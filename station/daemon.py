@@ -55,6 +55,7 @@ from station.jobstore import (
     interrupted_reason,
 )
 from station.storeengine import StoreUnavailable
+from station.web import ConsoleServer
 
 log = logging.getLogger("station.daemon")
 
@@ -154,6 +155,7 @@ class Daemon(AnswersFromMemory):
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._lock = threading.Lock()
+        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm"})  # the web console
         self.intake = Intake(self.work_dir / "inputs", getattr(pipeline, "check", None),
                              seconds=config["control"]["check_seconds"],
                              memory_bytes=config["control"]["check_memory_mb"] << 20,
@@ -168,11 +170,13 @@ class Daemon(AnswersFromMemory):
         try:
             self.recover()
             self.control.start()
+            self.console.start()
             log.info("serving on %s, job store %s%s", self.control.path, self.store.location,
                      f", station {self.fleet.info.name}" if self.fleet else "")
             self.run_loop(once)
         finally:
             self.intake.stop()
+            self.console.stop()
             self.control.stop()
             if self.fleet is not None:
                 self.fleet.stop()
