@@ -129,6 +129,7 @@ class Daemon(AnswersFromMemory):
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
+        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm"})  # refuses unsafe
         # first of all: a second daemon on this store (by any path or name) must leave
         # everything untouched
         self.lock = lock_store(config)
@@ -155,7 +156,6 @@ class Daemon(AnswersFromMemory):
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._lock = threading.Lock()
-        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm"})  # the web console
         self.intake = Intake(self.work_dir / "inputs", getattr(pipeline, "check", None),
                              seconds=config["control"]["check_seconds"],
                              memory_bytes=config["control"]["check_memory_mb"] << 20,

@@ -61,8 +61,9 @@ def parse_listen(text: str, where: str = "console.listen") -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def console_settings(config: Config) -> ConsoleSettings | None:
-    """The console's settings (None when ``console.listen`` is empty: no console).
+def console_listen(config: Config) -> tuple[str, int] | None:
+    """(host, port) of the console (None when ``console.listen`` is empty: no console),
+    checked without touching any file, so a daemon refuses before it takes anything.
 
     Listening beyond loopback without a token is refused: anyone on the network could
     otherwise pause or abort the machine.
@@ -71,15 +72,22 @@ def console_settings(config: Config) -> ConsoleSettings | None:
     if not section["listen"]:
         return None
     host, port = parse_listen(section["listen"])
-    token_file = section["token_file"]
-    if not token_file:
-        if not is_loopback(host):
-            raise ConsoleRefused(f"console.listen = {section['listen']} is not a loopback "
-                                 "address and console.token_file is empty: refusing to serve "
-                                 "the console to the network without a token")
-        return ConsoleSettings(host, port, None)
-    return ConsoleSettings(host, port, load_token(config.resolve(token_file),
-                                                  config["control"]["group"]))
+    if not section["token_file"] and not is_loopback(host):
+        raise ConsoleRefused(f"console.listen = {section['listen']} is not a loopback "
+                             "address and console.token_file is empty: refusing to serve "
+                             "the console to the network without a token")
+    return host, port
+
+
+def console_settings(config: Config) -> ConsoleSettings | None:
+    """The console's address and token (the token file is written if missing)."""
+    listen = console_listen(config)
+    if listen is None:
+        return None
+    token_file = config["console"]["token_file"]
+    token = load_token(config.resolve(token_file), config["control"]["group"]) \
+        if token_file else None
+    return ConsoleSettings(*listen, token)
 
 
 def load_token(path: Path, group: str = "") -> str:

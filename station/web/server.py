@@ -20,7 +20,7 @@ from urllib.parse import urlsplit
 import uvicorn
 
 from station.control import IDLE_SECONDS, MAX_CONNECTIONS
-from station.web.access import ConsoleSettings, console_settings
+from station.web.access import ConsoleSettings, console_listen, console_settings
 from station.web.app import ConsoleApp
 from station.web.feed import Feed
 from untrusted.limits import MAX_REQUEST_BYTES
@@ -67,6 +67,7 @@ class ConsoleServer:
     ``console.listen`` is empty."""
 
     def __init__(self, daemon: Any, questions: dict[str, str]) -> None:
+        console_listen(daemon.config)  # an unsafe address is refused before anything starts
         self.daemon = daemon
         self.questions = questions  # reason prefix -> the command that answers it
         self.settings: ConsoleSettings | None = None
@@ -82,7 +83,7 @@ class ConsoleServer:
         return f"http://{'[' + host + ']' if ':' in host else host}:{self.settings.port}/"
 
     def start(self) -> None:
-        """Check the settings (ConsoleRefused, one line, for an unsafe one) and listen. An
+        """Read the token (ConsoleRefused, one line, for a bad token file) and listen. An
         address already in use is logged and the station runs on without its screen."""
         self.settings = console_settings(self.daemon.config)
         if self.settings is None:
