@@ -1,7 +1,10 @@
 """Pictures for people: the pattern pieces over the print, seams coloured by mismatch.
 
 As in the paper's Fig. 1: every seam edge is drawn on both twins, coloured from green
-(0 mm) to red (``red_mm`` or more), over the print as it lies on each piece.
+(0 mm) to red (``red_mm`` or more), over the print as it lies on each piece. The print is
+always the fabric as it is: the rectified photograph of the table (:func:`photo_colours`),
+or, for a fabric given only as a FABRIC.json, its lattice ruled on plain cloth
+(:func:`lattice_colours`); never a motif invented for the group.
 """
 
 from __future__ import annotations
@@ -12,7 +15,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+import untrusted
+from gcode.program import program_moves
 from solver.fit import FitReport
+from solver.garment.grain import grain_lines
+from solver.jsonfile import read_json
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 
@@ -71,6 +78,23 @@ def photo_colours(photo: np.ndarray | None, mm_per_px: float, wallpaper) -> Colo
         return out.reshape(-1, 3)[:n]
 
     return colour_of
+
+
+def fabric_picture(fabric_path: str | Path, wallpaper) -> ColourOf | None:
+    """Colours of the print as the picture a FABRIC.json names shows it (``image``, with
+    ``mm_per_px``, as `station simulate-fabric` writes them beside the lattice), None
+    when it names no picture: the desk commands then rule the lattice on plain cloth.
+    The picture is read within the limits of any untrusted image."""
+    source = str(fabric_path)
+    doc = read_json(fabric_path)
+    if not isinstance(doc, dict) or doc.get("image") is None:
+        return None
+    image = Path(untrusted.text(doc["image"], source, "image", max_len=4096))
+    if not image.is_absolute():
+        image = Path(fabric_path).parent / image
+    mm_per_px = untrusted.number(doc.get("mm_per_px"), source, "mm_per_px", lo=0.0,
+                                 hi=1000.0, lo_open=True)
+    return photo_colours(untrusted.read_image(image), mm_per_px, wallpaper)
 
 
 def garment_credit(source: str | Path) -> str | None:
@@ -203,8 +227,6 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
 
 def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
     """Each piece's grain line, dark blue, arrow head at the grain's direction."""
-    from solver.garment.grain import grain_lines
-
     for tail, head in grain_lines(garment):
         a, b = to_px(np.array([tail])), to_px(np.array([head]))
         length = max(float(np.hypot(*(head - tail))) * scale, 1.0)
@@ -349,8 +371,6 @@ def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
 def program_paths(program) -> list[tuple[bool, int, np.ndarray]]:
     """Every move of a checked G-code program as (cutting, piece number or 0, (k, 2) points),
     as the program checker read it (`gcode.program.program_moves`)."""
-    from gcode.program import program_moves
-
     return [(on, piece, pts) for _, on, piece, pts in program_moves(program)]
 
 

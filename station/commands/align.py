@@ -130,9 +130,10 @@ def run(args: argparse.Namespace) -> int:
     rep["output"] = str(args.output)
     if args.png:
         from solver.fit import fit_report
-        from station.render import draw_fit
+        from station.render import draw_fit, fabric_picture
 
-        draw_fit(garment, placement, fit_report(garment, placement), args.png)
+        draw_fit(garment, placement, fit_report(garment, placement), args.png,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         rep["png"] = str(args.png)
     if args.json:
         print(json.dumps(rep))

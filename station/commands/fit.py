@@ -81,10 +81,11 @@ def run(args: argparse.Namespace) -> int:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
         from solver.garment.notches import cut_ready
-        from station.render import draw_fit
+        from station.render import draw_fit, fabric_picture
 
         cuts, notches = cut_ready(garment, rules, placement)
-        draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
+        draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         result["png"] = str(args.png)
     if args.front_view:
         from solver.garment.symmetry import mirror_pairs

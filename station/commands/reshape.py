@@ -193,9 +193,10 @@ def run(args: argparse.Namespace) -> int:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
         from solver.fit import fit_report
-        from station.render import draw_fit
+        from station.render import draw_fit, fabric_picture
 
-        draw_fit(new, placement, fit_report(new, placement), args.png, original=garment)
+        draw_fit(new, placement, fit_report(new, placement), args.png, original=garment,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         result["png"] = str(args.png)
     if args.json:
         print(json.dumps(result))

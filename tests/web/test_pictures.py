@@ -3,13 +3,20 @@
 from __future__ import annotations
 
 import ast
+import json
+from collections import Counter
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 import station.render
 from solver.wallpaper import Wallpaper
-from station.render import cloth_image, lattice_colours
+from station.cli import main
+from station.render import cloth_image, fabric_picture, lattice_colours
+
+GARMENT = Path(__file__).resolve().parents[1] / "data" / "garments" / "berkeley" / \
+    "tshirt-coarse.obj"
 
 CLOTH, LINE = (222, 226, 230), (150, 150, 150)
 
@@ -48,3 +55,33 @@ def test_the_cloth_under_a_marker_is_the_photograph():
     assert ruled.shape == (180, 300, 3)
     columns = np.flatnonzero((ruled[90] == LINE).all(axis=1))
     assert set(range(40, 300, 40)) <= set(columns) and len(columns) <= 2 * 8
+
+
+def test_a_fabric_file_that_names_its_picture_is_drawn_from_it(tmp_path):
+    """`station simulate-fabric` writes the tartan and its truth; `station fit --png` draws
+    the pieces over that tartan, sampled through the lattice, not over a stand-in."""
+    image, truth = tmp_path / "tartan.png", tmp_path / "TRUTH.json"
+    assert main(["simulate-fabric", "--classic", "tartan", "--repeat", "60", "--size", "120",
+                 "90", "--mm-per-px", "0.5", "-o", str(image), "--truth", str(truth)]) == 0
+    doc = json.loads(truth.read_text())
+    doc["image"] = image.name  # beside the FABRIC.json: found relative to it
+    truth.write_text(json.dumps(doc))
+    wallpaper = Wallpaper.from_dict(doc)
+    colour_of = fabric_picture(truth, wallpaper)
+    picture = cv2.imread(str(image))
+    inside = np.array([[20.0, 15.0], [33.5, 41.0], [47.0, 28.5]])  # mm, whole pixels
+    expected = picture[(inside[:, 1] / 0.5).astype(int), (inside[:, 0] / 0.5).astype(int)]
+    assert np.array_equal(colour_of(inside), expected)
+    far = inside + 7 * wallpaper.w1 - 4 * wallpaper.w2  # off the picture: one repeat away
+    assert np.abs(colour_of(far).astype(int) - expected).max() <= 2
+    plain = tmp_path / "plain.json"  # a FABRIC.json without a picture: the lattice only
+    plain.write_text(json.dumps({k: doc[k] for k in ("group", "w1", "w2")}))
+    assert fabric_picture(plain, wallpaper) is None
+    out = tmp_path / "fit.png"
+    assert main(["fit", str(GARMENT), "--fabric", str(truth), "--units", "m", "--png",
+                 str(out)]) == 0
+    # the tartan's own colours fill the pieces: its three commonest are the picture's
+    drawn = Counter(map(tuple, cv2.imread(str(out)).reshape(-1, 3).tolist()))
+    drawn.pop((245, 245, 245))  # the page around the pieces
+    woven = Counter(map(tuple, picture.reshape(-1, 3).tolist()))
+    assert [c for c, _ in drawn.most_common(3)] == [c for c, _ in woven.most_common(3)]
