@@ -84,7 +84,7 @@ class ConsoleApp:
             sent, quiet = -1, 0.0
             try:
                 while not self.feed.stopped and not await request.is_disconnected():
-                    if self.feed.version != sent:
+                    if self.feed.version not in (sent, 0):  # 0: nothing read yet
                         sent = self.feed.version
                         yield f"id: {sent}\ndata: {json.dumps(self.feed.view)}\n\n"
                         quiet = 0.0

@@ -2,9 +2,9 @@
 
 One thread reads the station a few times a second through the daemon's own read commands
 (``jobs``, the same answer as `station jobs`) and the job store (pieces, events), and
-keeps the latest view with a version number. Each page's event stream sends a view only
-when its version changed, so ten pages cost the store no more than one, and a page never
-asks the store anything itself.
+keeps the latest view with a version number. Each page's event stream looks at that
+number (in memory, ten times a second) and sends the view only when it changed, so ten
+pages cost the store no more than one, and a page never asks the store anything itself.
 """
 
 from __future__ import annotations
@@ -33,17 +33,13 @@ class Feed:
         self._events: deque[dict[str, Any]] = deque(maxlen=EVENTS_KEPT)
         self._last_event = 0
         self._stop = threading.Event()
-        self._changed = threading.Condition()
         self._thread = threading.Thread(target=self._run, name="console-feed", daemon=True)
 
     def start(self) -> None:
-        self.refresh()
         self._thread.start()
 
     def stop(self) -> None:
         self._stop.set()
-        with self._changed:
-            self._changed.notify_all()
         if self._thread.is_alive():
             self._thread.join(5)
 
@@ -51,28 +47,20 @@ class Feed:
     def stopped(self) -> bool:
         return self._stop.is_set()
 
-    def wait_newer(self, version: int, seconds: float) -> int:
-        """Block until the view is newer than ``version`` (or ``seconds`` pass, or the
-        feed stops); the version now."""
-        with self._changed:
-            self._changed.wait_for(lambda: self.version != version or self._stop.is_set(),
-                                   seconds)
-            return self.version
-
     def _run(self) -> None:
-        while not self._stop.wait(self.interval):
+        while True:
             try:
                 self.refresh()
             except Exception:  # the store away, say: the pages keep the last view
                 log.warning("console: reading the station failed", exc_info=True)
+            if self._stop.wait(self.interval):
+                return
 
     def refresh(self) -> None:
         view = self.read()
-        with self._changed:
-            if view != self.view:
-                self.view = view
-                self.version += 1
-                self._changed.notify_all()
+        if view != self.view:
+            self.view = view  # one assignment: a page reads the old view or the new one
+            self.version += 1
 
     def read(self) -> dict[str, Any]:
         """The view: this station, the fleet, jobs with their pieces, questions, events."""

@@ -19,6 +19,8 @@ import numpy as np
 import pytest
 
 from station.control import ControlError, request
+from station.daemon import wait_until
+from station.web.app import MAX_STREAMS
 
 GARMENT = Path(__file__).resolve().parents[1] / "data" / "garments" / "berkeley" / \
     "tshirt-coarse.obj"
@@ -167,3 +169,27 @@ def test_oversized_requests_are_refused(done_job, station):
     with pytest.raises(urllib.error.HTTPError) as refused:
         urllib.request.urlopen(req, timeout=5)
     assert refused.value.code == 413
+
+
+def test_live_views_are_bounded(done_job, station):
+    """Each open page holds one event stream; past MAX_STREAMS a newcomer is told to come
+    back (503), and a stream closed gives its seat back."""
+
+    def open_stream() -> tuple[http.client.HTTPResponse, http.client.HTTPConnection]:
+        conn = http.client.HTTPConnection("127.0.0.1", station.port, timeout=5)
+        conn.request("GET", "/api/events")
+        return conn.getresponse(), conn
+
+    opened = [open_stream() for _ in range(MAX_STREAMS + 1)]
+    statuses = [answer.status for answer, _ in opened]
+    assert statuses.count(200) <= MAX_STREAMS and statuses[-1] == 503, statuses
+    assert opened[0][0].read1(65536).startswith(b"id: ")  # a live view, sent at once
+    for _, conn in opened:
+        conn.close()
+
+    def seat_free() -> bool:
+        answer, conn = open_stream()
+        conn.close()
+        return answer.status == 200
+
+    assert wait_until(seat_free, 5)
