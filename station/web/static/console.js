@@ -164,6 +164,10 @@ async function loadDetail(jobId) {
   const img = $("#fit");
   if (fit) img.src = `/api/jobs/${jobId}/files/${fit}?v=${state.detailKey}`;
   else img.removeAttribute("src");
+  // a picture the job has not made yet is not shown as an empty frame
+  img.closest("figure").hidden = !fit;
+  $("#marker").closest("figure").hidden = !detail.marker;
+  $("#photo").closest("figure").hidden = !detail.fabric;
   paintPieces();
 }
 
