@@ -42,12 +42,23 @@ WATCH_MARKER = """() => {
 }"""
 
 
-@pytest.fixture(scope="module")
-def done_job(browser, station):
+def test_the_console_from_upload_to_cut_pieces(page, station):
+    """One job the whole way from the page, then what the page and the server show and
+    refuse about it. One test, so that the simulated job runs once on whichever xdist
+    worker takes it; each check below is named for what it shows."""
+    done_job = run_job_from_the_page(page, station)
+    the_station_asks_and_the_page_confirms_the_fabric(done_job, station)
+    the_page_shows_the_pieces_turning_to_cut(done_job, station)
+    the_page_of_a_done_job_shows_it_over_the_photographed_fabric(page, station)
+    pause_without_the_token_is_refused(page, station)
+    only_the_listed_pictures_of_a_job_are_served(station)
+    oversized_requests_are_refused(station)
+    live_views_are_bounded(station)
+
+
+def run_job_from_the_page(page, station) -> dict:
     """Job 1, submitted, confirmed and watched from the page until done: what the page
     showed of its pieces meanwhile, and the question it asked."""
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = context.new_page()
     page.goto(station.url)
     page.fill("#token", station.token)
     page.click("#token-form button")
@@ -66,11 +77,10 @@ def done_job(browser, station):
     page.wait_for_function("() => [...document.querySelectorAll('#marker polygon')]"
                            ".every((p) => p.dataset.state === 'cut')", timeout=5_000)
     seen = page.evaluate("window.cutCounts")
-    context.close()
     return {"asked": asked, "cut_counts": seen}
 
 
-def test_the_station_asks_and_the_page_confirms_the_fabric(done_job, station):
+def the_station_asks_and_the_page_confirms_the_fabric(done_job, station) -> None:
     assert "confirm fabric" in done_job["asked"]
     messages = [e["message"] for e in station.state()["events"] if e["job_id"] == 1]
     assert any(m.startswith("paused -> planning: fabric confirmed as") for m in messages), \
@@ -79,7 +89,7 @@ def test_the_station_asks_and_the_page_confirms_the_fabric(done_job, station):
     assert station.state()["questions"] == []
 
 
-def test_the_page_shows_the_pieces_turning_to_cut(done_job, station):
+def the_page_shows_the_pieces_turning_to_cut(done_job, station) -> None:
     pieces = station.state()["pieces"]["1"]
     assert len(pieces) >= 4 and all(p["state"] == "cut" for p in pieces)
     counts = [cut for cut, shown in done_job["cut_counts"]]
@@ -89,8 +99,7 @@ def test_the_page_shows_the_pieces_turning_to_cut(done_job, station):
     assert len({c for c in counts if 0 < c < len(pieces)}) >= 3, counts
 
 
-def test_the_page_of_a_done_job_shows_it_over_the_photographed_fabric(done_job, page,
-                                                                      station):
+def the_page_of_a_done_job_shows_it_over_the_photographed_fabric(page, station) -> None:
     page.goto(station.url)
     page.wait_for_selector('#jobs tr[data-job="1"][data-state="done"]')
     page.wait_for_selector("#marker polygon")
@@ -120,7 +129,7 @@ def test_the_page_of_a_done_job_shows_it_over_the_photographed_fabric(done_job, 
     assert r > 0.9, r
 
 
-def test_pause_without_the_token_is_refused(done_job, page, station):
+def pause_without_the_token_is_refused(page, station) -> None:
     page.goto(station.url)
 
     def post(path: str, token: str | None) -> tuple[int, dict]:
@@ -151,7 +160,7 @@ def _get(station, path: str, host: str | None = None) -> int:
     return status
 
 
-def test_only_the_listed_pictures_of_a_job_are_served(done_job, station):
+def only_the_listed_pictures_of_a_job_are_served(station) -> None:
     assert _get(station, "/api/jobs/1/files/rectified.png") == 200
     assert _get(station, "/api/jobs/1/files/marker.png") == 200
     for path in ("/api/jobs/1/files/layout.json", "/api/jobs/1/files/..%2F..%2Fjobs.db",
@@ -162,7 +171,7 @@ def test_only_the_listed_pictures_of_a_job_are_served(done_job, station):
     assert _get(station, "/api/state", host=f"attacker.example:{station.port}") == 421
 
 
-def test_oversized_requests_are_refused(done_job, station):
+def oversized_requests_are_refused(station) -> None:
     big = json.dumps({"group": "p4m", "pad": "x" * (70 << 10)}).encode()
     req = urllib.request.Request(station.url + "api/jobs/1/confirm", data=big, method="POST",
                                  headers={"X-Station-Token": station.token})
@@ -171,7 +180,7 @@ def test_oversized_requests_are_refused(done_job, station):
     assert refused.value.code == 413
 
 
-def test_live_views_are_bounded(done_job, station):
+def live_views_are_bounded(station) -> None:
     """Each open page holds one event stream; past MAX_STREAMS a newcomer is told to come
     back (503), and a stream closed gives its seat back."""
 
