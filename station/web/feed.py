@@ -48,11 +48,17 @@ class Feed:
         return self._stop.is_set()
 
     def _run(self) -> None:
+        failing = False
         while True:
             try:
                 self.refresh()
-            except Exception:  # the store away, say: the pages keep the last view
-                log.warning("console: reading the station failed", exc_info=True)
+            except Exception as exc:  # the store away, say: the pages keep the last view
+                if not failing:  # once per outage, not four times a second
+                    log.warning("console: reading the station failed (%s); the pages show "
+                                "the last view", exc)
+                failing = True
+            else:
+                failing = False
             if self._stop.wait(self.interval):
                 return
 
