@@ -70,7 +70,13 @@ class ConsoleApp:
     async def index(self, _request: Request) -> Response:
         return FileResponse(STATIC / "index.html")
 
-    async def state(self, _request: Request) -> Response:
+    def state(self, _request: Request) -> Response:
+        """The view once (read now), for a script or a page before its stream opens."""
+        try:
+            self.feed.refresh()
+        except Exception as exc:  # the store away: the last view, and why it is old
+            return JSONResponse({"version": self.feed.version, **self.feed.view,
+                                 "stale": str(exc)})
         return JSONResponse({"version": self.feed.version, **self.feed.view})
 
     async def events(self, request: Request) -> Response:
@@ -78,9 +84,11 @@ class ConsoleApp:
         to keep proxies from closing a quiet stream."""
         if self.streams >= MAX_STREAMS:
             return JSONResponse({"ok": False, "error": "too many console pages open"}, 503)
-        self.streams += 1
 
         async def stream():
+            # counted from inside: a client gone before its stream began never holds a seat
+            self.streams += 1
+            self.feed.watch()
             sent, quiet = -1, 0.0
             try:
                 while not self.feed.stopped and not await request.is_disconnected():
@@ -95,6 +103,7 @@ class ConsoleApp:
                     quiet += 0.1
             finally:
                 self.streams -= 1
+                self.feed.unwatch()
 
         return StreamingResponse(stream(), media_type="text/event-stream",
                                  headers={"Cache-Control": "no-store"})

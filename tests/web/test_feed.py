@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from station.config import load_config
-from station.daemon import CONFIRM_FABRIC, Daemon
+from station.daemon import CONFIRM_FABRIC, Daemon, wait_until
 from station.web.feed import Feed
 
 _spec = importlib.util.spec_from_file_location(
@@ -68,3 +68,22 @@ def test_the_view_holds_the_fleet_the_jobs_their_pieces_and_the_questions(daemon
     # the log is read on from where it stopped: each event once
     ids = [e["id"] for e in feed.view["events"]]
     assert ids == sorted(set(ids)) and len(ids) == len(store.events())
+
+
+def test_nobody_watching_means_no_reading(daemon, tmp_path):
+    """The streamer shares the interpreter with the feed: with no page open, the feed reads
+    nothing; the first page makes it read, within one interval."""
+    feed = Feed(daemon, {}, interval=0.05)
+    feed.start()
+    try:
+        daemon.store.submit(str(tmp_path / "shirt.obj"), None, {})
+        assert not wait_until(lambda: feed.version > 0, 0.5)
+        feed.watch()
+        assert wait_until(lambda: feed.version > 0, 2)
+        assert [j["state"] for j in feed.view["jobs"]] == ["submitted"]
+        feed.unwatch()
+        seen = feed.version
+        daemon.store.submit(str(tmp_path / "skirt.obj"), None, {})
+        assert not wait_until(lambda: feed.version > seen, 0.5)
+    finally:
+        feed.stop()

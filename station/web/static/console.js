@@ -138,8 +138,9 @@ function showEvents(events) {
 function showJob() {
   const job = state.view.jobs.find((j) => j.id === state.selected);
   if (!job) return;
-  const progress = job.progress && job.progress.step ? ` (${job.progress.step}`
-    + (job.progress.fraction !== undefined ? ` ${Math.round(100 * job.progress.fraction)} %)` : ")") : "";
+  const now = state.view.progress && state.view.progress.job === job.id ? state.view.progress : null;
+  const progress = now && now.step ? ` (${now.step}`
+    + (now.fraction !== undefined ? ` ${Math.round(100 * now.fraction)} %)` : ")") : "";
   $("#job-title").textContent = `Job ${job.id}: ${job.state}${progress}`;
   $("#job").dataset.state = job.state;
   $("#job-reason").textContent = job.reason || "";
