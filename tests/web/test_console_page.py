@@ -53,6 +53,7 @@ def test_the_console_from_upload_to_cut_pieces(page, station):
     pause_without_the_token_is_refused(page, station)
     only_the_listed_pictures_of_a_job_are_served(station)
     oversized_requests_are_refused(station)
+    a_broken_pattern_is_refused_and_nothing_queued(station)
     live_views_are_bounded(station)
 
 
@@ -178,6 +179,29 @@ def oversized_requests_are_refused(station) -> None:
     with pytest.raises(urllib.error.HTTPError) as refused:
         urllib.request.urlopen(req, timeout=5)
     assert refused.value.code == 413
+
+
+def a_broken_pattern_is_refused_and_nothing_queued(station) -> None:
+    """The page's upload goes through the same intake as `station submit`: a pattern that
+    cannot be read is refused by name, nothing is queued and the upload is removed."""
+
+    def post(path: str, data: bytes) -> tuple[int, dict]:
+        req = urllib.request.Request(station.url + path, data=data, method="POST",
+                                     headers={"X-Station-Token": station.token})
+        try:
+            with urllib.request.urlopen(req, timeout=60) as answer:
+                return answer.status, json.load(answer)
+        except urllib.error.HTTPError as refused:
+            return refused.code, json.load(refused)
+
+    jobs_before = len(station.state()["jobs"])
+    status, sent = post("api/uploads?name=broken.obj", b"v 0 0 0\nf 1 2 3\n")
+    assert status == 200 and sent["upload"].endswith("/broken.obj"), sent
+    status, answer = post("api/submit", json.dumps({"garment": sent["upload"]}).encode())
+    assert status == 409 and "broken.obj" in answer["error"], answer
+    assert len(station.state()["jobs"]) == jobs_before
+    assert not (station.work / "uploads" / sent["upload"]).parent.exists()
+    assert post("api/uploads?name=../x.obj", b"v 0 0 0\n")[0] == 400
 
 
 def live_views_are_bounded(station) -> None:
