@@ -112,6 +112,8 @@ def the_page_of_a_done_job_shows_it_over_the_photographed_fabric(page, station) 
     assert shown == ["cut"] * len(layout["pieces"])
     assert page.locator("#marker line.grain").count() == len(names)
     assert "at confidence" in page.inner_text("#fabric-group")
+    links = page.eval_on_selector_all("#file-links a", "as => as.map((a) => a.textContent)")
+    assert {"frame.png", "detection.png", "marker.png", "toolpath.png"} <= set(links), links
     page.wait_for_function("() => document.querySelector('#fit').naturalWidth > 0")
     page.wait_for_selector("#photo .lattice line")
     page.wait_for_timeout(300)  # the marker's background picture, once decoded

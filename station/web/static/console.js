@@ -165,6 +165,8 @@ async function loadDetail(jobId) {
   const img = $("#fit");
   if (fit) img.src = `/api/jobs/${jobId}/files/${fit}?v=${state.detailKey}`;
   else img.removeAttribute("src");
+  $("#file-links").replaceChildren(...detail.pictures.map((name) => el("a",
+    { href: `/api/jobs/${jobId}/files/${name}`, target: "_blank", rel: "noopener" }, name)));
   // a picture the job has not made yet is not shown as an empty frame
   img.closest("figure").hidden = !fit;
   $("#marker").closest("figure").hidden = !detail.marker;
