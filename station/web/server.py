@@ -2,14 +2,15 @@
 
 Starlette and uvicorn (see pyproject.toml) serve it: the daemon's threads stay as they are,
 the console only reads the store and calls the control handler, and a stop closes it in a
-second. Connections are bounded like the control socket's (64 at once, 5 s to send a
-request, request heads of 64 KiB); a request whose Host is not the station's own name is
-refused when listening on loopback, so a web page elsewhere cannot reach the console
-through DNS rebinding.
+second. Connections are bounded like the control socket's: 64 at once, 5 s to send each
+request head (from the connection or the last answer, `TimedHeads`), heads of 64 KiB. A
+request whose Host is not the station's own name is refused when listening on loopback,
+so a web page elsewhere cannot reach the console through DNS rebinding.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import socket
 import threading
@@ -18,6 +19,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import uvicorn
+from uvicorn.protocols.http.h11_impl import H11Protocol
 
 from station.control import IDLE_SECONDS, MAX_CONNECTIONS
 from station.web.access import ConsoleSettings, console_listen, console_settings
@@ -62,6 +64,46 @@ class Guard:
         await self.app(scope, receive, guarded_send)
 
 
+class TimedHeads(H11Protocol):
+    """HTTP/1.1 (h11) whose every request head must arrive within IDLE_SECONDS of the
+    connection, or of the last answer, as on the control socket. uvicorn times out only an
+    idle keep-alive connection, and not once its first byte came: without this, 64 clients
+    connecting and sending nothing (or a byte at a time) would keep the console away."""
+
+    head_timer: asyncio.TimerHandle | None = None
+    waited_after: Any = None  # the request-response cycle after which a head is awaited
+
+    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+        super().connection_made(transport)
+        self._await_head()
+
+    def data_received(self, data: bytes) -> None:
+        super().data_received(data)
+        if self.cycle is not self.waited_after and self.head_timer is not None:
+            self.head_timer.cancel()  # a whole request head came: it is being answered
+            self.head_timer = None
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()
+        self._await_head()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self.head_timer is not None:
+            self.head_timer.cancel()
+        super().connection_lost(exc)
+
+    def _await_head(self) -> None:
+        if self.head_timer is not None:
+            self.head_timer.cancel()
+        self.waited_after = self.cycle
+        self.head_timer = self.loop.call_later(IDLE_SECONDS, self._too_slow)
+
+    def _too_slow(self) -> None:
+        self.head_timer = None
+        if self.cycle is self.waited_after and not self.transport.is_closing():
+            self.transport.close()
+
+
 class ConsoleServer:
     """Started by the daemon's ``serve`` and stopped with it; nothing when
     ``console.listen`` is empty."""
@@ -99,8 +141,8 @@ class ConsoleServer:
         app = ConsoleApp(self.daemon, self.feed, self.settings.token,
                          self.daemon.config.resolve(self.daemon.config["store"]["work_dir"]))
         hosts = (LOOPBACK_HOSTS | {self.settings.host}) if self.settings.loopback else None
-        config = uvicorn.Config(Guard(app.starlette(), hosts), log_level="warning",
-                                access_log=False, lifespan="off",
+        config = uvicorn.Config(Guard(app.starlette(), hosts), http=TimedHeads,
+                                log_level="warning", access_log=False, lifespan="off",
                                 limit_concurrency=MAX_CONNECTIONS,
                                 timeout_keep_alive=int(IDLE_SECONDS),
                                 timeout_graceful_shutdown=1,

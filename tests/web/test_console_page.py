@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import http.client
 import json
+import socket
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -46,6 +47,7 @@ def test_the_console_from_upload_to_cut_pieces(page, station):
     """One job the whole way from the page, then what the page and the server show and
     refuse about it. One test, so that the simulated job runs once on whichever xdist
     worker takes it; each check below is named for what it shows."""
+    silent, trickling = slow_clients(station)  # checked once the job is done
     done_job = run_job_from_the_page(page, station)
     the_station_asks_and_the_page_confirms_the_fabric(done_job, station)
     the_page_shows_the_pieces_turning_to_cut(done_job, station)
@@ -55,6 +57,20 @@ def test_the_console_from_upload_to_cut_pieces(page, station):
     oversized_requests_are_refused(station)
     a_broken_pattern_is_refused_and_nothing_queued(station)
     live_views_are_bounded(station)
+    for client in (silent, trickling):  # long closed by the console, as the socket does
+        assert client.recv(1024) == b""
+        client.close()
+
+
+def slow_clients(station) -> tuple[socket.socket, socket.socket]:
+    """A client that connects and says nothing, and one that sends half a request head:
+    each would hold one of the console's connections for ever if nothing timed heads."""
+    silent = socket.create_connection(("127.0.0.1", station.port))
+    trickling = socket.create_connection(("127.0.0.1", station.port))
+    trickling.sendall(b"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+    for client in (silent, trickling):
+        client.settimeout(2.0)
+    return silent, trickling
 
 
 def run_job_from_the_page(page, station) -> dict:
