@@ -41,9 +41,9 @@ import numpy as np
 
 import simulators.grbl.codes as C
 from simulators.grbl.faults import Faults
-from simulators.grbl.parser import preparse
 from simulators.grbl.parser_state import GrblError, ParserState
 from simulators.grbl.system import SystemCommands
+from simulators.grbl.words import preparse
 
 __all__ = ["Faults", "GrblEmulator"]
 
