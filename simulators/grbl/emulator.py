@@ -68,11 +68,9 @@ class GrblEmulator(SystemCommands):
                  force_origin: bool = False, name: str | None = None,
                  settings: dict[int, float] | None = None, realtime: bool = True,
                  paced: bool = True):
-        if not speed > 0:
-            raise ValueError(f"speed must be > 0, got {speed!r}")
-        self.speed = float(speed)
+        super().__init__(speed=speed, faults=faults, force_origin=force_origin,
+                         settings=settings)
         self.name = name
-        super().__init__(faults=faults, force_origin=force_origin, settings=settings)
         with self._cond:
             self._power_on()
         self._stopped = False

@@ -29,8 +29,11 @@ class MachineState:
     Every method expects the caller to hold ``self._cond``'s lock.
     """
 
-    def __init__(self, *, faults: Faults | None, force_origin: bool,
+    def __init__(self, *, speed: float, faults: Faults | None, force_origin: bool,
                  settings: dict[int, float] | None):
+        if not speed > 0:
+            raise ValueError(f"speed must be > 0, got {speed!r}")
+        self.speed = float(speed)  # simulated seconds per wall second (`$I` reports it)
         self.faults = faults or Faults()
         self.force_origin = force_origin  # build option HOMING_FORCE_SET_ORIGIN ('Z' in OPT)
         self._cond = threading.Condition(threading.RLock())
