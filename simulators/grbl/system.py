@@ -18,8 +18,10 @@ from simulators.grbl.executor import Executor
 from simulators.grbl.parser_state import GrblError, Params, fmt, gc_report
 
 
-def _clamp_pct(lo: float, hi: float):
-    def make(delta: float):
+def _clamp_pct(lo: float, hi: float) -> Callable[[float], Callable[[float], float]]:
+    """Override steps: ``make(delta)`` adds ``delta`` percent, kept within [lo, hi]."""
+
+    def make(delta: float) -> Callable[[float], float]:
         return lambda v: min(max(v + delta, lo), hi)
 
     return make
