@@ -60,8 +60,10 @@ class _Block:
               settings: dict[int, float], jog: bool) -> _Block:
         axis_words = {k: v for k, v in words.values.items() if k in AXIS}
         axis_command = words.axis_command or ("motion" if axis_words else None)
-        return cls(words, state, copy.deepcopy(state), copy.deepcopy(params), settings, jog,
-                   axis_words, set("NFST") | set(axis_words), axis_command)
+        return cls(words=words, old=state, new=copy.deepcopy(state),
+                   params=copy.deepcopy(params), settings=settings, jog=jog,
+                   axis_words=axis_words, used=set("NFST") | set(axis_words),
+                   axis_command=axis_command)
 
     @property
     def values(self) -> dict[str, float]:
