@@ -67,8 +67,9 @@ from vision.consistency import (
     repeat_spectra,
     rounding_slack,
 )
-from vision.lattice import LatticeResult, prepare_image
+from vision.lattice import LatticeResult
 from vision.neighbours import neighbour_correlation, print_band, worse_likeness
+from vision.prepare import prepare_image
 from vision.subgroups import is_subgroup
 from vision.whitening import symmetric_metric, whitened, whitening
 

@@ -15,7 +15,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from vision.lattice import LatticeResult, _refine, autocorrelation, prepare_image
+from vision.autocorrelation import autocorrelation
+from vision.basis import refine_basis
+from vision.lattice import LatticeResult
+from vision.prepare import prepare_image
 
 __all__ = ["Distortion", "local_lattices", "measure_distortion"]
 
@@ -69,7 +72,7 @@ def local_lattices(flat: np.ndarray, basis: np.ndarray, *, grid: int = 3
             if side < 2.5 * longest:
                 continue
             acf, wacf = autocorrelation(cv2.GaussianBlur(tile, (0, 0), 1.0))
-            b, _, used = _refine(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
+            b, _, used = refine_basis(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
             if used < 3:
                 continue
             loc = b[::-1]  # back to (x, y)

@@ -14,18 +14,13 @@ import cv2
 import numpy as np
 
 from solver.wallpaper import GROUPS, Wallpaper
+from vision.basis import nested
 from vision.classify import Classification, classify, lattice_strain, symmetry_elements
 from vision.distortion import Distortion, local_lattices, measure_distortion
 from vision.evidence import missing_evidence, without_lattice
-from vision.lattice import (
-    WORK_SIDE,
-    LatticeResult,
-    detect_lattice,
-    nested,
-    prepare_image,
-    yarn_repeat,
-)
+from vision.lattice import LatticeResult, detect_lattice, yarn_repeat
 from vision.perspective import fit_view
+from vision.prepare import WORK_SIDE, prepare_image
 from vision.repeat import true_lattice
 
 __all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric",
