@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vision.classify import REPEAT_SUPPORT, Classification
+from vision.classify import Classification
+from vision.decision import REPEAT_SUPPORT
 from vision.lattice import LatticeResult
 
 __all__ = ["MIN_REPEATS", "missing_evidence", "without_lattice"]
