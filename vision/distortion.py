@@ -119,10 +119,25 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
     skew = float(np.median(angles) - ideal)
     strain = max(float(np.max(np.linalg.norm(l1 - g1, axis=1) / np.linalg.norm(g1))),
                  float(np.max(np.linalg.norm(l2 - g2, axis=1) / np.linalg.norm(g2))))
-    # Bow: lines along w_k turn as one moves along w_k (a parabola's slope changes
-    # linearly); sag at mid-width = d(slope)/ds * L^2 / 8 over the image extent L.
+    bow = _bow(c, l1, l2, g1, g2, np.array([image.shape[1], image.shape[0]], float) * mm)
+    warning = None
+    faults = []
+    if abs(skew) > skew_tol_deg:
+        faults.append(f"skew {skew:.2f} deg exceeds {skew_tol_deg:g} deg")
+    if abs(bow) > bow_tol_mm:
+        faults.append(f"bow {bow:.1f} mm exceeds {bow_tol_mm:g} mm")
+    if faults:
+        warning = "fabric lies distorted: " + "; ".join(faults) + " (straighten the cloth)"
+    return Distortion(c, l1, l2, skew, bow, strain, warning)
+
+
+def _bow(c: np.ndarray, l1: np.ndarray, l2: np.ndarray, g1: np.ndarray, g2: np.ndarray,
+         ext: np.ndarray) -> float:
+    """The larger sag (mm) of the lines along w1 and along w2, from the local lattices
+    (l1, l2 at centres ``c``) against the global (g1, g2), over the image extent ``ext``
+    (mm): lines along w_k turn as one moves along w_k (a parabola's slope changes
+    linearly); the sag at mid-width is d(slope)/ds * L^2 / 8."""
     bow = 0.0
-    ext = np.array([image.shape[1], image.shape[0]], float) * mm
     for loc, glob in ((l1, g1), (l2, g2)):
         if len(loc) < 3:
             break
@@ -137,12 +152,4 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
         sag = k * length**2 / 8.0
         if abs(sag) > abs(bow):
             bow = float(sag)
-    warning = None
-    faults = []
-    if abs(skew) > skew_tol_deg:
-        faults.append(f"skew {skew:.2f} deg exceeds {skew_tol_deg:g} deg")
-    if abs(bow) > bow_tol_mm:
-        faults.append(f"bow {bow:.1f} mm exceeds {bow_tol_mm:g} mm")
-    if faults:
-        warning = "fabric lies distorted: " + "; ".join(faults) + " (straighten the cloth)"
-    return Distortion(c, l1, l2, skew, bow, strain, warning)
+    return bow
