@@ -31,6 +31,10 @@ Method (own code, after the cited work):
    its own than the snap allows cannot be the answer, but it stays in the posterior:
    the answer that forbids those operations then goes to the operator.
 
+The steps live in :mod:`vision.motif` (1), :mod:`vision.isometries` (2),
+:mod:`vision.groupfit` (3) and :mod:`vision.decision` (4, the operations that must hold on
+single repeats); :func:`classify` reads them in order.
+
 References
 ----------
 .. [1] Y. Liu, R. T. Collins, Y. Tsin, "A computational model for periodic pattern

@@ -36,7 +36,7 @@ __all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alterna
            "repeat_spectra", "rounding_map", "rounding_slack"]
 
 #: Single repeats a per-repeat measure is taken over (residual energy here, the
-#: operations' support in :func:`vision.classify.repeat_support`): a sample, spread over
+#: operations' support in :func:`vision.decision.repeat_support`): a sample, spread over
 #: all, keeps the cost fixed.
 SAMPLE = 64
 

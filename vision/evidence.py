@@ -7,7 +7,7 @@ registered onto the mean, look alike at the print's scale along both lattice vec
 (:func:`vision.neighbours.directional_likeness`). Where they do not, there is nothing to
 cut to, and the station must not constrain the nest to a print that is not there: the
 cloth is reported ``plain``, with the reason, and the rejected reading is kept as a
-candidate that the operator may confirm (:func:`vision.pipeline.confirm_fabric`).
+candidate that the operator may confirm (:func:`vision.fabric.confirm_fabric`).
 """
 
 from __future__ import annotations

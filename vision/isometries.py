@@ -78,7 +78,7 @@ def correlation_at_shifts(motif: np.ndarray, a: np.ndarray) -> np.ndarray:
 def rounded_score(motif: np.ndarray, a: np.ndarray, shift: np.ndarray,
                    rounding: np.ndarray) -> float:
     """:func:`correlation_at_shifts` at one ``shift`` of a cell that repeats by whole pixels,
-    less what rounding its edges to the grid explains (:func:`rounding_slack`):
+    less what rounding its edges to the grid explains (:func:`vision.consistency.rounding_slack`):
     1 - |M - M(A f + s)|^2 / 2|M|^2, the residual taken beyond that slack."""
     n = motif.shape[0]
     g = np.arange(n)

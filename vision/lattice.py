@@ -11,6 +11,9 @@ chance), and its index-2/3/4 refinements are tested by the lags they add against
 what its own lags carry at the same lag. Then fit both vectors by weighted least
 squares on many sub-pixel peaks ``p = i w1 + j w2`` at once, which gives precision
 and an uncertainty well beyond the position error of any single peak.
+The steps live in :mod:`vision.prepare` (the working image),
+:mod:`vision.autocorrelation` (its peaks) and :mod:`vision.basis` (choosing and fitting
+the basis); this module reads them in order and tells lattice, stripes and plain apart.
 
 Stripes (1-D repeats, a frieze across the cloth) show as a ridge of high autocorrelation
 along the stripes; they are reported with their period and direction, never as a
