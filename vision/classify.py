@@ -81,7 +81,7 @@ from vision.whitening import symmetric_metric, whitened, whitening
 # isometry_name, mean_cell and symmetric_metric are part of this module's interface (bench
 # and the tests read them here); their homes are vision.isometries, .motif and .whitening.
 __all__ = ["ClassifyOptions", "Classification", "classify", "isometry_name",
-           "lattice_whitening", "mean_cell", "repeat_cells", "symmetric_metric"]
+           "lattice_whitening", "mean_cell", "moved_origin", "repeat_cells", "symmetric_metric"]
 
 #: Highest confidence of a group that holds only with rounding to the pixel grid allowed
 #: (``classify``'s ``pixel_slack``): under the operator's threshold.
@@ -476,5 +476,10 @@ def _joined(*parts: str) -> str:
 def _nearest_origin(wp: Wallpaper, target: np.ndarray) -> Wallpaper:
     """The same print with its origin moved by a lattice vector next to ``target``."""
     f = wp.to_fractional(target[None])[0]
-    origin = wp.origin + wp.basis @ np.floor(f)
-    return Wallpaper(wp.group, wp.w1, wp.w2, origin, motif=wp.motif, tol=1e-6)
+    return moved_origin(wp, wp.basis @ np.floor(f))
+
+
+def moved_origin(wp: Wallpaper, by: np.ndarray) -> Wallpaper:
+    """The same print with its origin moved ``by`` (mm), lattice exactly as it is: from a
+    part's frame to the image's, or from the image's to the machine's."""
+    return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + by, tol=1e-6, motif=wp.motif)

@@ -20,7 +20,7 @@ from vision.basis import refine_basis
 from vision.lattice import LatticeResult
 from vision.prepare import prepare_image
 
-__all__ = ["Distortion", "local_lattices", "measure_distortion"]
+__all__ = ["Distortion", "angle_between", "local_lattices", "measure_distortion"]
 
 
 @dataclass
@@ -45,7 +45,7 @@ class Distortion:
                          for c, a, b in zip(self.centres, self.w1, self.w2, strict=True)]}
 
 
-def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between the rows of a and b, degrees."""
     cos = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
@@ -114,8 +114,8 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
     c = ((np.asarray(centres) + 0.5) / scale - 0.5) * mm
     l1, l2 = bases[:, :, 0] * px_mm, bases[:, :, 1] * px_mm
     g1, g2 = lattice.w1, lattice.w2
-    angles = _angle(l1, l2)
-    ideal = _angle(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
+    angles = angle_between(l1, l2)
+    ideal = angle_between(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
     skew = float(np.median(angles) - ideal)
     strain = max(float(np.max(np.linalg.norm(l1 - g1, axis=1) / np.linalg.norm(g1))),
                  float(np.max(np.linalg.norm(l2 - g2, axis=1) / np.linalg.norm(g2))))

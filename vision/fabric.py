@@ -8,12 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver.wallpaper import GROUPS, Wallpaper
-from vision.classify import Classification
+from vision.classify import Classification, moved_origin
 from vision.distortion import Distortion
 from vision.groupfit import lattice_strain
 from vision.lattice import LatticeResult
 
-__all__ = ["STRETCH_TOL", "FabricDetection", "confirm_fabric", "moved_origin"]
+__all__ = ["STRETCH_TOL", "FabricDetection", "confirm_fabric"]
 
 #: Stretch of the measured lattice off its group's (relative) beyond which the cloth is
 #: reported distorted: pieces cut to the group's lattice come out of the print by it.
@@ -83,12 +83,6 @@ class FabricDetection:
                 "kind": self.lattice.kind,
                 "distortion_warning": self.distortion.warning,
                 "seconds": round(self.seconds, 3)}
-
-
-def moved_origin(wp: Wallpaper, by: np.ndarray) -> Wallpaper:
-    """The same print with its origin moved ``by`` (mm): from a part's frame to the
-    image's, or from the image's to the machine's."""
-    return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + by, tol=1e-6, motif=wp.motif)
 
 
 def confirm_fabric(doc: dict, group: str | None = None) -> dict:

@@ -14,10 +14,10 @@ import numpy as np
 
 from solver.wallpaper import GROUPS
 from vision.basis import nested
-from vision.classify import Classification, classify
-from vision.distortion import Distortion, local_lattices, measure_distortion
+from vision.classify import Classification, classify, moved_origin
+from vision.distortion import Distortion, angle_between, local_lattices, measure_distortion
 from vision.evidence import missing_evidence, without_lattice
-from vision.fabric import STRETCH_TOL, FabricDetection, confirm_fabric, moved_origin
+from vision.fabric import STRETCH_TOL, FabricDetection, confirm_fabric
 from vision.lattice import LatticeResult, detect_lattice, yarn_repeat
 from vision.overlay import draw_overlay
 from vision.perspective import View, fit_view
@@ -73,8 +73,7 @@ def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
     measured against the right angle it is close to."""
     ideal = _IDEAL_ANGLE.get(GROUPS[group].lattice)
     if ideal is None and GROUPS[group].lattice == "oblique":
-        cos = float(lat.w1 @ lat.w2) / (np.linalg.norm(lat.w1) * np.linalg.norm(lat.w2))
-        if abs(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) - 90.0) < 5.0:
+        if abs(angle_between(lat.w1, lat.w2) - 90.0) < 5.0:
             ideal = 90.0
     return ideal
 
