@@ -78,8 +78,8 @@ from vision.neighbours import neighbour_correlation, print_band, worse_likeness
 from vision.prepare import prepare_image
 from vision.whitening import symmetric_metric, whitened, whitening
 
-# isometry_name, mean_cell and symmetric_metric are part of this module's interface (bench
-# and the tests read them here); their homes are vision.isometries, .motif and .whitening.
+# isometry_name, mean_cell and symmetric_metric stay part of this module's interface (bench
+# reads them here); they live in vision.isometries, vision.motif and vision.whitening.
 __all__ = ["ClassifyOptions", "Classification", "classify", "isometry_name",
            "lattice_whitening", "mean_cell", "moved_origin", "repeat_cells", "symmetric_metric"]
 
@@ -89,7 +89,6 @@ ROUNDING_CONFIDENCE = 0.5
 
 #: Likelihood of an operation being present given its reliability-normalised score.
 TAU = 0.86
-
 KAPPA = 0.05
 
 #: Exponent of the |frequency| weighting of the motif before scoring. Blur and coarse
@@ -111,7 +110,6 @@ TEMPERATURE = 1.0
 #: or hexagonal print on fabric stretched or sheared by up to about 16 % (each group's
 #: answer must still snap to its lattice, see :meth:`Wallpaper.snapped`).
 HOLOHEDRY_TOL = 0.45
-
 HOLOHEDRY_STRAIN = 0.16
 
 #: How far a measured lattice may be off a group's lattice (relative length, angle in
