@@ -57,7 +57,11 @@ def load_garment(
                 pattern, world = (path, partner) if path.stem.endswith("-m") else (partner, path)
                 return load_obj(pattern, units=units, world=world)
         return load_obj(path, units=units, world=world)
-    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj or .json)")
+    if suffix == ".dxf":  # DXF-AAMA / ASTM D6673: seams inferred (solver.seams)
+        from solver.garment.dxf_garment import load_dxf
+
+        return load_dxf(path, units=units)
+    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj, .json or .dxf)")
 
 
 def save_spec(g: Garment, path: str | Path) -> None:

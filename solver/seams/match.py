@@ -1,0 +1,204 @@
+"""Which edges are sewn together: candidates scored, then chosen jointly by an integer program.
+
+A candidate seam is a run of consecutive edges on one piece against a run on another, the
+second read backwards (two pieces laid right side to right side run opposite ways along a
+seam). It is scored by how well the sewn lengths agree, whether the notch groups fall at the
+same places with the same counts, how alike the two lines are (straight to straight) and what
+the piece names say (:mod:`solver.seams.names`). The chosen set maximises the matched length
+times the score with every edge sewn at most once (scipy's ``milp``, HiGHS): an edge with no
+good partner (a hem, a neckline, an opening) stays open because no candidate pays for it.
+
+Berthouzoz et al. (SIGGRAPH 2013, "Parsing sewing patterns into 3D garments",
+:DOI:`10.1145/2461912.2461975`) pose the same choice as an integer program over edge pairs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.optimize import Bounds, LinearConstraint, milp
+
+from solver.seams.names import name_affinity
+from solver.seams.outline import SewPiece, sub_loop
+from solver.seams.shape import fit_and_overlap
+
+__all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
+
+MAX_RUN = 4  # edges in one candidate run
+LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
+NOTCH_TOL = 0.04  # notch positions (share of the run) within this are the same notch
+MIN_SCORE = 0.55  # a candidate scoring less is never sewn
+MIN_LENGTH_MM = 15.0
+MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
+GRAIN_DEG = 20.0
+
+
+@dataclass(frozen=True)
+class Run:
+    """Edges ``first`` .. ``first + count - 1`` of a piece: arc interval, length, notches."""
+
+    piece: int
+    first: int
+    count: int
+    start: float
+    end: float  # may exceed the loop length (wraps)
+    length: float
+    straightness: float  # chord / length
+    notches: tuple[tuple[float, int], ...]  # (share of the run from its start, count)
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Piece ``piece_a`` from ``a_start`` to ``a_end`` (arc mm, CCW) sewn to ``piece_b``
+    from ``b_start`` to ``b_end``: ``a_start`` meets ``b_end`` and ``a_end`` meets ``b_start``."""
+
+    piece_a: int
+    a_start: float
+    a_end: float
+    piece_b: int
+    b_start: float
+    b_end: float
+    length_mm: float
+    confidence: float
+    source: str = "inferred"
+
+
+def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]:
+    """Every run of 1..:data:`MAX_RUN` edges of every piece, and each piece's breakpoints."""
+    runs, cuts = [], []
+    for i, p in enumerate(pieces):
+        b = p.breakpoints()
+        cuts.append(b)
+        n = len(b)
+        if n == 0:
+            continue
+        groups = p.notch_groups()
+        for first in range(n):
+            for count in range(1, min(MAX_RUN, n) + 1):
+                if count == n and n > 1:
+                    continue  # the whole loop is no seam
+                start = b[first]
+                end = b[(first + count) % n] + (p.length if first + count >= n else 0.0)
+                if n == 1:
+                    end = start + p.length
+                length = end - start
+                if length < MIN_LENGTH_MM:
+                    continue
+                line = sub_loop(p, start, end)
+                chord = float(np.linalg.norm(line[-1] - line[0]))
+                inner = []
+                for s, c in groups:
+                    for lap in (0.0, p.length):
+                        share = (s + lap - start) / length
+                        if 0.02 < share < 0.98:
+                            inner.append((round(share, 4), c))
+                runs.append(Run(i, first, count, float(start), float(end), float(length),
+                                chord / length, tuple(sorted(inner))))
+    return runs, cuts
+
+
+def _notch_score(a: Run, b: Run) -> float:
+    """+1 when the notch groups match (b read backwards), -1 when they disagree, 0 when
+    neither run has any."""
+    if not a.notches and not b.notches:
+        return 0.0
+    mirrored = sorted((1.0 - s, c) for s, c in b.notches)
+    if len(mirrored) != len(a.notches):
+        return -1.0
+    for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
+        if abs(sa - sb) > NOTCH_TOL or ca != cb:
+            return -1.0
+    return 1.0
+
+
+def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
+    rel = abs(a.length - b.length) / max(a.length, b.length)
+    s = 1.0 - (rel / LENGTH_TOL) ** 2
+    s += 0.6 * _notch_score(a, b)
+    s -= 2.0 * abs(a.straightness - b.straightness)
+    s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    if s < MIN_SCORE:
+        return s
+    rms, overlap, mirror = fit_and_overlap(pieces[a.piece], (a.start, a.end), polys[a.piece],
+                                           pieces[b.piece], (b.start, b.end), polys[b.piece])
+    s -= 10.0 * rms + 3.0 * overlap
+    if mirror > MIRROR_IOU and not _along_grain(pieces[a.piece], a):
+        s -= 2.0  # two halves mirrored in the seam: only a centre line, along the grain
+    return s
+
+
+def _along_grain(piece: SewPiece, run: Run) -> bool:
+    """Whether the run's chord lies within :data:`GRAIN_DEG` of the piece's grain line."""
+    if piece.grain is None:
+        return True
+    ends = sub_loop(piece, run.start, run.end)[[0, -1]]
+    d, g = ends[1] - ends[0], piece.grain[1] - piece.grain[0]
+    cos = abs(float(d @ g)) / max(float(np.linalg.norm(d) * np.linalg.norm(g)), 1e-12)
+    return cos >= np.cos(np.radians(GRAIN_DEG))
+
+
+def _pairs(runs: list[Run]) -> np.ndarray:
+    """(k,2) indices of run pairs on different pieces whose lengths agree within tolerance."""
+    length = np.array([r.length for r in runs])
+    piece = np.array([r.piece for r in runs])
+    order = np.argsort(length)
+    ls = length[order]
+    out = []
+    for k, i in enumerate(order.tolist()):
+        hi = np.searchsorted(ls, ls[k] / (1 - LENGTH_TOL), side="right")
+        j = order[k + 1:hi]
+        j = j[piece[j] != piece[i]]
+        out.append(np.column_stack([np.full(len(j), i), j]))
+    return np.vstack(out) if out else np.zeros((0, 2), dtype=int)
+
+
+def _edges_of(run: Run, n_edges: int) -> list[int]:
+    return [(run.first + k) % n_edges for k in range(run.count)]
+
+
+def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
+                 ) -> list[Seam]:
+    """The jointly best set of seams (each edge sewn at most once), with confidences."""
+    pairs = _pairs(runs)
+    polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
+    scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
+    keep = scores >= MIN_SCORE
+    pairs, scores = pairs[keep], scores[keep]
+    if not len(pairs):
+        return []
+    offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
+    rows, cols = [], []
+    for k, (i, j) in enumerate(pairs.tolist()):
+        for r in (runs[i], runs[j]):
+            for e in _edges_of(r, len(cuts[r.piece])):
+                rows.append(offset[r.piece] + e)
+                cols.append(k)
+    a = np.zeros((int(offset[-1]), len(pairs)))
+    a[rows, cols] = 1.0
+    weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
+                                 [runs[j].length for j in pairs[:, 1]])
+    res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
+               constraints=LinearConstraint(a, 0, 1), options={"time_limit": 20.0})
+    if res.x is None:
+        return []
+    chosen = np.flatnonzero(res.x > 0.5)
+    return [_seam(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
+                  _rival(k, pairs, scores, a)) for k in chosen]
+
+
+def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
+    """The best score of another candidate sharing an edge with candidate ``k``."""
+    shares = (a[:, k:k + 1] * a).sum(0) > 0
+    shares[k] = False
+    return float(scores[shares].max()) if shares.any() else 0.0
+
+
+def _seam(a: Run, b: Run, score: float, rival: float) -> Seam:
+    """A chosen candidate as a seam; confidence from its score and its margin over the best
+    rival for the same edges (a near tie between two partners is unsure)."""
+    margin = max(score - rival, 0.0)
+    confidence = float(np.clip(score / 2.0, 0, 1) * np.clip(0.5 + margin, 0, 1))
+    return Seam(a.piece, a.start, a.end, b.piece, b.start, b.end,
+                0.5 * (a.length + b.length), round(confidence, 3))
