@@ -15,6 +15,7 @@ import shapely
 
 from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, PiecePair, load_esicup
+from solver.units import mm_per_unit
 from untrusted import limits
 
 
@@ -198,10 +199,13 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     found_width, found_fabric = None, None
     for path in paths:
         kind = kind_of(path)
-        if kind == "instance":
+        if kind == "instance":  # coordinates in --units when given (never ignored)
             inst = load_esicup(path)
+            k = 1.0 if units is None else mm_per_unit(units)
+            for p in inst.pieces:
+                p.outline = p.outline * k
             pieces += inst.pieces
-            found_width = found_width or inst.width
+            found_width = found_width or inst.width * k
         elif kind == "dxf":
             from solver.nest.dxf_aama import read_dxf_aama
 
