@@ -19,9 +19,10 @@ from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, build_garment
 from solver.garment.spec import _triangulate
 from solver.seams import Seam, SewPiece, infer_seams
+from solver.seams.declared import read_seams_file
 from solver.seams.outline import point_at
 
-__all__ = ["load_dxf", "sew_pieces"]
+__all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
 
 RESOLUTION_MM = 20.0  # boundary sample spacing of the mesh
 GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
@@ -95,15 +96,17 @@ def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
     return np.vstack(uv), np.vstack(faces), ids, grains
 
 
-def garment_of_pattern(pattern: DxfPattern, seams: list[Seam] | None = None
+def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
                        ) -> tuple[Garment, list[Seam], list[SewPiece]]:
-    """The garment of a read pattern (its cut list, seams inferred unless given), the seams
-    with their confidences and the pieces they refer to (for the report and pictures)."""
+    """The garment of a read pattern (its cut list, seams inferred with what the operator's
+    ``seams_file`` declares or vetoes), the seams with their confidences and the pieces
+    they refer to (for the report and pictures)."""
     cut = pattern.cut_list()
     if not cut:
         raise GarmentError(pattern.source, "no piece to cut (every Quantity is 0)")
     pieces = sew_pieces(cut)
-    seams = infer_seams(pieces) if seams is None else seams
+    declared, vetoed = read_seams_file(seams_file, pieces) if seams_file else ([], set())
+    seams = infer_seams(pieces, declared=declared, vetoed=vetoed)
     uv, faces, ids, grains = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
                       units_in_file=pattern.units, piece_names=[p.name for p in pieces],

@@ -17,7 +17,9 @@ from solver.seams.outline import SewPiece
 __all__ = ["Seam", "SewPiece", "infer_seams"]
 
 
-def infer_seams(pieces: list[SewPiece]) -> list[Seam]:
-    """The seams between ``pieces`` (each edge sewn at most once), each with a confidence."""
+def infer_seams(pieces: list[SewPiece], *, declared: list[Seam] = (),
+                vetoed: set[frozenset[int]] = frozenset()) -> list[Seam]:
+    """The seams between ``pieces`` (each edge sewn at most once), each with a confidence:
+    the operator's ``declared`` seams first, none between a ``vetoed`` pair of pieces."""
     runs, cuts = candidate_runs(pieces)
-    return choose_seams(pieces, runs, cuts)
+    return choose_seams(pieces, runs, cuts, fixed=list(declared), vetoed=set(vetoed))

@@ -21,16 +21,17 @@ import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from solver.seams.names import name_affinity
-from solver.seams.outline import SewPiece, sub_loop
+from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
 from solver.seams.shape import fit_and_overlap
 
 __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
-MAX_RUN = 4  # edges in one candidate run
+MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
 NOTCH_TOL = 0.04  # notch positions (share of the run) within this are the same notch
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MIN_LENGTH_MM = 15.0
+SHARP_DEG = 50.0
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 20.0
 
@@ -65,8 +66,18 @@ class Seam:
     source: str = "inferred"
 
 
+def _inside(s: np.ndarray, start: float, end: float, length: float) -> bool:
+    """Whether any arc position of ``s`` lies strictly inside (start, end), laps counted."""
+    for lap in (0.0, length):
+        if np.any((s + lap > start + MERGE_MM) & (s + lap < end - MERGE_MM)):
+            return True
+    return False
+
+
 def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]:
-    """Every run of 1..:data:`MAX_RUN` edges of every piece, and each piece's breakpoints."""
+    """Every run of 1..:data:`MAX_RUN` edges of every piece that turns no sharp corner
+    (a seam ends where the outline turns by more than :data:`SHARP_DEG`), and each piece's
+    breakpoints."""
     runs, cuts = [], []
     for i, p in enumerate(pieces):
         b = p.breakpoints()
@@ -74,6 +85,7 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
         n = len(b)
         if n == 0:
             continue
+        sharp = p.corners(SHARP_DEG)[0]
         groups = p.notch_groups()
         for first in range(n):
             for count in range(1, min(MAX_RUN, n) + 1):
@@ -84,7 +96,8 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
                 if n == 1:
                     end = start + p.length
                 length = end - start
-                if length < MIN_LENGTH_MM:
+                if length < MIN_LENGTH_MM or (count > 1 and _inside(sharp, start, end,
+                                                                    p.length)):
                     continue
                 line = sub_loop(p, start, end)
                 chord = float(np.linalg.norm(line[-1] - line[0]))
@@ -116,14 +129,16 @@ def _notch_score(a: Run, b: Run) -> float:
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
     rel = abs(a.length - b.length) / max(a.length, b.length)
     s = 1.0 - (rel / LENGTH_TOL) ** 2
-    s += 0.6 * _notch_score(a, b)
+    notch = _notch_score(a, b)
+    s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= 2.0 * abs(a.straightness - b.straightness)
     s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     if s < MIN_SCORE:
         return s
     rms, overlap, mirror = fit_and_overlap(pieces[a.piece], (a.start, a.end), polys[a.piece],
                                            pieces[b.piece], (b.start, b.end), polys[b.piece])
-    s -= 10.0 * rms + 3.0 * overlap
+    dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
+    s -= 10.0 * rms + (0.0 if dart else 3.0 * overlap)
     if mirror > MIRROR_IOU and not _along_grain(pieces[a.piece], a):
         s -= 2.0  # two halves mirrored in the seam: only a centre line, along the grain
     return s
@@ -139,8 +154,25 @@ def _along_grain(piece: SewPiece, run: Run) -> bool:
     return cos >= np.cos(np.radians(GRAIN_DEG))
 
 
-def _pairs(runs: list[Run]) -> np.ndarray:
-    """(k,2) indices of run pairs on different pieces whose lengths agree within tolerance."""
+def _disjoint(a: Run, b: Run, length: float) -> bool:
+    """Whether two runs of one piece share no part of its line."""
+    return all(min(a.end, b.end + lap) - max(a.start, b.start + lap) <= 1e-6
+               for lap in (-length, 0.0, length))
+
+
+def _dart(a: Run, b: Run, length: float) -> bool:
+    """Whether two runs of one piece are the legs of a dart: disjoint, meeting at one end
+    (the tip). Other seams of a piece to itself (a tube sleeve's underarm) are not
+    proposed: on flat patterns they pair a piece's mirror-image sides far too often."""
+    if not _disjoint(a, b, length):
+        return False
+    return any(abs(x - y - lap) < MERGE_MM for x, y in ((a.end, b.start), (b.end, a.start))
+               for lap in (-length, 0.0, length))
+
+
+def _pairs(runs: list[Run], lengths: list[float]) -> np.ndarray:
+    """(k,2) indices of run pairs whose lengths agree within tolerance: on two pieces, or
+    the two legs of a dart on one piece."""
     length = np.array([r.length for r in runs])
     piece = np.array([r.piece for r in runs])
     order = np.argsort(length)
@@ -149,7 +181,10 @@ def _pairs(runs: list[Run]) -> np.ndarray:
     for k, i in enumerate(order.tolist()):
         hi = np.searchsorted(ls, ls[k] / (1 - LENGTH_TOL), side="right")
         j = order[k + 1:hi]
-        j = j[piece[j] != piece[i]]
+        same = piece[j] == piece[i]
+        ok = ~same
+        ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]]) for m in j[same].tolist()]
+        j = j[ok]
         out.append(np.column_stack([np.full(len(j), i), j]))
     return np.vstack(out) if out else np.zeros((0, 2), dtype=int)
 
@@ -158,10 +193,36 @@ def _edges_of(run: Run, n_edges: int) -> list[int]:
     return [(run.first + k) % n_edges for k in range(run.count)]
 
 
-def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
+def _overlaps(run: Run, seam: Seam, length: float) -> bool:
+    """Whether ``run`` shares more than :data:`MERGE_MM` of its piece's line with ``seam``."""
+    spans = [(seam.a_start, seam.a_end)] if seam.piece_a == run.piece else []
+    spans += [(seam.b_start, seam.b_end)] if seam.piece_b == run.piece else []
+    for s0, s1 in spans:
+        for lap in (-length, 0.0, length):
+            if min(run.end, s1 + lap) - max(run.start, s0 + lap) > MERGE_MM:
+                return True
+    return False
+
+
+def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray], *,
+                 fixed: list[Seam] = (), vetoed: set[frozenset[int]] = frozenset()
                  ) -> list[Seam]:
-    """The jointly best set of seams (each edge sewn at most once), with confidences."""
-    pairs = _pairs(runs)
+    """The jointly best set of seams (each edge sewn at most once), with confidences;
+    ``fixed`` seams (declared by the operator) are kept and their edges taken, no seam is
+    made between a ``vetoed`` pair of pieces."""
+    runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
+    pairs = _pairs(runs, [p.length for p in pieces])
+    if vetoed:
+        pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)
+        keep = [frozenset((int(pieces_of[i]), int(pieces_of[j]))) not in vetoed
+                for i, j in pairs.tolist()]
+        pairs = pairs[np.array(keep, dtype=bool)] if len(pairs) else pairs
+    return list(fixed) + _solve(pieces, runs, cuts, pairs)
+
+
+def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
+           pairs: np.ndarray) -> list[Seam]:
+    """The integer program over the candidate ``pairs`` of ``runs``."""
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
     keep = scores >= MIN_SCORE

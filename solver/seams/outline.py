@@ -43,15 +43,17 @@ class SewPiece:
     def length(self) -> float:
         return float(self.cum[-1])
 
-    def corners(self) -> np.ndarray:
-        """Arc positions of the loop's corners (turning more than :data:`CORNER_DEG`)."""
+    def corners(self, min_deg: float = CORNER_DEG) -> tuple[np.ndarray, np.ndarray]:
+        """Arc positions of the loop's corners turning more than ``min_deg``, and each one's
+        turn in degrees (positive left: convex; negative: a reflex corner, a dart's tip)."""
         simple = shapely.simplify(shapely.LinearRing(self.loop), 0.5)
         pts = np.asarray(simple.coords)[:-1]
         d_in = pts - np.roll(pts, 1, axis=0)
         d_out = np.roll(pts, -1, axis=0) - pts
         cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
-        turn = np.degrees(np.abs(np.arctan2(cross, (d_in * d_out).sum(1))))
-        return arc_position(self, pts[turn > CORNER_DEG])
+        turn = np.degrees(np.arctan2(cross, (d_in * d_out).sum(1)))
+        sharp = np.abs(turn) > min_deg
+        return arc_position(self, pts[sharp]), turn[sharp]
 
     def notch_groups(self) -> list[tuple[float, int]]:
         """(arc position, notch count) of each notch group along the line."""
@@ -69,7 +71,7 @@ class SewPiece:
     def breakpoints(self) -> np.ndarray:
         """Sorted arc positions where the line is split: corners, turn points, notches."""
         notch = [s for s, _ in self.notch_groups()]
-        raw = np.concatenate([self.corners(), arc_position(self, self.turns), notch, [0.0]
+        raw = np.concatenate([self.corners()[0], arc_position(self, self.turns), notch, [0.0]
                               if not len(self.turns) and not len(notch) else []])
         raw = np.sort(np.mod(raw, self.length))
         keep: list[float] = []

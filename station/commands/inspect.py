@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from station.cliargs import add_garment_arguments, add_grain_arguments
+from station.seams_view import add_dxf_arguments
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also say what --symmetrise would do: the pairs made one pattern and "
                    "how far each piece moves")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_dxf_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -167,16 +169,23 @@ def _print_text(s: dict, out) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from station.cliargs import garment_with_grain, load_garment_arg
+    from station.seams_view import draw_seams, inspect_dxf
 
     start = time.perf_counter()
     from solver.garment.grain import paired_grains
     from solver.garment.symmetry import mirror_pairs, read_pairs_file
 
-    g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
+    dxf = inspect_dxf(args) if str(args.garment).lower().endswith(".dxf") else None
+    g = garment_with_grain(dxf.garment if dxf else
+                           load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
     pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
+    if dxf:  # issue 34: the inferred seams' confidences, the file's facts, the picture
+        dxf.annotate(summary)
+        if args.png:
+            draw_seams(dxf.pieces, dxf.seams, args.png)
     if args.symmetrise:
         from solver.garment.symmetrise import symmetrise
 
