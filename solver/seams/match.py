@@ -28,7 +28,7 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
 MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
-NOTCH_TOL = 0.04  # notch positions (share of the run) within this are the same notch
+NOTCH_TOL = 0.1  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MIN_LENGTH_MM = 15.0
 SHARP_DEG = 50.0
@@ -48,6 +48,7 @@ class Run:
     length: float
     straightness: float  # chord / length
     notches: tuple[tuple[float, int], ...]  # (share of the run from its start, count)
+    end_notches: tuple[int, int] = (0, 0)  # notch count at the run's start and end
 
 
 @dataclass(frozen=True)
@@ -101,22 +102,34 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
                     continue
                 line = sub_loop(p, start, end)
                 chord = float(np.linalg.norm(line[-1] - line[0]))
-                inner = []
-                for s, c in groups:
-                    for lap in (0.0, p.length):
-                        share = (s + lap - start) / length
-                        if 0.02 < share < 0.98:
-                            inner.append((round(share, 4), c))
                 runs.append(Run(i, first, count, float(start), float(end), float(length),
-                                chord / length, tuple(sorted(inner))))
+                                chord / length, *_run_notches(groups, start, end, p.length)))
     return runs, cuts
+
+
+def _run_notches(groups: list[tuple[float, int]], start: float, end: float, length: float
+                 ) -> tuple[tuple[tuple[float, int], ...], tuple[int, int]]:
+    """The notch groups inside a run (share, count) and the counts at its two ends."""
+    inner, at_ends = [], [0, 0]
+    for s, c in groups:
+        for lap in (0.0, length):
+            at = s + lap
+            if abs(at - start) <= MERGE_MM:
+                at_ends[0] = c
+            elif abs(at - end) <= MERGE_MM:
+                at_ends[1] = c
+            elif start < at < end:
+                inner.append((round((at - start) / (end - start), 4), c))
+    return tuple(sorted(inner)), (at_ends[0], at_ends[1])
 
 
 def _notch_score(a: Run, b: Run) -> float:
     """+1 when the notch groups match (b read backwards), -1 when they disagree, 0 when
-    neither run has any."""
+    neither run has any. The notches at the ends count too: a's start meets b's end."""
+    if a.end_notches != b.end_notches[::-1]:
+        return -1.0
     if not a.notches and not b.notches:
-        return 0.0
+        return 1.0 if any(a.end_notches) else 0.0
     mirrored = sorted((1.0 - s, c) for s, c in b.notches)
     if len(mirrored) != len(a.notches):
         return -1.0
@@ -140,7 +153,7 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
     s -= 10.0 * rms + (0.0 if dart else 3.0 * overlap)
     if mirror > MIRROR_IOU and not _along_grain(pieces[a.piece], a):
-        s -= 2.0  # two halves mirrored in the seam: only a centre line, along the grain
+        s -= 1.0  # two halves mirrored in the seam: only a centre line, along the grain
     return s
 
 

@@ -66,3 +66,34 @@ def test_inspect_lists_a_dxf_garments_seams(tee_export, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["kind"] == "dxf" and summary["seam_lines"] > 0
     assert all(ln["piece_a"] != ln["piece_b"] for ln in summary["seam_line_list"])
+
+
+def test_an_operator_vetoes_and_declares_seams_and_sees_them_drawn(tee_export, tmp_path,
+                                                                   capsys):
+    path, _ = tee_export
+    assert main(["inspect", str(path), "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)["dxf"]["seams"]
+    vetoed = first[-1]  # the longest-listed one, whatever it is
+    pair = [vetoed["piece_a"], vetoed["piece_b"]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pattern = read_dxf_pattern(path, allowance_mm=10.0)
+    front = next(p for p in pattern.cut_list() if p.name == pair[0])
+    a_ends = front.sew[[0, 3]].tolist()
+    other = next(p for p in pattern.cut_list() if p.name == pair[1])
+    b_ends = other.sew[[0, 3]].tolist()
+    seams_file = tmp_path / "S.json"
+    seams_file.write_text(json.dumps({
+        "not_seams": [pair],
+        "seams": [{"a": pair[0], "a_ends": a_ends, "b": pair[1], "b_ends": b_ends}]}))
+    png = tmp_path / "seams.png"
+    assert main(["inspect", str(path), "--json", "--seams", str(seams_file),
+                 "--png", str(png)]) == 0
+    after = json.loads(capsys.readouterr().out)["dxf"]["seams"]
+    between = [s for s in after if {s["piece_a"], s["piece_b"]} == set(pair)]
+    assert [s["source"] for s in between] == ["declared"]  # vetoed: only the declared one
+    assert between[0]["confidence"] == 1.0
+    assert png.stat().st_size > 5000
+    seams_file.write_text(json.dumps({"not_seams": [[pair[0], "no such piece"]]}))
+    assert main(["inspect", str(path), "--seams", str(seams_file)]) == 2
+    assert "no piece 'no such piece'" in capsys.readouterr().err
