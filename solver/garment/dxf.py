@@ -48,6 +48,7 @@ class DxfPiece:
     holes: list[np.ndarray] = field(default_factory=list)  # cut-outs (layer 11)
     carried: tuple[str, ...] = ()  # what came from the sample size
     mirrored: bool = False  # the right-hand copy of a piece cut as a left/right pair
+    family: str = ""  # the pattern piece (name and size) a copy in the cut list was made of
 
     def mirror_copy(self) -> DxfPiece:
         """The other half of a left/right pair: every part mirrored left to right."""
@@ -90,9 +91,10 @@ class DxfPattern:
                 if p.quantity % 2 == 0:  # left and right halves of pairs
                     tag = ("L", "R")[k % 2] + (f"{k // 2 + 1}" if p.quantity > 2 else "")
                     q = p.mirror_copy() if k % 2 else p
-                    out.append(replace(q, name=f"{base} {tag}"))
+                    out.append(replace(q, name=f"{base} {tag}", family=base))
                 else:
-                    out.append(replace(p, name=f"{base} #{k + 1}" if p.quantity > 1 else base))
+                    out.append(replace(p, name=f"{base} #{k + 1}" if p.quantity > 1 else base,
+                                       family=base))
         return out
 
 

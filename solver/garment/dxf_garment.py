@@ -32,7 +32,8 @@ def sew_pieces(pieces: list[DxfPiece]) -> list[SewPiece]:
     """The pieces as the seam inference reads them: sew line (else the cut line), the
     file's turn points and notches."""
     return [SewPiece(p.name, p.sew if p.sew is not None else p.cut, p.turns,
-                     np.array([a for a, _ in p.notches], float).reshape(-1, 2), p.grain)
+                     np.array([a for a, _ in p.notches], float).reshape(-1, 2), p.grain,
+                     p.family)
             for p in pieces]
 
 

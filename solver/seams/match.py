@@ -152,8 +152,14 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
                                            pieces[b.piece], (b.start, b.end), polys[b.piece])
     dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
     s -= 10.0 * rms + (0.0 if dart else 3.0 * overlap)
-    if mirror > MIRROR_IOU and not _along_grain(pieces[a.piece], a):
-        s -= 1.0  # two halves mirrored in the seam: only a centre line, along the grain
+    pa, pb = pieces[a.piece], pieces[b.piece]
+    copies = a.piece != b.piece and pa.family and pa.family == pb.family
+    if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
+        # two halves mirrored in the seam (two copies of one piece surely are): only a
+        # centre line, along the grain, joins them
+        s -= 2.0 if copies else 1.0
+    elif copies:
+        s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
     return s
 
 
@@ -173,17 +179,20 @@ def _disjoint(a: Run, b: Run, length: float) -> bool:
                for lap in (-length, 0.0, length))
 
 
-def _dart(a: Run, b: Run, length: float) -> bool:
-    """Whether two runs of one piece are the legs of a dart: disjoint, meeting at one end
-    (the tip). Other seams of a piece to itself (a tube sleeve's underarm) are not
-    proposed: on flat patterns they pair a piece's mirror-image sides far too often."""
+def _dart(a: Run, b: Run, length: float, tips: np.ndarray) -> bool:
+    """Whether two runs of one piece are the legs of a dart: disjoint, meeting at one end,
+    a sharp reflex corner of the outline (the tip). Other seams of a piece to itself (a
+    tube sleeve's underarm) are not proposed: on flat patterns they pair a piece's
+    mirror-image sides far too often."""
     if not _disjoint(a, b, length):
         return False
-    return any(abs(x - y - lap) < MERGE_MM for x, y in ((a.end, b.start), (b.end, a.start))
-               for lap in (-length, 0.0, length))
+    meet = [x for x, y in ((a.end, b.start), (b.end, a.start))
+            for lap in (-length, 0.0, length) if abs(x - y - lap) < MERGE_MM]
+    return any(np.min(np.abs(np.mod(tips - m + length / 2, length) - length / 2)) < MERGE_MM
+               for m in meet) if len(tips) else False
 
 
-def _pairs(runs: list[Run], lengths: list[float]) -> np.ndarray:
+def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.ndarray:
     """(k,2) indices of run pairs whose lengths agree within tolerance: on two pieces, or
     the two legs of a dart on one piece."""
     length = np.array([r.length for r in runs])
@@ -196,7 +205,8 @@ def _pairs(runs: list[Run], lengths: list[float]) -> np.ndarray:
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
         ok = ~same
-        ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]]) for m in j[same].tolist()]
+        ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]], tips[piece[i]])
+                    for m in j[same].tolist()]
         j = j[ok]
         out.append(np.column_stack([np.full(len(j), i), j]))
     return np.vstack(out) if out else np.zeros((0, 2), dtype=int)
@@ -224,7 +234,8 @@ def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
     ``fixed`` seams (declared by the operator) are kept and their edges taken, no seam is
     made between a ``vetoed`` pair of pieces."""
     runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
-    pairs = _pairs(runs, [p.length for p in pieces])
+    tips = [pos[turn < -SHARP_DEG] for pos, turn in (p.corners(SHARP_DEG) for p in pieces)]
+    pairs = _pairs(runs, [p.length for p in pieces], tips)
     if vetoed:
         pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)
         keep = [frozenset((int(pieces_of[i]), int(pieces_of[j]))) not in vetoed

@@ -18,7 +18,9 @@ __all__ = ["SewPiece", "arc_position", "point_at", "sub_loop"]
 
 CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a corner there
 MERGE_MM = 3.0  # breakpoints closer than this are one
-NOTCH_GROUP_MM = 12.0  # notches closer than this along the line are one double notch
+NOTCH_GROUP_MM = 12.0
+TURN_DEG = 8.0
+TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
 
 
 @dataclass
@@ -30,6 +32,7 @@ class SewPiece:
     turns: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     notches: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     grain: np.ndarray | None = None  # (2,2) the grain line, where the file has one
+    family: str = ""  # copies of one pattern piece (a left and a right) share it
 
     def __post_init__(self) -> None:
         loop = np.asarray(self.loop, float).reshape(-1, 2)
@@ -55,6 +58,19 @@ class SewPiece:
         sharp = np.abs(turn) > min_deg
         return arc_position(self, pts[sharp]), turn[sharp]
 
+    def turning_points(self) -> np.ndarray:
+        """Arc positions of the file's turn points where the line really turns (by more than
+        :data:`TURN_DEG` over :data:`TURN_SPAN_MM` either side): a CAD such as AccuMark marks
+        every vertex of a straight run as a turn point, which says nothing about seams."""
+        s = arc_position(self, self.turns)
+        if not len(s):
+            return s
+        before = point_at(self, s) - point_at(self, s - TURN_SPAN_MM)
+        after = point_at(self, s + TURN_SPAN_MM) - point_at(self, s)
+        cross = before[:, 0] * after[:, 1] - before[:, 1] * after[:, 0]
+        turn = np.degrees(np.abs(np.arctan2(cross, (before * after).sum(1))))
+        return s[turn > TURN_DEG]
+
     def notch_groups(self) -> list[tuple[float, int]]:
         """(arc position, notch count) of each notch group along the line."""
         s = np.sort(arc_position(self, self.notches))
@@ -71,7 +87,7 @@ class SewPiece:
     def breakpoints(self) -> np.ndarray:
         """Sorted arc positions where the line is split: corners, turn points, notches."""
         notch = [s for s, _ in self.notch_groups()]
-        raw = np.concatenate([self.corners()[0], arc_position(self, self.turns), notch, [0.0]
+        raw = np.concatenate([self.corners()[0], self.turning_points(), notch, [0.0]
                               if not len(self.turns) and not len(notch) else []])
         raw = np.sort(np.mod(raw, self.length))
         keep: list[float] = []
