@@ -124,8 +124,8 @@ def _run_notches(groups: list[tuple[float, int]], start: float, end: float, leng
 
 
 def _notch_score(a: Run, b: Run) -> float:
-    """+1 when the notch groups match (b read backwards), -1 when they disagree, 0 when
-    neither run has any. The notches at the ends count too: a's start meets b's end."""
+    """Up to +1 when the notch groups match (b read backwards), -1 when they disagree, 0
+    when neither run has any. The notches at the ends count too: a's start meets b's end."""
     if a.end_notches != b.end_notches[::-1]:
         return -1.0
     if not a.notches and not b.notches:
@@ -133,10 +133,12 @@ def _notch_score(a: Run, b: Run) -> float:
     mirrored = sorted((1.0 - s, c) for s, c in b.notches)
     if len(mirrored) != len(a.notches):
         return -1.0
+    worst = 0.0
     for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
         if abs(sa - sb) > NOTCH_TOL or ca != cb:
             return -1.0
-    return 1.0
+        worst = max(worst, abs(sa - sb) / NOTCH_TOL)
+    return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
 
 
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:

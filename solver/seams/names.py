@@ -23,6 +23,8 @@ _KINDS = {
 }
 _SIDES = {"left": ("left", "l", "lft", "links", "gauche", "izquierda", "sinistra"),
           "right": ("right", "r", "rt", "rechts", "droite", "derecha", "destra")}
+_LONG = sorted({w for words in _KINDS.values() for w in words if len(w) >= 4}, key=len,
+               reverse=True)
 # seams a garment usually has, between kinds of pieces (order does not matter)
 _USUAL = {frozenset(p) for p in [("front", "back"), ("sleeve", "front"), ("sleeve", "back"),
                                  ("collar", "front"), ("collar", "back"), ("sleeve", "cuff"),
@@ -34,11 +36,15 @@ def _tokens(name: str) -> list[str]:
     spaced = re.sub(r"([a-z])([A-Z])", r"\1 \2", name)
     words = [w for w in re.split(r"[^0-9A-Za-zÀ-ÿ]+", spaced.lower()) if w]
     out = []
-    for w in words:  # "teefr", "sleeve_f": a known code glued to the end of a word
+    for w in words:  # "teefr": a known code glued to the end of a word
         out.append(w)
         for code in ("fr", "bk", "sl", "co", "wb"):
             if w.endswith(code) and len(w) > len(code) + 2:
                 out.append(code)
+        for word in _LONG:  # "lfsleeve": left front sleeve, one letter each
+            head = w[:-len(word)]
+            if w.endswith(word) and head and len(head) <= 2 and set(head) <= set("lrfb"):
+                out += [word, *head]
     return out
 
 
