@@ -64,7 +64,6 @@ class DxfInspection:
 
 def add_dxf_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of a command that reads a DXF-AAMA/ASTM pattern as a garment."""
-    parser.add_argument("--size", help="the size of a graded DXF (default: its sample size)")
     parser.add_argument("--seams", metavar="S.json",
                         help='declare or veto a DXF\'s seams: {"seams": [{"a": PIECE, '
                         '"a_ends": [[x, y], [x, y]], "b": PIECE, "b_ends": [...]}], '

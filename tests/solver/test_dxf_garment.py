@@ -121,3 +121,18 @@ def test_nest_units_scale_a_strip_packing_instance_never_ignored():
     assert cm.width == pytest.approx(10 * mm.width)
     for a, b in zip(mm.pieces, cm.pieces, strict=True):
         assert shapely.Polygon(b.outline).area == pytest.approx(100 * a.area, rel=1e-9)
+
+
+def test_size_picks_a_graded_size_and_is_refused_for_other_formats(tee, tmp_path):
+    from solver.garment import GarmentError
+
+    path, _ = tee
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        small = load_garment(path, size="42")
+    assert small.n_pieces == 7
+    assert {s.size for s in read_dxf_pattern(path, size="42").pieces} == {"42"}
+    spec = Path(__file__).resolve().parents[1] / "data" / "garments" / \
+        "garment_pattern_generator" / "tee.json"
+    with pytest.raises(GarmentError, match="--size '42' is for a graded DXF"):
+        load_garment(spec, size="42")
