@@ -20,6 +20,7 @@ CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a cor
 MERGE_MM = 3.0  # breakpoints closer than this are one
 NOTCH_GROUP_MM = 12.0
 TURN_DEG = 8.0
+DENSE_TURNS = 3  # turn points per corner (plus two) beyond which a CAD marks every vertex
 TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
 
 
@@ -59,11 +60,13 @@ class SewPiece:
         return arc_position(self, pts[sharp]), turn[sharp]
 
     def turning_points(self) -> np.ndarray:
-        """Arc positions of the file's turn points where the line really turns (by more than
-        :data:`TURN_DEG` over :data:`TURN_SPAN_MM` either side): a CAD such as AccuMark marks
-        every vertex of a straight run as a turn point, which says nothing about seams."""
+        """Arc positions of the file's turn points. A CAD that marks a few (the corners and
+        where seams end) is taken at its word; one that marks many more than the line has
+        corners (AccuMark marks every vertex of its digitised lines) only where the line
+        really turns, by more than :data:`TURN_DEG` over :data:`TURN_SPAN_MM` either side."""
         s = arc_position(self, self.turns)
-        if not len(s):
+        distinct = np.unique(np.round(s / MERGE_MM))
+        if len(distinct) <= DENSE_TURNS * (len(self.corners()[0]) + 2):
             return s
         before = point_at(self, s) - point_at(self, s - TURN_SPAN_MM)
         after = point_at(self, s + TURN_SPAN_MM) - point_at(self, s)
