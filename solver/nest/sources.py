@@ -8,6 +8,7 @@ imports (load ~9 on 2 cores), paid only by the inputs that need them.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -211,6 +212,11 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
 
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
+            if fabric is not None and not plain:  # said, never silent (issue 34)
+                warnings.warn(f"{path}: a DXF's pieces are nested as the file turns them, "
+                              "not matched to the print; for a print-matched marker run "
+                              "`station align` on it and nest its PLACEMENT.json",
+                              stacklevel=2)
         else:
             got, wp, got_pairs = placement_input(path, units=units, allowance=allowance,
                                                  fabric=fabric, plain=plain)

@@ -32,6 +32,8 @@ NOTCH_TOL = 0.1  # notch positions (share of the run) within this are the same n
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MIN_LENGTH_MM = 15.0
 SHARP_DEG = 50.0
+STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
+RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 20.0
 
@@ -146,14 +148,14 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     s = 1.0 - (rel / LENGTH_TOL) ** 2
     notch = _notch_score(a, b)
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
-    s -= 2.0 * abs(a.straightness - b.straightness)
+    s -= STRAIGHT_W * abs(a.straightness - b.straightness)
     s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     if s < MIN_SCORE:
         return s
     rms, overlap, mirror = fit_and_overlap(pieces[a.piece], (a.start, a.end), polys[a.piece],
                                            pieces[b.piece], (b.start, b.end), polys[b.piece])
     dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
-    s -= 10.0 * rms + (0.0 if dart else 3.0 * overlap)
+    s -= RMS_W * rms + (0.0 if dart else 3.0 * overlap)
     pa, pb = pieces[a.piece], pieces[b.piece]
     copies = a.piece != b.piece and pa.family and pa.family == pb.family
     if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):

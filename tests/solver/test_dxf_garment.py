@@ -136,3 +136,21 @@ def test_size_picks_a_graded_size_and_is_refused_for_other_formats(tee, tmp_path
         "garment_pattern_generator" / "tee.json"
     with pytest.raises(GarmentError, match="--size '42' is for a graded DXF"):
         load_garment(spec, size="42")
+
+
+def test_nesting_a_dxf_on_a_print_says_it_is_not_print_matched(tmp_path, capsys):
+    import json
+
+    from solver.nest import Piece
+    from solver.nest.dxf_aama import write_dxf_aama
+    from station.cli import main
+
+    path = tmp_path / "p.dxf"
+    write_dxf_aama([Piece("front", [[0, 0], [200, 0], [200, 300], [0, 300]])], path)
+    fabric = tmp_path / "F.json"
+    fabric.write_text(json.dumps({"group": "p4m", "w1": [60, 0], "w2": [0, 60],
+                                  "origin": [0, 0], "units": "mm"}))
+    assert main(["nest", str(path), "--fabric", str(fabric), "-o", str(tmp_path / "L.json"),
+                 "--width", "900", "--time", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "not matched to the print" in err and "station align" in err
