@@ -10,6 +10,7 @@ is triangulated (Shewchuk's Triangle, boundary kept as sampled). The common topo
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -30,8 +31,10 @@ GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
 
 def sew_pieces(pieces: list[DxfPiece]) -> list[SewPiece]:
     """The pieces as the seam inference reads them: sew line (else the cut line), the
-    file's turn points and notches."""
-    return [SewPiece(p.name, p.sew if p.sew is not None else p.cut, p.turns,
+    file's turn points and notches; names with their spaces made ``_`` (G-code piece
+    markers and job files carry a name as one word)."""
+    return [SewPiece(re.sub(r"\s+", "_", p.name.strip()),
+                     p.sew if p.sew is not None else p.cut, p.turns,
                      np.array([a for a, _ in p.notches], float).reshape(-1, 2), p.grain,
                      p.family)
             for p in pieces]
@@ -110,7 +113,8 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
     seams = infer_seams(pieces, declared=declared, vetoed=vetoed)
     uv, faces, ids, grains = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
-                      units_in_file=pattern.units, piece_names=[p.name for p in pieces],
+                      units_in_file=pattern.units,
+                      piece_names=[p.name for p in pieces],
                       grainlines=grains)
     return g, seams, pieces
 

@@ -108,6 +108,7 @@ def test_the_tee_loads_as_a_garment_with_file_grain_and_inferred_seams(tee):
         g = load_garment(path)
     assert g.kind == "dxf" and g.units_in_file == "in"
     assert g.n_pieces == 7  # FR, BK, CO, two sleeve backs, two sleeve fronts; SL1/SFCO not cut
+    assert "REGULAR_TEESL_FR_L" in g.piece_names  # one word: G-code piece markers split on spaces
     assert all(gr.source == "file" for gr in g.grains())
     assert len(g.seam_lines) > 0
 
