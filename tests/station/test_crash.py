@@ -370,9 +370,10 @@ def recovery(tmp_path):
     # piece 1's final move in the program last streamed: a straight line (10,0) -> (10,40)
     save_final_moves(tmp_path / FINAL_MOVES, job.id,
                      {1: np.array([[10.0, 0.0], [10.0, 40.0]])})
-    pipeline = StationPipeline.__new__(StationPipeline)
-    plan = {"layout": str(tmp_path / "layout.json")}
-    yield store, job, pipeline, plan
+    import station.cutting
+
+    # the cut step's reconcile, with the job's folder that holds its final moves
+    yield store, job, station.cutting, tmp_path
     store.close()
 
 
