@@ -48,6 +48,8 @@ def load_garment(
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such garment file")
     suffix = path.suffix.lower()
+    if size is not None and not isinstance(size, str):
+        raise GarmentError(path, f"a size is a name such as '50' or 'M', got {size!r}")
     if size is not None and suffix != ".dxf":
         raise GarmentError(path, f"--size {size!r} is for a graded DXF pattern; this is {suffix}")
     if suffix == ".json":

@@ -317,7 +317,10 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
         wanted = [sample] if len(sizes) > 1 else None
     else:
         wanted = [size] if isinstance(size, str) else list(size)
-    if wanted and sizes and [s for s in wanted if s not in sizes]:
+    if wanted and not sizes:
+        raise ValueError(f"{path}: no size {', '.join(wanted)}: the file has no sizes "
+                         "(no Size: texts)")
+    if wanted and [s for s in wanted if s not in sizes]:
         missing = ", ".join(s for s in wanted if s not in sizes)
         raise ValueError(f"{path}: no size {missing}; sizes are {', '.join(sizes)}")
     by_name: dict[str, DxfPiece] = {}

@@ -128,10 +128,6 @@ def test_size_picks_a_graded_size_and_is_refused_for_other_formats(tee, tmp_path
     from solver.garment import GarmentError
 
     path, _ = tee
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        small = load_garment(path, size="42")
-    assert small.n_pieces == 7
     assert {s.size for s in read_dxf_pattern(path, size="42").pieces} == {"42"}
     spec = Path(__file__).resolve().parents[1] / "data" / "garments" / \
         "garment_pattern_generator" / "tee.json"
@@ -155,3 +151,19 @@ def test_nesting_a_dxf_on_a_print_says_it_is_not_print_matched(tmp_path, capsys)
                  "--width", "900", "--time", "1"]) == 0
     err = capsys.readouterr().err
     assert "not matched to the print" in err and "station align" in err
+
+
+def test_a_job_takes_its_size_and_a_wrong_one_is_refused_at_submit(tee):
+    """`station submit TEE.DXF --size 44`: the job's check loads that size."""
+    from station.config import load_config
+    from station.steps.submission import check_job
+
+    path, _ = tee
+    config = load_config(None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_job(str(path), None, {"size": "44"}, config)
+        with pytest.raises(ValueError, match="no size XL; sizes are 42, 44"):
+            check_job(str(path), None, {"size": "XL"}, config)
+        with pytest.raises(ValueError, match="a size is a name"):
+            check_job(str(path), None, {"size": 44}, config)
