@@ -28,7 +28,7 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
 MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
-NOTCH_TOL = 0.1  # notch positions (share of the run) within this are the same notch (ease)
+NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MIN_LENGTH_MM = 15.0
 SHARP_DEG = 50.0
