@@ -295,6 +295,34 @@ def _file_allowance(doc, scale: float) -> float | None:
     return float(m.group(1)) * scale if m else None
 
 
+def _wanted_sizes(path: Path, sizes: list[str], sample: str | None,
+                  size: str | list[str] | None) -> list[str] | None:
+    """The sizes to read (None: every piece): a graded file gives its sample size by
+    default, an ungraded one everything; a size the file lacks is refused by name."""
+    if size is None:
+        return [sample] if len(sizes) > 1 else None
+    wanted = [size] if isinstance(size, str) else list(size)
+    if not sizes:
+        raise ValueError(f"{path}: no size {', '.join(wanted)}: the file has no sizes "
+                         "(no Size: texts)")
+    missing = [s for s in wanted if s not in sizes]
+    if missing:
+        raise ValueError(f"{path}: no size {', '.join(missing)}; sizes are {', '.join(sizes)}")
+    return wanted
+
+
+def _decisions(pieces: list[DxfPiece], sample: str | None) -> list[str]:
+    """What the reader decided, one line each: pieces not cut, what was carried where."""
+    notes = [f"piece {p.name!r} size {p.size}: Quantity 0, not cut"
+             for p in pieces if p.quantity == 0]
+    groups: dict[str, list[str]] = defaultdict(list)
+    for p in pieces:
+        for what in p.carried:
+            groups[what].append(p.size or "")
+    return notes + [f"{what} carried from sample size {sample} to size(s) "
+                    f"{', '.join(sorted(set(got)))}" for what, got in groups.items()]
+
+
 def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
                      units: str | None = None, allowance_mm: float | None = None,
                      allowance_from: str = "--seam-allowance",
@@ -313,21 +341,11 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
     sizes = [s for s in dict.fromkeys(p.size for p in raw) if s]
     sample = texts(doc.modelspace()).get("sample size")
     sample = sample if sample in sizes else (sizes[0] if sizes else None)
-    if size is None:  # a graded file gives its sample size; an ungraded one everything
-        wanted = [sample] if len(sizes) > 1 else None
-    else:
-        wanted = [size] if isinstance(size, str) else list(size)
-    if wanted and not sizes:
-        raise ValueError(f"{path}: no size {', '.join(wanted)}: the file has no sizes "
-                         "(no Size: texts)")
-    if wanted and [s for s in wanted if s not in sizes]:
-        missing = ", ".join(s for s in wanted if s not in sizes)
-        raise ValueError(f"{path}: no size {missing}; sizes are {', '.join(sizes)}")
+    wanted = _wanted_sizes(path, sizes, sample, size)
     by_name: dict[str, DxfPiece] = {}
     for p in raw:
         if p.size == sample or p.name not in by_name:
             by_name[p.name] = p
-    notes = [f"units: {unit_note}"]
     file_allowance = _file_allowance(doc, scale)
     if file_allowance is not None:
         allowance_mm, allowance_from = file_allowance, "the file's Seam Allowance"
@@ -337,17 +355,7 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
             continue
         p = _graded(p, by_name[p.name])  # before unfolding: graded sizes share vertices
         p = unfold(p) if unfold_folds else p
-        if p.quantity < 0:
-            p = replace(p, quantity=1)
-        p = _with_sew(p, allowance_mm, allowance_from, str(path))
-        pieces.append(p)
-    groups: dict[str, list[str]] = defaultdict(list)
-    for p in pieces:
-        if p.quantity == 0:
-            notes.append(f"piece {p.name!r} size {p.size}: Quantity 0, not cut")
-        for what in p.carried:
-            groups[what].append(p.size or "")
-    for what, got in groups.items():
-        notes.append(f"{what} carried from sample size {sample} to size(s) "
-                     f"{', '.join(sorted(set(got)))}")
+        p = replace(p, quantity=1) if p.quantity < 0 else p
+        pieces.append(_with_sew(p, allowance_mm, allowance_from, str(path)))
+    notes = [f"units: {unit_note}", *_decisions(pieces, sample)]
     return DxfPattern(pieces, sizes, sample, unit_note.split()[0], str(path), notes)
