@@ -26,6 +26,7 @@ from solver.seams.outline import sub_loop
 __all__ = ["DxfInspection", "add_dxf_arguments", "draw_seams", "inspect_dxf"]
 
 PIECE_GAP_MM = 60.0
+UNSURE = 0.5  # a seam less confident than this is marked "?" for the operator to check
 
 
 @dataclass
@@ -95,7 +96,8 @@ def _colour(k: int) -> tuple[int, int, int]:
 def draw_seams(pieces: list[SewPiece], seams: list[Seam], path: str | Path, *,
                width_px: int = 1800) -> None:
     """Every piece in a row (sew line in grey) and every seam in its own colour on both of
-    its pieces, numbered at its middle on each, as the ``seams`` list numbers them (1..)."""
+    its pieces, numbered at its middle on each, as the ``seams`` list numbers them (1..);
+    an unsure seam's number carries a "?"."""
     shifts, x = [], 0.0
     for p in pieces:
         lo = p.loop.min(0)
@@ -120,9 +122,12 @@ def draw_seams(pieces: list[SewPiece], seams: list[Seam], path: str | Path, *,
             line = px(sub_loop(pieces[i], *span), i)
             cv2.polylines(image, [line], False, _colour(k), 3, cv2.LINE_AA)
             mid = line[len(line) // 2]
-            cv2.putText(image, str(k + 1), (int(mid[0]) + 4, int(mid[1]) - 4),
+            label = f"{k + 1}{'?' if s.confidence < UNSURE else ''}"
+            cv2.putText(image, label, (int(mid[0]) + 4, int(mid[1]) - 4),
                         cv2.FONT_HERSHEY_SIMPLEX, 0.5, _colour(k), 2, cv2.LINE_AA)
-    cv2.putText(image, f"{len(seams)} seams; number = the seam's index in --json 'dxf.seams'",
+    unsure = sum(s.confidence < UNSURE for s in seams)
+    cv2.putText(image, f"{len(seams)} seams, {unsure} unsure (?: confidence under {UNSURE:g}); "
+                "number = the seam's index in --json 'dxf.seams'",
                 (20, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
     if not cv2.imwrite(str(path), image):
         raise OSError(f"{path}: cannot write the picture")
