@@ -28,6 +28,8 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
 MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
+EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
+CURVED = 0.95  # a run whose chord is less than this share of its length is curved
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MIN_LENGTH_MM = 15.0
@@ -145,7 +147,11 @@ def _notch_score(a: Run, b: Run) -> float:
 
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
     rel = abs(a.length - b.length) / max(a.length, b.length)
-    s = 1.0 - (rel / LENGTH_TOL) ** 2
+    curved = min(a.straightness, b.straightness) < CURVED
+    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
+    if rel > tol:
+        return -1.0
+    s = 1.0 - (rel / tol) ** 2
     notch = _notch_score(a, b)
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
@@ -205,7 +211,7 @@ def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.
     ls = length[order]
     out = []
     for k, i in enumerate(order.tolist()):
-        hi = np.searchsorted(ls, ls[k] / (1 - LENGTH_TOL), side="right")
+        hi = np.searchsorted(ls, ls[k] / (1 - max(LENGTH_TOL, EASE_TOL)), side="right")
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
         ok = ~same
