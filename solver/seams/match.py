@@ -3,8 +3,9 @@
 A candidate seam is a run of consecutive edges on one piece against a run on another, the
 second read backwards (two pieces laid right side to right side run opposite ways along a
 seam). It is scored by how well the sewn lengths agree, whether the notch groups fall at the
-same places with the same counts, how alike the two lines are (straight to straight) and what
-the piece names say (:mod:`solver.seams.names`). The chosen set maximises the matched length
+same places with the same counts, how alike the two lines are (straight to straight, and laid
+on each other, :mod:`solver.seams.shape`), whether two mirrored halves would meet off the
+grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises the matched length
 times the score with every edge sewn at most once (scipy's ``milp``, HiGHS): an edge with no
 good partner (a hem, a neckline, an opening) stays open because no candidate pays for it.
 
@@ -32,12 +33,12 @@ EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer tha
 CURVED = 0.95  # a run whose chord is less than this share of its length is curved
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
-MIN_LENGTH_MM = 15.0
-SHARP_DEG = 50.0
+MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
+SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
-GRAIN_DEG = 20.0
+GRAIN_DEG = 20.0  # a centre line lies within this of the grain
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,9 @@ def _notch_score(a: Run, b: Run) -> float:
 
 
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
+    """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
+    seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
+    on each other only for a candidate that could still pass."""
     rel = abs(a.length - b.length) / max(a.length, b.length)
     curved = min(a.straightness, b.straightness) < CURVED
     tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
