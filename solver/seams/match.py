@@ -5,9 +5,10 @@ second read backwards (two pieces laid right side to right side run opposite way
 seam). It is scored by how well the sewn lengths agree, whether the notch groups fall at the
 same places with the same counts, how alike the two lines are (straight to straight, and laid
 on each other, :mod:`solver.seams.shape`), whether two mirrored halves would meet off the
-grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises the matched length
-times the score with every edge sewn at most once (scipy's ``milp``, HiGHS): an edge with no
-good partner (a hem, a neckline, an opening) stays open because no candidate pays for it.
+grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises
+the matched length times the score with every edge sewn at most once (scipy's ``milp``,
+HiGHS): an edge with no good partner (a hem, a neckline, an opening) stays open because no
+candidate pays for it.
 
 Berthouzoz et al. (SIGGRAPH 2013, "Parsing sewing patterns into 3D garments",
 :DOI:`10.1145/2461912.2461975`) pose the same choice as an integer program over edge pairs.
