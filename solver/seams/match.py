@@ -34,6 +34,8 @@ EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer tha
 CURVED = 0.95  # a run whose chord is less than this share of its length is curved
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
+SHORT_MM = 60.0  # runs this short match many others by chance ...
+SHORT_EXTRA = 0.8  # ... so they must score this much more
 MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
 SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
@@ -264,7 +266,8 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     """The integer program over the candidate ``pairs`` of ``runs``."""
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
-    keep = scores >= MIN_SCORE
+    shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
+    keep = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
     pairs, scores = pairs[keep], scores[keep]
     if not len(pairs):
         return []
