@@ -10,6 +10,7 @@ or, for a fabric given only as a FABRIC.json, its lattice ruled on plain cloth
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -136,6 +137,37 @@ def notch_ticks(image: np.ndarray, notches, to_px, min_mm: float) -> None:
                  shift=4)
 
 
+@dataclass(frozen=True)
+class _PatternFrame:
+    """Pattern millimetres to picture pixels: y up in pattern space, down in the image, a
+    banner above for the legend."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    scale: float
+    width_px: int
+    height_px: int
+    banner: int = 60
+
+    @classmethod
+    def around(cls, points: np.ndarray, width_px: int) -> _PatternFrame:
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        margin = 0.04 * float(np.max(hi - lo))
+        lo, hi = lo - margin, hi + margin
+        scale = width_px / float(hi[0] - lo[0])
+        return cls(lo, hi, scale, width_px, max(1, int(np.ceil((hi[1] - lo[1]) * scale))))
+
+    def to_px(self, p: np.ndarray) -> np.ndarray:
+        q = np.empty_like(p)
+        q[:, 0] = (p[:, 0] - self.lo[0]) * self.scale
+        q[:, 1] = (self.hi[1] - p[:, 1]) * self.scale + self.banner
+        return np.round(q * 16).astype(np.int32)  # 4 fractional bits for cv2 shift
+
+    def to_mm(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        return np.column_stack([xs / self.scale + self.lo[0],
+                                self.hi[1] - (ys - self.banner) / self.scale])
+
+
 def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path, *,
              width_px: int = 1600, red_mm: float = 20.0,
              colour_of: ColourOf | None = None, title: str | None = None,
@@ -149,44 +181,56 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     overlaid as a thin grey outline so that the change can be seen.
     """
     uv = garment.uv
-    extent = uv if not cuts else np.vstack([uv] + [c.outline for c in cuts])
-    lo, hi = extent.min(axis=0), extent.max(axis=0)
-    margin = 0.04 * float(np.max(hi - lo))
-    lo, hi = lo - margin, hi + margin
-    scale = width_px / float(hi[0] - lo[0])
-    colour_of = colour_of or lattice_colours(placement.fabric, 1.0 / scale)
-    height_px = max(1, int(np.ceil((hi[1] - lo[1]) * scale)))
-    banner = 60
+    frame = _PatternFrame.around(uv if not cuts else np.vstack([uv] + [c.outline for c in cuts]),
+                                 width_px)
+    colour_of = colour_of or lattice_colours(placement.fabric, 1.0 / frame.scale)
+    image = _paint_pieces(garment, placement, frame, colour_of, cuts)
+    _draw_outlines(image, garment, frame, cuts, notches, original)
+    draw_grain_arrows(image, garment, frame.to_px, frame.scale)
+    _draw_seam_fit(image, garment, report, frame, red_mm)
+    _draw_legend(image, report, red_mm, title or f"{placement.fabric.group} print")
+    credit = garment_credit(garment.source) if garment.source else None
+    if credit:
+        cv2.putText(image, credit, (12, image.shape[0] - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                    (90, 90, 90), 1, cv2.LINE_AA)
+    if not cv2.imwrite(str(path), image):
+        raise ValueError(f"{path}: cannot write the picture (folder missing or not a .png?)")
+    return image
 
-    def to_px(p: np.ndarray) -> np.ndarray:
-        # y up in pattern space, down in the image
-        q = np.empty_like(p)
-        q[:, 0] = (p[:, 0] - lo[0]) * scale
-        q[:, 1] = (hi[1] - p[:, 1]) * scale + banner
-        return np.round(q * 16).astype(np.int32)  # 4 fractional bits for cv2 shift
 
-    # Which piece covers each pixel: rasterise every piece's triangles with its id.
-    label = np.zeros((height_px + banner, width_px), np.int32)
+def _paint_pieces(garment, placement: Placement, frame: _PatternFrame, colour_of: ColourOf,
+                  cuts) -> np.ndarray:
+    """Each piece's pixels in the colour of the print under them (the allowance band
+    lighter): which piece covers a pixel comes from rasterising its triangles with its id."""
+    to_px = frame.to_px
+    label = np.zeros((frame.height_px + frame.banner, frame.width_px), np.int32)
     for piece, cut in enumerate(cuts or []):  # the allowance band: the print, lighter
         cv2.fillPoly(label, [to_px(cut.outline)], -(piece + 1), lineType=cv2.LINE_8, shift=4)
         for hole in cut.holes:
             cv2.fillPoly(label, [to_px(hole)], 0, lineType=cv2.LINE_8, shift=4)
-    tri = to_px(uv)[garment.faces]
+    tri = to_px(garment.uv)[garment.faces]
     for piece in range(garment.n_pieces):
         mask = garment.piece_of_face() == piece
         cv2.fillPoly(label, list(tri[mask]), piece + 1, lineType=cv2.LINE_8, shift=4)
-    image = np.full((height_px + banner, width_px, 3), 245, np.uint8)
+    image = np.full((frame.height_px + frame.banner, frame.width_px, 3), 245, np.uint8)
     ys, xs = np.nonzero(label)
     if len(xs):
-        pts = np.column_stack([xs / scale + lo[0], hi[1] - (ys - banner) / scale])
         piece = np.abs(label[ys, xs]) - 1
-        colours = colour_of(placement.to_wallpaper(pts, piece)).astype(float)
+        colours = colour_of(placement.to_wallpaper(frame.to_mm(xs, ys), piece)).astype(float)
         band = label[ys, xs] < 0
         colours[band] = 0.5 * colours[band] + 0.5 * 245
         image[ys, xs] = colours.astype(np.uint8)
+    return image
+
+
+def _draw_outlines(image: np.ndarray, garment, frame: _PatternFrame, cuts, notches,
+                   original) -> None:
+    """Sew lines (dashed under a cut line), cut lines, notches and the outline before
+    reshaping."""
+    to_px = frame.to_px
     for piece in range(garment.n_pieces):
         for loop in garment.piece_loops(piece):
-            ring = to_px(uv[loop])
+            ring = to_px(garment.uv[loop])
             if cuts:
                 dashed(image, ring, (60, 60, 60), 1)
             else:
@@ -196,15 +240,19 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
                       (30, 30, 30), 2, cv2.LINE_AA, shift=4)
     for per_piece in notches or []:
         notch_ticks(image, [(q.at, q.direction, q.depth) for q in per_piece], to_px,
-                    4.0 / scale)
+                    4.0 / frame.scale)
     if original is not None:
         for piece in range(original.n_pieces):
             for loop in original.piece_loops(piece):
                 cv2.polylines(image, [to_px(original.uv[loop])], True, (150, 150, 150), 1,
                               cv2.LINE_AA, shift=4)
-    draw_grain_arrows(image, garment, to_px, scale)
-    # One polylines call per colour level (not per edge), on both twins of every edge.
-    edges = garment.seam_edges
+
+
+def _draw_seam_fit(image: np.ndarray, garment, report: FitReport, frame: _PatternFrame,
+                   red_mm: float) -> None:
+    """Both twins of every seam edge coloured by its mismatch, one polylines call per colour
+    level (not per edge)."""
+    uv, edges, to_px = garment.uv, garment.seam_edges, frame.to_px
     segments = np.concatenate([
         np.stack([to_px(uv[edges[:, 0]]), to_px(uv[edges[:, 1]])], 1),
         np.stack([to_px(uv[edges[:, 2]]), to_px(uv[edges[:, 3]])], 1),
@@ -215,14 +263,6 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
         colour = tuple(int(v) for v in palette[level])
         cv2.polylines(image, list(segments[levels == level]), False, colour, 4,
                       cv2.LINE_AA, shift=4)
-    _draw_legend(image, report, red_mm, title or f"{placement.fabric.group} print")
-    credit = garment_credit(garment.source) if garment.source else None
-    if credit:
-        cv2.putText(image, credit, (12, image.shape[0] - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                    (90, 90, 90), 1, cv2.LINE_AA)
-    if not cv2.imwrite(str(path), image):
-        raise ValueError(f"{path}: cannot write the picture (folder missing or not a .png?)")
-    return image
 
 
 def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
