@@ -32,13 +32,15 @@ def load_garment(
     units: str | None = None,
     world: str | Path | None = None,
     resolution_mm: float | None = None,
+    size: str | None = None,
 ) -> Garment:
     """Load a garment from OBJ (single file or -m/-w pair) or a JSON pattern specification.
 
     ``units`` are the units of the file's coordinates (m, cm, mm, in); by default what the
     file says, else mm. ``world`` names the world-space OBJ of a pattern/world pair (found
     automatically beside ``name-m.obj``). ``resolution_mm`` is the target edge length when
-    a JSON specification is triangulated.
+    a JSON specification is triangulated. ``size`` picks a graded DXF's size (default: its
+    sample size).
     """
     path = Path(path)
     if units is not None:
@@ -46,6 +48,10 @@ def load_garment(
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such garment file")
     suffix = path.suffix.lower()
+    if size is not None and not isinstance(size, str):
+        raise GarmentError(path, f"a size is a name such as '50' or 'M', got {size!r}")
+    if size is not None and suffix != ".dxf":
+        raise GarmentError(path, f"--size {size!r} is for a graded DXF pattern; this is {suffix}")
     if suffix == ".json":
         from solver.garment.spec import load_spec
 
@@ -57,7 +63,11 @@ def load_garment(
                 pattern, world = (path, partner) if path.stem.endswith("-m") else (partner, path)
                 return load_obj(pattern, units=units, world=world)
         return load_obj(path, units=units, world=world)
-    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj or .json)")
+    if suffix == ".dxf":  # DXF-AAMA / ASTM D6673: seams inferred (solver.seams)
+        from solver.garment.dxf_garment import load_dxf
+
+        return load_dxf(path, units=units, size=size)
+    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj, .json or .dxf)")
 
 
 def save_spec(g: Garment, path: str | Path) -> None:

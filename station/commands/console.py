@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     source.add_argument("--detect", action="store_true",
                         help="photograph the fabric and detect its print")
     p.add_argument("--units", choices=("m", "cm", "mm", "in"))
+    p.add_argument("--size", help="the size of a graded DXF (default: its sample size)")
     p.add_argument("--reshape", action="store_true", help="nudge the pieces' shapes")
     p.add_argument("--method", choices=("paper", "global"))
     p.add_argument("--restarts", type=int)
@@ -191,7 +192,8 @@ class _Patience:
 
 
 def run_submit(args: argparse.Namespace) -> int:
-    options = {k: v for k, v in (("units", args.units), ("reshape", args.reshape or None),
+    options = {k: v for k, v in (("units", args.units), ("size", args.size),
+                                 ("reshape", args.reshape or None),
                                  ("method", args.method), ("restarts", args.restarts),
                                  ("seam_allowance", args.seam_allowance))
                if v is not None}

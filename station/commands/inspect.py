@@ -19,6 +19,7 @@ from station.cliargs import (
     garment_with_grain,
     load_garment_arg,
 )
+from station.seams_view import add_dxf_arguments, draw_seams, inspect_dxf
 from station.steps.garment import symmetrised
 
 
@@ -41,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also say what --symmetrise would do: the pairs made one pattern and "
                    "how far each piece moves")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_dxf_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -180,10 +182,16 @@ def _print_text(s: dict, out) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
+    dxf = inspect_dxf(args) if str(args.garment).lower().endswith(".dxf") else None
+    g = garment_with_grain(dxf.garment if dxf else
+                           load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     pairs = cli_pairs(args, g)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
+    if dxf:  # issue 34: the inferred seams' confidences, the file's facts, the picture
+        dxf.annotate(summary)
+        if args.png:
+            draw_seams(dxf.pieces, dxf.seams, args.png)
     if args.symmetrise:
         summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)
