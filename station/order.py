@@ -97,10 +97,7 @@ def is_order_file(path: str | Path) -> bool:
 def read_order(path: str | Path) -> Order:
     """The order in ``path``, every garment checked; an InputError names what is wrong."""
     path = Path(path)
-    data = (untrusted.read_toml(path, what="order file") if path.suffix.lower() == ".toml"
-            else untrusted.read_json(path, what="order file"))
-    if not isinstance(data, dict):
-        raise untrusted.InputError(path, "an order is a table with name and [[garment]]")
+    data = _order_data(path)
     _no_unknown_keys(data, _KEYS, path, "the order")
     name = untrusted.text(data.get("name", path.stem), path, "name", max_len=80)
     styles = data.get("garment")
@@ -151,17 +148,42 @@ def _style_garments(style: Any, path: Path, where: str) -> list[OrderGarment]:
 
 
 def _pattern_path(value: Any, order: Path, where: str) -> Path:
-    """The pattern file, named relative to the order file's folder and never outside it:
-    no absolute path and no ``..`` (a link the order's owner placed in the folder is
-    theirs to make)."""
+    """The pattern file, named relative to the order file's folder and never outside it."""
+    path = order.parent / _relative_pattern(value, order, where)
+    untrusted.check_file(path, what=f"pattern of {where}", max_bytes=limits.MAX_DXF_BYTES)
+    return path
+
+
+def _relative_pattern(value: Any, order: Path, where: str) -> str:
+    """A pattern's name inside the order file's folder: no absolute path and no ``..``
+    (a link the order's owner placed in the folder is theirs to make)."""
     rel = untrusted.text(value, order, f"{where}.pattern", max_len=255)
     parts = Path(rel).parts
     if not rel.strip() or Path(rel).is_absolute() or ".." in parts or "\\" in rel:
         raise untrusted.InputError(order, f"{where}.pattern {rel[:60]!r}: give a path inside "
                                    "the order file's folder, relative to it")
-    path = order.parent / rel
-    untrusted.check_file(path, what=f"pattern of {where}", max_bytes=limits.MAX_DXF_BYTES)
-    return path
+    return rel
+
+
+def order_patterns(path: str | Path) -> list[str]:
+    """The pattern names an order file gives (relative to it), read from the order alone:
+    what a submission copies beside the order before any pattern is parsed."""
+    path = Path(path)
+    data = _order_data(path)
+    styles = data.get("garment")
+    if not isinstance(styles, list) or not 0 < len(styles) <= MAX_STYLES:
+        raise untrusted.InputError(path, f"an order lists 1 to {MAX_STYLES} [[garment]]")
+    return list(dict.fromkeys(
+        _relative_pattern(s.get("pattern") if isinstance(s, dict) else None, path,
+                          f"garment[{k}]") for k, s in enumerate(styles)))
+
+
+def _order_data(path: Path) -> dict[str, Any]:
+    data = (untrusted.read_toml(path, what="order file") if path.suffix.lower() == ".toml"
+            else untrusted.read_json(path, what="order file"))
+    if not isinstance(data, dict):
+        raise untrusted.InputError(path, "an order is a table with name and [[garment]]")
+    return data
 
 
 def _quantity(value: Any, path: Path, where: str) -> int:

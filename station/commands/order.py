@@ -25,16 +25,16 @@ from station.order import Order, OrderGarment, is_order_file, read_order
 from station.render import draw_marker
 from station.steps.garment import found_pairs
 from station.steps.order import (
+    ALIGNED_KIND,
     OrderedGarment,
     align_order,
     load_order_garment,
     nest_order,
     order_problem,
     pieces_per_garment,
+    write_aligned,
 )
 from station.steps.place import align_garment, plain_placement
-
-ALIGNED_KIND = "aligned order"
 
 
 def is_order_input(path: str | Path) -> bool:
@@ -67,20 +67,6 @@ def aligner(command: str, fabric: Wallpaper, grain_deg: float, *, grain_tol: flo
                              method=method, restarts=restarts, seed=seed,
                              grain_tol_deg=grain_tol)
     return align_one
-
-
-def placement_dict(a: OrderedGarment) -> dict[str, Any]:
-    """The garment's PLACEMENT, every piece carrying its garment and size."""
-    d = a.placement.to_dict()
-    for piece in d["pieces"]:
-        piece["garment"], piece["size"] = a.item.label, a.item.size
-    return d
-
-
-def write_aligned(order: Order, aligned: list[OrderedGarment], path: str | Path) -> None:
-    d = {"kind": ALIGNED_KIND, "order": order.to_dict(),
-         "garments": [a.report() | {"placement": placement_dict(a)} for a in aligned]}
-    Path(path).write_text(json.dumps(d, indent=1) + "\n")
 
 
 def read_aligned(path: str | Path) -> tuple[Order, list[OrderedGarment]]:

@@ -10,8 +10,10 @@ in the report and the marker, its pieces labelled with its garment and size.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import solver.garment as garment_files
@@ -26,6 +28,7 @@ from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 from station.order import Order, OrderGarment
 
+ALIGNED_KIND = "aligned order"  # the "kind" of what `align ORDER` and a job write
 AlignOne = Callable[[Garment, OrderGarment], Placement]  # the command's or job's alignment
 
 
@@ -40,13 +43,26 @@ class OrderedGarment:
 
     def report(self) -> dict[str, Any]:
         """The garment's line in ``align ORDER --json``: its E_fit, random and aligned."""
-        r = self.placement.report
+        r = self.placement.report  # on plain cloth nothing was aligned: no E_fit
         return {"garment": self.item.label, "pattern": str(self.item.pattern),
                 "size": self.item.size, "copy": self.item.copy,
                 "pieces": self.garment.n_pieces,
-                "e_fit_random_mm2": r["e_fit_random_mm2"],
-                "e_fit_aligned_mm2": r["e_fit_aligned_mm2"],
-                "ratio_aligned_random": r["ratio_aligned_random"]}
+                **{k: r[k] for k in ("e_fit_random_mm2", "e_fit_aligned_mm2",
+                                     "ratio_aligned_random") if k in r}}
+
+
+def placement_dict(a: OrderedGarment) -> dict[str, Any]:
+    """The garment's PLACEMENT, every piece carrying its garment and size."""
+    d = a.placement.to_dict()
+    for piece in d["pieces"]:
+        piece["garment"], piece["size"] = a.item.label, a.item.size
+    return d
+
+
+def write_aligned(order: Order, aligned: list[OrderedGarment], path: str | Path) -> None:
+    d = {"kind": ALIGNED_KIND, "order": order.to_dict(),
+         "garments": [a.report() | {"placement": placement_dict(a)} for a in aligned]}
+    Path(path).write_text(json.dumps(d, indent=1) + "\n")
 
 
 def load_order_garment(item: OrderGarment) -> Garment:
