@@ -42,12 +42,21 @@ class DxfInspection:
         """Add each seam line's confidence and source, and the DXF's own facts, to
         ``summary`` (:func:`station.commands.inspect.garment_summary`)."""
         for line in summary["seam_line_list"]:
-            pair = {line["piece_a"], line["piece_b"]}
-            mine = [s for s in self.seams if {s.piece_a, s.piece_b} == pair]
-            line["confidence"] = min((s.confidence for s in mine), default=0.0)
-            line["source"] = "declared" if mine and all(s.source == "declared"
-                                                        for s in mine) else "inferred"
-        summary["dxf"] = {
+            seam = self._seam_of(line)
+            line["confidence"] = seam.confidence if seam else 0.0
+            line["source"] = seam.source if seam else "inferred"
+        summary["dxf"] = self._facts()
+
+    def _seam_of(self, line: dict) -> Seam | None:
+        """The seam a garment seam line was made of: between the same two pieces, the one
+        of the closest length (a seam line is one seam unless two seams meet end to end)."""
+        pair = {line["piece_a"], line["piece_b"]}
+        return _closest([s for s in self.seams if {s.piece_a, s.piece_b} == pair],
+                        line["length_mm"])
+
+    def _facts(self) -> dict:
+        """The DXF's own facts: sizes, units, the reader's notes, pieces, inferred seams."""
+        return {
             "sizes": self.pattern.sizes, "sample_size": self.pattern.sample_size,
             "units": self.pattern.units, "notes": self.pattern.notes,
             "pieces": [{"name": p.name, "size": p.size, "quantity": p.quantity,
@@ -61,6 +70,10 @@ class DxfInspection:
                        "length_mm": round(s.length_mm, 1), "confidence": s.confidence,
                        "source": s.source} for k, s in enumerate(self.seams)],
         }
+
+
+def _closest(seams: list[Seam], length: float) -> Seam | None:
+    return min(seams, key=lambda s: abs(s.length_mm - length), default=None)
 
 
 def add_dxf_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,4 +1,4 @@
-"""The garment model and its importers/exporters (OBJ with UVs, OBJ pairs, JSON specs).
+"""The garment model and its importers/exporters (OBJ with UVs, OBJ pairs, JSON specs, DXF).
 
     g = load_garment("pants.obj", units="m")
     g.uv, g.faces, g.seam_edges, g.seam_lines, g.piece_outline(0)
@@ -11,6 +11,8 @@ from pathlib import Path
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, SeamLine, build_garment
 from solver.garment.obj import load_obj, pair_partner, save_obj
+from solver.garment.spec import load_spec
+from solver.garment.spec_save import save_spec
 from solver.units import MM_PER_UNIT, UNIT_CHOICES, mm_per_unit
 
 __all__ = [
@@ -34,7 +36,8 @@ def load_garment(
     resolution_mm: float | None = None,
     size: str | None = None,
 ) -> Garment:
-    """Load a garment from OBJ (single file or -m/-w pair) or a JSON pattern specification.
+    """Load a garment from OBJ (single file or -m/-w pair), a JSON pattern specification or
+    a DXF-AAMA/ASTM pattern (its seams inferred, :mod:`solver.seams`).
 
     ``units`` are the units of the file's coordinates (m, cm, mm, in); by default what the
     file says, else mm. ``world`` names the world-space OBJ of a pattern/world pair (found
@@ -53,8 +56,6 @@ def load_garment(
     if size is not None and suffix != ".dxf":
         raise GarmentError(path, f"--size {size!r} is for a graded DXF pattern; this is {suffix}")
     if suffix == ".json":
-        from solver.garment.spec import load_spec
-
         return load_spec(path, units=units, resolution_mm=resolution_mm)
     if suffix == ".obj":
         if world is None:
@@ -64,14 +65,7 @@ def load_garment(
                 return load_obj(pattern, units=units, world=world)
         return load_obj(path, units=units, world=world)
     if suffix == ".dxf":  # DXF-AAMA / ASTM D6673: seams inferred (solver.seams)
-        from solver.garment.dxf_garment import load_dxf
+        from solver.garment.dxf_garment import load_dxf  # ezdxf: 0.3-0.6 s, DXF only
 
         return load_dxf(path, units=units, size=size)
     raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj, .json or .dxf)")
-
-
-def save_spec(g: Garment, path: str | Path) -> None:
-    """Write ``g`` as a GarmentCode-style JSON specification (see :mod:`solver.garment.spec`)."""
-    from solver.garment.spec import save_spec as _save_spec
-
-    _save_spec(g, path)

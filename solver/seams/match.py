@@ -3,10 +3,12 @@
 A candidate seam is a run of consecutive edges on one piece against a run on another, the
 second read backwards (two pieces laid right side to right side run opposite ways along a
 seam). It is scored by how well the sewn lengths agree, whether the notch groups fall at the
-same places with the same counts, how alike the two lines are (straight to straight) and what
-the piece names say (:mod:`solver.seams.names`). The chosen set maximises the matched length
-times the score with every edge sewn at most once (scipy's ``milp``, HiGHS): an edge with no
-good partner (a hem, a neckline, an opening) stays open because no candidate pays for it.
+same places with the same counts, how alike the two lines are (straight to straight, and laid
+on each other, :mod:`solver.seams.shape`), whether two mirrored halves would meet off the
+grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises
+the matched length times the score with every edge sewn at most once (scipy's ``milp``,
+HiGHS): an edge with no good partner (a hem, a neckline, an opening) stays open because no
+candidate pays for it.
 
 Berthouzoz et al. (SIGGRAPH 2013, "Parsing sewing patterns into 3D garments",
 :DOI:`10.1145/2461912.2461975`) pose the same choice as an integer program over edge pairs.
@@ -28,14 +30,18 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
 MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
+EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
+CURVED = 0.95  # a run whose chord is less than this share of its length is curved
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
-MIN_LENGTH_MM = 15.0
-SHARP_DEG = 50.0
+SHORT_MM = 60.0  # runs this short match many others by chance ...
+SHORT_EXTRA = 0.8  # ... so they must score this much more
+MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
+SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
-GRAIN_DEG = 20.0
+GRAIN_DEG = 20.0  # a centre line lies within this of the grain
 
 
 @dataclass(frozen=True)
@@ -144,8 +150,15 @@ def _notch_score(a: Run, b: Run) -> float:
 
 
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
+    """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
+    seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
+    on each other only for a candidate that could still pass."""
     rel = abs(a.length - b.length) / max(a.length, b.length)
-    s = 1.0 - (rel / LENGTH_TOL) ** 2
+    curved = min(a.straightness, b.straightness) < CURVED
+    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
+    if rel > tol:
+        return -1.0
+    s = 1.0 - (rel / tol) ** 2
     notch = _notch_score(a, b)
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
@@ -205,7 +218,7 @@ def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.
     ls = length[order]
     out = []
     for k, i in enumerate(order.tolist()):
-        hi = np.searchsorted(ls, ls[k] / (1 - LENGTH_TOL), side="right")
+        hi = np.searchsorted(ls, ls[k] / (1 - max(LENGTH_TOL, EASE_TOL)), side="right")
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
         ok = ~same
@@ -253,7 +266,8 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     """The integer program over the candidate ``pairs`` of ``runs``."""
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
-    keep = scores >= MIN_SCORE
+    shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
+    keep = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
     pairs, scores = pairs[keep], scores[keep]
     if not len(pairs):
         return []

@@ -14,17 +14,12 @@ import numpy as np
 import shapely
 from shapely import affinity
 
+from solver.geometry import resample_polyline
 from solver.seams.outline import SewPiece, sub_loop
 
 __all__ = ["fit_and_overlap"]
 
 SAMPLES = 24
-
-
-def _resample(line: np.ndarray, n: int = SAMPLES) -> np.ndarray:
-    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(line, axis=0), axis=1))])
-    s = np.linspace(0, cum[-1], n)
-    return np.column_stack([np.interp(s, cum, line[:, 0]), np.interp(s, cum, line[:, 1])])
 
 
 def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -42,8 +37,8 @@ def fit_and_overlap(a: SewPiece, a_span: tuple[float, float], poly_a: shapely.Po
     """(RMS distance / length, overlapping share of the smaller piece, how much the moved
     ``b`` is ``a`` mirrored in the seam (intersection over union)) with edge ``b_span`` of
     ``b`` (read backwards) laid onto ``a_span`` of ``a``."""
-    la = _resample(sub_loop(a, *a_span))
-    lb = _resample(sub_loop(b, *b_span))[::-1]
+    la = resample_polyline(sub_loop(a, *a_span), SAMPLES - 1)
+    lb = resample_polyline(sub_loop(b, *b_span), SAMPLES - 1)[::-1]
     r, t = _kabsch(lb, la)
     length = max(a_span[1] - a_span[0], 1e-9)
     rms = float(np.sqrt(((lb @ r.T + t - la) ** 2).sum(1).mean())) / length

@@ -150,9 +150,10 @@ def _print_text(s: dict, out) -> None:
               " (give it with --grain-line PIECE=DEG)", file=out)
     print("  seam lines:", file=out)
     for ln in s["seam_line_list"]:
+        sure = f"  {ln['source']} {ln['confidence']:.2f}" if "confidence" in ln else ""
         print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
-              f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}",
-              file=out)
+              f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}"
+              f"{sure}", file=out)
     print("  openings (edges sewn to nothing; allowance by kind):", file=out)
     for op in s["opening_list"]:
         pieces = ",".join(map(str, op["pieces"]))
