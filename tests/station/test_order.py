@@ -172,7 +172,7 @@ def test_the_gerber_tee_as_an_order_of_three_sizes_on_a_p4m_print(shared_data, t
                  "-o", str(aligned), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     ratios = [g["e_fit_aligned_mm2"] / g["e_fit_random_mm2"] for g in rep["garments"]]
-    assert len(ratios) == 3 and max(ratios) <= 0.7  # measured 0.47, 0.46, 0.39
+    assert len(ratios) == 3 and max(ratios) <= 0.7  # measured 0.49, 0.45, 0.41 (seed 0)
     layout_path = tmp_path / "layout.json"
     assert main(["nest", str(aligned), "--time", "8", "-o", str(layout_path), "--json"]) == 0
     capsys.readouterr()
