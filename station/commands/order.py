@@ -16,13 +16,15 @@ from pathlib import Path
 from typing import Any
 
 import untrusted
+from solver.fit import fit_report
 from solver.garment import Garment
+from solver.nest.regions import load_keepouts
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 from station.cliargs import allowance_rules, fabric_grain_deg, grain_tolerance
 from station.errors import UserError
 from station.order import Order, OrderGarment, is_order_file, read_order
-from station.render import draw_marker
+from station.render import draw_fit, draw_marker, fabric_picture
 from station.steps.garment import found_pairs
 from station.steps.order import (
     ALIGNED_KIND,
@@ -96,8 +98,20 @@ def read_aligned(path: str | Path) -> tuple[Order, list[OrderedGarment]]:
     return order, out
 
 
+#: `station align` options that name one garment's pieces or files: an order refuses them
+#: rather than apply them to every garment or drop them without a word
+SINGLE_GARMENT_OPTIONS = ("size", "units", "weights", "fix", "init", "pairs", "grain_line",
+                          "bias", "up", "symmetrise", "reflect", "no_rotation",
+                          "no_translation", "pattern_frames")
+
+
 def run_align(args: argparse.Namespace) -> int:
-    """`station align ORDER`: each garment aligned, reported under ``garments``."""
+    """`station align ORDER`: each garment aligned, reported under ``garments``; with
+    ``--png OUT.png`` one picture per garment (OUT-<garment>.png)."""
+    given = [o for o in SINGLE_GARMENT_OPTIONS if getattr(args, o, None)]
+    if given:
+        raise UserError(f"{args.garment}: --{given[0].replace('_', '-')} is for one garment; "
+                        "an order's file gives its sizes and units")
     order = read_order(args.garment)
     fabric = Wallpaper.load(args.fabric)
     t0 = time.monotonic()
@@ -112,6 +126,8 @@ def run_align(args: argparse.Namespace) -> int:
     rep = {"order": order.name, "ratio": order.ratio(), "fabric": fabric.group,
            "garments": [a.report() for a in aligned], "output": str(args.output),
            "seconds": round(time.monotonic() - t0, 3)}
+    if args.png:
+        rep["png"] = _draw_fits(aligned, args, fabric)
     if args.json:
         print(json.dumps(rep))
         return 0
@@ -121,6 +137,19 @@ def run_align(args: argparse.Namespace) -> int:
         print(f"  {g['garment']:<28s} E_fit {g['e_fit_random_mm2']:10.1f} mm² (random) -> "
               f"{g['e_fit_aligned_mm2']:10.1f} mm² (ratio {g['ratio_aligned_random']:.2f})")
     return 0
+
+
+def _draw_fits(aligned: list[OrderedGarment], args: argparse.Namespace, fabric: Wallpaper
+               ) -> list[str]:
+    """Each garment's pieces over the print, seams coloured by mismatch, one file each."""
+    out, colour_of = Path(args.png), fabric_picture(args.fabric, fabric)
+    paths = []
+    for a in aligned:
+        path = out.with_name(f"{out.stem}-{a.item.label}{out.suffix}")
+        draw_fit(a.garment, a.placement, fit_report(a.garment, a.placement), path,
+                 colour_of=colour_of, title=f"{a.item.label} on {fabric.group}")
+        paths.append(str(path))
+    return paths
 
 
 def run_nest(args: argparse.Namespace, config) -> int:
@@ -146,7 +175,8 @@ def run_nest(args: argparse.Namespace, config) -> int:
     problem = order_problem(aligned, width=args.width or config["nest"]["width_mm"],
                             length=args.length, gap=args.gap,
                             allowance=allowance_rules(args, config), fabric=fabric,
-                            plain=args.plain)
+                            plain=args.plain,
+                            keepouts=load_keepouts(args.keepout) if args.keepout else None)
     try:
         layout = nest_order(problem, seconds=args.time, seed=args.seed, method=args.method)
     except ValueError as exc:

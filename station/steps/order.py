@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 import solver.garment as garment_files
 from solver.garment import Garment
 from solver.garment.allowance import AllowanceRules
@@ -102,9 +104,10 @@ def labelled_pieces(aligned: OrderedGarment, *, allowance: AllowanceRules | None
 
 def order_problem(aligned: list[OrderedGarment], *, width: float, length: float | None = None,
                   gap: float = 0.0, allowance: AllowanceRules | None = None,
-                  fabric: Wallpaper | None = None, plain: bool = False) -> NestProblem:
+                  fabric: Wallpaper | None = None, plain: bool = False,
+                  keepouts: list[np.ndarray] | None = None) -> NestProblem:
     """One marker problem holding every piece of the order; each garment's left/right
-    pairs kept (indices shifted to the order's piece list)."""
+    pairs kept (indices shifted to the order's piece list); no piece on a keep-out."""
     pieces: list[Piece] = []
     pairs: list[PiecePair] = []
     found = None
@@ -118,7 +121,7 @@ def order_problem(aligned: list[OrderedGarment], *, width: float, length: float 
     return assemble_problem(pieces, width=width, length=length, gap=gap,
                             fabric=None if plain else fabric or found,
                             allowance=(allowance or AllowanceRules()).to_dict(),
-                            what="the order", piece_pairs=pairs)
+                            keepouts=keepouts, what="the order", piece_pairs=pairs)
 
 
 def nest_order(problem: NestProblem, *, seconds: float, seed: int = 0,

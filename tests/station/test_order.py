@@ -119,9 +119,14 @@ def test_an_order_of_two_sizes_is_aligned_and_nested_in_one_labelled_marker(fold
     order = order_file(folder, 'name = "PO-2"\n[[garment]]\npattern = "tee.dxf"\n'
                        'sizes = { "S" = 1, "M" = 2 }\n')
     aligned = folder / "aligned.json"
-    assert main(["align", str(order), "--fabric", str(folder / "p4m.json"), "--restarts", "3",
-                 "-o", str(aligned), "--json"]) == 0
+    common = [str(order), "--fabric", str(folder / "p4m.json"), "-o", str(aligned)]
+    assert main(["align", *common, "--size", "M"]) == 2  # the order gives the sizes
+    assert "--size is for one garment" in capsys.readouterr().err
+    assert main(["align", *common, "--restarts", "3", "--json",
+                 "--png", str(folder / "fit.png")]) == 0
     rep = json.loads(capsys.readouterr().out)
+    assert rep["png"] == [str(folder / f"fit-{g}.png") for g in ("tee-S-1", "tee-M-1", "tee-M-2")]
+    assert all(Path(p).stat().st_size > 10_000 for p in rep["png"])
     assert [g["garment"] for g in rep["garments"]] == ["tee-S-1", "tee-M-1", "tee-M-2"]
     for g in rep["garments"]:  # each garment its own alignment, clearly better than random
         assert g["e_fit_aligned_mm2"] <= 0.7 * g["e_fit_random_mm2"]
