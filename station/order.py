@@ -80,15 +80,17 @@ class Order:
 
 
 def is_order_file(path: str | Path) -> bool:
-    """Whether ``path`` names an order: a .toml file, or a .json whose top holds
-    ``garment`` (a list of styles)."""
+    """Whether ``path`` names an order: a .toml file, or a .json of at most 1 MiB whose
+    top holds ``garment`` (a list of styles)."""
     path = Path(path)
     if path.suffix.lower() == ".toml":
         return True
     if path.suffix.lower() != ".json" or not path.is_file():
         return False
+    if path.stat().st_size > limits.MAX_TOML_BYTES:  # an order is small: a big JSON is a
+        return False  # garment, never parsed twice (nor in the daemon, before the check)
     try:
-        data = untrusted.read_json(path, what="order file")
+        data = untrusted.read_json(path, what="order file", max_bytes=limits.MAX_TOML_BYTES)
     except untrusted.InputError:
         return False
     return isinstance(data, dict) and isinstance(data.get("garment"), list)
@@ -180,7 +182,8 @@ def order_patterns(path: str | Path) -> list[str]:
 
 def _order_data(path: Path) -> dict[str, Any]:
     data = (untrusted.read_toml(path, what="order file") if path.suffix.lower() == ".toml"
-            else untrusted.read_json(path, what="order file"))
+            else untrusted.read_json(path, what="order file",
+                                     max_bytes=limits.MAX_TOML_BYTES))
     if not isinstance(data, dict):
         raise untrusted.InputError(path, "an order is a table with name and [[garment]]")
     return data
