@@ -59,6 +59,9 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
     aligned = align_order(order, align_one)
     write_aligned(order, aligned, workdir / "placement.json")
     report.data["garments"] = [a.report() for a in aligned]
+    if config["reshape"]["enabled"]:  # said in the job's report, never silently skipped
+        report.data["reshape"] = {"note": "not run for an order: each garment is cut as "
+                                          "aligned"}
     report.step_done("align")
     control.checkpoint()
     layout = _nest(aligned, config, job, control, plain=wallpaper is None)

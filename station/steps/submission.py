@@ -56,9 +56,12 @@ def _check_order(path: str, fabric: str | None, options: dict[str, Any], config:
                  ) -> None:
     """The order read (its checks), then each style and size loaded and checked with the
     job's options; an order's file gives the units and sizes, not the job's options."""
-    given = [k for k in ("units", "size", "symmetrise") if options.get(k) not in (None, False)]
+    given = [k for k in ("units", "size") if options.get(k) is not None]
     if given:
         raise ValueError(f"{path}: job option {given[0]} is the order file's to give")
+    if options.get("symmetrise") or options.get("reshape"):  # not yet run per garment
+        raise ValueError(f"{path}: an order is cut as aligned: drop job options symmetrise "
+                         "and reshape")
     order = read_order(path)
     seen = set()
     for item in order.garments:
