@@ -21,6 +21,7 @@ from typing import Any
 import untrusted
 from solver.garment.obj import pair_partner
 from station.control import ControlError
+from station.order import is_order_file, order_patterns
 from station.sandbox import SandboxError, run_limited
 
 #: files that travel with a garment: a Berkeley -m/-w partner is found by name, and the
@@ -75,7 +76,8 @@ class Intake:
         f_copy: Path | None = None
         try:
             target.mkdir(parents=True)
-            g_copy = _copy_garment(garment, target)
+            g_copy = (_copy_order(garment, target, self.allowed) if is_order_file(garment)
+                      else _copy_garment(garment, target))
             if fabric is not None:
                 (target / "fabric").mkdir()
                 f_copy = target / "fabric" / fabric.name
@@ -191,14 +193,31 @@ SHAPES = {"allowance": '{"seam line": mm 0 to 1000}',
           "pairs": '{"pairs": [[piece, piece], ...], "not_pairs": [...]}'}
 
 
-def _copy_garment(garment: Path, target: Path) -> Path:
+def _copy_order(order: Path, target: Path, allowed: list[Path]) -> Path:
+    """Copy an order file and every pattern it names, at the same relative places, into
+    ``target``: the order then reads its patterns beside it, as it did where it came
+    from. A pattern that resolves outside the allowed folders is refused like a garment."""
+    copy = target / order.name
+    untrusted.copy_file(order, copy, what="order file",
+                        max_bytes=untrusted.limits.MAX_TOML_BYTES)
+    for rel in order_patterns(copy):
+        source = (order.parent / rel).resolve()
+        if allowed and not any(source.is_relative_to(folder) for folder in allowed):
+            raise untrusted.InputError(order, f"pattern {rel} lies outside "
+                                       f"{', '.join(map(str, allowed))}")
+        (target / rel).parent.mkdir(parents=True, exist_ok=True)
+        _copy_garment(source, (target / rel).parent, name=Path(rel).name)
+    return copy
+
+
+def _copy_garment(garment: Path, target: Path, *, name: str | None = None) -> Path:
     """Copy the garment (with its pair partner and licence note) into ``target``."""
-    copy = target / garment.name
+    copy = target / (name or garment.name)
     limit = untrusted.limits.MAX_OBJ_BYTES
     untrusted.copy_file(garment, copy, what="garment", max_bytes=limit)
     partner = pair_partner(garment) if garment.suffix.lower() == ".obj" else None
     for extra in [partner] + [garment.parent / n for n in _COMPANIONS]:
-        if extra is not None and extra.exists():
+        if extra is not None and extra.exists() and not (target / extra.name).exists():
             untrusted.copy_file(extra, target / extra.name, what="companion file",
                                 max_bytes=limit)
     return copy

@@ -209,10 +209,19 @@ class JobStore:
         """What the console shows of a job: state, owner, piece counts, times."""
         pieces = self.pieces(job.id)
         counts = {s: sum(p["state"] == s for p in pieces) for s in PIECE_STATES}
-        return {"id": job.id, "state": job.state, "reason": job.reason,
-                "garment": job.garment, "fabric": job.fabric, "pieces": counts,
-                "owner": job.owner, "requirements": job.requirements.to_dict(),
-                "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+        out = {"id": job.id, "state": job.state, "reason": job.reason,
+               "garment": job.garment, "fabric": job.fabric, "pieces": counts,
+               "owner": job.owner, "requirements": job.requirements.to_dict(),
+               "submitted_at": job.submitted_at, "updated_at": job.updated_at}
+        garment_of = (job.plan or {}).get("garments")
+        if isinstance(garment_of, dict):  # an order: its pieces counted per garment
+            per: dict[str, dict[str, int]] = {}
+            for p in pieces:
+                c = per.setdefault(str(garment_of.get(p["name"], "-")), {"cut": 0, "total": 0})
+                c["total"] += 1
+                c["cut"] += p["state"] == "cut"
+            out["garments"] = per
+        return out
 
     # ------------------------------------------------------------------ pieces
     def set_pieces(self, job_id: int, names: list[str]) -> None:

@@ -19,10 +19,12 @@ from gcode.program import Program
 from station.config import Config
 from station.daemon import JobControl
 from station.jobstore import Job, JobStore
+from station.order import is_order_file
 from station.steps.capture import CameraOpener, Captured, capture_fabric, photograph, real_camera
 from station.steps.cut import PortOpener, cut_job, serial_port
 from station.steps.pictures import draw_plan
 from station.steps.plan import plan_job
+from station.steps.plan_order import plan_order
 from station.steps.program import fabric_origin, program_of, station_machine
 from station.steps.records import Plan
 from station.steps.submission import check_job
@@ -61,7 +63,8 @@ class StationPipeline:
         ``captured`` None: the job's FABRIC.json, captured or confirmed elsewhere."""
         if captured is None:
             captured = Captured.read(job.plan["fabric"], workdir)
-        plan = plan_job(job, captured, workdir, self.config, self.machine, control)
+        plan_of = plan_order if is_order_file(job.garment) else plan_job  # an order: per garment
+        plan = plan_of(job, captured, workdir, self.config, self.machine, control)
         draw_plan(plan, self.machine)
         self._planned.pop(job.id, None)
         self._planned[job.id] = plan

@@ -44,7 +44,14 @@ def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:
     if progress.get("step") != "cutting":
         return ""
     total = sum(status["pieces"].values())
-    return f"{status['pieces']['cut']}/{total} pieces"
+    return f"{status['pieces']['cut']}/{total} pieces" + garment_counts(status)
+
+
+def garment_counts(status: dict[str, Any]) -> str:
+    """`` (tee-S-1 6/6, tee-M-1 2/6)``: an order's pieces cut per garment ('' otherwise)."""
+    per = status.get("garments") or {}
+    return (" (" + ", ".join(f"{g} {c['cut']}/{c['total']}" for g, c in per.items()) + ")"
+            if per else "")
 
 
 class ProgressBar:

@@ -309,8 +309,9 @@ def cloth_image(layout: dict, width_px: int, *, photo: np.ndarray | None = None,
 def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitReport | None = None,
                 photo: np.ndarray | None = None, photo_mm_per_px: float = 1.0,
                 width_px: int = 1600, red_mm: float = 20.0,
-                credit: str | None = None) -> np.ndarray:
-    """The marker: every piece where it lies on the fabric, seams coloured by mismatch.
+                credit: str | None = None, title: str | None = None) -> np.ndarray:
+    """The marker: every piece where it lies on the fabric, seams coloured by mismatch;
+    ``title`` (an order and its size ratio) heads the banner.
 
     ``layout`` is LAYOUT.json's content (fabric mm, x along the roll, y across it, drawn
     with y down like the rectified photo). The background is the rectified photo when
@@ -346,18 +347,29 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
         _draw_marker_seams(image, layout, garment, report, to_px, red_mm)
     for piece, ring in zip(layout["pieces"], rings):
         centre = (ring.mean(axis=0) / 16).astype(int)
-        cv2.putText(image, piece["id"], tuple(centre - [20, 0]), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    (20, 20, 20), 1, cv2.LINE_AA)
+        for k, line in enumerate(_piece_label(piece)):
+            cv2.putText(image, line, tuple(centre - [20, -14 * k]), cv2.FONT_HERSHEY_SIMPLEX,
+                        0.4, (20, 20, 20), 1, cv2.LINE_AA)
     if credit:  # the garment's licence may ask for it on every image (garment_credit)
         _draw_credit(image, credit)
     density = layout.get("density")
     text = (f"marker {length:.0f} x {float(layout['width']):.0f} mm, {len(layout['pieces'])} pieces"
             + (f", density {100 * density:.1f}%" if density is not None else ""))
+    if title:
+        text = f"{title}; {text}"
     cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
                 cv2.LINE_AA)
     if not cv2.imwrite(str(path), image):
         raise ValueError(f"{path}: cannot write the picture")
     return image
+
+
+def _piece_label(piece: dict) -> list[str]:
+    """A piece's label lines: its id, and for an order's piece its name and its size."""
+    garment = piece.get("garment")
+    if not garment:
+        return [piece["id"]]
+    return [piece["id"].removeprefix(f"{garment}."), f"size {piece.get('size') or '-'}"]
 
 
 def _draw_marker_details(image, layout, to_px, scale: float) -> None:

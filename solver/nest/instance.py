@@ -87,6 +87,7 @@ class Piece:
     notches: list[tuple] = field(default_factory=list)
     marks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     size: str | None = None
+    garment: str | None = None  # the order's garment the piece belongs to (with ``size``)
     sew_line: np.ndarray | None = None  # (k, 2) the sew line inside the cut line ``outline``
     allowance: np.ndarray | None = None  # (k,) mm per sew-line edge sew_line[j] -> [j + 1]
 

@@ -31,6 +31,15 @@ OVERLAP_TOL = 1e-6  # allowed overlap as a fraction of the smaller piece's area
 EDGE_TOL = 1e-6  # mm of rounding slack at the fabric edge
 
 
+def _label(value) -> str | None:
+    """A garment or size label of a LAYOUT piece: a short string, or absent."""
+    if value is None:
+        return None
+    if not isinstance(value, str) or len(value) > 200:
+        raise ValueError("a piece's garment and size are strings of at most 200 characters")
+    return value
+
+
 @dataclass
 class Placed:
     id: str
@@ -44,6 +53,8 @@ class Placed:
     grainline: np.ndarray | None = None
     sew_line: np.ndarray | None = None  # (k, 2) inside the cut line ``outline``
     allowance: np.ndarray | None = None  # (k,) mm per sew-line edge
+    garment: str | None = None  # which garment of an order, and its size
+    size: str | None = None
 
     @property
     def angle_deg(self) -> float:
@@ -63,7 +74,8 @@ class Placed:
                 "marks": r(self.marks),
                 "grainline": None if self.grainline is None else r(self.grainline),
                 **({} if self.sew_line is None else {"sew_line": r(self.sew_line)}),
-                **({} if self.allowance is None else {"allowance": r(self.allowance)})}
+                **({} if self.allowance is None else {"allowance": r(self.allowance)}),
+                **{k: v for k, v in (("garment", self.garment), ("size", self.size)) if v}}
 
     @classmethod
     def from_dict(cls, d: dict) -> Placed:
@@ -76,7 +88,8 @@ class Placed:
                    np.asarray(d.get("marks", []), float).reshape(-1, 2),
                    None if d.get("grainline") is None else np.asarray(d["grainline"], float),
                    None if d.get("sew_line") is None else np.asarray(d["sew_line"], float),
-                   None if d.get("allowance") is None else np.asarray(d["allowance"], float))
+                   None if d.get("allowance") is None else np.asarray(d["allowance"], float),
+                   _label(d.get("garment")), _label(d.get("size")))
 
 
 @dataclass
@@ -148,7 +161,7 @@ def build_layout(problem: NestProblem, items: list[Item], moves: list[np.ndarray
             affine(t, piece.marks),
             None if piece.grainline is None else affine(t, piece.grainline),
             None if piece.sew_line is None else affine(t, piece.sew_line),
-            piece.allowance))
+            piece.allowance, piece.garment, piece.size))
     if length is None:
         xmax = max(float(p.outline[:, 0].max()) for p in placed)
         length = xmax + problem.gap

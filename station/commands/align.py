@@ -24,6 +24,8 @@ from station.cliargs import (
     read_name_map,
     symmetrised_garment,
 )
+from station.commands import order as order_command
+from station.order import is_order_file
 from station.render import draw_fit, fabric_picture
 from station.steps.place import align_garment
 
@@ -87,6 +89,8 @@ def _load_weights(path: str, garment) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    if is_order_file(args.garment):  # each garment of the order aligned as its own
+        return order_command.run_align(args)
     if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
         raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     tol = grain_tolerance(args.grain)

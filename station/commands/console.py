@@ -19,6 +19,7 @@ from typing import Any
 from station.cliargs import add_config_argument, load_config_arg
 from station.control import ControlError, request
 from station.errors import UserError
+from station.progress import garment_counts
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -121,7 +122,7 @@ def _line(job: dict[str, Any]) -> str:
     p = job["pieces"]
     total = sum(p.values())
     text = f"job {job['id']:>3}  {job['state']:<10} {p['cut']}/{total} pieces cut  " \
-           f"{Path(job['garment']).name}"
+           f"{Path(job['garment']).name}{garment_counts(job)}"
     if job.get("owner"):
         text += f"  @{job['owner']}"
     progress = job.get("progress") or {}

@@ -25,6 +25,7 @@ from solver.wallpaper import Wallpaper
 from station.control import request
 from station.daemon import setup_logging
 from station.fleetdemo import run as run_fleet
+from station.order import is_order_file, read_order
 from station.progress import follow
 from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
 
@@ -82,7 +83,10 @@ def run(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{garment}: no such garment file")
     if args.units is None and garment.resolve() == EXAMPLE.resolve():
         args.units = "m"  # the Berkeley example does not say its units
-    load_garment(garment, units=args.units)  # a bad garment is one line before any station starts
+    if is_order_file(garment):  # a bad order or garment is one line before any station starts
+        read_order(garment)
+    else:
+        load_garment(garment, units=args.units)
     fleet = args.fleet > 0
     args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
     args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None

@@ -22,6 +22,7 @@ from station.cliargs import (
     load_config_arg,
     picture_path,
 )
+from station.commands import order as order_command
 from station.errors import UserError
 from station.render import draw_marker
 
@@ -35,7 +36,8 @@ def register(sub) -> None:
         "piece moves only by symmetries of the print, so the alignment is kept. The layout "
         "is verified independently before it is written.")
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="PLACEMENT.json, DXF or instance JSON (several: one marker)")
+                   help="PLACEMENT.json, DXF or instance JSON (several: one marker), or an "
+                   "ORDER.toml (or what `align ORDER` wrote): every garment of it in one marker")
     p.add_argument("-o", "--output", required=True, metavar="LAYOUT.json")
     p.add_argument("--fabric", metavar="FABRIC.json", help="the print under the pieces")
     p.add_argument("--plain", action="store_true",
@@ -84,10 +86,12 @@ def run(args) -> int:
         raise UserError("--gap must not be negative")
     if args.plain and args.fabric:
         raise UserError("--plain nests without a print: drop --fabric")
+    config = load_config_arg(args)
+    if any(order_command.is_order_input(p) for p in args.inputs):
+        return order_command.run_nest(args, config)
     t0 = time.monotonic()
     deadline = Deadline(args.time)  # loading the pieces counts too
     fabric = Wallpaper.load(args.fabric) if args.fabric else None
-    config = load_config_arg(args)
     problem = load_problem(
         args.inputs, width=args.width, length=args.length, gap=args.gap, fabric=fabric,
         sizes=args.size.split(",") if args.size else None, units=args.units,

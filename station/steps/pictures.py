@@ -21,7 +21,16 @@ def draw_plan(plan: Plan, machine: Machine) -> None:
     draw_marker(plan.layout.to_dict(), plan.job_dir / "marker.png",
                 garment=plan.garment if printed else None, report=plan.fit,
                 photo=plan.captured.photo if printed else None,
-                photo_mm_per_px=plan.captured.mm_per_px if printed else 1.0, credit=credit)
+                photo_mm_per_px=plan.captured.mm_per_px if printed else 1.0, credit=credit,
+                title=_order_title(plan.report.get("order")))
+
+
+def _order_title(order: dict | None) -> str | None:
+    """``order PO-1, sizes 44:1 50:1`` for an order's marker (None for one garment)."""
+    if not order:
+        return None
+    ratio = " ".join(f"{s}:{n}" for s, n in order["ratio"].items())
+    return f"order {order['name']}, sizes {ratio}"
 
 
 def draw_fits(stages: list[Stage], captured: Captured, wallpaper: Wallpaper | None) -> None:

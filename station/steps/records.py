@@ -58,7 +58,9 @@ class Plan:
 
     def record(self) -> dict[str, Any]:
         d = self.job_dir
+        garments = {p.id: p.garment for p in self.layout.pieces if p.garment}
         return {"fabric": self.captured.path, "garment": str(self.garment_path),
                 "placement": str(d / "placement.json"), "layout": str(d / "layout.json"),
                 "program": str(d / "job.nc"), "report": str(d / "report.json"),
-                "pieces": self.pieces}
+                "pieces": self.pieces,
+                **({"garments": garments} if garments else {})}  # an order's: piece -> garment

@@ -13,6 +13,7 @@ from solver.garment.symmetry import pairs_from_dict
 from solver.wallpaper import Wallpaper
 from station.allowance import rules_for_job
 from station.config import Config
+from station.order import is_order_file, read_order
 from station.steps.garment import grained
 
 JOB_OPTIONS = frozenset({"units", "size", "reshape", "method", "restarts", "seed", "grain_lines",
@@ -22,7 +23,11 @@ JOB_OPTIONS = frozenset({"units", "size", "reshape", "method", "restarts", "seed
 
 def check_job(garment: str, fabric: str | None, options: dict[str, Any],
               config: Config) -> None:
-    """Raise ValueError, naming the file or option, for a job that could never run."""
+    """Raise ValueError, naming the file or option, for a job that could never run; an
+    order's every garment is checked as one garment is."""
+    if is_order_file(garment):
+        _check_order(garment, fabric, options, config)
+        return
     loaded = garment_files.load_garment(garment, units=options.get("units"),
                                         size=options.get("size"))
     if fabric is not None:
@@ -45,3 +50,22 @@ def check_job(garment: str, fabric: str | None, options: dict[str, Any],
             raise ValueError(f"job option {key} must be true or false")
     if "pairs" in options:
         pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
+
+
+def _check_order(path: str, fabric: str | None, options: dict[str, Any], config: Config
+                 ) -> None:
+    """The order read (its checks), then each style and size loaded and checked with the
+    job's options; an order's file gives the units and sizes, not the job's options."""
+    given = [k for k in ("units", "size") if options.get(k) is not None]
+    if given:
+        raise ValueError(f"{path}: job option {given[0]} is the order file's to give")
+    if options.get("symmetrise") or options.get("reshape"):  # not yet run per garment
+        raise ValueError(f"{path}: an order is cut as aligned: drop job options symmetrise "
+                         "and reshape")
+    order = read_order(path)
+    seen = set()
+    for item in order.garments:
+        if (item.pattern, item.size) not in seen:
+            seen.add((item.pattern, item.size))
+            check_job(str(item.pattern), fabric, {**options, "units": item.units,
+                                                  "size": item.size}, config)

@@ -1,0 +1,97 @@
+"""Steps 2 to 5 for a job that is an order: every garment (style, size, copy) loaded and
+aligned by the same steps as a single garment (`steps.garment.grained`,
+`steps.place.align_job`, or `plain_placement` on plain cloth), one marker holding every
+piece of the order (`steps.order`), then the program (`steps.program`).
+
+It writes what `plan_job` writes (placement.json as the order's placements, layout.json,
+job.nc, report.json) and hands back the same `Plan`; its pictures are the marker (titled
+with the order and its size ratio) and the toolpath.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from gcode.machine import Machine
+from solver.garment import Garment
+from solver.placement import Placement
+from station.allowance import rules_for_job
+from station.config import Config
+from station.daemon import JobControl
+from station.jobstore import Job
+from station.order import OrderGarment, read_order
+from station.steps.capture import Captured
+from station.steps.garment import grained
+from station.steps.order import align_order, nest_order, order_problem, write_aligned
+from station.steps.place import align_job, plain_placement
+from station.steps.plan import JobReport, print_of
+from station.steps.program import fabric_origin, machine_layout, program_of
+from station.steps.records import Plan
+from station.stripes import stripe_grain
+
+
+def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
+               control: JobControl) -> Plan:
+    """Align every garment of the order, nest them in one marker, program it."""
+    order = read_order(job.garment)
+    report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment,
+                                                 "order": order.to_dict()})
+    kind = captured.fabric.get("kind")
+    plain = kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes",
+                                                                          True))
+    wallpaper = None if plain else print_of(captured, config, report)
+    control.start_step("aligning", 0.0)
+    done = 0
+
+    def align_one(garment: Garment, item: OrderGarment) -> Placement:
+        nonlocal done
+        control.progress.update(step="aligning", fraction=done / len(order.garments))
+        control.checkpoint()
+        garment = grained(garment, config, job.options)
+        done += 1
+        if wallpaper is None:
+            cloth = stripe_grain(captured.fabric, config["align"]["fabric_grain_deg"])
+            return plain_placement(garment, config, cloth["grain_deg"])
+        return align_job(garment, wallpaper, config, job.options,
+                         fabric_grain_deg=report.data["fabric"].get("grain_deg"))
+
+    aligned = align_order(order, align_one)
+    write_aligned(order, aligned, workdir / "placement.json")
+    report.data["garments"] = [a.report() for a in aligned]
+    if config["reshape"]["enabled"]:  # said in the job's report, never silently skipped
+        report.data["reshape"] = {"note": "not run for an order: each garment is cut as "
+                                          "aligned"}
+    report.step_done("align")
+    control.checkpoint()
+    layout = _nest(aligned, config, job, control, plain=wallpaper is None)
+    layout.save(workdir / "layout.json")
+    report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
+                           "density": layout.density, "pieces": len(layout.pieces)}
+    report.step_done("nest")
+    control.checkpoint()
+    control.start_step("programming")
+    marker = machine_layout(layout, fabric_origin(config), str(workdir / "layout.json"))
+    program, _ = program_of(marker, machine, title=f"station {workdir.name}")
+    program.write(workdir / "job.nc")
+    report.data["program"] = program.summary()
+    report.step_done("program")
+    first = aligned[0]
+    return Plan(workdir, captured, first.garment, Path(job.garment), first.placement, layout,
+                marker, program, report.data, wallpaper)
+
+
+def _nest(aligned, config: Config, job: Job, control: JobControl, *, plain: bool):
+    """The order's verified marker within the station's nesting time."""
+    n = config["nest"]
+    control.start_step("nesting", 0.0)
+    t0 = time.monotonic()
+
+    def on_nest(_message: str) -> None:
+        control.progress.update(step="nesting", fraction=min(
+            1.0, (time.monotonic() - t0) / n["seconds"]))
+
+    problem = order_problem(aligned, width=n["width_mm"], length=n["length_mm"],
+                            gap=n["gap_mm"], allowance=rules_for_job(config, job.options),
+                            plain=plain)
+    return nest_order(problem, seconds=n["seconds"], progress=on_nest)
