@@ -9,6 +9,7 @@ import sys
 import untrusted
 from solver.fit import fit_report
 from solver.placement import Placement
+from station import order_commands as order_command
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
@@ -24,7 +25,6 @@ from station.cliargs import (
     read_name_map,
     symmetrised_garment,
 )
-from station.commands import order as order_command
 from station.order import is_order_file
 from station.render import draw_fit, fabric_picture
 from station.steps.place import align_garment

@@ -15,6 +15,7 @@ from solver.nest.regions import load_keepouts
 from solver.nest.solve import nest
 from solver.nest.sources import load_problem
 from solver.wallpaper import Wallpaper
+from station import order_commands as order_command
 from station.cliargs import (
     add_allowance_arguments,
     add_config_argument,
@@ -22,7 +23,6 @@ from station.cliargs import (
     load_config_arg,
     picture_path,
 )
-from station.commands import order as order_command
 from station.errors import UserError
 from station.render import draw_marker
 
