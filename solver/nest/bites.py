@@ -1,0 +1,247 @@
+"""A marker longer than the table, cut in bites: the pieces moved off the bite boundaries.
+
+A cutting table sees one window of the roll at a time; the conveyor advances the roll and
+the next bite is cut. No piece may straddle a boundary between two bites (half of it
+would be cut before the advance, half after, with the slip of the conveyor in between),
+so :func:`plan_bites` walks the nested marker from its start, and at each window's end
+chooses the boundary that costs the least length: the pieces before it stay, the rest of
+the marker moves on, as one block, just far enough to clear the boundary by the gap on
+each side. On a print the move is a whole lattice vector (the pieces stay on the print
+they were aligned to; the pairs stay pairs), so it may also move the block across the
+roll within the fabric's width. What the boundaries cost is the marker's length with
+them against the nest's own length without them.
+
+:func:`nest_in_bites` also lets the nest itself know the boundaries: thin keep-out
+strips across the roll at every window's end, so that the search packs around them, and
+keeps whichever of the two markers is shorter (neither wins everywhere: moving blocks
+costs about half a piece per boundary, fencing costs the search's freedom).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from solver.nest.budget import Deadline, deadline_of
+from solver.nest.instance import NestProblem
+from solver.nest.layout import Layout, Placed
+from solver.nest.solve import nest
+
+#: mm of window left unused at a bite's end that weigh as one mm of fabric when choosing
+#: a boundary: a bite fewer saves an advance and a registration, fabric is dearer
+UNUSED_WINDOW_WEIGHT = 0.1
+#: half the width of a fence between bites, as a fraction of the window (the gap to the
+#: pieces on either side comes on top of it)
+FENCE_HALF_WIDTH = 1e-4
+
+
+@dataclass(frozen=True)
+class Bite:
+    """The part of the marker cut between two advances of the roll (marker mm, x along
+    the roll): the window ``[start_mm, start_mm + window]`` holds ``pieces`` (their ids).
+    ``advance_commanded_mm`` moves the roll from the previous bite's start to this one's;
+    the measured advance and skew are filled in on the table (None until then)."""
+
+    index: int
+    start_mm: float
+    end_mm: float
+    pieces: tuple[str, ...]
+    advance_commanded_mm: float
+    advance_measured_mm: float | None = None
+    skew_deg: float | None = None
+
+    def measured(self, advance_mm: float, skew_deg: float) -> Bite:
+        """This bite with the advance and skew measured on the print after the advance."""
+        return replace(self, advance_measured_mm=float(advance_mm), skew_deg=float(skew_deg))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"index": self.index, "start_mm": round(self.start_mm, 6),
+                "end_mm": round(self.end_mm, 6), "pieces": list(self.pieces),
+                "advance_commanded_mm": round(self.advance_commanded_mm, 6),
+                "advance_measured_mm": self.advance_measured_mm, "skew_deg": self.skew_deg}
+
+
+@dataclass
+class BitePlan:
+    """The marker with its pieces moved off the boundaries, cut as ``bites`` in order."""
+
+    layout: Layout
+    bites: list[Bite]
+    window_mm: float
+    length_unbounded_mm: float  # the nest's marker, with no boundaries
+    shifts: list[np.ndarray] = field(default_factory=list)  # (2,) block move per boundary
+
+    @property
+    def boundary_cost_mm(self) -> float:
+        """Length the boundaries added to the marker."""
+        return float(self.layout.length - self.length_unbounded_mm)
+
+    def bite_of(self) -> dict[str, int]:
+        """Each piece's bite index, by piece id."""
+        return {pid: b.index for b in self.bites for pid in b.pieces}
+
+    def summary(self) -> dict[str, Any]:
+        return {"window_mm": self.window_mm, "bites": len(self.bites),
+                "length_mm": round(self.layout.length, 3),
+                "length_unbounded_mm": round(self.length_unbounded_mm, 3),
+                "boundary_cost_mm": round(self.boundary_cost_mm, 3),
+                "boundary_cost_pct": round(100 * self.boundary_cost_mm
+                                           / self.length_unbounded_mm, 3)}
+
+
+def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None = None
+               ) -> BitePlan:
+    """Cut ``layout`` into bites of at most ``window_mm`` along the roll.
+
+    ``lattice``: (2, 2) columns, the print's lattice vectors (fabric mm) that a block of
+    pieces may move by; None on plain cloth (any move along the roll). Raises ValueError,
+    naming the piece, for one longer than a bite can hold."""
+    gap = float(layout.gap)
+    lo, hi = _x_extents(layout.pieces)
+    room = window_mm - 2 * gap
+    too_long = np.flatnonzero(hi - lo > room + 1e-9)
+    if len(too_long):
+        p = layout.pieces[int(too_long[0])]
+        raise ValueError(f"piece {p.id!r} is {hi[too_long[0]] - lo[too_long[0]]:.1f} mm along "
+                         f"the roll; a bite of the table's {window_mm:g} mm window holds "
+                         f"{room:g} mm between its gaps")
+    tail = float(layout.length - hi.max())  # the marker's end after its last piece
+    y_lo, y_hi = _y_extents(layout.pieces)
+    bite_of = np.full(len(lo), -1)
+    starts, shifts = [], []
+    start = float(lo.min()) - gap
+    while True:
+        starts.append(start)
+        left = bite_of < 0
+        if hi[left].max() <= start + window_mm - gap + 1e-9:  # the rest fits: last bite
+            bite_of[left] = len(starts) - 1
+            break
+        kept, shift = _cheapest_boundary(lo, hi, y_lo, y_hi, left, start, window_mm, gap,
+                                         layout.width, lattice)
+        bite_of[kept] = len(starts) - 1
+        rest = bite_of < 0
+        lo[rest] += shift[0]
+        hi[rest] += shift[0]
+        y_lo[rest] += shift[1]
+        y_hi[rest] += shift[1]
+        shifts.append((rest.copy(), shift))
+        start = float(lo[rest].min()) - gap
+    moved = _moved_layout(layout, shifts, float(hi.max()) + tail)
+    ends = [*starts[1:], moved.length]
+    bites = [Bite(k, starts[k], min(ends[k], starts[k] + window_mm),
+                  tuple(moved.pieces[i].id for i in np.flatnonzero(bite_of == k)),
+                  starts[k] - (starts[k - 1] if k else starts[0]))
+             for k in range(len(starts))]
+    return BitePlan(moved, bites, float(window_mm), float(layout.length),
+                    [s for _, s in shifts])
+
+
+def nest_in_bites(problem: NestProblem, window_mm: float, *,
+                  time_limit: float | Deadline = 30.0, seed: int | None = 0) -> BitePlan:
+    """The shortest marker of ``problem`` (any length) cut in bites of ``window_mm``: the
+    free nest with its blocks moved off the boundaries, or a nest fenced at the
+    boundaries, whichever is shorter; the cost is reported against the free nest."""
+    if problem.length is not None:
+        raise ValueError("a marker cut in bites has no length limit; the window is the bite")
+    deadline = deadline_of(time_limit)
+    lattice = problem.lattice
+    free = nest(problem, time_limit=deadline.share(0.5), seed=seed)
+    best = plan_bites(free, window_mm, lattice=lattice)
+    count = int(np.ceil(2.0 * free.length / window_mm)) + 2  # past any fenced marker's end
+    eps = FENCE_HALF_WIDTH * window_mm
+    fences = [np.array([[x - eps, 0.0], [x + eps, 0.0], [x + eps, problem.width],
+                        [x - eps, problem.width]])
+              for x in window_mm * np.arange(1, count + 1)]
+    fenced_problem = replace(problem, keepouts=[*problem.keepouts, *fences])
+    try:
+        fenced = nest(fenced_problem, time_limit=deadline, seed=seed)
+    except ValueError:  # the fences left no room the search could find: keep the free one
+        return best
+    fenced = replace(fenced, keepouts=list(problem.keepouts))
+    candidate = plan_bites(fenced, window_mm, lattice=lattice)
+    if candidate.layout.length < best.layout.length:
+        best = replace(candidate, length_unbounded_mm=float(free.length))
+    return best
+
+
+def _cheapest_boundary(lo, hi, y_lo, y_hi, left, start, window_mm, gap, width, lattice):
+    """(the pieces kept in this bite (bool mask), the (2,) move of the rest): among the
+    boundaries after each piece that fits the window, the one that adds the least length
+    (and, at equal length, leaves the least window unused)."""
+    order = np.flatnonzero(left)[np.argsort(hi[left], kind="stable")]
+    ends = hi[order]
+    fits = ends <= start + window_mm - gap + 1e-9
+    best: tuple[float, np.ndarray, np.ndarray] | None = None
+    for n in np.flatnonzero(fits) + 1:  # keep the first n pieces by their end
+        if n < len(ends) and ends[n - 1] == ends[n]:
+            continue  # a boundary is after all pieces ending there, never between them
+        kept = np.zeros(len(lo), bool)
+        kept[order[:n]] = True
+        rest = left & ~kept
+        boundary = float(ends[n - 1]) + gap
+        need = boundary + gap - float(lo[rest].min())
+        shift = _block_move(need, gap - float(y_lo[rest].min()),
+                            width - gap - float(y_hi[rest].max()), lattice)
+        if shift is None:
+            continue
+        score = shift[0] + UNUSED_WINDOW_WEIGHT * (start + window_mm - boundary)
+        if best is None or score < best[0] - 1e-9:
+            best = (score, kept, shift)
+    if best is None:
+        raise ValueError("no bite boundary keeps the pieces on the print and inside the "
+                         f"fabric's {width:g} mm width")
+    return best[1], best[2]
+
+
+def _block_move(need: float, dy_min: float, dy_max: float, lattice: np.ndarray | None
+                ) -> np.ndarray | None:
+    """The shortest move along the roll of at least ``need`` mm (0 if ``need`` <= 0) that
+    keeps the block across the roll within ``[dy_min, dy_max]``: on a print, a whole lattice
+    vector; None where no lattice vector does."""
+    need = max(need, 0.0)
+    if lattice is None:
+        return np.array([need, 0.0])
+    reach = need + 2.0 * float(np.hypot(*lattice).sum())
+    corners = np.array([[need, reach, need, reach], [dy_min, dy_min, dy_max, dy_max]])
+    frac = np.linalg.solve(lattice, corners)  # the box of moves, in lattice coordinates
+    a, b = (g.ravel() for g in np.meshgrid(
+        *(np.arange(np.floor(f.min()), np.ceil(f.max()) + 1) for f in frac)))
+    v = lattice @ np.vstack([a, b])  # (2, m) candidate moves
+    ok = (v[0] >= need - 1e-9) & (v[1] >= dy_min - 1e-9) & (v[1] <= dy_max + 1e-9)
+    if not ok.any():
+        return None
+    cand = v[:, ok]
+    i = np.lexsort((np.abs(cand[1]), cand[0]))[0]  # shortest along, then least across
+    return cand[:, i].astype(float)
+
+
+def _x_extents(pieces: list[Placed]) -> tuple[np.ndarray, np.ndarray]:
+    return (np.array([p.outline[:, 0].min() for p in pieces], float),
+            np.array([p.outline[:, 0].max() for p in pieces], float))
+
+
+def _y_extents(pieces: list[Placed]) -> tuple[np.ndarray, np.ndarray]:
+    return (np.array([p.outline[:, 1].min() for p in pieces], float),
+            np.array([p.outline[:, 1].max() for p in pieces], float))
+
+
+def _moved_layout(layout: Layout, shifts, length: float) -> Layout:
+    """A copy of ``layout`` with each boundary's block of pieces moved, ``length`` long."""
+    total = np.zeros((len(layout.pieces), 2))
+    for rest, shift in shifts:
+        total[rest] += shift
+    pieces = [_translated(p, d) if np.any(d) else p for p, d in zip(layout.pieces, total)]
+    return replace(layout, pieces=pieces, length=float(length))
+
+
+def _translated(p: Placed, d: np.ndarray) -> Placed:
+    """``p`` moved by ``d`` (mm) on the fabric: outline, holes, notches, marks, grain."""
+    t = p.transform.copy()
+    t[:, 2] += d
+    return replace(
+        p, transform=t, outline=p.outline + d, holes=[h + d for h in p.holes],
+        notches=[(np.asarray(a) + d, direction, depth) for a, direction, depth in p.notches],
+        marks=p.marks + d, grainline=None if p.grainline is None else p.grainline + d,
+        sew_line=None if p.sew_line is None else p.sew_line + d)
