@@ -72,6 +72,10 @@ class BitePlan:
     window_mm: float
     length_unbounded_mm: float  # the nest's marker, with no boundaries
     shifts: list[np.ndarray] = field(default_factory=list)  # (2,) block move per boundary
+    # how the boundaries were paid: "moved" (blocks moved on) or "fenced" (the nest knew
+    # them), and the length the other way gave (None: not tried, or no marker)
+    method: str = "moved"
+    other_length_mm: float | None = None
 
     @property
     def boundary_cost_mm(self) -> float:
@@ -83,7 +87,7 @@ class BitePlan:
         return {pid: b.index for b in self.bites for pid in b.pieces}
 
     def summary(self) -> dict[str, Any]:
-        return {"window_mm": self.window_mm, "bites": len(self.bites),
+        return {"window_mm": self.window_mm, "bites": len(self.bites), "method": self.method,
                 "length_mm": round(self.layout.length, 3),
                 "length_unbounded_mm": round(self.length_unbounded_mm, 3),
                 "boundary_cost_mm": round(self.boundary_cost_mm, 3),
@@ -160,10 +164,11 @@ def nest_in_bites(problem: NestProblem, window_mm: float, *,
     except ValueError:  # the fences left no room the search could find: keep the free one
         return best
     fenced = replace(fenced, keepouts=list(problem.keepouts))
-    candidate = plan_bites(fenced, window_mm, lattice=lattice)
+    candidate = replace(plan_bites(fenced, window_mm, lattice=lattice), method="fenced",
+                        length_unbounded_mm=float(free.length))
     if candidate.layout.length < best.layout.length:
-        best = replace(candidate, length_unbounded_mm=float(free.length))
-    return best
+        return replace(candidate, other_length_mm=float(best.layout.length))
+    return replace(best, other_length_mm=float(candidate.layout.length))
 
 
 def _cheapest_boundary(lo, hi, y_lo, y_hi, left, start, window_mm, gap, width, lattice):

@@ -1,0 +1,125 @@
+"""Bites (issue 35): a marker longer than the table, and finding the print after an advance.
+
+    python -m bench.bites [--time SECONDS] [--only markers,register]
+
+``markers``: the marker's length cut in bites of the table window against the same
+pieces nested with no boundaries (`solver.nest.bites.nest_in_bites`: half the time for
+the free nest, half for the fenced one), for an order of three Berkeley t-shirts on the
+default 1000 mm table (window 1600 mm) and ESICUP instances (window a third of their
+marker). ``moved``: the free nest with the rest of the marker moved off each boundary;
+``fenced``: the nest told the boundaries; ``kept``: the shorter of the two.
+``register``: seconds to measure one advance from two photographs of the window.
+Needs ../shared/data for ``markers`` (skips, saying so, when absent).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from solver.nest import NestProblem, Piece, load_esicup
+from solver.nest.bites import nest_in_bites
+from solver.nest.solve import nest
+from solver.wallpaper import Wallpaper
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+TSHIRT = "berkeley_garment_library/Garments/tshirt/isotropic/tshirt-iso.obj"
+
+
+def _tshirt_order(copies: int, repeat: float | None) -> NestProblem:
+    from solver.garment import load_garment
+
+    g = load_garment(SHARED / "garments" / TSHIRT, units="m")
+    pieces = [Piece(f"p{i}", g.piece_outline(i), quantity=copies) for i in range(g.n_pieces)]
+    fabric = None if repeat is None else Wallpaper("p2", (repeat, 0.0), (0.0, repeat))
+    return NestProblem(pieces, 1000.0, gap=3.0, fabric=fabric)
+
+
+def _row(name: str, problem: NestProblem, window: float | None, t: float) -> None:
+    if window is None:  # a third of a quick free nest: three bites or so
+        window = round(nest(problem, time_limit=min(t, 5.0), seed=0).length / 3, 1)
+    t0 = time.monotonic()
+    plan = nest_in_bites(problem, window, time_limit=t, seed=0)
+    sec = time.monotonic() - t0
+    lengths = {plan.method: plan.layout.length,
+               "fenced" if plan.method == "moved" else "moved": plan.other_length_mm}
+    cells = [f"{lengths[m]:.0f}" if lengths[m] is not None else "none" for m in
+             ("moved", "fenced")]
+    cost = plan.boundary_cost_mm
+    print(f"| {name} | {window:g} | {plan.length_unbounded_mm:.0f} | {cells[0]} | {cells[1]} "
+          f"| {plan.method}, {len(plan.bites)} bites | {cost:+.0f} "
+          f"({cost / plan.length_unbounded_mm:+.1%}) | {sec:.1f} |", flush=True)
+
+
+def markers(t: float) -> None:
+    if not SHARED.is_dir():
+        print(f"bench/bites.py: {SHARED} is absent (fresh clone): markers skipped")
+        return
+    print(f"\n### Marker length in bites against no boundaries, {t:g} s per nest\n")
+    print("| marker | window | no boundaries | moved off the boundaries | fenced | kept | "
+          "cost of the boundaries | seconds |")
+    print("|---|---|---|---|---|---|---|---|")
+    _row("3 t-shirts, plain, 1000 mm roll", _tshirt_order(3, None), 1600.0, t)
+    _row("3 t-shirts, p2 50 mm, 1000 mm roll", _tshirt_order(3, 50.0), 1600.0, t)
+    for name in ("shirts", "trousers"):
+        _row(f"ESICUP {name}, plain", load_esicup(SHARED / "nesting" / f"{name}.json"), None, t)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="bench.bites")
+    ap.add_argument("--time", type=float, default=float(os.environ.get("BENCH_NEST_TIME", 10)))
+    ap.add_argument("--only", default="markers,register")
+    args = ap.parse_args([] if argv is None else argv)
+    print(f"bench/bites.py  {platform.node()}  {platform.processor() or platform.machine()}  "
+          f"{os.cpu_count()} cpus")
+    parts = args.only.split(",")
+    if "markers" in parts:
+        markers(args.time)
+    if "register" in parts:
+        register()
+
+
+def register(advances: int = 12) -> None:
+    """Seconds and error of one measured advance on the default table's window (1600 x
+    1000 mm at 1 mm per pixel), the simulated roll slipping up to 3 mm and 0.2 degrees."""
+    from simulators.fabric import random_print
+    from simulators.roll import Conveyor, RollCamera, RollPrint
+    from vision.advance import measure_advance
+
+    print(f"\n### Finding the print again: {advances} advances per row, 1600 x 1000 mm window "
+          "at 1 mm/px, p2 print, 50 mm repeat\n")
+    print("| commanded advance | shared strip | seconds per bite (median, max) | "
+          "advance error max | skew error max |")
+    print("|---|---|---|---|---|")
+    design = random_print("p2", 50.0, seed=7)
+    lattice = np.column_stack([design.wallpaper.w1, design.wallpaper.w2])
+    for commanded in (800.0, 1400.0, 1540.0):
+        conv = Conveyor(pivot=(799.5, 499.5), seed=11)
+        camera = RollCamera(RollPrint(design, width=1000.0), conv, (0.0, 0.0, 1600.0, 1000.0))
+        secs, err_a, err_s = [], [], []
+        before = camera.photograph()
+        for _ in range(advances):
+            p0 = conv.pose
+            p1 = conv.advance(commanded)
+            after = camera.photograph()
+            t0 = time.perf_counter()
+            adv = measure_advance(before, after, commanded_mm=commanded, lattice=lattice)
+            secs.append(time.perf_counter() - t0)
+            a = np.radians(p0.angle_deg)
+            along = np.cos(a) * (p1.along - p0.along) + np.sin(a) * (p1.across - p0.across)
+            err_a.append(abs(adv.advance_mm - along))
+            err_s.append(abs(adv.skew_deg - (p1.angle_deg - p0.angle_deg)))
+            before = after
+        print(f"| {commanded:g} mm | {1600 - commanded:g} mm | {np.median(secs):.2f}, "
+              f"{max(secs):.2f} | {max(err_a):.3f} mm | {max(err_s):.4f} deg |", flush=True)
+
+
+if __name__ == "__main__":
+    import sys
+
+    main(sys.argv[1:])
