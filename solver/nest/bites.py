@@ -40,7 +40,8 @@ FENCE_HALF_WIDTH = 1e-4
 @dataclass(frozen=True)
 class Bite:
     """The part of the marker cut between two advances of the roll (marker mm, x along
-    the roll): the window ``[start_mm, start_mm + window]`` holds ``pieces`` (their ids).
+    the roll): the window ``[start_mm, start_mm + window]`` holds ``pieces`` (their ids),
+    which end at ``end_mm`` (the next bite's pieces begin beyond it, by the gap).
     ``advance_commanded_mm`` moves the roll from the previous bite's start to this one's;
     the measured advance and skew are filled in on the table (None until then)."""
 
@@ -95,13 +96,20 @@ class BitePlan:
                                            / self.length_unbounded_mm, 3)}
 
 
-def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None = None
-               ) -> BitePlan:
+def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None = None,
+               max_advance_mm: float | None = None) -> BitePlan:
     """Cut ``layout`` into bites of at most ``window_mm`` along the roll.
 
     ``lattice``: (2, 2) columns, the print's lattice vectors (fabric mm) that a block of
-    pieces may move by; None on plain cloth (any move along the roll). Raises ValueError,
-    naming the piece, for one longer than a bite can hold."""
+    pieces may move by; None on plain cloth (any move along the roll).
+    ``max_advance_mm``: the longest advance between two bites (default the window; the
+    station keeps a strip of cloth in view across each advance to find the print again),
+    so a bite may begin before the previous one's pieces end, or hold no piece at all.
+    Raises ValueError, naming the piece, for one longer than a bite can hold."""
+    max_advance = window_mm if max_advance_mm is None else float(max_advance_mm)
+    if not 0 < max_advance <= window_mm:
+        raise ValueError(f"the longest advance must be within the {window_mm:g} mm window, "
+                         f"got {max_advance:g} mm")
     gap = float(layout.gap)
     lo, hi = _x_extents(layout.pieces)
     room = window_mm - 2 * gap
@@ -122,6 +130,9 @@ def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None =
         if hi[left].max() <= start + window_mm - gap + 1e-9:  # the rest fits: last bite
             bite_of[left] = len(starts) - 1
             break
+        if hi[left].min() > start + window_mm - gap + 1e-9:  # none ends in view: roll on
+            start = min(float(lo[left].min()) - gap, start + max_advance)
+            continue
         kept, shift = _cheapest_boundary(lo, hi, y_lo, y_hi, left, start, window_mm, gap,
                                          layout.width, lattice)
         bite_of[kept] = len(starts) - 1
@@ -131,10 +142,11 @@ def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None =
         y_lo[rest] += shift[1]
         y_hi[rest] += shift[1]
         shifts.append((rest.copy(), shift))
-        start = float(lo[rest].min()) - gap
+        start = min(float(lo[rest].min()) - gap, start + max_advance)
     moved = _moved_layout(layout, shifts, float(hi.max()) + tail)
-    ends = [*starts[1:], moved.length]
-    bites = [Bite(k, starts[k], min(ends[k], starts[k] + window_mm),
+    ends = [float(hi[bite_of == k].max()) + gap if np.any(bite_of == k) else starts[k]
+            for k in range(len(starts))]  # after the bite's last piece (its boundary)
+    bites = [Bite(k, starts[k], ends[k],
                   tuple(moved.pieces[i].id for i in np.flatnonzero(bite_of == k)),
                   starts[k] - (starts[k - 1] if k else starts[0]))
              for k in range(len(starts))]

@@ -31,13 +31,17 @@ def _assert_bites_are_sound(plan, window: float, ids: list[str]) -> None:
     assert sorted(cut) == sorted(ids) and len(cut) == len(set(cut))
     by_id = {p.id: p for p in plan.layout.pieces}
     gap = plan.layout.gap
-    for bite in plan.bites:
+    for bite in (b for b in plan.bites if b.pieces):
         xs = np.concatenate([by_id[pid].outline[:, 0] for pid in bite.pieces])
         assert xs.min() >= bite.start_mm + gap - 1e-9
         assert xs.max() <= bite.start_mm + window - gap + 1e-9
-        assert xs.max() <= bite.end_mm - gap + 1e-9  # before the next bite begins
+        assert xs.max() <= bite.end_mm - gap + 1e-9
+    for bite, later in zip(plan.bites, plan.bites[1:]):  # no piece straddles a boundary
+        xs = [by_id[pid].outline[:, 0].min() for pid in later.pieces]
+        assert min(xs, default=np.inf) >= bite.end_mm + gap - 1e-9
     starts = np.array([b.start_mm for b in plan.bites])
     assert np.all(np.diff(starts) > 0)
+    assert all(b.end_mm <= b.start_mm + window + 1e-9 for b in plan.bites)
     advances = [b.advance_commanded_mm for b in plan.bites]
     assert advances[0] == 0.0 and np.allclose(advances[1:], np.diff(starts))
     assert max(advances) <= window
@@ -76,6 +80,20 @@ def test_a_marker_that_fits_is_one_bite_and_costs_nothing():
     plan = plan_bites(layout, 100.0)
     assert len(plan.bites) == 1 and plan.boundary_cost_mm == 0.0
     assert plan.layout.length == layout.length
+
+
+def test_a_capped_advance_keeps_cloth_in_view_and_may_roll_on_without_cutting():
+    # after the first boundary r1 lies at 63..153; advances of at most 50 mm bring the
+    # window to 50..150 first, where it does not fit: that bite cuts nothing, the next
+    # advance (12 mm) brings r1 into view, and r2 comes after the last 50 mm
+    layout = _rectangles((1, 61), (62, 152), (155, 175))
+    plan = plan_bites(layout, 100.0, max_advance_mm=50.0)
+    assert [len(b.pieces) for b in plan.bites] == [1, 0, 1, 1]
+    assert [b.advance_commanded_mm for b in plan.bites] == pytest.approx([0, 50, 12, 50])
+    assert plan.boundary_cost_mm == pytest.approx(1.0)
+    _assert_bites_are_sound(plan, 100.0, [p.id for p in layout.pieces])
+    with pytest.raises(ValueError, match="within the 100 mm window"):
+        plan_bites(layout, 100.0, max_advance_mm=120.0)
 
 
 def test_a_piece_longer_than_the_window_is_named():
