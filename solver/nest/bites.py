@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from solver.nest.budget import Deadline, deadline_of
-from solver.nest.instance import NestProblem
+from solver.nest.instance import NestProblem, affine, compose
 from solver.nest.layout import Layout, Placed
 from solver.nest.solve import nest
 
@@ -253,12 +253,19 @@ def _moved_layout(layout: Layout, shifts, length: float) -> Layout:
     return replace(layout, pieces=pieces, length=float(length))
 
 
-def _translated(p: Placed, d: np.ndarray) -> Placed:
-    """``p`` moved by ``d`` (mm) on the fabric: outline, holes, notches, marks, grain."""
-    t = p.transform.copy()
-    t[:, 2] += d
+def moved_piece(p: Placed, m: np.ndarray) -> Placed:
+    """``p`` carried by the rigid map ``m`` ((2, 3), fabric mm): outline, holes, notches,
+    marks, grain line and sew line, and its transform composed with ``m``."""
+    m = np.asarray(m, float)
+    lin = m[:, :2]
+    move = lambda a: affine(m, a)  # noqa: E731
     return replace(
-        p, transform=t, outline=p.outline + d, holes=[h + d for h in p.holes],
-        notches=[(np.asarray(a) + d, direction, depth) for a, direction, depth in p.notches],
-        marks=p.marks + d, grainline=None if p.grainline is None else p.grainline + d,
-        sew_line=None if p.sew_line is None else p.sew_line + d)
+        p, transform=compose(m, p.transform), outline=move(p.outline),
+        holes=[move(h) for h in p.holes],
+        notches=[(move(a)[0], lin @ np.asarray(d, float), depth) for a, d, depth in p.notches],
+        marks=move(p.marks), grainline=None if p.grainline is None else move(p.grainline),
+        sew_line=None if p.sew_line is None else move(p.sew_line))
+
+
+def _translated(p: Placed, d: np.ndarray) -> Placed:
+    return moved_piece(p, np.column_stack([np.eye(2), d]))
