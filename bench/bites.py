@@ -4,10 +4,11 @@
 
 ``markers``: the marker's length cut in bites of the table window
 (`solver.nest.bites.nest_in_bites`: half the time for the free nest, half for the fenced
-one) against the same pieces nested with no boundaries in the whole time, for an order of three Berkeley t-shirts on the
-default 1000 mm table (window 1600 mm) and ESICUP instances (window a third of their
-marker). ``moved``: the free nest with the rest of the marker moved off each boundary;
-``fenced``: the nest told the boundaries; ``kept``: the shorter of the two.
+one) against the same pieces nested with no boundaries in the whole time, for an order
+of three Berkeley t-shirts on the default 1000 mm table (window 1600 mm) and ESICUP
+instances (window a third of their marker). ``moved``: the free nest with the rest of
+the marker moved off each boundary; ``fenced``: the nest told the boundaries; ``kept``:
+the shorter of the two.
 ``register``: seconds to measure one advance from two photographs of the window.
 Needs ../shared/data for ``markers`` (skips, saying so, when absent).
 """
