@@ -18,23 +18,26 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from simulators.fabric import random_print
+from simulators.roll import Conveyor, RollCamera, RollPrint
+from solver.garment import load_garment
 from solver.nest import NestProblem, Piece, load_esicup
 from solver.nest.bites import nest_in_bites
 from solver.nest.solve import nest
 from solver.wallpaper import Wallpaper
+from vision.advance import measure_advance
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 TSHIRT = "berkeley_garment_library/Garments/tshirt/isotropic/tshirt-iso.obj"
 
 
 def _tshirt_order(copies: int, repeat: float | None) -> NestProblem:
-    from solver.garment import load_garment
-
     g = load_garment(SHARED / "garments" / TSHIRT, units="m")
     pieces = [Piece(f"p{i}", g.piece_outline(i), quantity=copies) for i in range(g.n_pieces)]
     fabric = None if repeat is None else Wallpaper("p2", (repeat, 0.0), (0.0, repeat))
@@ -88,10 +91,6 @@ def main(argv: list[str] | None = None) -> None:
 def register(advances: int = 12) -> None:
     """Seconds and error of one measured advance on the default table's window (1600 x
     1000 mm at 1 mm per pixel), the simulated roll slipping up to 3 mm and 0.2 degrees."""
-    from simulators.fabric import random_print
-    from simulators.roll import Conveyor, RollCamera, RollPrint
-    from vision.advance import measure_advance
-
     print(f"\n### Finding the print again: {advances} advances per row, 1600 x 1000 mm window "
           "at 1 mm/px, p2 print, 50 mm repeat\n")
     print("| commanded advance | shared strip | seconds per bite (median, max) | "
@@ -121,6 +120,4 @@ def register(advances: int = 12) -> None:
 
 
 if __name__ == "__main__":
-    import sys
-
     main(sys.argv[1:])
