@@ -7,15 +7,19 @@ the print can be found again from the two photographs. `RollTrack` is the statio
 knowledge of where the marker lies on the table: at the first bite the marker is where
 it was planned; each measured advance (`vision.advance.Advance`) moves it by the rigid
 motion the roll really made, and `RollTrack.bite_layout` gives the next bite's pieces
-where they now lie. `bites_report` is the report's per-bite list.
+where they now lie. `find_bite` is one turn of the loop: advance (by the conveyor, or
+the operator at `OPERATOR_ADVANCE`), photograph, measure, follow. `bites_report` is the
+report's per-bite list.
 
-Not yet here (issue 35): the daemon's loop that commands the conveyor or waits for the
-operator between bites, the journal's bite per piece, and local maps of the print's own
-bow and stretch under each piece.
+Not yet here (issue 35): the daemon's cut step calling `find_bite` between bites (the
+conveyor in the machine profile, the operator's wait and `station resume`), the
+journal's bite per piece and its recovery, and local maps of the print's own bow and
+stretch under each piece.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -25,7 +29,7 @@ from solver.nest.bites import Bite, BitePlan, moved_piece, plan_bites
 from solver.nest.instance import compose
 from solver.nest.layout import Layout
 from station.steps.table import TableWindow
-from vision.advance import MIN_OVERLAP_MM, Advance
+from vision.advance import MIN_OVERLAP_MM, Advance, measure_advance
 
 #: room kept at each end of the window (mm) for what one advance may do that was not
 #: commanded: a slip of up to 3 mm, and a skew of 0.2 degrees turning the far side
@@ -84,6 +88,40 @@ class RollTrack:
                   if p.id in wanted]
         return replace(plan.layout, pieces=pieces, pairs=[],
                        length=plan.window_mm + 2 * ROLL_MARGIN_MM)
+
+
+#: what the job waits at when the operator advances the roll by hand (`station resume`
+#: goes on); the conveyor of a machine profile is commanded instead where there is one
+OPERATOR_ADVANCE = "advance the fabric {mm:.1f} mm"
+
+
+@dataclass
+class BiteStep:
+    """One bite found on the table: the track after it, the bite with its measured
+    advance and skew (None for the first), the photograph the next advance compares to."""
+
+    track: RollTrack
+    bite: Bite
+    photograph: np.ndarray
+
+
+def find_bite(previous: BiteStep | None, bite: Bite, *, advance: Callable[[float], None],
+              photograph: Callable[[], np.ndarray], lattice: np.ndarray | None,
+              mm_per_px: float = 1.0) -> BiteStep:
+    """Bring ``bite`` onto the table: command the advance the track asks for (the planned
+    one corrected by the slips so far) through ``advance``, photograph the window, and
+    measure what the roll really did from the print. The first bite (``previous`` None)
+    is only photographed: the marker lies where it was planned."""
+    if previous is None:
+        return BiteStep(RollTrack(), bite, photograph())
+    commanded = previous.track.advance_for(bite)
+    advance(commanded)
+    after = photograph()
+    measured = measure_advance(previous.photograph, after, commanded_mm=commanded,
+                               mm_per_px=mm_per_px, lattice=lattice)
+    bite = replace(bite, advance_commanded_mm=commanded).measured(measured.advance_mm,
+                                                                  measured.skew_deg)
+    return BiteStep(previous.track.follow(measured), bite, after)
 
 
 def bites_report(bites: list[Bite]) -> list[dict[str, Any]]:

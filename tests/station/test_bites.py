@@ -12,9 +12,15 @@ from simulators.fabric import random_print
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
-from station.steps.bites import ROLL_MARGIN_MM, RollTrack, bites_report, plan_job_bites
+from station.steps.bites import (
+    OPERATOR_ADVANCE,
+    ROLL_MARGIN_MM,
+    RollTrack,
+    bites_report,
+    find_bite,
+    plan_job_bites,
+)
 from station.steps.table import TableWindow
-from vision.advance import measure_advance
 
 WINDOW = TableWindow(0.0, 0.0, 800.0, 500.0)
 
@@ -45,18 +51,13 @@ def test_the_marker_follows_the_cloth_through_every_advance():
                         (WINDOW.x0, WINDOW.y0, WINDOW.x1, WINDOW.y1))
     plan = plan_job_bites(_marker(), WINDOW, lattice)
     assert len(plan.bites) == 3
-    track, done, before = RollTrack(), [], camera.photograph()
+    step, done = None, []
     for bite in plan.bites:
-        commanded = track.advance_for(bite)
-        if done:
-            conv.advance(commanded)
-            after = camera.photograph()
-            adv = measure_advance(before, after, commanded_mm=commanded, lattice=lattice)
-            track = track.follow(adv)
-            bite = bite.measured(adv.advance_mm, adv.skew_deg)
-            before = after
+        step = find_bite(step, bite, advance=conv.advance, photograph=camera.photograph,
+                         lattice=lattice)
+        bite = step.bite
         done.append(bite)
-        layout = track.bite_layout(plan, bite)
+        layout = step.track.bite_layout(plan, bite)
         assert sorted(p.id for p in layout.pieces) == sorted(bite.pieces)
         for placed, planned in zip(layout.pieces, (p for p in plan.layout.pieces
                                                    if p.id in bite.pieces)):
@@ -74,6 +75,13 @@ def test_the_marker_follows_the_cloth_through_every_advance():
         assert abs(row["advance_measured_mm"] - row["advance_commanded_mm"]) <= 3.3
         assert abs(row["skew_deg"]) <= 0.25
     assert sum(len(b["pieces"]) for b in report) == 30
+
+
+def test_an_operator_is_asked_for_the_advance_in_mm():
+    track = RollTrack()
+    plan = plan_job_bites(_marker(), WINDOW, None)
+    asked = OPERATOR_ADVANCE.format(mm=track.advance_for(plan.bites[1]))
+    assert asked == f"advance the fabric {plan.bites[1].start_mm:.1f} mm"
 
 
 def test_the_bites_keep_cloth_in_view_across_each_advance():
