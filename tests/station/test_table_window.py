@@ -66,3 +66,14 @@ def test_the_default_window_is_the_whole_default_table():
                                             "machine": {"fabric_origin": [100, 100]}}),
                          default_machine())
     assert (inset.x1, inset.y1) == (1600.0, 1000.0)
+
+
+def test_station_nest_warns_of_a_marker_wider_than_the_table_window(tmp_path, capsys):
+    shirts = Path(__file__).parents[1] / "data" / "nesting" / "shirts.json"
+    out = tmp_path / "layout.json"
+    assert main(["nest", str(shirts), "--width", "1200", "--time", "1", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert ("warning: the marker is 1200 mm wide but the table window is 1000 mm across "
+            "(station.toml [nest] width_mm)") in err
+    assert main(["nest", str(shirts), "--width", "60", "--time", "1", "-o", str(out)]) == 0
+    assert "mm wide" not in capsys.readouterr().err
