@@ -58,10 +58,13 @@ class Bite:
         return replace(self, advance_measured_mm=float(advance_mm), skew_deg=float(skew_deg))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"index": self.index, "start_mm": round(self.start_mm, 6),
-                "end_mm": round(self.end_mm, 6), "pieces": list(self.pieces),
-                "advance_commanded_mm": round(self.advance_commanded_mm, 6),
-                "advance_measured_mm": self.advance_measured_mm, "skew_deg": self.skew_deg}
+        """The report's row of this bite (issue 35's ``summary.bites``)."""
+        rounded = lambda v, n: None if v is None else round(float(v), n)  # noqa: E731
+        return {"index": self.index, "start_mm": round(self.start_mm, 3),
+                "end_mm": round(self.end_mm, 3), "pieces": list(self.pieces),
+                "advance_commanded_mm": round(self.advance_commanded_mm, 3),
+                "advance_measured_mm": rounded(self.advance_measured_mm, 3),
+                "skew_deg": rounded(self.skew_deg, 4)}
 
 
 @dataclass

@@ -127,8 +127,4 @@ def find_bite(previous: BiteStep | None, bite: Bite, *, advance: Callable[[float
 def bites_report(bites: list[Bite]) -> list[dict[str, Any]]:
     """The report's ``summary.bites``: per bite the commanded and measured advance, the
     skew and the pieces it cut."""
-    return [{"advance_commanded_mm": round(b.advance_commanded_mm, 3),
-             "advance_measured_mm": None if b.advance_measured_mm is None
-             else round(b.advance_measured_mm, 3),
-             "skew_deg": None if b.skew_deg is None else round(b.skew_deg, 4),
-             "pieces": list(b.pieces)} for b in bites]
+    return [b.to_dict() for b in bites]
