@@ -38,6 +38,7 @@ MIN_OVERLAP_MM = 40.0
 TILE_MM = 96.0  # a tile holds about two repeats of a 50 mm print
 MAX_TILE_PX = 128
 SMOOTH_PX = 1.0  # Gaussian before the gradients: the noise is per pixel, the print is not
+AGREE_PX = 3.0  # a tile agrees with the motion to within this (its shift is whole pixels)
 ITERATIONS = 12
 STEP_DONE_PX = 1e-3
 
@@ -121,11 +122,22 @@ def _coarse_motion(a: np.ndarray, b: np.ndarray, commanded_px: float, pivot: np.
     if lattice_px is not None:  # the nearest of the print's equivalent shifts
         off -= (lattice_px @ np.round(np.linalg.solve(lattice_px, off.T))).T
     moves = off + np.array([commanded_px, 0.0])
-    agree = np.all(np.abs(moves - np.median(moves, axis=0)) <= 3.0, axis=1)
-    if agree.sum() < 3:
-        raise ValueError("the print under the shared strip matched in fewer than 3 tiles: "
-                         "is the cloth plain, or did the roll stop?")
-    return _rigid_fit(centres[agree], moves[agree], pivot), int(agree.sum())
+    # first the tiles near the median move, then every tile the rigid motion explains
+    # (a skew spreads the moves across a wide window beyond any fixed tolerance)
+    agree = np.all(np.abs(moves - np.median(moves, axis=0)) <= AGREE_PX, axis=1)
+    for _ in range(2):
+        if agree.sum() < 3:
+            raise ValueError("the print under the shared strip matched in fewer than 3 "
+                             "tiles: is the cloth plain, or did the roll stop?")
+        motion = _rigid_fit(centres[agree], moves[agree], pivot)
+        agree = np.hypot(*(moves - _rigid_moves(centres, motion, pivot)).T) <= AGREE_PX
+    return motion, int(agree.sum())
+
+
+def _rigid_moves(p: np.ndarray, motion: np.ndarray, pivot: np.ndarray) -> np.ndarray:
+    """(n, 2) moves of the points ``p`` under the small rigid ``motion`` (tx, ty, theta)."""
+    q = p - pivot
+    return motion[:2] + motion[2] * np.column_stack([-q[:, 1], q[:, 0]])
 
 
 def _rigid_fit(p: np.ndarray, d: np.ndarray, pivot: np.ndarray) -> np.ndarray:

@@ -61,6 +61,16 @@ def test_a_print_ambiguous_by_one_repeat_is_resolved_by_the_commanded_advance():
     assert wrong.residual < 2 * right.residual + 0.01  # the photographs alone: a tie
 
 
+def test_a_larger_skew_across_the_window_is_still_one_motion():
+    camera, conv, lattice = _table(seed=6)
+    before = camera.photograph()
+    conv.advance(400.0, slip=-1.0, skew=1.5)  # as 0.65 deg on a 1 m table: tiles spread 10 px
+    adv = measure_advance(before, camera.photograph(), commanded_mm=400.0, lattice=lattice)
+    along, _, turned = _truth(conv)
+    assert abs(adv.advance_mm - along) < 0.3 and abs(adv.skew_deg - turned) < 0.05
+    assert adv.tiles == 30  # every tile of the 400 x 500 mm strip (5 x 6), not the middle 12
+
+
 def test_an_advance_that_leaves_nothing_in_view_is_refused():
     camera, _, lattice = _table()
     frame = camera.photograph()
