@@ -23,7 +23,9 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+import shapely
 
+from solver.nest.bitepull import pull_back
 from solver.nest.budget import Deadline, deadline_of
 from solver.nest.instance import NestProblem, affine, compose
 from solver.nest.layout import Layout, Placed
@@ -75,9 +77,11 @@ class BitePlan:
     bites: list[Bite]
     window_mm: float
     length_unbounded_mm: float  # the nest's marker, with no boundaries
-    shifts: list[np.ndarray] = field(default_factory=list)  # (2,) block move per boundary
-    # how the boundaries were paid: "moved" (blocks moved on) or "fenced" (the nest knew
-    # them), and the length the other way gave (None: not tried, or no marker)
+    # (2,) the block move at each boundary (before its pieces were pulled back)
+    shifts: list[np.ndarray] = field(default_factory=list)
+    # how the boundaries were paid: "moved" (blocks moved on), "pulled" (and their pieces
+    # pulled back) or "fenced" (the nest knew them), and the length the other way (moved
+    # or pulled against fenced) gave (None: not tried, or no marker)
     method: str = "moved"
     other_length_mm: float | None = None
 
@@ -100,7 +104,7 @@ class BitePlan:
 
 
 def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None = None,
-               max_advance_mm: float | None = None) -> BitePlan:
+               max_advance_mm: float | None = None, pull: bool = False) -> BitePlan:
     """Cut ``layout`` into bites of at most ``window_mm`` along the roll.
 
     ``lattice``: (2, 2) columns, the print's lattice vectors (fabric mm) that a block of
@@ -108,13 +112,18 @@ def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None =
     ``max_advance_mm``: the longest advance between two bites (default the window; the
     station keeps a strip of cloth in view across each advance to find the print again),
     so a bite may begin before the previous one's pieces end, or hold no piece at all.
+    ``pull``: after each block move, slide the block's pieces back into the hole it left
+    (`solver.nest.bitepull`; shorter on some markers, longer on others: the boundaries
+    after it fall elsewhere).
     Raises ValueError, naming the piece, for one longer than a bite can hold."""
     max_advance = window_mm if max_advance_mm is None else float(max_advance_mm)
     if not 0 < max_advance <= window_mm:
         raise ValueError(f"the longest advance must be within the {window_mm:g} mm window, "
                          f"got {max_advance:g} mm")
     gap = float(layout.gap)
-    lo, hi = _x_extents(layout.pieces)
+    polygons = [p.polygon() for p in layout.pieces]
+    base = shapely.bounds(np.array(polygons, dtype=object))  # (n, 4) x0 y0 x1 y1
+    lo, y_lo, hi, y_hi = base.T.copy()
     room = window_mm - 2 * gap
     too_long = np.flatnonzero(hi - lo > room + 1e-9)
     if len(too_long):
@@ -123,7 +132,7 @@ def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None =
                          f"the roll; a bite of the table's {window_mm:g} mm window holds "
                          f"{room:g} mm between its gaps")
     tail = float(layout.length - hi.max())  # the marker's end after its last piece
-    y_lo, y_hi = _y_extents(layout.pieces)
+    offsets = np.zeros((len(polygons), 2))  # each piece's move so far
     bite_of = np.full(len(lo), -1)
     starts, shifts = [], []
     start = float(lo.min()) - gap
@@ -140,34 +149,37 @@ def plan_bites(layout: Layout, window_mm: float, *, lattice: np.ndarray | None =
                                          layout.width, lattice)
         bite_of[kept] = len(starts) - 1
         rest = bite_of < 0
-        lo[rest] += shift[0]
-        hi[rest] += shift[0]
-        y_lo[rest] += shift[1]
-        y_hi[rest] += shift[1]
-        shifts.append((rest.copy(), shift))
+        offsets[rest] += shift
+        if pull:
+            pull_back(polygons, offsets, rest, float(hi[kept].max()) + gap, gap,
+                      layout.width, lattice)
+        lo, y_lo, hi, y_hi = (base + np.tile(offsets, 2)).T
+        shifts.append(shift)
         start = min(float(lo[rest].min()) - gap, start + max_advance)
-    moved = _moved_layout(layout, shifts, float(hi.max()) + tail)
+    moved = _moved_layout(layout, offsets, float(hi.max()) + tail)
     ends = [float(hi[bite_of == k].max()) + gap if np.any(bite_of == k) else starts[k]
             for k in range(len(starts))]  # after the bite's last piece (its boundary)
     bites = [Bite(k, starts[k], ends[k],
                   tuple(moved.pieces[i].id for i in np.flatnonzero(bite_of == k)),
                   starts[k] - (starts[k - 1] if k else starts[0]))
              for k in range(len(starts))]
-    return BitePlan(moved, bites, float(window_mm), float(layout.length),
-                    [s for _, s in shifts])
+    return BitePlan(moved, bites, float(window_mm), float(layout.length), shifts)
 
 
 def nest_in_bites(problem: NestProblem, window_mm: float, *,
                   time_limit: float | Deadline = 30.0, seed: int | None = 0) -> BitePlan:
     """The shortest marker of ``problem`` (any length) cut in bites of ``window_mm``: the
-    free nest with its blocks moved off the boundaries, or a nest fenced at the
-    boundaries, whichever is shorter; the cost is reported against the free nest."""
+    free nest with its blocks moved off the boundaries (their pieces pulled back or not),
+    or a nest fenced at the boundaries, whichever is shorter; the cost is reported
+    against the free nest."""
     if problem.length is not None:
         raise ValueError("a marker cut in bites has no length limit; the window is the bite")
     deadline = deadline_of(time_limit)
     lattice = problem.lattice
     free = nest(problem, time_limit=deadline.share(0.5), seed=seed)
-    best = plan_bites(free, window_mm, lattice=lattice)
+    best = min((replace(plan_bites(free, window_mm, lattice=lattice, pull=pull),
+                        method="pulled" if pull else "moved") for pull in (False, True)),
+               key=lambda plan: plan.layout.length)
     count = int(np.ceil(2.0 * free.length / window_mm)) + 2  # past any fenced marker's end
     eps = FENCE_HALF_WIDTH * window_mm
     fences = [np.array([[x - eps, 0.0], [x + eps, 0.0], [x + eps, problem.width],
@@ -237,22 +249,10 @@ def _block_move(need: float, dy_min: float, dy_max: float, lattice: np.ndarray |
     return cand[:, i].astype(float)
 
 
-def _x_extents(pieces: list[Placed]) -> tuple[np.ndarray, np.ndarray]:
-    return (np.array([p.outline[:, 0].min() for p in pieces], float),
-            np.array([p.outline[:, 0].max() for p in pieces], float))
-
-
-def _y_extents(pieces: list[Placed]) -> tuple[np.ndarray, np.ndarray]:
-    return (np.array([p.outline[:, 1].min() for p in pieces], float),
-            np.array([p.outline[:, 1].max() for p in pieces], float))
-
-
-def _moved_layout(layout: Layout, shifts, length: float) -> Layout:
-    """A copy of ``layout`` with each boundary's block of pieces moved, ``length`` long."""
-    total = np.zeros((len(layout.pieces), 2))
-    for rest, shift in shifts:
-        total[rest] += shift
-    pieces = [_translated(p, d) if np.any(d) else p for p, d in zip(layout.pieces, total)]
+def _moved_layout(layout: Layout, offsets: np.ndarray, length: float) -> Layout:
+    """A copy of ``layout`` with each piece moved by its row of ``offsets``, ``length``
+    long."""
+    pieces = [_translated(p, d) if np.any(d) else p for p, d in zip(layout.pieces, offsets)]
     return replace(layout, pieces=pieces, length=float(length))
 
 

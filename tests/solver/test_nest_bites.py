@@ -16,11 +16,14 @@ from solver.wallpaper import Wallpaper
 SHIRTS = Path(__file__).resolve().parents[1] / "data" / "nesting" / "shirts.json"
 
 
-def _rectangles(*spans: tuple[float, float], gap: float = 1.0, width: float = 100.0
+def _rectangles(*spans: tuple[float, ...], gap: float = 1.0, width: float = 100.0
                 ) -> Layout:
-    """Plain 20 mm high rectangles at the given x spans (a hand-made marker)."""
-    problem = NestProblem([Piece(f"r{i}", [[a, 5], [b, 5], [b, 25], [a, 25]])
-                           for i, (a, b) in enumerate(spans)], width=width, gap=gap)
+    """Plain 20 mm high rectangles at the given x spans (a hand-made marker), from y = 5
+    or the span's third number."""
+    problem = NestProblem([Piece(f"r{i}", [[a, y], [b, y], [b, y + 20], [a, y + 20]])
+                           for i, (a, b, y) in enumerate(s + (5.0,)[:3 - len(s)]
+                                                         for s in spans)],
+                          width=width, gap=gap)
     moves = [np.array([[1.0, 0, 0], [0, 1.0, 0]])] * len(spans)
     return build_layout(problem, problem.items(), moves)
 
@@ -59,6 +62,22 @@ def test_a_piece_on_the_boundary_moves_on_by_what_it_needs():
     assert plan.layout.pieces[2].outline[:, 0].min() == pytest.approx(131.0)
     assert plan.layout.pieces[0] is layout.pieces[0]  # the first bite's pieces stay
     _assert_bites_are_sound(plan, 100.0, [p.id for p in layout.pieces])
+
+
+def test_pulled_back_pieces_fill_the_hole_the_block_move_left():
+    # the first bite keeps r0 and r3 (ends 61, 80); r1 straddles x = 100, so r1 and r2
+    # move on by a whole repeat, 50 mm. Pulled back, r2 cannot go back along its row (r1
+    # is there) but goes back by (-50, 50): beside r1, and the marker ends with r1
+    layout = _rectangles((1, 61), (62, 122), (130, 150), (62, 80, 40.0))
+    lattice = np.array([[50.0, 0.0], [0.0, 50.0]])
+    moved = plan_bites(layout, 100.0, lattice=lattice)
+    pulled = plan_bites(layout, 100.0, lattice=lattice, pull=True)
+    assert [p.outline[:, 0].min() for p in moved.layout.pieces] == [1, 112, 180, 62]
+    assert [p.outline[:, 0].min() for p in pulled.layout.pieces] == [1, 112, 130, 62]
+    assert pulled.layout.pieces[2].outline[:, 1].min() == 55.0
+    assert (moved.layout.length, pulled.layout.length) == (201.0, 173.0)
+    assert verify_layout(pulled.layout) == []
+    _assert_bites_are_sound(pulled, 100.0, [p.id for p in layout.pieces])
 
 
 def test_on_a_print_the_rest_moves_by_a_whole_repeat():
@@ -126,9 +145,10 @@ def test_a_printed_marker_keeps_every_piece_on_its_print():
     problem = load_esicup(SHIRTS)
     problem.fabric = Wallpaper("p2", (1.0, 0.0), (0.3, 0.9))
     layout = nest_lattice(problem, time_limit=1.5, seed=0, strategies=("fill",))
-    plan = plan_bites(layout, 20.0, lattice=problem.lattice)
-    assert verify_layout(plan.layout, problem) == []  # checks each piece against the print
-    _assert_bites_are_sound(plan, 20.0, [p.id for p in layout.pieces])
+    for pull in (False, True):
+        plan = plan_bites(layout, 20.0, lattice=problem.lattice, pull=pull)
+        assert verify_layout(plan.layout, problem) == []  # each piece against the print
+        _assert_bites_are_sound(plan, 20.0, [p.id for p in layout.pieces])
     frac = np.linalg.solve(problem.lattice, np.array(plan.shifts).T)
     assert np.allclose(frac, np.round(frac), atol=1e-9)
 
