@@ -2,13 +2,12 @@
 
     python -m bench.bites [--time SECONDS] [--only markers,register]
 
-``markers``: the marker's length cut in bites of the table window
-(`solver.nest.bites.nest_in_bites`: half the time for the free nest, half for the fenced
-one) against the same pieces nested with no boundaries in the whole time, for an order
-of three Berkeley t-shirts on the default 1000 mm table (window 1600 mm) and ESICUP
-instances (window a third of their marker). ``moved``: the free nest with the rest of
-the marker moved off each boundary (the better of with and without pulling the moved
-pieces back); ``fenced``: the nest told the boundaries; ``kept``: the shorter.
+``markers``: the marker's length with bite boundaries against the same marker with none
+(`solver.nest.bites.plan_bites`: the rest of the marker moved off each boundary, then
+also with the moved pieces pulled back), and a nest of the same pieces fenced at the
+boundaries (`fenced_nest`, the same time): for an order of three Berkeley t-shirts on the
+default 1000 mm table (window 1600 mm) and ESICUP instances (window a third of their
+marker). `nest_in_bites` keeps the shortest of the three.
 ``register``: seconds to measure one advance from two photographs of the window.
 Needs ../shared/data for ``markers`` (skips, saying so, when absent).
 """
@@ -28,7 +27,7 @@ from simulators.fabric import random_print
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.garment import load_garment
 from solver.nest import NestProblem, Piece, load_esicup
-from solver.nest.bites import nest_in_bites
+from solver.nest.bites import fenced_nest, plan_bites
 from solver.nest.solve import nest
 from solver.wallpaper import Wallpaper
 from vision.advance import measure_advance
@@ -45,19 +44,19 @@ def _tshirt_order(copies: int, repeat: float | None) -> NestProblem:
 
 
 def _row(name: str, problem: NestProblem, window: float | None, t: float) -> None:
-    free = nest(problem, time_limit=t, seed=0).length  # the reference: no boundaries, all t
-    window = window or round(free / 3, 1)
+    free = nest(problem, time_limit=t, seed=0)  # the marker with no boundaries
+    window = window or round(free.length / 3, 1)
+    lattice = problem.lattice
     t0 = time.monotonic()
-    plan = nest_in_bites(problem, window, time_limit=t, seed=0)
+    plans = {"moved": plan_bites(free, window, lattice=lattice),
+             "pulled": plan_bites(free, window, lattice=lattice, pull=True)}
     sec = time.monotonic() - t0
-    free_way = plan.method != "fenced"
-    cells = [f"{length:.0f}" if length is not None else "none" for length in
-             ((plan.layout.length, plan.other_length_mm) if free_way
-              else (plan.other_length_mm, plan.layout.length))]
-    cost = plan.layout.length - free
-    print(f"| {name} | {window:g} | {free:.0f} | {cells[0]} | {cells[1]} "
-          f"| {plan.method}, {len(plan.bites)} bites | {cost:+.0f} ({cost / free:+.1%}) "
-          f"| {sec:.1f} |", flush=True)
+    fenced = fenced_nest(problem, window, free.length, time_limit=t, seed=0)
+    plans["fenced"] = plan_bites(fenced, window, lattice=lattice)
+    cells = [f"{p.layout.length:.0f} ({p.layout.length / free.length - 1:+.1%}, "
+             f"{len(p.bites)} bites)" for p in plans.values()]
+    print(f"| {name} | {window:g} | {free.length:.0f} | {' | '.join(cells)} | {sec:.2f} |",
+          flush=True)
 
 
 def markers(t: float) -> None:
@@ -65,9 +64,9 @@ def markers(t: float) -> None:
         print(f"bench/bites.py: {SHARED} is absent (fresh clone): markers skipped")
         return
     print(f"\n### Marker length in bites against no boundaries, {t:g} s per nest\n")
-    print("| marker | window | no boundaries | moved off the boundaries | fenced | kept | "
-          "cost of the boundaries | seconds |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| marker | window | no boundaries | moved off the boundaries | and pulled back | "
+          "nested fenced | seconds to move and pull |")
+    print("|---|---|---|---|---|---|---|")
     _row("3 t-shirts, plain, 1000 mm roll", _tshirt_order(3, None), 1600.0, t)
     _row("3 t-shirts, p2 50 mm, 1000 mm roll", _tshirt_order(3, 50.0), 1600.0, t)
     for name in ("shirts", "trousers"):

@@ -180,22 +180,29 @@ def nest_in_bites(problem: NestProblem, window_mm: float, *,
     best = min((replace(plan_bites(free, window_mm, lattice=lattice, pull=pull),
                         method="pulled" if pull else "moved") for pull in (False, True)),
                key=lambda plan: plan.layout.length)
-    count = int(np.ceil(2.0 * free.length / window_mm)) + 2  # past any fenced marker's end
-    eps = FENCE_HALF_WIDTH * window_mm
-    fences = [np.array([[x - eps, 0.0], [x + eps, 0.0], [x + eps, problem.width],
-                        [x - eps, problem.width]])
-              for x in window_mm * np.arange(1, count + 1)]
-    fenced_problem = replace(problem, keepouts=[*problem.keepouts, *fences])
     try:
-        fenced = nest(fenced_problem, time_limit=deadline, seed=seed)
+        fenced = fenced_nest(problem, window_mm, free.length, time_limit=deadline, seed=seed)
     except ValueError:  # the fences left no room the search could find: keep the free one
         return best
-    fenced = replace(fenced, keepouts=list(problem.keepouts))
     candidate = replace(plan_bites(fenced, window_mm, lattice=lattice), method="fenced",
                         length_unbounded_mm=float(free.length))
     if candidate.layout.length < best.layout.length:
         return replace(candidate, other_length_mm=float(best.layout.length))
     return replace(best, other_length_mm=float(candidate.layout.length))
+
+
+def fenced_nest(problem: NestProblem, window_mm: float, expected_mm: float, *,
+                time_limit: float | Deadline = 30.0, seed: int | None = 0) -> Layout:
+    """``problem`` nested around thin keep-out fences at every ``window_mm`` along the roll
+    (far enough for a marker twice ``expected_mm``), the fences then dropped from it."""
+    count = int(np.ceil(2.0 * expected_mm / window_mm)) + 2
+    eps = FENCE_HALF_WIDTH * window_mm
+    fences = [np.array([[x - eps, 0.0], [x + eps, 0.0], [x + eps, problem.width],
+                        [x - eps, problem.width]])
+              for x in window_mm * np.arange(1, count + 1)]
+    fenced = nest(replace(problem, keepouts=[*problem.keepouts, *fences]),
+                  time_limit=time_limit, seed=seed)
+    return replace(fenced, keepouts=list(problem.keepouts))
 
 
 def _cheapest_boundary(lo, hi, y_lo, y_hi, left, start, window_mm, gap, width, lattice):
