@@ -25,10 +25,12 @@ from station.stripes import stripe_print
 
 def add_garment_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("garment", metavar="GARMENT",
-                        help="garment: OBJ (v = drape, vt = pattern) or JSON pattern spec")
+                        help="garment: OBJ (v = drape, vt = pattern), JSON pattern spec or "
+                        "DXF-AAMA/ASTM pattern (seams inferred)")
     parser.add_argument("--units", choices=UNIT_CHOICES,
                         help="units of the file's coordinates (default: what the file says, "
                         "else mm)")
+    parser.add_argument("--size", help="the size of a graded DXF (default: its sample size)")
 
 
 def add_fabric_argument(parser: argparse.ArgumentParser) -> None:
@@ -51,7 +53,8 @@ def load_garment_arg(args: argparse.Namespace, **options):
         raise FileNotFoundError(f"{path}: no such garment file")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        garment = load_garment(path, units=args.units, **options)
+        garment = load_garment(path, units=args.units, size=getattr(args, "size", None),
+                               **options)
     for w in caught:
         print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
     extent = float(np.ptp(garment.uv, axis=0).max()) if garment.n_vertices else 0.0

@@ -35,12 +35,17 @@ class Key:
     choices: tuple[str, ...] | None = None
 
 
+#: The GRBL emulator set up as the default machine (laser mode, soft limits and homing
+#: on): the port that `station serve --simulate` and the demos supply when the
+#: configuration names none. Never a default: a real station names its own port.
+EMULATOR_PORT = ("grblsim://?name=station&speed=50&force_origin=1&settings=32:1,130:1600,"
+                 "131:1000,20:1,22:1,23:3,110:12000,111:12000,120:1500,121:1500")
+
 SCHEMA: dict[str, dict[str, Key]] = {
     "serial": {
-        "port": Key(str, "grblsim://?name=station&speed=50&force_origin=1&settings=32:1,"
-                    "130:1600,131:1000,20:1,22:1,23:3,110:12000,111:12000,120:1500,121:1500",
-                    "serial device, pty or pyserial URL (default: the GRBL emulator set up "
-                    "as the default machine, laser mode, soft limits and homing on)"),
+        "port": Key(str, "", "the GRBL controller: serial device, pty or pyserial URL "
+                    "(`station serve` needs it; `serve --simulate` and the demo supply the "
+                    "GRBL emulator)"),
         "baud": Key(int, 115200, "baud rate", minimum=1200, maximum=4_000_000),
     },
     "camera": {

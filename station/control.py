@@ -13,6 +13,7 @@ import grp
 import json
 import logging
 import os
+import pwd
 import socket
 import socketserver
 import stat
@@ -163,8 +164,6 @@ class ControlServer:
         if gid == self.allowed_gid:
             return True
         try:
-            import pwd
-
             name = pwd.getpwuid(uid).pw_name
         except KeyError:
             return False

@@ -28,14 +28,17 @@ heartbeat finds it within ``interval`` seconds (0.5 s by default).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sqlite3
 import time
 from dataclasses import dataclass
 from typing import Any
 
+from gcode.machine import default_machine
 from station.jobstore import ACTIVE, TOOLS, Job, JobStore, JobStoreError
-from station.storeengine import Tx
+from station.storeengine import StoreUnavailable, Tx, is_server_url
+from station.storeschema import SchemaTooNew
 
 LIVE = ("idle", "busy")
 
@@ -255,15 +258,11 @@ class Fleet:
 
 def channel(station: str) -> str:
     """The LISTEN/NOTIFY channel of a station (a plain identifier whatever its name)."""
-    import hashlib
-
     return "station_" + hashlib.sha1(station.encode()).hexdigest()[:16]
+
 
 def open_store(config) -> JobStore:
     """The configured job store: ``[store] url`` if set, else the SQLite file at ``path``."""
-    from station.storeengine import StoreUnavailable, is_server_url
-    from station.storeschema import SchemaTooNew
-
     url = config["store"]["url"]
     location = url if is_server_url(url) else config.resolve(url or config["store"]["path"])
     try:
@@ -277,8 +276,6 @@ def open_store(config) -> JobStore:
 
 def station_info(config, machine=None) -> StationInfo:
     """This station as the fleet sees it: ``[station] name`` and the machine profile."""
-    from gcode.machine import default_machine
-
     machine = machine or default_machine()
     x0, y0, x1, y1 = machine.work_area
     return StationInfo(config["station"]["name"], machine.tool, (x1 - x0, y1 - y0),

@@ -7,15 +7,22 @@ job that a station owns travel to that station through the store (`Fleet.send`) 
 daemon runs them with its own handler, within its heartbeat interval (0.5 s by default);
 a job nobody owns yet is changed in the store directly. ``--station NAME`` picks a
 station (pause, resume, abort: its running job; submit: a job only it may take).
+`open_fleet_store` opens the store a console command names (``--store`` or the
+configuration).
 """
 
 from __future__ import annotations
 
+import argparse
+from pathlib import Path
 from typing import Any
 
+from station.cliargs import load_config_arg
 from station.control import ControlError
-from station.fleet import Fleet
+from station.errors import UserError
+from station.fleet import Fleet, open_store
 from station.jobstore import FINAL, JobStore, JobStoreError, Requirements
+from station.storeengine import PASSWORD_ADVICE, holds_password, is_server_url
 
 #: Seconds to wait for the owning station's answer.
 ANSWER_TIMEOUT = 10.0
@@ -130,3 +137,36 @@ class FleetConsole:
         if not answer.get("ok"):
             raise ControlError(f"station {station}: {answer.get('error', 'refused')}")
         return {**{k: v for k, v in answer.items() if k != "ok"}, "station": station}
+
+
+def open_fleet_store(args: argparse.Namespace) -> JobStore:
+    """The shared job store named by ``--store`` or the configuration."""
+    store = getattr(args, "store", None)
+    overrides = None
+    if store:
+        store = checked_store_arg(store)
+        overrides = {"store": {"url": store} if "://" in store
+                     else {"url": "", "path": str(Path(store).resolve())}}
+    return open_store(load_config_arg(args, overrides))
+
+
+def checked_store_arg(value: str) -> str:
+    """``--store``: a postgresql:// URL without a password (the command line is visible to
+    every user through ps; libpq reads PGPASSWORD or PGPASSFILE), or an existing store file
+    (a console never creates one)."""
+    if is_server_url(value):
+        try:
+            password = holds_password(value)
+        except ValueError as exc:
+            raise UserError(f"--store: {exc}") from None
+        if password:
+            raise UserError("--store: a password on the command line is visible to every "
+                            f"user; {PASSWORD_ADVICE}")
+        return value
+    if "://" in value:
+        raise UserError(f"--store: a postgresql:// URL or a job store file, not "
+                        f"{value.split('://', 1)[0][:20]}://...")
+    if not Path(value).is_file():
+        raise UserError(f"{value}: no job store there (--store names an existing store "
+                        "file or a postgresql:// URL)")
+    return value

@@ -17,17 +17,20 @@ import threading
 import time
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
+import numpy as np
+
+from simulators.grbl import lookup
+from station.daemon import Daemon
 from station.errors import UserError
+from station.fleetconsole import FleetConsole
+from station.jobstore import FINAL, JobStore
+from station.localpg import LocalPostgres, PostgresUnavailable
 from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
 
 
 def run(args) -> int:
-    from station.daemon import Daemon
-    from station.fleetconsole import FleetConsole
-    from station.jobstore import FINAL, JobStore
-    from station.localpg import LocalPostgres, PostgresUnavailable
-
     if args.fleet < 1 or args.jobs < 1:
         raise ValueError("--fleet and --jobs must be at least 1")
     garment = Path(args.garment)
@@ -128,12 +131,6 @@ def fleet_report(store, ids: list[int], daemons: dict[str, Any]) -> dict[str, An
 
 def machine_work(port: str) -> dict[str, Any]:
     """What a station's emulator really did: beam-on moves and millimetres cut."""
-    from urllib.parse import parse_qs, urlsplit
-
-    import numpy as np
-
-    from simulators.grbl import lookup
-
     machine = lookup(parse_qs(urlsplit(port).query)["name"][0])
     if machine is None:
         return {"beam_on_moves": 0, "beam_on_mm": 0.0}

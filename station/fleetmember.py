@@ -16,6 +16,7 @@ from typing import Any
 
 from station.fleet import Fleet, StationInfo, channel
 from station.jobstore import ACTIVE, JOBS_CHANNEL, Job, JobStore, interrupted_reason
+from station.storeengine import connect_postgres
 
 log = logging.getLogger("station.fleet")
 
@@ -130,10 +131,7 @@ class Listener:
             return None
         try:
             if self._conn is None or self._conn.closed:
-                import psycopg
-
-                self._conn = psycopg.connect(self.engine.url, autocommit=True,
-                                             connect_timeout=5)
+                self._conn = connect_postgres(self.engine.url)
                 for name in self.channels:
                     self._conn.execute(f"listen {name}")
             for note in self._conn.notifies(timeout=seconds, stop_after=1):

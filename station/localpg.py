@@ -25,6 +25,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from station.storeengine import connect_postgres
+
 
 class PostgresUnavailable(RuntimeError):
     """No PostgreSQL server binaries could be found or started here."""
@@ -144,9 +146,7 @@ class LocalPostgres:
 
     def create_database(self, name: str) -> str:
         """A fresh, empty database; its URL."""
-        import psycopg
-
-        with psycopg.connect(self.url, autocommit=True) as conn:
+        with connect_postgres(self.url) as conn:
             conn.execute(f'create database "{name}"')
         return self.url_for(name)
 

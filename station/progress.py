@@ -13,6 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from station.control import request
+
 FINAL_STATES = ("done", "failed", "aborted", "paused", "interrupted")
 
 
@@ -23,8 +25,6 @@ def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
     ``sock`` is the daemon's control socket, or a function giving a job's status (the
     fleet console's, which reads the shared store).
     """
-    from station.control import request
-
     def status_of(job: int) -> dict[str, Any]:
         return sock(job) if callable(sock) else request(sock, "status", job=job)["job"]
 

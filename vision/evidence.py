@@ -7,14 +7,15 @@ registered onto the mean, look alike at the print's scale along both lattice vec
 (:func:`vision.neighbours.directional_likeness`). Where they do not, there is nothing to
 cut to, and the station must not constrain the nest to a print that is not there: the
 cloth is reported ``plain``, with the reason, and the rejected reading is kept as a
-candidate that the operator may confirm (:func:`vision.pipeline.confirm_fabric`).
+candidate that the operator may confirm (:func:`vision.fabric.confirm_fabric`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from vision.classify import REPEAT_SUPPORT, Classification
+from vision.classify import Classification
+from vision.decision import REPEAT_SUPPORT
 from vision.lattice import LatticeResult
 
 __all__ = ["MIN_REPEATS", "missing_evidence", "without_lattice"]

@@ -8,26 +8,24 @@ position of pixel (0, 0)'s centre, so the answer is in machine millimetres.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from solver.wallpaper import GROUPS, Wallpaper
-from vision.classify import Classification, classify, lattice_strain, symmetry_elements
-from vision.distortion import Distortion, local_lattices, measure_distortion
+from solver.wallpaper import GROUPS
+from vision.basis import nested
+from vision.classify import Classification, classify, moved_origin
+from vision.distortion import Distortion, angle_between, local_lattices, measure_distortion
 from vision.evidence import missing_evidence, without_lattice
-from vision.lattice import (
-    WORK_SIDE,
-    LatticeResult,
-    detect_lattice,
-    nested,
-    prepare_image,
-    yarn_repeat,
-)
-from vision.perspective import fit_view
+from vision.fabric import STRETCH_TOL, FabricDetection, confirm_fabric
+from vision.lattice import LatticeResult, detect_lattice, yarn_repeat
+from vision.overlay import draw_overlay
+from vision.perspective import View, fit_view
+from vision.prepare import WORK_SIDE, prepare_image
 from vision.repeat import true_lattice
 
+# FabricDetection, confirm_fabric (vision.fabric) and draw_overlay (vision.overlay) are read
+# here by the station and the tests: one import for the whole of detection.
 __all__ = ["CONFIRM_BELOW", "FabricDetection", "above_the_yarn", "confirm_fabric",
            "detect_fabric", "draw_overlay"]
 
@@ -69,86 +67,15 @@ PRINT_ABOVE_YARN = 0.2
 _IDEAL_ANGLE = {"rectangular": 90.0, "square": 90.0, "hexagonal": 120.0}
 
 
-@dataclass
-class FabricDetection:
-    lattice: LatticeResult
-    classification: Classification
-    distortion: Distortion
-    offset: np.ndarray
-    mm_per_px: float
-    seconds: float
-    #: Repeat of the yarn (mm) where the image shows it (:func:`vision.lattice.yarn_repeat`),
-    #: smoothed away before the print was read unless nothing was above it; else NaN.
-    yarn_mm: float = float("nan")
-    #: The reading refused for want of evidence of a repeat (:mod:`vision.evidence`),
-    #: which the operator may confirm; None otherwise.
-    candidate: Wallpaper | None = None
-
-    @property
-    def wallpaper(self) -> Wallpaper | None:
-        wp = self.classification.wallpaper
-        return None if wp is None else _moved(wp, self.offset)
-
-    def fabric_json(self) -> dict:
-        """FABRIC.json: the foundation's format plus confidence, distortion and the
-        lattice's uncertainty; a stripes/no-print answer has ``group: null``."""
-        wp = self.wallpaper
-        out: dict = {"group": None, "units": "mm"}
-        if wp is not None:
-            out.update(wp.to_dict())
-            out["kind"] = "lattice"
-            if self.classification.message:
-                out["message"] = self.classification.message
-        else:
-            out["kind"] = self.lattice.kind
-            out["message"] = self.lattice.message
-            if self.lattice.kind == "stripes":
-                out["period"] = self.lattice.period
-                out["direction_deg"] = self.lattice.direction_deg
-            if self.candidate is not None:
-                out["candidate"] = _moved(self.candidate, self.offset).to_dict()
-        out["confidence"] = round(float(self.classification.confidence), 4)
-        out["group_confidence"] = {k: round(v, 4) for k, v in
-                                   self.classification.posterior.items() if v >= 1e-4}
-        out["distortion"] = self.distortion.to_dict()
-        # The measured lattice's departure from the group's (snapped) one: a square
-        # check stretched 5 % by the cloth or the camera reads 0.05.
-        out["distortion"]["lattice_strain"] = round(float(self.classification.strain), 4)
-        if self.lattice.found:
-            out["lattice_sigma_mm"] = float(self.lattice.sigma_w1[0])
-        if np.isfinite(self.yarn_mm):
-            out["yarn_mm"] = round(float(self.yarn_mm), 4)
-        return out
-
-    def summary(self) -> dict:
-        """The ``--json`` line: group (null without a lattice), w1, w2, origin,
-        confidence, seconds."""
-        wp = self.wallpaper
-        return {"group": None if wp is None else wp.group,
-                "w1": None if wp is None else [round(v, 4) for v in wp.w1.tolist()],
-                "w2": None if wp is None else [round(v, 4) for v in wp.w2.tolist()],
-                "origin": None if wp is None else [round(v, 4) for v in wp.origin.tolist()],
-                "confidence": round(float(self.classification.confidence), 4),
-                "kind": self.lattice.kind,
-                "distortion_warning": self.distortion.warning,
-                "seconds": round(self.seconds, 3)}
-
-
 def _ideal_angle(group: str, lat: LatticeResult) -> float | None:
     """The w1-w2 angle the print should have. A check spread skewed by a few degrees
     loses its mirrors and reads as an oblique print (p1, p2); its skew is still
     measured against the right angle it is close to."""
     ideal = _IDEAL_ANGLE.get(GROUPS[group].lattice)
     if ideal is None and GROUPS[group].lattice == "oblique":
-        cos = float(lat.w1 @ lat.w2) / (np.linalg.norm(lat.w1) * np.linalg.norm(lat.w2))
-        if abs(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) - 90.0) < 5.0:
+        if abs(angle_between(lat.w1, lat.w2) - 90.0) < 5.0:
             ideal = 90.0
     return ideal
-
-
-#: Stretch of the measured lattice off its group's (relative) beyond which the cloth is
-#: reported distorted: pieces cut to the group's lattice come out of the print by it.
-STRETCH_TOL = 0.03
 
 
 def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
@@ -183,12 +110,35 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
             return closer
     if true_repeat:
         lat = true_lattice(image, lat, prepared=(flat, scale), smooth_px=sigma, read=read)
-    flat = read
+    lat, cls, local, view = _read_print(image, read, lat, scale, mm_per_px, min_repeat_mm,
+                                        true_repeat, distortion)
+    candidate, why = None, missing_evidence(lat, cls)
+    if why:
+        candidate, (lat, cls) = cls.wallpaper, without_lattice(lat, why)
+    dist = Distortion()
+    if distortion and lat.found and cls.group is not None:
+        dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
+                                  bow_tol_mm=bow_tol_mm,
+                                  ideal_angle=_ideal_angle(cls.group, lat),
+                                  prepared=(read, scale), local=local)
+        _warn_of_strain_and_view(dist, cls, view, stretch_tol)
+    return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
+                           time.perf_counter() - t0, yarn_mm, candidate)
+
+
+def _read_print(image: np.ndarray, flat: np.ndarray, lat: LatticeResult, scale: float,
+                mm_per_px: float, min_repeat_mm: float, true_repeat: bool, distortion: bool
+                ) -> tuple[LatticeResult, Classification, tuple[np.ndarray, np.ndarray] | None,
+                           View | None]:
+    """Lattice and group of the print in the working image ``flat`` (the yarn taken
+    away), whose whole-frame lattice is ``lat``; with the local lattices and the
+    perspective they show (None where not measured or not used). With ``distortion``,
+    a perspective is undone before the group is read, and where no one lattice holds
+    over the whole frame (a steep view, or more than the cloth in the photo) the
+    frame's central part is read, and the operator confirms that the print covers it."""
     local, view, cls = None, None, None
     seed, part = lat, None
     if distortion and lat.kind == "plain":
-        # No one lattice holds over the whole frame: a steep view changes the repeat
-        # too much, or the photo shows more than the cloth. The central part may show one.
         seed, *part = _central_part(flat, scale, mm_per_px, min_repeat_mm)
     if distortion and seed.found:
         local = local_lattices(flat, seed.basis / mm_per_px * scale)
@@ -208,30 +158,26 @@ def detect_fabric(image: np.ndarray, *, mm_per_px: float, offset=(0.0, 0.0),
     if cls is None:
         view, local = None, local if lat.found else None
         cls = classify(image, lat, flat=flat, scale=scale)
-    candidate, why = None, missing_evidence(lat, cls)
-    if why:
-        candidate, (lat, cls) = cls.wallpaper, without_lattice(lat, why)
-    dist = Distortion()
-    if distortion and lat.found and cls.group is not None:
-        dist = measure_distortion(image, lat, skew_tol_deg=skew_tol_deg,
-                                  bow_tol_mm=bow_tol_mm,
-                                  ideal_angle=_ideal_angle(cls.group, lat),
-                                  prepared=(flat, scale), local=local)
-        dist.perspective = None if view is None else view.to_dict()
-        if cls.strain > stretch_tol:
-            # The print was designed on the group's lattice; the cloth (or the camera)
-            # stretches it: pieces cut now come out of the print by this much.
-            fault = (f"stretched {100 * cls.strain:.1f} % off the {cls.group} lattice "
-                     f"(tolerance {100 * stretch_tol:g} %)")
-            dist.warning = (f"{dist.warning}; {fault}" if dist.warning
-                            else f"fabric lies distorted: {fault} (straighten the cloth)")
-        if view is not None:
-            fault = (f"seen in perspective (the lattice changes {100 * view.change:.0f} % "
-                     "across the view; the group was read on the rectified image)")
-            dist.warning = (f"{dist.warning}; {fault}" if dist.warning
-                            else f"fabric lies distorted: {fault}")
-    return FabricDetection(lat, cls, dist, np.asarray(offset, float), float(mm_per_px),
-                           time.perf_counter() - t0, yarn_mm, candidate)
+    return lat, cls, local, view
+
+
+def _warn_of_strain_and_view(dist: Distortion, cls: Classification, view: View | None,
+                             stretch_tol: float) -> None:
+    """Name in ``dist.warning`` a stretch of the lattice off the group's beyond
+    ``stretch_tol`` and a perspective undone, and record the perspective."""
+    dist.perspective = None if view is None else view.to_dict()
+    if cls.strain > stretch_tol:
+        # The print was designed on the group's lattice; the cloth (or the camera)
+        # stretches it: pieces cut now come out of the print by this much.
+        fault = (f"stretched {100 * cls.strain:.1f} % off the {cls.group} lattice "
+                 f"(tolerance {100 * stretch_tol:g} %)")
+        dist.warning = (f"{dist.warning}; {fault}" if dist.warning
+                        else f"fabric lies distorted: {fault} (straighten the cloth)")
+    if view is not None:
+        fault = (f"seen in perspective (the lattice changes {100 * view.change:.0f} % "
+                 "across the view; the group was read on the rectified image)")
+        dist.warning = (f"{dist.warning}; {fault}" if dist.warning
+                        else f"fabric lies distorted: {fault}")
 
 
 def _read_on_part(cls: Classification, why: str) -> None:
@@ -307,7 +253,7 @@ def _closer_look(image: np.ndarray, seen: LatticeResult, scale: float, mm_per_px
     if not det.lattice.found or det.classification.wallpaper is None:
         return None
     shift = corner * mm_per_px
-    det.classification.wallpaper = _moved(det.classification.wallpaper, shift)
+    det.classification.wallpaper = moved_origin(det.classification.wallpaper, shift)
     det.distortion.centres = det.distortion.centres + shift
     if not (seen.found and nested(det.lattice.basis, seen.basis)):
         whole = {"stripes": f"stripes {seen.period:.1f} mm apart",
@@ -316,12 +262,6 @@ def _closer_look(image: np.ndarray, seen: LatticeResult, scale: float, mm_per_px
                       f"shows {whole}; its central {crop.shape[1]} x {crop.shape[0]} px at "
                       "full resolution a lattice")
     return det
-
-
-def _moved(wp: Wallpaper, by: np.ndarray) -> Wallpaper:
-    """The same print with its origin moved ``by`` (mm): from a part's frame to the
-    image's, or from the image's to the machine's."""
-    return Wallpaper(wp.group, wp.w1, wp.w2, wp.origin + by, tol=1e-6, motif=wp.motif)
 
 
 def above_the_yarn(flat: np.ndarray, scale: float, mm_per_px: float,
@@ -385,147 +325,5 @@ def _decide_part(part: np.ndarray, corner: tuple[int, int], scale: float,
         return None
     cls = classify(frame, lat, flat=part, scale=scale, allowance=allowance)
     if cls.wallpaper is not None:
-        cls.wallpaper = _moved(cls.wallpaper, np.array(corner, float) / scale * mm_per_px)
+        cls.wallpaper = moved_origin(cls.wallpaper, np.array(corner, float) / scale * mm_per_px)
     return lat, cls
-
-
-def confirm_fabric(doc: dict, group: str | None = None) -> dict:
-    """FABRIC.json ``doc`` as the operator confirmed it: the detected group accepted, or
-    replaced by ``group`` on the same measured lattice and origin (snapped to the new
-    group's lattice; raises ValueError when that lattice cannot carry it). A snap that
-    stretches the measured lattice beyond ``STRETCH_TOL`` is recorded in the
-    distortion's strain and warning, as detection records its own. Cloth reported plain
-    for want of evidence of a repeat keeps the reading refused (``candidate``): the
-    operator accepts plain (no ``group``) or overrides with ``group`` on its lattice."""
-    if doc.get("group") is None and doc.get("candidate"):
-        if group is None:
-            return {**doc, "confirmed": True}
-        doc = {**{k: v for k, v in doc.items() if k != "candidate"}, **doc["candidate"],
-               "kind": "lattice", "refused": doc.get("message")}
-    if doc.get("group") is None:
-        raise ValueError(f"no lattice was detected ({doc.get('kind', 'no print')}): "
-                         "there is no group to confirm; give the job a FABRIC.json")
-    out = dict(doc)
-    if group is not None and group != doc["group"]:
-        if group not in GROUPS:
-            raise ValueError(f"unknown wallpaper group {group!r}; expected one of "
-                             f"{', '.join(GROUPS)}")
-        try:
-            wp = Wallpaper.snapped(group, doc["w1"], doc["w2"],
-                                   doc.get("origin", (0.0, 0.0)))
-        except ValueError as exc:
-            needs = {g: _strain_for(g, doc["w1"], doc["w2"]) for g in GROUPS}
-            carried = sorted((v, g) for g, v in needs.items() if v is not None)
-            raise ValueError(
-                f"{exc}: the cloth as it lies does not carry {group}, and pieces cut to "
-                f"it would drift off the print. Confirm a group this lattice carries "
-                f"(with the stretch each needs: "
-                f"{', '.join(f'{g} {100 * v:.0f} %' for v, g in carried)}), or straighten "
-                "the cloth and photograph it again") from None
-        out.update(wp.to_dict())
-        out["detected_group"] = doc["group"]
-        strain = _strain_for(group, doc["w1"], doc["w2"])
-        distortion = dict(out.get("distortion") or {}, lattice_strain=round(strain, 4))
-        if strain > STRETCH_TOL:
-            fault = (f"confirmed as {group}, which stretches the measured lattice "
-                     f"{100 * strain:.1f} % (tolerance {100 * STRETCH_TOL:g} %): pieces "
-                     "cut to it come out of the print by that much")
-            distortion["warning"] = "; ".join(w for w in (distortion.get("warning"), fault)
-                                              if w)
-        out["distortion"] = distortion
-    out["confirmed"] = True
-    out["confidence"] = 1.0
-    return out
-
-
-def _strain_for(group: str, w1, w2) -> float | None:
-    """The stretch (largest principal strain) that snapping the measured lattice
-    (w1, w2) to ``group``'s takes; None when it does not snap."""
-    try:
-        ideal = Wallpaper.snapped(group, w1, w2).basis
-    except ValueError:
-        return None
-    measured = np.column_stack([w1, w2]).astype(float)
-    # The snapped basis may be another basis of the same lattice.
-    same = measured @ np.rint(np.linalg.solve(measured, ideal))
-    return lattice_strain(same, ideal)
-
-
-def draw_overlay(image: np.ndarray, det: FabricDetection) -> np.ndarray:
-    """The image with the lattice (grey), mirror lines (blue, solid), glide lines
-    (green, dashed), rotation centres (red, with their order) and the local lattices of
-    the distortion grid (yellow arrows)."""
-    out = image.copy() if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    wp = det.classification.wallpaper  # image mm frame (without offset)
-    s = det.mm_per_px
-    h, w = out.shape[:2]
-
-    def px(p):
-        return tuple(int(round(v)) for v in (np.asarray(p) / s))
-
-    if wp is None:
-        _caption(out, [f"no lattice: {det.lattice.kind}", det.lattice.message])
-        return out
-    region = (0.0, 0.0, (w - 1) * s, (h - 1) * s)
-    f = wp.to_fractional(np.array([[0, 0], [region[2], 0], [0, region[3]],
-                                   [region[2], region[3]]]))
-    lo, hi = np.floor(f.min(0)).astype(int) - 1, np.ceil(f.max(0)).astype(int) + 1
-    for i in range(lo[0], hi[0] + 1):
-        cv2.line(out, px(wp.to_cartesian([[i, lo[1]]])[0]), px(wp.to_cartesian([[i, hi[1]]])[0]),
-                 (160, 160, 160), 1, cv2.LINE_AA)
-    for j in range(lo[1], hi[1] + 1):
-        cv2.line(out, px(wp.to_cartesian([[lo[0], j]])[0]), px(wp.to_cartesian([[hi[0], j]])[0]),
-                 (160, 160, 160), 1, cv2.LINE_AA)
-    # Symmetry elements near the origin's cell only (the rest repeat).
-    o = wp.origin
-    span = 1.6 * float(np.linalg.norm(wp.basis, axis=0).max())
-    centres, lines = symmetry_elements(wp, (o[0] - span, o[1] - span, o[0] + span,
-                                            o[1] + span))
-    for p, d, glide in lines:
-        a, b = p - d * span, p + d * span
-        if glide:
-            for t in np.linspace(0, 1, 17)[::2]:
-                cv2.line(out, px(a + (b - a) * t), px(a + (b - a) * min(1.0, t + 1 / 16)),
-                         (0, 200, 0), 2, cv2.LINE_AA)
-        else:
-            cv2.line(out, px(a), px(b), (255, 80, 0), 2, cv2.LINE_AA)
-    for p, order in centres:
-        cv2.circle(out, px(p), 5, (0, 0, 255), -1, cv2.LINE_AA)
-        cv2.putText(out, str(order), px(p + 0.5 * s * np.array([8, -8])),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1, cv2.LINE_AA)
-    cv2.circle(out, px(o), 8, (0, 255, 255), 2, cv2.LINE_AA)
-    d = det.distortion
-    for c, a, b in zip(d.centres, d.w1, d.w2, strict=True):
-        for v in (a, b):
-            cv2.arrowedLine(out, px(c), px(c + v), (0, 220, 255), 2, cv2.LINE_AA,
-                            tipLength=0.15)
-    # The runners-up, so the operator confirming the print sees what else it may be.
-    cls = det.classification
-    post = sorted(cls.posterior.items(), key=lambda kv: -kv[1])
-    label = f"{cls.group} {cls.confidence:.2f}" + "".join(
-        f", {g} {p:.2f}" for g, p in post[:3] if p >= 0.01 and g != cls.group)
-    _caption(out, [label, d.warning, cls.message])
-    return out
-
-
-def _caption(image: np.ndarray, texts: list[str | None], scale: float = 0.6) -> None:
-    """``texts`` (empty ones skipped) written over the top of ``image``, each wrapped to
-    its width, on a dark band so that they read over any print."""
-    font, thick = cv2.FONT_HERSHEY_SIMPLEX, 1
-    width = image.shape[1] - 20
-    lines: list[str] = []
-    for text in filter(None, texts):
-        line = ""
-        for word in text.split():
-            wider = f"{line} {word}".strip()
-            if line and cv2.getTextSize(wider, font, scale, thick)[0][0] > width:
-                lines.append(line)
-                wider = word
-            line = wider
-        lines.append(line)
-    step = int(cv2.getTextSize("Ag", font, scale, thick)[0][1] * 1.8)
-    band = image[:step * len(lines) + 10]
-    band[:] = (band * 0.35).astype(image.dtype)
-    for k, line in enumerate(lines):
-        cv2.putText(image, line, (10, step * (k + 1)), font, scale, (255, 255, 255), thick,
-                    cv2.LINE_AA)

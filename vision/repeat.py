@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from vision.classify import OWN_ASYMMETRY, SHARED_ASYMMETRY, lattice_whitening, repeat_cells
+from vision.classify import lattice_whitening
 from vision.consistency import (
     MIN_SPAN,
     Alternation,
@@ -24,7 +24,9 @@ from vision.consistency import (
     pixel_rounding,
     rounding_map,
 )
+from vision.decision import OWN_ASYMMETRY, SHARED_ASYMMETRY
 from vision.lattice import LatticeResult, sublattice
+from vision.motif import repeat_cells
 
 __all__ = ["ALTERNATION_BAND", "FALSE_STEP", "FALSE_STEP_Z", "step_is_repeat", "true_lattice"]
 

@@ -1,4 +1,4 @@
-"""The garment model and its importers/exporters (OBJ with UVs, OBJ pairs, JSON specs).
+"""The garment model and its importers/exporters (OBJ with UVs, OBJ pairs, JSON specs, DXF).
 
     g = load_garment("pants.obj", units="m")
     g.uv, g.faces, g.seam_edges, g.seam_lines, g.piece_outline(0)
@@ -34,13 +34,16 @@ def load_garment(
     units: str | None = None,
     world: str | Path | None = None,
     resolution_mm: float | None = None,
+    size: str | None = None,
 ) -> Garment:
-    """Load a garment from OBJ (single file or -m/-w pair) or a JSON pattern specification.
+    """Load a garment from OBJ (single file or -m/-w pair), a JSON pattern specification or
+    a DXF-AAMA/ASTM pattern (its seams inferred, :mod:`solver.seams`).
 
     ``units`` are the units of the file's coordinates (m, cm, mm, in); by default what the
     file says, else mm. ``world`` names the world-space OBJ of a pattern/world pair (found
     automatically beside ``name-m.obj``). ``resolution_mm`` is the target edge length when
-    a JSON specification is triangulated.
+    a JSON specification is triangulated. ``size`` picks a graded DXF's size (default: its
+    sample size).
     """
     path = Path(path)
     if units is not None:
@@ -48,6 +51,10 @@ def load_garment(
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such garment file")
     suffix = path.suffix.lower()
+    if size is not None and not isinstance(size, str):
+        raise GarmentError(path, f"a size is a name such as '50' or 'M', got {size!r}")
+    if size is not None and suffix != ".dxf":
+        raise GarmentError(path, f"--size {size!r} is for a graded DXF pattern; this is {suffix}")
     if suffix == ".json":
         return load_spec(path, units=units, resolution_mm=resolution_mm)
     if suffix == ".obj":
@@ -57,4 +64,8 @@ def load_garment(
                 pattern, world = (path, partner) if path.stem.endswith("-m") else (partner, path)
                 return load_obj(pattern, units=units, world=world)
         return load_obj(path, units=units, world=world)
-    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj or .json)")
+    if suffix == ".dxf":  # DXF-AAMA / ASTM D6673: seams inferred (solver.seams)
+        from solver.garment.dxf_garment import load_dxf  # ezdxf: 0.3-0.6 s, DXF only
+
+        return load_dxf(path, units=units, size=size)
+    raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj, .json or .dxf)")

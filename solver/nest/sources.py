@@ -8,6 +8,7 @@ against ``--time``, which instances and placements need not pay. The garment sta
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from solver.geometry import FLIP, rotation_matrix
 from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, PiecePair, load_esicup
 from solver.placement import Placement
+from solver.units import mm_per_unit
 from untrusted import limits
 
 
@@ -192,15 +194,23 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
     found_width, found_fabric = None, None
     for path in paths:
         kind = kind_of(path)
-        if kind == "instance":
+        if kind == "instance":  # coordinates in --units when given (never ignored)
             inst = load_esicup(path)
+            k = 1.0 if units is None else mm_per_unit(units)
+            for p in inst.pieces:
+                p.outline = p.outline * k
             pieces += inst.pieces
-            found_width = found_width or inst.width
+            found_width = found_width or inst.width * k
         elif kind == "dxf":
             from solver.nest.dxf_aama import read_dxf_aama  # ezdxf: 0.3-0.6 s, DXF only
 
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
+            if fabric is not None and not plain:  # said, never silent (issue 34)
+                warnings.warn(f"{path}: a DXF's pieces are nested as the file turns them, "
+                              "not matched to the print; for a print-matched marker run "
+                              "`station align` on it and nest its PLACEMENT.json",
+                              stacklevel=2)
         else:
             got, wp, got_pairs = placement_input(path, units=units, allowance=allowance,
                                                  fabric=fabric, plain=plain)

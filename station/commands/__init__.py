@@ -23,7 +23,7 @@ COMMANDS: dict[str, Command] = {
     "calibrate": Command("calibrate", "calibrate the camera to the table with a ChArUco board"),
     "confirm": Command("confirm", "accept or correct the detected print of a job waiting at "
                        "'confirm fabric'"),
-    "submit": Command("console", "queue a garment to be aligned, nested and cut"),
+    "submit": Command("submit", "queue a garment to be aligned, nested and cut"),
     "jobs": Command("console", "list every job"),
     "status": Command("console", "state, pieces and progress"),
     "pause": Command("console", "feed hold now (cutting) or after the current step"),
@@ -48,8 +48,12 @@ COMMANDS: dict[str, Command] = {
     "sim-grbl": Command("sim_grbl", "serve the GRBL 1.1 emulator on a pseudo-terminal"),
     "simulate-camera": Command("simulate_camera", "photograph simulated fabric or a ChArUco "
                                "board, with truth"),
+    "simulate-calibration": Command("simulate_calibration", "calibrate the synthetic camera "
+                                    "from rendered ChArUco views"),
     "simulate-fabric": Command("simulate_fabric", "render a print of a chosen wallpaper group, "
                                "with its truth"),
+    "simulate-stream": Command("simulate_stream", "stream a program to the GRBL emulator, "
+                               "tracing its motion"),
     "stream": Command("stream", "stream a program to a GRBL controller (serial port, pty or "
                       "pyserial URL)"),
     "watch": Command("watch", "progress bars for a running job"),

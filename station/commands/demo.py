@@ -57,7 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="demo-out", metavar="DIR", help="output folder")
     p.add_argument("--garment", default=str(EXAMPLE), help="garment (default: the example "
                    "Berkeley t-shirt, in metres)")
-    p.add_argument("--units", default="m", choices=("m", "cm", "mm", "in"))
+    p.add_argument("--units", choices=("m", "cm", "mm", "in"),
+                   help="the garment file's units (default: what the file says; the example "
+                   "t-shirt is in metres)")
     p.add_argument("--restarts", type=int, help="alignment restarts (default 8; fleet 2)")
     p.add_argument("--nest-seconds", type=float,
                    help="time for nesting, loading and verifying included (default 4; "
@@ -78,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
     garment = Path(args.garment)
     if not garment.is_file():
         raise FileNotFoundError(f"{garment}: no such garment file")
+    if args.units is None and garment.resolve() == EXAMPLE.resolve():
+        args.units = "m"  # the Berkeley example does not say its units
     load_garment(garment, units=args.units)  # a bad garment is one line before any station starts
     fleet = args.fleet > 0
     args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)

@@ -9,6 +9,9 @@ from typing import Any
 
 from station.cliargs import add_config_argument
 from station.errors import UserError
+from station.fleet import Fleet
+from station.fleetconsole import open_fleet_store
+from station.jobstore import JobStore, JobStoreError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,10 +37,7 @@ def _common(p: argparse.ArgumentParser, func) -> None:
     p.set_defaults(func=func)
 
 
-def _fleet(args: argparse.Namespace):
-    from station.commands.console import open_fleet_store
-    from station.fleet import Fleet
-
+def _fleet(args: argparse.Namespace) -> tuple[JobStore, Fleet]:
     store = open_fleet_store(args)
     return store, Fleet(store)
 
@@ -77,8 +77,6 @@ def station_line(s: dict[str, Any], job: dict[str, Any] | None) -> str:
 
 
 def run_reassign(args: argparse.Namespace) -> int:
-    from station.jobstore import JobStoreError
-
     store, fleet = _fleet(args)
     try:
         job = fleet.reassign(args.job, args.to)

@@ -19,6 +19,7 @@ from station.cliargs import (
     garment_with_grain,
     load_garment_arg,
 )
+from station.seams_view import add_dxf_arguments, draw_seams, inspect_dxf
 from station.steps.garment import symmetrised
 
 
@@ -41,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also say what --symmetrise would do: the pairs made one pattern and "
                    "how far each piece moves")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_dxf_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -148,9 +150,10 @@ def _print_text(s: dict, out) -> None:
               " (give it with --grain-line PIECE=DEG)", file=out)
     print("  seam lines:", file=out)
     for ln in s["seam_line_list"]:
+        sure = f"  {ln['source']} {ln['confidence']:.2f}" if "confidence" in ln else ""
         print(f"    {ln['index']:3d} {ln['name']:<40s} pieces {ln['piece_a']}-{ln['piece_b']}"
-              f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}",
-              file=out)
+              f"  {ln['seam_edges']:4d} edges  {ln['length_mm']:8.1f} mm  weight {ln['weight']:g}"
+              f"{sure}", file=out)
     print("  openings (edges sewn to nothing; allowance by kind):", file=out)
     for op in s["opening_list"]:
         pieces = ",".join(map(str, op["pieces"]))
@@ -180,10 +183,16 @@ def _print_text(s: dict, out) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
+    dxf = inspect_dxf(args) if str(args.garment).lower().endswith(".dxf") else None
+    g = garment_with_grain(dxf.garment if dxf else
+                           load_garment_arg(args, resolution_mm=args.resolution_mm), args)
     pairs = cli_pairs(args, g)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
+    if dxf:  # issue 34: the inferred seams' confidences, the file's facts, the picture
+        dxf.annotate(summary)
+        if args.png:
+            draw_seams(dxf.pieces, dxf.seams, args.png)
     if args.symmetrise:
         summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)

@@ -12,9 +12,15 @@ import json
 import sys
 from pathlib import Path
 
+import cv2
+
+from solver.fit import fit_report
+from solver.garment import load_garment
+from solver.placement import Placement
 from station.cliargs import add_config_argument, load_config_arg, picture_path
 from station.control import ControlError, request
 from station.errors import UserError
+from station.render import draw_marker, garment_credit
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,13 +59,6 @@ def run(args: argparse.Namespace) -> int:
 
 def preview(plan: dict, output: str | Path, *, width_px: int = 1600) -> None:
     """Draw the marker of a planned job (its plan dict) into ``output``."""
-    import cv2
-
-    from solver.fit import fit_report
-    from solver.garment import load_garment
-    from solver.placement import Placement
-    from station.render import draw_marker, garment_credit
-
     try:
         layout = json.loads(Path(plan["layout"]).read_text())
         garment = load_garment(plan["garment"])

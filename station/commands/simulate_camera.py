@@ -23,13 +23,13 @@ from simulators.camera import (
     SyntheticCamera,
     calibration_poses,
 )
-from station.cli import UserError
 from station.commands.simulate_fabric import (
     add_print_arguments,
     make_print,
     write_image,
     write_truth,
 )
+from station.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -78,7 +78,8 @@ def _frame_path(path: str, k: int, n: int) -> str:
     return str(p.with_name(f"{p.stem}_{k:03d}{p.suffix}"))
 
 
-def run(args: argparse.Namespace) -> int:
+def _camera_and_imaging(args: argparse.Namespace) -> tuple[CameraModel, Imaging]:
+    """The lens and the imaging chain, every option checked before anything is rendered."""
     if not 1 <= args.views <= 100:
         raise UserError(f"--views must be 1..100, got {args.views}")
     if args.views > 1 and not args.charuco:
@@ -94,7 +95,11 @@ def run(args: argparse.Namespace) -> int:
         camera = CameraModel.default(tuple(args.resolution), hfov_deg=args.hfov)
     except ValueError as exc:
         raise UserError(f"--resolution: {exc}") from None
-    imaging = Imaging(noise=args.noise, blur=args.blur, jpeg_quality=args.jpeg or None)
+    return camera, Imaging(noise=args.noise, blur=args.blur, jpeg_quality=args.jpeg or None)
+
+
+def run(args: argparse.Namespace) -> int:
+    camera, imaging = _camera_and_imaging(args)
     sheet = board = None
     if args.charuco:
         board = Board(rotation=args.rotation, shift=tuple(args.shift))

@@ -18,7 +18,7 @@ import cv2
 from simulators.classics import CLASSIC_GROUPS, CLASSICS, classic_print
 from simulators.fabric import Print, random_print, render_print
 from solver.wallpaper import GROUP_NAMES
-from station.cli import UserError
+from station.errors import UserError
 from untrusted.limits import MAX_REPEAT_MM, MIN_REPEAT_MM
 
 

@@ -1,16 +1,24 @@
-"""`station stream`: send a program to a GRBL controller and report what was cut."""
+"""`station stream`: send a program to a GRBL controller and report what was cut.
+
+The controller is a serial device, a pseudo-terminal or a pyserial URL. The GRBL
+emulator's ``grblsim://`` is not one of them: `station simulate-stream`
+(`station.commands.simulate_stream`) streams to it, with the same code from here.
+"""
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
+from collections.abc import Callable
 
+import serial
+
+from gcode.grbl import check_settings
+from gcode.machine import Machine, default_machine, load_machine
+from gcode.program import Program, load_program
+from gcode.stream import Streamer, StreamError, StreamResult
 from station.errors import UserError
-
-# Where pyserial finds the GRBL emulator's URL scheme, if the simulators are installed.
-_URL_HANDLERS = ("simulators.grbl",)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,9 +30,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "laser off) on any error or alarm; a piece counts as cut only when its sync point "
         "answered.",
     )
-    p.add_argument("program", metavar="JOB.nc", help="program written by `station gcode`")
     p.add_argument("--port", required=True,
-                   help="serial device, pseudo-terminal, or pyserial URL (grblsim://...)")
+                   help="serial device, pseudo-terminal, or pyserial URL (e.g. socket://)")
+    add_stream_arguments(p)
+    p.set_defaults(func=run)
+
+
+def add_stream_arguments(p: argparse.ArgumentParser) -> None:
+    """The program and how to stream it: shared with simulate-stream."""
+    p.add_argument("program", metavar="JOB.nc", help="program written by `station gcode`")
     p.add_argument("--baud", type=int, default=115200, help="baud rate (default 115200)")
     p.add_argument("--machine", metavar="MACHINE.toml",
                    help="machine profile (default: the built-in laser table)")
@@ -34,24 +48,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="send $X if the controller starts in alarm (make the machine safe first)")
     p.add_argument("--no-settings-check", action="store_true",
                    help="do not compare the controller's $$ settings with the profile")
-    p.add_argument("--trace", metavar="TRACE.csv",
-                   help="with the emulator (grblsim://): write its executed motion, one segment "
-                   "a line, x0,y0,x1,y1,feed,power,rapid in the program's work coordinates")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=run)
 
 
-def open_port(url: str, baud: int):
-    import serial
+def run(args: argparse.Namespace) -> int:
+    if args.port.startswith("grblsim://"):
+        raise UserError(f"{args.port.split('?', 1)[0]}: the GRBL emulator is a simulation: "
+                        "stream to it with `station simulate-stream`")
+    machine, program = load_job(args)
+    return stream_and_report(args, open_port(args.port, args.baud), machine, program)
 
-    """Open a device path or pyserial URL (emulator handlers registered when available)."""
-    for pkg in _URL_HANDLERS:
-        try:
-            importlib.import_module(pkg)
-        except ImportError:
-            continue
-        if pkg not in serial.protocol_handler_packages:
-            serial.protocol_handler_packages.append(pkg)
+
+def load_job(args: argparse.Namespace) -> tuple[Machine, Program]:
+    """The machine profile and the program checked against it, before any port opens."""
+    machine = load_machine(args.machine) if args.machine else default_machine()
+    return machine, load_program(args.program, machine)
+
+
+def open_port(url: str, baud: int) -> serial.SerialBase:
+    """A device path or a pyserial URL of a handler installed in this process."""
     try:
         return serial.serial_for_url(url, baudrate=baud, timeout=0.02)
     except (serial.SerialException, ValueError) as exc:
@@ -81,22 +96,28 @@ class _Bar:
             sys.stderr.write("\n")
 
 
-def run(args: argparse.Namespace) -> int:
-    # Imported here so that `station --help` and the other commands start fast.
-    from gcode.grbl import check_settings
-    from gcode.machine import default_machine, load_machine
-    from gcode.program import load_program
-    from gcode.stream import Streamer, StreamError
-
-    machine = load_machine(args.machine) if args.machine else default_machine()
-    program = load_program(args.program, machine)
-    port = open_port(args.port, args.baud)
-    emulator = getattr(port, "emulator", None)
-    if args.trace and emulator is None:
-        port.close()
-        raise UserError(f"{args.port}: --trace needs the emulator (a grblsim:// port): a real "
-                        "controller does not report its executed motion")
+def stream_and_report(args: argparse.Namespace, port: serial.SerialBase, machine: Machine,
+                      program: Program, *, before_close: Callable[[], None] | None = None
+                      ) -> int:
+    """Stream ``program`` on ``port`` and report it; ``before_close`` runs after the run
+    (stopped or not) while the port is still open. Exit status 1 when it did not complete."""
     bar = _Bar()
+    try:
+        result = _stream(args, port, machine, program, bar)
+    finally:
+        bar.done()
+        if before_close is not None:
+            before_close()
+        try:
+            port.close()
+        except Exception:  # noqa: BLE001 - closing a vanished port must not mask the result
+            pass
+    _report(args, result)
+    return 0 if result.completed else 1
+
+
+def _stream(args: argparse.Namespace, port: serial.SerialBase, machine: Machine,
+            program: Program, bar: _Bar) -> StreamResult:
     try:
         streamer = Streamer(port, rx_buffer=machine.rx_buffer, on_progress=bar,
                             acceleration=machine.acceleration, rapid_feed=machine.rapid_feed,
@@ -112,20 +133,12 @@ def run(args: argparse.Namespace) -> int:
             if faults:
                 raise UserError(f"{args.port}: controller settings disagree with the profile "
                                 f"{machine.source}: " + "; ".join(faults))
-        result = streamer.run(program, check=args.check)
+        return streamer.run(program, check=args.check)
     except StreamError as exc:
         raise UserError(str(exc)) from None
-    finally:
-        bar.done()
-        if args.trace and emulator is not None:
-            from simulators.grbl.trace import write_trace
 
-            emulator.wait_idle(5.0)  # a stopped job still brakes: trace all of it
-            write_trace(emulator, args.trace)
-        try:
-            port.close()
-        except Exception:  # noqa: BLE001 - closing a vanished port must not mask the result
-            pass
+
+def _report(args: argparse.Namespace, result: StreamResult) -> None:
     out = {
         "completed": result.completed,
         "reason": result.reason,
@@ -155,4 +168,3 @@ def run(args: argparse.Namespace) -> int:
             f = result.fault
             print(f"stopped at line {f['line']}: {f['detail']} (machine at {f['position']})",
                   file=sys.stderr)
-    return 0 if result.completed else 1

@@ -7,6 +7,8 @@ import argparse
 from station.cliargs import add_config_argument, load_config_arg
 from station.control import ControlError, request
 from station.errors import UserError
+from station.fleetconsole import FleetConsole, open_fleet_store
+from station.progress import follow
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,10 +28,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_fleet(args: argparse.Namespace) -> int:
-    from station.commands.console import open_fleet_store
-    from station.fleetconsole import FleetConsole
-    from station.progress import follow
-
     if args.job is None:
         raise UserError("--fleet needs a job number")
     store = open_fleet_store(args)
@@ -44,8 +42,6 @@ def _run_fleet(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from station.progress import follow
-
     if args.fleet or args.store:
         return _run_fleet(args)
     if args.socket:

@@ -60,7 +60,8 @@ def job_garment(job: Job, workdir: Path) -> tuple[Garment, Path, Symmetrised | N
     """(garment, path of the job's copy, symmetrise record or None): the submitted
     pattern loaded once, in mm, symmetrised if the job asks, and copied beside the job's
     files (with its licence note) for the operator and for a job resumed elsewhere."""
-    garment = garment_files.load_garment(job.garment, units=job.options.get("units"))
+    garment = garment_files.load_garment(job.garment, units=job.options.get("units"),
+                                         size=job.options.get("size"))
     garment, record = symmetrise_job(garment, job.options)
     garment_path = workdir / "garment.obj"
     save_obj(garment, garment_path)

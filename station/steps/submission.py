@@ -15,7 +15,7 @@ from station.allowance import rules_for_job
 from station.config import Config
 from station.steps.garment import grained
 
-JOB_OPTIONS = frozenset({"units", "reshape", "method", "restarts", "seed", "grain_lines",
+JOB_OPTIONS = frozenset({"units", "size", "reshape", "method", "restarts", "seed", "grain_lines",
                          "bias", "seam_allowance", "allowance", "symmetry", "pairs",
                          "symmetrise"})
 
@@ -23,7 +23,8 @@ JOB_OPTIONS = frozenset({"units", "reshape", "method", "restarts", "seed", "grai
 def check_job(garment: str, fabric: str | None, options: dict[str, Any],
               config: Config) -> None:
     """Raise ValueError, naming the file or option, for a job that could never run."""
-    loaded = garment_files.load_garment(garment, units=options.get("units"))
+    loaded = garment_files.load_garment(garment, units=options.get("units"),
+                                        size=options.get("size"))
     if fabric is not None:
         Wallpaper.load(fabric)
     unknown = set(options) - JOB_OPTIONS

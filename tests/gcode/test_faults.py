@@ -277,7 +277,7 @@ def test_stream_command_writes_the_executed_trace_in_work_coordinates(tiny, tmp_
     Streamer(setup).connect(quiet=0.02)
     setup.write(b"G10L2P1X100Y50\n")  # the work origin at machine X100 Y50
     assert setup.emulator.wait_idle(2.0)
-    rc = main(["stream", str(nc), "--port", url, "--trace", str(csv), "--json",
+    rc = main(["simulate-stream", str(nc), "--port", url, "--trace", str(csv), "--json",
                "--no-settings-check"])
     assert rc == 0
     lines = csv.read_text().splitlines()
@@ -298,7 +298,7 @@ def test_stream_command_writes_the_executed_trace_in_work_coordinates(tiny, tmp_
 def test_trace_needs_the_emulator(tiny, tmp_path):
     import argparse
 
-    from station.commands.stream import run as stream_run
+    from station.commands.simulate_stream import run as stream_run
 
     nc = tmp_path / "tiny.nc"
     tiny.write(nc)

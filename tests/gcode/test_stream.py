@@ -443,5 +443,5 @@ def test_stream_command_refuses_mismatched_controller(job, tmp_path):
     nc = tmp_path / "job.nc"
     job.write(nc)
     # the emulator's default settings: laser mode off, 200 mm travels
-    rc = main(["stream", str(nc), "--port", f"grblsim://?speed={SPEED}", "--json"])
+    rc = main(["simulate-stream", str(nc), "--port", f"grblsim://?speed={SPEED}", "--json"])
     assert rc == 2

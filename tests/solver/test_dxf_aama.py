@@ -30,7 +30,8 @@ def test_round_trip_keeps_outline_grain_notches_marks(tmp_path):
     write_dxf_aama([bodice("M")], path)
     (p,) = read_dxf_aama(path)
     src = bodice("M")
-    assert p.name == "front" and p.size == "M" and p.quantity == 2
+    # Quantity 2: a left and a right, one mirrored pair
+    assert p.name == "front" and p.size == "M" and p.quantity == 1 and p.mirrored_pair
     assert shapely.Polygon(p.outline).area == pytest.approx(src.area, rel=1e-9)
     assert np.allclose(p.grainline, src.grainline)
     assert len(p.holes) == 1 and shapely.Polygon(p.holes[0]).area == pytest.approx(400)
@@ -101,7 +102,7 @@ def test_nest_a_dxf_marker_from_the_console(tmp_path, capsys, monkeypatch):
                "--pairs", "--json", "--png", str(png)])
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["pieces"] == 6 and 0 < summary["density"] < 1
+    assert summary["pieces"] == 4 and 0 < summary["density"] < 1
     assert png.stat().st_size > 1000
     from solver.nest import Layout
 

@@ -126,8 +126,8 @@ def test_obj_without_pattern(tmp_path: Path) -> None:
 
 
 def test_unknown_format_and_missing_file(tmp_path: Path) -> None:
-    (tmp_path / "g.dxf").write_text("0\nEOF\n")
-    expect_error(tmp_path / "g.dxf", "unknown garment format")
+    (tmp_path / "g.ply").write_text("ply\n")  # .dxf is a garment format since issue 34
+    expect_error(tmp_path / "g.ply", "unknown garment format")
     with pytest.raises(FileNotFoundError):
         load_garment(tmp_path / "absent.obj")
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from station.config import SCHEMA, Config, load_config
+from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon, JobControl
 from station.jobstore import Job
 from station.pipeline import StationPipeline
@@ -89,7 +89,7 @@ class SquaresPlan:
 def station_config(tmp: Path, name: str, store: str, port: str | None = None,
                    speed: float = 2000.0, lost_after: float = 3.0) -> Config:
     """A fleet station's configuration: its own emulator (or ``port``) and folders."""
-    default = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={speed:g}")
+    default = EMULATOR_PORT.replace("speed=50", f"speed={speed:g}")
     port = port or default.replace("name=station", f"name=fleet-{name}-{id(tmp)}")
     return load_config(None, {
         "serial": {"port": port},

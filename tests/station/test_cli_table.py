@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 from station import commands
+from station.cli import main
 from station.commands import COMMANDS
 
 
@@ -56,3 +57,33 @@ def test_help_and_a_bad_command_list_every_command_importing_none():
     assert (status, modules) == (2, [])
     assert "invalid choice: 'cutt'" in err
     assert all(f"'{name}'" in err for name in COMMANDS)
+
+
+def _simulation_entry_point(module: str) -> bool:
+    return any(word in module for word in ("demo", "sim", "simulat"))
+
+
+def test_only_simulation_commands_load_the_simulators():
+    """A real station's commands neither import `simulators` nor give pyserial the
+    emulator's grblsim:// scheme; the simulate-*, sim-grbl and demo commands do."""
+    real = sorted({c.module for c in COMMANDS.values()
+                   if not _simulation_entry_point(c.module)})
+    code = ("import importlib, sys, serial\n"
+            f"for name in {real!r}:\n"
+            "    importlib.import_module('station.commands.' + name)\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'simulators'),\n"
+            "      'simulators.grbl' in serial.protocol_handler_packages)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[] False"
+    assert {"demo", "sim_grbl", "simulate_calibration", "simulate_stream"} <= \
+        {c.module for c in COMMANDS.values() if _simulation_entry_point(c.module)}
+
+
+def test_stream_refuses_the_emulator_and_names_the_simulation(tmp_path, capsys):
+    program = tmp_path / "job.nc"
+    program.write_text("G21 G90\nG0 X10 Y10\nM2\n")
+    assert main(["stream", str(program), "--port", "grblsim://?speed=1000"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "grblsim://: the GRBL emulator is a simulation" in err
+    assert "station simulate-stream" in err

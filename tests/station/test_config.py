@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
 import re
 
 import pytest
 
-from station.config import ConfigError, example_toml, load_config
+from station.cli import main
+from station.commands.serve import checked_config
+from station.config import EMULATOR_PORT, ConfigError, example_toml, load_config
 
 
 def test_defaults_and_overrides():
@@ -118,3 +121,24 @@ def test_every_limit_is_stated_and_no_password_is_echoed(tmp_path, text, fault):
     with pytest.raises(ConfigError, match=re.escape(fault)) as refused:
         load_config(path)
     assert "pw" not in str(refused.value).replace(str(tmp_path), "")
+
+
+def test_a_station_names_its_port_and_serve_refuses_without_one(tmp_path, capsys):
+    """No emulator default: a daemon on a configuration naming no port refuses to start
+    in one line; only `serve --simulate` supplies the emulator."""
+    assert load_config(None)["serial"]["port"] == ""
+    path = tmp_path / "station.toml"
+    path.write_text(f'[store]\npath = "{tmp_path / "jobs.db"}"\n'
+                    f'[control]\nsocket = "{tmp_path / "station.sock"}"\n')
+    assert main(["serve", "--config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"serial.port is not set in {path}" in err
+    assert "--simulate" in err
+    dry_run = argparse.Namespace(simulate=True, config=str(path))
+    assert checked_config(dry_run)["serial"]["port"] == EMULATOR_PORT
+    assert checked_config(dry_run)["camera"]["source"] == "simulated"
+    path.write_text(f'[serial]\nport = "{EMULATOR_PORT}"\n')
+    assert main(["serve", "--config", str(path)]) == 2
+    assert "is the GRBL emulator: a dry run is `station serve --simulate`" in \
+        capsys.readouterr().err
+    assert not (tmp_path / "jobs.db").exists()  # refused before the store was opened

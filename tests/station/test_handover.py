@@ -9,7 +9,7 @@ import threading
 from pathlib import Path
 
 from simulators.cloth import plain_cloth
-from station.config import SCHEMA, load_config
+from station.config import EMULATOR_PORT, load_config
 from station.daemon import JobControl
 from station.jobstore import JobStore
 from station.simstation import simulated_pipeline
@@ -41,7 +41,7 @@ def in_daemon_thread(work):
 
 def test_a_job_resumed_in_the_same_process_cuts_from_its_planned_layout(tmp_path,
                                                                         monkeypatch):
-    port = SCHEMA["serial"]["port"].default.replace("speed=50", "speed=400").replace(
+    port = EMULATOR_PORT.replace("speed=50", "speed=400").replace(
         "name=station", f"name=handover-{id(tmp_path)}")
     config = load_config(None, {"nest": {"seconds": 1.0}, "serial": {"port": port},
                                 "machine": {"check_mode": False}})

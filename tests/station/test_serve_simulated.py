@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from station.cli import main
-from station.config import SCHEMA
+from station.config import EMULATOR_PORT
 from station.control import ControlError, request
 from station.daemon import wait_until
 
@@ -30,7 +30,7 @@ FABRIC = {"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0], "units
 
 @pytest.fixture
 def served(tmp_path):
-    port = SCHEMA["serial"]["port"].default
+    port = EMULATOR_PORT
     config = tmp_path / "station.toml"
     config.write_text(
         f'[serial]\nport = "{port}"\n'

@@ -103,7 +103,7 @@ REPRODUCERS: dict[str, tuple[Callable[[Path], list], str]] = {
                                              "1e-300"], "--mm-per-px must be"),
     "detect --min-repeat 1e300": (lambda t: ["detect", t / "none.png", "--mm-per-px", "1",
                                              "--min-repeat", "1e300"], "--min-repeat"),
-    "calibrate 100000 squares": (lambda t: ["calibrate", "--simulate", "--squares", "100000",
+    "calibrate 100000 squares": (lambda t: ["simulate-calibration", "--squares", "100000",
                                             "100000", "-o", t / "c.json"], "--squares"),
     "fit --png x.json": (_fit_png_json, "x.json"),
     "fleet --store a JSON file": (_fleet_store_on_json, "not a job store"),

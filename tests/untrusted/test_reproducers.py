@@ -183,21 +183,22 @@ def test_layout_field_that_is_a_number(tmp_path, capsys, key):
 def test_program_whose_first_move_is_g1(tmp_path, capsys):
     bad = tmp_path / "g1.nc"
     bad.write_text("G21 G90\nG1 X10 Y10 F1000\n")
-    refused(capsys, bad, "stream", bad, "--port", "grblsim://?speed=1000",
+    refused(capsys, bad, "simulate-stream", bad, "--port", "grblsim://?speed=1000",
             match="feed move before the head's X and Y are known")
 
 
 def test_empty_program_is_not_completed(tmp_path, capsys):
     bad = tmp_path / "empty.nc"
     bad.write_text("(nothing)\n")
-    refused(capsys, bad, "stream", bad, "--port", "grblsim://?speed=1000", match="no G-code")
+    refused(capsys, bad, "simulate-stream", bad, "--port", "grblsim://?speed=1000",
+            match="no G-code")
 
 
 def test_piece_comment_carries_no_realtime_byte(tmp_path, capsys):
     bad = tmp_path / "bang.nc"
     bad.write_text("G21 G90 G94\nG0 X10 Y10\n(piece 1 begin a sleeve!)\nG4 P0.01\n"
                    "(piece 1 end)\nM2\n")
-    refused(capsys, bad, "stream", bad, "--port", "grblsim://?speed=1000",
+    refused(capsys, bad, "simulate-stream", bad, "--port", "grblsim://?speed=1000",
             match="forbidden character")
 
 

@@ -144,7 +144,7 @@ def test_cli_calibrate_simulated_and_from_a_folder(tmp_path, capsys):
     from station.cli import main
 
     out = tmp_path / "cal.json"
-    rc = main(["calibrate", "--simulate", "--views", "6", "--squares", "9", "6",
+    rc = main(["simulate-calibration", "--views", "6", "--squares", "9", "6",
                "-o", str(out), "--json"])
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
@@ -173,7 +173,7 @@ def test_a_board_beyond_any_print_is_refused_before_rendering(tmp_path, capsys):
     """--squares 100000 100000 allocated past 6 GB before anything was said."""
     from station.cli import main
 
-    assert main(["calibrate", "--simulate", "--squares", "100000", "100000",
+    assert main(["simulate-calibration", "--squares", "100000", "100000",
                  "-o", str(tmp_path / "c.json")]) == 2
     err = capsys.readouterr().err
     assert "--squares must be 2 to 50 columns and rows" in err and err.count("\n") == 1

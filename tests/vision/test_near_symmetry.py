@@ -11,7 +11,9 @@ import pytest
 
 from simulators.lineart import degrade, layered_print
 from solver.wallpaper import GROUPS
-from vision.classify import ADDED_OPERATION_LAG, Classification, _GroupFit, _lags, classify
+from vision.classify import Classification, classify
+from vision.decision import ADDED_OPERATION_LAG, lagging_subgroup
+from vision.groupfit import GroupFit
 from vision.lattice import detect_lattice
 from vision.subgroups import error_kind
 
@@ -34,12 +36,12 @@ def test_a_group_over_p1_must_not_lag_behind_the_translations():
     the single repeats' disagreement): a half turn scoring 0.94 lags them by 0.06, more
     than allowed on alike repeats, and is allowed when repeats differ by 0.08."""
     rot = ((-1, 0, 0, -1), "rot")
-    best = {"p1": _GroupFit(0.0, None, None, [], frozenset()),
-            "p2": _GroupFit(1.0, None, None, [], frozenset({rot}))}
-    assert _lags("p2", best, {rot: 0.94}, 1.0, ADDED_OPERATION_LAG) == ("p1",
-                                                                        pytest.approx(0.06))
-    assert not _lags("p2", best, {rot: 0.99}, 1.0, ADDED_OPERATION_LAG)
-    assert not _lags("p2", best, {rot: 0.94}, 1.0 - 0.08, ADDED_OPERATION_LAG)
+    best = {"p1": GroupFit(0.0, None, None, [], frozenset()),
+            "p2": GroupFit(1.0, None, None, [], frozenset({rot}))}
+    assert lagging_subgroup("p2", best, {rot: 0.94}, 1.0, ADDED_OPERATION_LAG) == (
+        "p1", pytest.approx(0.06))
+    assert not lagging_subgroup("p2", best, {rot: 0.99}, 1.0, ADDED_OPERATION_LAG)
+    assert not lagging_subgroup("p2", best, {rot: 0.94}, 1.0 - 0.08, ADDED_OPERATION_LAG)
 
 
 def test_bold_half_turns_with_faint_asymmetric_strokes_are_mostly_p1():

@@ -8,7 +8,8 @@ import pytest
 from scipy import ndimage
 
 from simulators.fabric import random_print, render_print
-from vision.classify import FEW_REPEATS_CONFIDENCE, REPEAT_SUPPORT, repeat_support
+from vision.classify import FEW_REPEATS_CONFIDENCE
+from vision.decision import REPEAT_SUPPORT, repeat_support
 from vision.pipeline import CONFIRM_BELOW, detect_fabric
 
 N = 48

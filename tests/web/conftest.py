@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from station.config import SCHEMA
+from station.config import EMULATOR_PORT
 from station.daemon import wait_until
 
 try:
@@ -97,7 +97,7 @@ class Station:
 def station(tmp_path_factory):
     folder = tmp_path_factory.mktemp("console")
     port = free_port()
-    serial = SCHEMA["serial"]["port"].default.replace("speed=50", f"speed={EMULATOR_SPEED}")
+    serial = EMULATOR_PORT.replace("speed=50", f"speed={EMULATOR_SPEED}")
     (folder / "station.toml").write_text(
         f'[serial]\nport = "{serial}"\n'
         '[store]\npath = "jobs.db"\nwork_dir = "work"\n'

@@ -1,0 +1,126 @@
+"""A DXF-AAMA / ASTM pattern as a :class:`Garment`: pieces cut, seams inferred, meshed.
+
+The pattern's cut list (:meth:`DxfPattern.cut_list`: quantities, left/right pairs, folds
+unfolded) gives the pieces; their sew lines give the seams (:mod:`solver.seams`, or the
+operator's ``--seams`` file); each piece's sew line is then sampled so that the two sides of
+every seam have the same number of points, those twins share a 3D point id, and each piece
+is triangulated (Shewchuk's Triangle, boundary kept as sampled). The common topology pass
+(:func:`solver.garment.model.build_garment`) makes the seam lines of it, as for any garment.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from solver.garment.dxf import DxfPattern, DxfPiece, read_dxf_pattern
+from solver.garment.errors import GarmentError
+from solver.garment.model import Garment, build_garment
+from solver.garment.spec import _triangulate
+from solver.seams import Seam, SewPiece, infer_seams
+from solver.seams.declared import read_seams_file
+from solver.seams.outline import point_at
+
+__all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
+
+RESOLUTION_MM = 20.0  # boundary sample spacing of the mesh
+GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
+
+
+def sew_pieces(pieces: list[DxfPiece]) -> list[SewPiece]:
+    """The pieces as the seam inference reads them: sew line (else the cut line), the
+    file's turn points and notches; names with their spaces made ``_`` (G-code piece
+    markers and job files carry a name as one word)."""
+    return [SewPiece(re.sub(r"\s+", "_", p.name.strip()),
+                     p.sew if p.sew is not None else p.cut, p.turns,
+                     np.array([a for a, _ in p.notches], float).reshape(-1, 2), p.grain,
+                     p.family)
+            for p in pieces]
+
+
+def _boundary_samples(piece: SewPiece, spans: list[tuple[float, float, int]]
+                      ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Arc positions sampling the loop: each seam span (start, end, count) with exactly
+    ``count`` segments, the rest at :data:`RESOLUTION_MM`; and each span's first sample
+    index. Spans are disjoint intervals on the loop."""
+    spans = sorted(spans)
+    s: list[float] = []
+    firsts = []
+    cursor = spans[0][0] if spans else 0.0
+    origin = cursor
+    for start, end, count in spans:
+        if start > cursor + 1e-6:
+            n = max(int(np.ceil((start - cursor) / RESOLUTION_MM)), 1)
+            s += list(np.linspace(cursor, start, n + 1)[:-1])
+        firsts.append(len(s))
+        s += list(np.linspace(start, end, count + 1)[:-1])
+        cursor = end
+    end_all = origin + piece.length
+    if end_all > cursor + 1e-6:
+        n = max(int(np.ceil((end_all - cursor) / RESOLUTION_MM)), 1)
+        s += list(np.linspace(cursor, end_all, n + 1)[:-1])
+    return np.array(s), [(k, spans[j][2]) for j, k in enumerate(firsts)]
+
+
+def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
+    """(uv, faces, point ids, grain lines) of the pieces with the seams' twins shared."""
+    spans: list[list[tuple[float, float, int]]] = [[] for _ in pieces]
+    for s in seams:
+        count = max(int(np.ceil(s.length_mm / RESOLUTION_MM)), 1)
+        spans[s.piece_a].append((s.a_start, s.a_end, count))
+        spans[s.piece_b].append((s.b_start, s.b_end, count))
+    uv, faces, point_ids, offset, first_of, grains = [], [], [], 0, {}, {}
+    x = 0.0
+    for i, p in enumerate(pieces):
+        s, firsts = _boundary_samples(p, spans[i])
+        loop = point_at(p, s)
+        shift = np.array([x - loop[:, 0].min(), -loop[:, 1].min()])
+        tri = _triangulate(source, p.name, loop + shift, RESOLUTION_MM)
+        if p.grain is not None:
+            grains[i] = tuple(map(tuple, (p.grain + shift).tolist()))
+        verts, tris = tri["vertices"], tri["triangles"]
+        uv.append(verts)
+        faces.append(tris + offset)
+        point_ids.append(np.arange(offset, offset + len(verts)))
+        for (start, _, _), (k, _) in zip(sorted(spans[i]), firsts, strict=True):
+            first_of[(i, round(start, 6))] = (offset, k, len(s))
+        offset += len(verts)
+        x += float(np.ptp(loop[:, 0])) + GAP_MM
+    ids = np.concatenate(point_ids)
+    for seam in seams:  # a_start meets b_end: A's k-th sample is B's (count - k)-th
+        count = max(int(np.ceil(seam.length_mm / RESOLUTION_MM)), 1)
+        oa, ka, na = first_of[(seam.piece_a, round(seam.a_start, 6))]
+        ob, kb, nb = first_of[(seam.piece_b, round(seam.b_start, 6))]
+        for k in range(count + 1):
+            va = oa + (ka + k) % na
+            vb = ob + (kb + count - k) % nb
+            ids[ids == ids[vb]] = ids[va]
+    return np.vstack(uv), np.vstack(faces), ids, grains
+
+
+def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
+                       ) -> tuple[Garment, list[Seam], list[SewPiece]]:
+    """The garment of a read pattern (its cut list, seams inferred with what the operator's
+    ``seams_file`` declares or vetoes), the seams with their confidences and the pieces
+    they refer to (for the report and pictures)."""
+    cut = pattern.cut_list()
+    if not cut:
+        raise GarmentError(pattern.source, "no piece to cut (every Quantity is 0)")
+    pieces = sew_pieces(cut)
+    declared, vetoed = read_seams_file(seams_file, pieces) if seams_file else ([], set())
+    seams = infer_seams(pieces, declared=declared, vetoed=vetoed)
+    uv, faces, ids, grains = _mesh(pieces, seams, Path(pattern.source))
+    g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
+                      units_in_file=pattern.units,
+                      piece_names=[p.name for p in pieces],
+                      grainlines=grains)
+    return g, seams, pieces
+
+
+def load_dxf(path: str | Path, *, units: str | None = None, size: str | None = None,
+             allowance_mm: float = 10.0) -> Garment:
+    """A DXF-AAMA/ASTM file as a garment (sample size unless ``size``), seams inferred."""
+    pattern = read_dxf_pattern(path, size=size, units=units, allowance_mm=allowance_mm)
+    return garment_of_pattern(pattern)[0]

@@ -1,0 +1,184 @@
+"""CAD-like DXF-AAMA exports of garments whose seams are known: the seam inference's oracle.
+
+A pattern CAD writes each piece's cut line (layer 1), its turn points (layer 2: corners and
+the ends of every seam), balance notches on both sides of each seam (layer 4: at the same
+share of the seam on both pieces; a double notch where the seam is on the back, a single one
+elsewhere, as sewers expect), a grain line (layer 7) and the piece's name, and no seam data
+at all. Each piece is turned by a random angle. The true seams come back as point
+correspondences in the exported pieces' coordinates, so :mod:`solver.seams.score` can
+compare an inference made from the file alone.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import ezdxf
+import numpy as np
+import shapely
+
+from solver.garment.model import Garment
+from solver.garment.notches import chain_seam_rows
+from solver.seams.names import name_parts
+from solver.seams.score import STEP_MM, Correspondence
+
+__all__ = ["export_cad_dxf"]
+
+DOUBLE_GAP_MM = 6.0  # between the two slits of a double notch
+
+
+def _seam_sides(g: Garment, line: int) -> tuple[np.ndarray, np.ndarray]:
+    """Twin vertex chains (side A, side B) of one seam line, A's k-th sewn to B's k-th."""
+    rows = chain_seam_rows(g.seam_edges[g.seam_line_of_edge == line])
+    return (np.append(rows[:, 0], rows[-1, 1]), np.append(rows[:, 2], rows[-1, 3]))
+
+
+def _at_share(uv: np.ndarray, chain: np.ndarray, twin: np.ndarray, share: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Points at ``share`` of side A's length and their sewn partners on side B."""
+    a, b = uv[chain], uv[twin]
+    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(a, axis=0), axis=1))])
+    s = np.clip(share, 0, 1) * cum[-1]
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(a) - 2)
+    t = ((s - cum[k]) / np.maximum(cum[k + 1] - cum[k], 1e-300))[:, None]
+    return a[k] + t * (a[k + 1] - a[k]), b[k] + t * (b[k + 1] - b[k])
+
+
+def _face_down(g: Garment) -> np.ndarray:
+    """(n_pieces,) whether each piece is drawn wrong side up. A CAD draws every piece right
+    side up, so two pieces sewn right side to right side run opposite ways along their seam;
+    GarmentCode draws back panels as seen from the front. Two-colour the seam graph so that
+    every seam runs opposite ways (where it cannot, the first colour found stays)."""
+    sign = {}
+    for line in range(len(g.seam_lines)):
+        chain, twin = _seam_sides(g, line)
+        ways = []
+        for v in (chain, twin):
+            loop = g.piece_loops(int(g.piece_of_vertex[v[0]]))[0]
+            at = {int(x): k for k, x in enumerate(loop)}
+            step = (at.get(int(v[1]), 0) - at.get(int(v[0]), 0)) % len(loop)
+            ways.append(1 if step == 1 else -1)
+        sign[line] = ways[0] * ways[1]  # +1: both run the same way (one piece face down)
+    flip = np.full(g.n_pieces, -1)
+    for start in range(g.n_pieces):
+        if flip[start] >= 0:
+            continue
+        flip[start], todo = 0, [start]
+        while todo:
+            i = todo.pop()
+            for line, sl in enumerate(g.seam_lines):
+                if i not in (sl.piece_a, sl.piece_b) or sl.piece_a == sl.piece_b:
+                    continue
+                j = sl.piece_b if sl.piece_a == i else sl.piece_a
+                if flip[j] < 0:
+                    flip[j] = flip[i] ^ (sign[line] > 0)
+                    todo.append(j)
+    return flip.astype(bool)
+
+
+def _sampled_twins(uv: np.ndarray, rows: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points every :data:`STEP_MM` along each twin edge pair (a->b sewn to a2->b2), the
+    sewn partner of each, and the length each stands for: exact whatever the chaining."""
+    a, b = uv[rows[:, 0]], uv[rows[:, 1]]
+    a2, b2 = uv[rows[:, 2]], uv[rows[:, 3]]
+    length = np.linalg.norm(b - a, axis=1)
+    n = np.maximum(np.ceil(length / STEP_MM).astype(int), 1)
+    edge = np.repeat(np.arange(len(rows)), n)
+    start = np.repeat(np.cumsum(n) - n, n)
+    t = ((np.arange(n.sum()) - start + 0.5) / n[edge])[:, None]
+    return (a[edge] + t * (b - a)[edge], a2[edge] + t * (b2 - a2)[edge],
+            (length / n)[edge])
+
+
+def _frames(g: Garment, rng: np.random.Generator) -> list[np.ndarray]:
+    """Each piece right side up, turned by a random angle, the pieces laid in a row:
+    (2,3) affine maps."""
+    out, x = [], 0.0
+    down = _face_down(g)
+    for i in range(g.n_pieces):
+        c = g.piece_outline(i).mean(0)
+        th = rng.uniform(0, 2 * np.pi)
+        r = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        if down[i]:
+            r = r @ np.diag([-1.0, 1.0])
+        turned = (g.piece_outline(i) - c) @ r.T
+        shift = np.array([x - turned[:, 0].min(), -turned[:, 1].min()])
+        out.append(np.column_stack([r, shift - r @ c]))
+        x += float(np.ptp(turned[:, 0])) + 100.0
+    return out
+
+
+def _apply(m: np.ndarray, p: np.ndarray) -> np.ndarray:
+    return np.asarray(p, float).reshape(-1, 2) @ m[:, :2].T + m[:, 2]
+
+
+def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
+                   seed: int = 0) -> Correspondence:
+    """Write ``g`` as a CAD would (see the module) and return its true seams, sampled."""
+    rng = np.random.default_rng(seed)
+    frames = _frames(g, rng)
+    piece = g.piece_of_vertex
+    turns: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
+    notches: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
+    truth = []
+    for line in range(len(g.seam_lines)):
+        chain, twin = _seam_sides(g, line)
+        pa, pb = int(piece[chain[0]]), int(piece[twin[0]])
+        for p, v in ((pa, chain), (pb, twin)):
+            turns[p] += [g.uv[v[0]], g.uv[v[-1]]]
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        a, b, w = _sampled_twins(g.uv, rows)
+        truth.append(Correspondence(np.tile([pa, pb], (len(w), 1)), _apply(frames[pa], a),
+                                    _apply(frames[pb], b), w))
+        a_len = float(np.linalg.norm(np.diff(g.uv[chain], axis=0), axis=1).sum())
+        if a_len < 80.0 or abs(a_len - w.sum()) > 1e-6 * a_len:
+            continue  # short, or not one chain (a branching seam line): no notches
+        back = "back" in name_parts(g.piece_names[pa])[0] | name_parts(g.piece_names[pb])[0]
+        share = 0.25 + 0.5 * ((line * 0.618034) % 1.0)
+        shares = [share] + ([share + DOUBLE_GAP_MM / a_len] if back else [])
+        na, nb = _at_share(g.uv, chain, twin, np.array(shares))
+        notches[pa] += list(na)
+        notches[pb] += list(nb)
+    _write(g, path, frames, turns, notches, allowance_mm)
+    return Correspondence.join(truth)
+
+
+def _write(g: Garment, path, frames, turns, notches, allowance_mm: float) -> None:
+    doc = ezdxf.new("R12")
+    msp = doc.modelspace()
+    grains = g.grains()  # the file's, the drape's or the panel's placement on the body
+    msp.add_text("Units: METRIC", dxfattribs={"layer": "1", "height": 5.0})
+    for i, name in enumerate(g.piece_names):
+        sew = g.piece_outline(i)
+        cut_poly = shapely.Polygon(sew).buffer(allowance_mm, join_style="mitre",
+                                               mitre_limit=2.0)
+        ring = shapely.LinearRing(cut_poly.exterior.coords)
+        corners = [sew[k] for k in _corner_indices(sew)]
+        on_cut = [np.asarray(ring.interpolate(ring.project(shapely.Point(p))).coords[0])
+                  for p in corners + turns[i] + notches[i]]
+        m = frames[i]
+        blk = doc.blocks.new(name=f"P{i}")
+        blk.add_polyline2d([tuple(q) for q in _apply(m, np.asarray(ring.coords)[:-1])],
+                           close=True, dxfattribs={"layer": "1"})
+        for q in _apply(m, np.array(on_cut[:len(corners) + len(turns[i])])):
+            blk.add_point(tuple(q), dxfattribs={"layer": "2"})
+        for q in _apply(m, np.array(on_cut[len(corners) + len(turns[i]):]).reshape(-1, 2)):
+            blk.add_point(tuple(q), dxfattribs={"layer": "4"})
+        c = sew.mean(0)
+        th = np.radians(grains[i].deg)
+        h = 0.3 * float(np.ptp(sew, axis=0).max()) * np.array([np.cos(th), np.sin(th)])
+        grain = _apply(m, np.array([c - h, c + h]))
+        blk.add_line(tuple(grain[0]), tuple(grain[1]), dxfattribs={"layer": "7"})
+        for k, text in enumerate([f"Piece Name: {name}", "Quantity: 1"]):
+            blk.add_text(text, dxfattribs={"layer": "1", "height": 3.0,
+                                           "insert": tuple(grain[0] + [0, -5.0 * (k + 1)])})
+        msp.add_blockref(f"P{i}", (0, 0), dxfattribs={"layer": "1"})
+    doc.saveas(Path(path))
+
+
+def _corner_indices(loop: np.ndarray, deg: float = 30.0) -> np.ndarray:
+    d_in = loop - np.roll(loop, 1, axis=0)
+    d_out = np.roll(loop, -1, axis=0) - loop
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    return np.flatnonzero(np.degrees(np.abs(np.arctan2(cross, (d_in * d_out).sum(1)))) > deg)

@@ -1,0 +1,307 @@
+"""Which edges are sewn together: candidates scored, then chosen jointly by an integer program.
+
+A candidate seam is a run of consecutive edges on one piece against a run on another, the
+second read backwards (two pieces laid right side to right side run opposite ways along a
+seam). It is scored by how well the sewn lengths agree, whether the notch groups fall at the
+same places with the same counts, how alike the two lines are (straight to straight, and laid
+on each other, :mod:`solver.seams.shape`), whether two mirrored halves would meet off the
+grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises
+the matched length times the score with every edge sewn at most once (scipy's ``milp``,
+HiGHS): an edge with no good partner (a hem, a neckline, an opening) stays open because no
+candidate pays for it.
+
+Berthouzoz et al. (SIGGRAPH 2013, "Parsing sewing patterns into 3D garments",
+:DOI:`10.1145/2461912.2461975`) pose the same choice as an integer program over edge pairs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.optimize import Bounds, LinearConstraint, milp
+
+from solver.seams.names import name_affinity
+from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
+from solver.seams.shape import fit_and_overlap
+
+__all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
+
+MAX_RUN = 8  # edges in one candidate run
+LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
+EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
+CURVED = 0.95  # a run whose chord is less than this share of its length is curved
+NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
+MIN_SCORE = 0.55  # a candidate scoring less is never sewn
+SHORT_MM = 60.0  # runs this short match many others by chance ...
+SHORT_EXTRA = 0.8  # ... so they must score this much more
+MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
+SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
+STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
+RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
+MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
+GRAIN_DEG = 20.0  # a centre line lies within this of the grain
+
+
+@dataclass(frozen=True)
+class Run:
+    """Edges ``first`` .. ``first + count - 1`` of a piece: arc interval, length, notches."""
+
+    piece: int
+    first: int
+    count: int
+    start: float
+    end: float  # may exceed the loop length (wraps)
+    length: float
+    straightness: float  # chord / length
+    notches: tuple[tuple[float, int], ...]  # (share of the run from its start, count)
+    end_notches: tuple[int, int] = (0, 0)  # notch count at the run's start and end
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Piece ``piece_a`` from ``a_start`` to ``a_end`` (arc mm, CCW) sewn to ``piece_b``
+    from ``b_start`` to ``b_end``: ``a_start`` meets ``b_end`` and ``a_end`` meets ``b_start``."""
+
+    piece_a: int
+    a_start: float
+    a_end: float
+    piece_b: int
+    b_start: float
+    b_end: float
+    length_mm: float
+    confidence: float
+    source: str = "inferred"
+
+
+def _inside(s: np.ndarray, start: float, end: float, length: float) -> bool:
+    """Whether any arc position of ``s`` lies strictly inside (start, end), laps counted."""
+    for lap in (0.0, length):
+        if np.any((s + lap > start + MERGE_MM) & (s + lap < end - MERGE_MM)):
+            return True
+    return False
+
+
+def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]:
+    """Every run of 1..:data:`MAX_RUN` edges of every piece that turns no sharp corner
+    (a seam ends where the outline turns by more than :data:`SHARP_DEG`), and each piece's
+    breakpoints."""
+    runs, cuts = [], []
+    for i, p in enumerate(pieces):
+        b = p.breakpoints()
+        cuts.append(b)
+        n = len(b)
+        if n == 0:
+            continue
+        sharp = p.corners(SHARP_DEG)[0]
+        groups = p.notch_groups()
+        for first in range(n):
+            for count in range(1, min(MAX_RUN, n) + 1):
+                if count == n and n > 1:
+                    continue  # the whole loop is no seam
+                start = b[first]
+                end = b[(first + count) % n] + (p.length if first + count >= n else 0.0)
+                if n == 1:
+                    end = start + p.length
+                length = end - start
+                if length < MIN_LENGTH_MM or (count > 1 and _inside(sharp, start, end,
+                                                                    p.length)):
+                    continue
+                line = sub_loop(p, start, end)
+                chord = float(np.linalg.norm(line[-1] - line[0]))
+                runs.append(Run(i, first, count, float(start), float(end), float(length),
+                                chord / length, *_run_notches(groups, start, end, p.length)))
+    return runs, cuts
+
+
+def _run_notches(groups: list[tuple[float, int]], start: float, end: float, length: float
+                 ) -> tuple[tuple[tuple[float, int], ...], tuple[int, int]]:
+    """The notch groups inside a run (share, count) and the counts at its two ends."""
+    inner, at_ends = [], [0, 0]
+    for s, c in groups:
+        for lap in (0.0, length):
+            at = s + lap
+            if abs(at - start) <= MERGE_MM:
+                at_ends[0] = c
+            elif abs(at - end) <= MERGE_MM:
+                at_ends[1] = c
+            elif start < at < end:
+                inner.append((round((at - start) / (end - start), 4), c))
+    return tuple(sorted(inner)), (at_ends[0], at_ends[1])
+
+
+def _notch_score(a: Run, b: Run) -> float:
+    """Up to +1 when the notch groups match (b read backwards), -1 when they disagree, 0
+    when neither run has any. The notches at the ends count too: a's start meets b's end."""
+    if a.end_notches != b.end_notches[::-1]:
+        return -1.0
+    if not a.notches and not b.notches:
+        return 1.0 if any(a.end_notches) else 0.0
+    mirrored = sorted((1.0 - s, c) for s, c in b.notches)
+    if len(mirrored) != len(a.notches):
+        return -1.0
+    worst = 0.0
+    for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
+        if abs(sa - sb) > NOTCH_TOL or ca != cb:
+            return -1.0
+        worst = max(worst, abs(sa - sb) / NOTCH_TOL)
+    return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
+
+
+def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
+    """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
+    seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
+    on each other only for a candidate that could still pass."""
+    rel = abs(a.length - b.length) / max(a.length, b.length)
+    curved = min(a.straightness, b.straightness) < CURVED
+    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
+    if rel > tol:
+        return -1.0
+    s = 1.0 - (rel / tol) ** 2
+    notch = _notch_score(a, b)
+    s += 0.6 * notch if notch >= 0 else 1.5 * notch
+    s -= STRAIGHT_W * abs(a.straightness - b.straightness)
+    s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    if s < MIN_SCORE:
+        return s
+    rms, overlap, mirror = fit_and_overlap(pieces[a.piece], (a.start, a.end), polys[a.piece],
+                                           pieces[b.piece], (b.start, b.end), polys[b.piece])
+    dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
+    s -= RMS_W * rms + (0.0 if dart else 3.0 * overlap)
+    pa, pb = pieces[a.piece], pieces[b.piece]
+    copies = a.piece != b.piece and pa.family and pa.family == pb.family
+    if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
+        # two halves mirrored in the seam (two copies of one piece surely are): only a
+        # centre line, along the grain, joins them
+        s -= 2.0 if copies else 1.0
+    elif copies:
+        s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
+    return s
+
+
+def _along_grain(piece: SewPiece, run: Run) -> bool:
+    """Whether the run's chord lies within :data:`GRAIN_DEG` of the piece's grain line."""
+    if piece.grain is None:
+        return True
+    ends = sub_loop(piece, run.start, run.end)[[0, -1]]
+    d, g = ends[1] - ends[0], piece.grain[1] - piece.grain[0]
+    cos = abs(float(d @ g)) / max(float(np.linalg.norm(d) * np.linalg.norm(g)), 1e-12)
+    return cos >= np.cos(np.radians(GRAIN_DEG))
+
+
+def _disjoint(a: Run, b: Run, length: float) -> bool:
+    """Whether two runs of one piece share no part of its line."""
+    return all(min(a.end, b.end + lap) - max(a.start, b.start + lap) <= 1e-6
+               for lap in (-length, 0.0, length))
+
+
+def _dart(a: Run, b: Run, length: float, tips: np.ndarray) -> bool:
+    """Whether two runs of one piece are the legs of a dart: disjoint, meeting at one end,
+    a sharp reflex corner of the outline (the tip). Other seams of a piece to itself (a
+    tube sleeve's underarm) are not proposed: on flat patterns they pair a piece's
+    mirror-image sides far too often."""
+    if not _disjoint(a, b, length):
+        return False
+    meet = [x for x, y in ((a.end, b.start), (b.end, a.start))
+            for lap in (-length, 0.0, length) if abs(x - y - lap) < MERGE_MM]
+    return any(np.min(np.abs(np.mod(tips - m + length / 2, length) - length / 2)) < MERGE_MM
+               for m in meet) if len(tips) else False
+
+
+def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.ndarray:
+    """(k,2) indices of run pairs whose lengths agree within tolerance: on two pieces, or
+    the two legs of a dart on one piece."""
+    length = np.array([r.length for r in runs])
+    piece = np.array([r.piece for r in runs])
+    order = np.argsort(length)
+    ls = length[order]
+    out = []
+    for k, i in enumerate(order.tolist()):
+        hi = np.searchsorted(ls, ls[k] / (1 - max(LENGTH_TOL, EASE_TOL)), side="right")
+        j = order[k + 1:hi]
+        same = piece[j] == piece[i]
+        ok = ~same
+        ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]], tips[piece[i]])
+                    for m in j[same].tolist()]
+        j = j[ok]
+        out.append(np.column_stack([np.full(len(j), i), j]))
+    return np.vstack(out) if out else np.zeros((0, 2), dtype=int)
+
+
+def _edges_of(run: Run, n_edges: int) -> list[int]:
+    return [(run.first + k) % n_edges for k in range(run.count)]
+
+
+def _overlaps(run: Run, seam: Seam, length: float) -> bool:
+    """Whether ``run`` shares more than :data:`MERGE_MM` of its piece's line with ``seam``."""
+    spans = [(seam.a_start, seam.a_end)] if seam.piece_a == run.piece else []
+    spans += [(seam.b_start, seam.b_end)] if seam.piece_b == run.piece else []
+    for s0, s1 in spans:
+        for lap in (-length, 0.0, length):
+            if min(run.end, s1 + lap) - max(run.start, s0 + lap) > MERGE_MM:
+                return True
+    return False
+
+
+def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray], *,
+                 fixed: list[Seam] = (), vetoed: set[frozenset[int]] = frozenset()
+                 ) -> list[Seam]:
+    """The jointly best set of seams (each edge sewn at most once), with confidences;
+    ``fixed`` seams (declared by the operator) are kept and their edges taken, no seam is
+    made between a ``vetoed`` pair of pieces."""
+    runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
+    tips = [pos[turn < -SHARP_DEG] for pos, turn in (p.corners(SHARP_DEG) for p in pieces)]
+    pairs = _pairs(runs, [p.length for p in pieces], tips)
+    if vetoed:
+        pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)
+        keep = [frozenset((int(pieces_of[i]), int(pieces_of[j]))) not in vetoed
+                for i, j in pairs.tolist()]
+        pairs = pairs[np.array(keep, dtype=bool)] if len(pairs) else pairs
+    return list(fixed) + _solve(pieces, runs, cuts, pairs)
+
+
+def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
+           pairs: np.ndarray) -> list[Seam]:
+    """The integer program over the candidate ``pairs`` of ``runs``."""
+    polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
+    scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
+    shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
+    keep = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
+    pairs, scores = pairs[keep], scores[keep]
+    if not len(pairs):
+        return []
+    offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
+    rows, cols = [], []
+    for k, (i, j) in enumerate(pairs.tolist()):
+        for r in (runs[i], runs[j]):
+            for e in _edges_of(r, len(cuts[r.piece])):
+                rows.append(offset[r.piece] + e)
+                cols.append(k)
+    a = np.zeros((int(offset[-1]), len(pairs)))
+    a[rows, cols] = 1.0
+    weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
+                                 [runs[j].length for j in pairs[:, 1]])
+    res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
+               constraints=LinearConstraint(a, 0, 1), options={"time_limit": 20.0})
+    if res.x is None:
+        return []
+    chosen = np.flatnonzero(res.x > 0.5)
+    return [_seam(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
+                  _rival(k, pairs, scores, a)) for k in chosen]
+
+
+def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
+    """The best score of another candidate sharing an edge with candidate ``k``."""
+    shares = (a[:, k:k + 1] * a).sum(0) > 0
+    shares[k] = False
+    return float(scores[shares].max()) if shares.any() else 0.0
+
+
+def _seam(a: Run, b: Run, score: float, rival: float) -> Seam:
+    """A chosen candidate as a seam; confidence from its score and its margin over the best
+    rival for the same edges (a near tie between two partners is unsure)."""
+    margin = max(score - rival, 0.0)
+    confidence = float(np.clip(score / 2.0, 0, 1) * np.clip(0.5 + margin, 0, 1))
+    return Seam(a.piece, a.start, a.end, b.piece, b.start, b.end,
+                0.5 * (a.length + b.length), round(confidence, 3))

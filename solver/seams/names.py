@@ -1,0 +1,73 @@
+"""What a piece's name says about where it sits: front, back, sleeve, ...; left or right.
+
+Pattern makers name pieces in short codes (FR, BK, SL) or words in their own language;
+a few common ones are enough to prefer a sleeve-to-body seam over a sleeve-to-sleeve one.
+"""
+
+from __future__ import annotations
+
+import re
+
+__all__ = ["name_affinity", "name_parts"]
+
+_KINDS = {
+    "front": ("front", "fr", "frt", "ftorso", "vorder", "vorderteil", "devant", "delantero",
+              "davanti", "frente", "voor", "f"),
+    "back": ("back", "bk", "bck", "btorso", "ruecken", "rücken", "hinter", "dos", "espalda",
+             "dietro", "espalda", "achter", "rug", "b"),
+    "sleeve": ("sleeve", "sl", "slv", "arm", "aermel", "ärmel", "manche", "manga", "manica",
+               "mouw"),
+    "collar": ("collar", "co", "neck", "band", "rib", "kragen", "col", "cuello", "colletto"),
+    "waistband": ("waistband", "wb", "waist", "bund", "ceinture", "cintura"),
+    "cuff": ("cuff", "manschette", "poignet", "puño"),
+}
+_SIDES = {"left": ("left", "l", "lft", "links", "gauche", "izquierda", "sinistra"),
+          "right": ("right", "r", "rt", "rechts", "droite", "derecha", "destra")}
+_LONG = sorted({w for words in _KINDS.values() for w in words if len(w) >= 4}, key=len,
+               reverse=True)
+# seams a garment usually has, between kinds of pieces (order does not matter)
+_USUAL = {frozenset(p) for p in [("front", "back"), ("sleeve", "front"), ("sleeve", "back"),
+                                 ("collar", "front"), ("collar", "back"), ("sleeve", "cuff"),
+                                 ("waistband", "front"), ("waistband", "back"), ("front",),
+                                 ("back",), ("sleeve",)]}
+
+
+def _tokens(name: str) -> list[str]:
+    spaced = re.sub(r"([a-z])([A-Z])", r"\1 \2", name)
+    words = [w for w in re.split(r"[^0-9A-Za-zÀ-ÿ]+", spaced.lower()) if w]
+    out = []
+    for w in words:  # "teefr": a known code glued to the end of a word
+        out.append(w)
+        for code in ("fr", "bk", "sl", "co", "wb"):
+            if w.endswith(code) and len(w) > len(code) + 2:
+                out.append(code)
+        for word in _LONG:  # "lfsleeve": left front sleeve, one letter each
+            head = w[:-len(word)]
+            if w.endswith(word) and head and len(head) <= 2 and set(head) <= set("lrfb"):
+                out += [word, *head]
+    return out
+
+
+def name_parts(name: str) -> tuple[set[str], str | None]:
+    """(kinds, side) the name says: kinds from :data:`_KINDS`, side "left"/"right"/None."""
+    toks = _tokens(name)
+    kinds = {k for k, words in _KINDS.items() for t in toks if t in words}
+    if "sleeve" in kinds:  # "sleeve_f": the front half of a sleeve, still a sleeve
+        kinds -= {"front", "back"}
+    sides = {s for s, words in _SIDES.items() for t in toks if t in words}
+    return kinds, (sides.pop() if len(sides) == 1 else None)
+
+
+def name_affinity(a: str, b: str) -> float:
+    """How much the two names favour a seam between the pieces: about -1 (a right piece to a
+    left one) to +0.5 (a sleeve to a front on the same side)."""
+    (ka, sa), (kb, sb) = name_parts(a), name_parts(b)
+    score = 0.0
+    if sa and sb and sa == sb:
+        score += 0.25
+    elif sa and sb:  # left to right: only the centre seam between two halves of one kind
+        score += 0.0 if ka and ka == kb else -1.0
+    if ka and kb:
+        usual = any(frozenset((x, y)) in _USUAL for x in ka for y in kb)
+        score += 0.25 if usual else -0.25
+    return score

@@ -1,0 +1,56 @@
+"""Whether two edges can be sewn as the pieces lie: laid along each other, do they agree?
+
+Two edges sewn together meet along their whole length with the pieces on either side of
+the seam. So the second edge, read backwards, is moved onto the first by the best rigid
+motion (Kabsch, no reflection): how far it stays from the first (a sleeve cap follows its
+armhole, a straight side its straight partner) and how much of the two pieces then overlap
+(a centre line sewn to its mirror has the halves side by side; a hem laid on a shoulder
+puts one piece over the other) say whether the seam is plausible.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from shapely import affinity
+
+from solver.geometry import resample_polyline
+from solver.seams.outline import SewPiece, sub_loop
+
+__all__ = ["fit_and_overlap"]
+
+SAMPLES = 24
+
+
+def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation r and translation t with ``src @ r.T + t`` closest to ``dst``."""
+    cs, cd = src.mean(0), dst.mean(0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, d]) @ u.T
+    return r, cd - r @ cs
+
+
+def fit_and_overlap(a: SewPiece, a_span: tuple[float, float], poly_a: shapely.Polygon,
+                    b: SewPiece, b_span: tuple[float, float], poly_b: shapely.Polygon
+                    ) -> tuple[float, float, float]:
+    """(RMS distance / length, overlapping share of the smaller piece, how much the moved
+    ``b`` is ``a`` mirrored in the seam (intersection over union)) with edge ``b_span`` of
+    ``b`` (read backwards) laid onto ``a_span`` of ``a``."""
+    la = resample_polyline(sub_loop(a, *a_span), SAMPLES - 1)
+    lb = resample_polyline(sub_loop(b, *b_span), SAMPLES - 1)[::-1]
+    r, t = _kabsch(lb, la)
+    length = max(a_span[1] - a_span[0], 1e-9)
+    rms = float(np.sqrt(((lb @ r.T + t - la) ** 2).sum(1).mean())) / length
+    moved = affinity.affine_transform(poly_b, [r[0, 0], r[0, 1], r[1, 0], r[1, 1], t[0], t[1]])
+    d = la[-1] - la[0]
+    n = d / max(float(np.linalg.norm(d)), 1e-12)
+    m = 2 * np.outer(n, n) - np.eye(2)  # reflection in the seam's chord
+    off = la[0] - m @ la[0]
+    image = affinity.affine_transform(poly_a, [m[0, 0], m[0, 1], m[1, 0], m[1, 1], *off])
+    try:
+        shared = poly_a.intersection(moved).area
+        mirror = image.intersection(moved).area / max(image.union(moved).area, 1e-9)
+    except shapely.errors.GEOSException:
+        shared, mirror = 0.0, 0.0
+    return rms, float(shared / max(min(poly_a.area, poly_b.area), 1e-9)), float(mirror)
