@@ -28,6 +28,7 @@ from station.steps.plan_order import plan_order
 from station.steps.program import fabric_origin, program_of, station_machine
 from station.steps.records import Plan
 from station.steps.submission import check_job
+from station.steps.table import table_window
 
 HELD_PLANS = 16  # plans a daemon keeps in memory for jobs paused and resumed in it
 
@@ -43,12 +44,14 @@ class StationPipeline:
         self.open_camera = open_camera
         self.open_port = open_port
         self.machine = station_machine(config)
+        self.window = table_window(config, self.machine)  # refused here, not after planning
         # Plans made here by job id, used only while the store's record is still this
         # one's (another station may have planned the job again since).
         self._planned: dict[int, Plan] = {}
 
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
         """Refuse at submission what could never run (raises ValueError)."""
+        table_window(self.config, self.machine)
         check_job(garment, fabric, options, self.config)
 
     def _photograph(self):

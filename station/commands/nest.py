@@ -123,6 +123,10 @@ def run(args) -> int:
                         f"({len(faults)} faults); nothing written")
     layout.save(args.output)
     _warn_past_table(layout.length, args.length, config["nest"]["length_mm"])
+    if layout.width > config["nest"]["width_mm"] + 1e-9:  # issue 35: say it now, not at cut
+        print(f"station nest: warning: the marker is {layout.width:g} mm wide but the table "
+              f"window is {config['nest']['width_mm']:g} mm across (station.toml [nest] "
+              "width_mm): station gcode will refuse it", file=sys.stderr)
     if args.png:
         draw_marker(layout.to_dict(), args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,

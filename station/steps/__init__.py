@@ -21,6 +21,11 @@ Read one job from `station submit` to its cut record in this order:
 6. `cut.cut_job`: ask the machine what it did while nobody listened, then stream the
    pieces left; each piece is recorded cut in the job store at its sync point.
 
+A marker longer than the table is cut in bites (issue 35, not yet in the daemon's loop):
+`table.table_window` is the table window, checked when the pipeline is made;
+`bites.plan_job_bites` cuts the marker into bites of it and `bites.find_bite` brings
+each onto the table: advance, photograph, measure the roll's real advance from the print.
+
 `station.pipeline.StationPipeline` runs these for the daemon (`station.daemon`), whose
 state machine records each step's result in the job store before the next begins.
 Every step takes a garment (and the job's options) and returns typed objects, so an order

@@ -1,0 +1,130 @@
+"""A marker longer than the table, bite by bite: plan the bites, then after each advance
+find the cloth again and carry the rest of the marker onto it as it really lies.
+
+`plan_job_bites` cuts the verified marker into bites of the table window, each advance
+short enough that a strip of cloth stays in view (`vision.advance.MIN_OVERLAP_MM`), so
+the print can be found again from the two photographs. `RollTrack` is the station's
+knowledge of where the marker lies on the table: at the first bite the marker is where
+it was planned; each measured advance (`vision.advance.Advance`) moves it by the rigid
+motion the roll really made, and `RollTrack.bite_layout` gives the next bite's pieces
+where they now lie. `find_bite` is one turn of the loop: advance (by the conveyor, or
+the operator at `OPERATOR_ADVANCE`), photograph, measure, follow. `bites_report` is the
+report's per-bite list.
+
+Not yet here (issue 35): the daemon's cut step calling `find_bite` between bites (the
+conveyor in the machine profile, the operator's wait and `station resume`), the
+journal's bite per piece and its recovery, and local maps of the print's own bow and
+stretch under each piece.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from solver.nest.bites import Bite, BitePlan, moved_piece, plan_bites
+from solver.nest.instance import compose
+from solver.nest.layout import Layout
+from station.steps.table import TableWindow
+from vision.advance import MIN_OVERLAP_MM, Advance, measure_advance
+
+#: room kept at each end of the window (mm) for what one advance may do that was not
+#: commanded: a slip of up to 3 mm, and a skew of 0.2 degrees turning the far side
+ROLL_MARGIN_MM = 5.0
+
+
+def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | None
+                   ) -> BitePlan:
+    """The bites of ``layout`` on this table; ``lattice`` (2, 2 columns, mm) of the print
+    the pieces were placed on (None: plain cloth). Each bite keeps ``ROLL_MARGIN_MM`` of
+    the window free at both ends, so that one advance's error cannot push a piece off."""
+    usable = window.length - 2 * ROLL_MARGIN_MM
+    return plan_bites(layout, usable, lattice=lattice,
+                      max_advance_mm=usable - MIN_OVERLAP_MM)
+
+
+@dataclass
+class RollTrack:
+    """Where the marker lies on the table window: ``marker_to_window`` maps marker mm to
+    window mm (x along the roll from the window's start), composed of every advance. At
+    the first bite the marker lies ``ROLL_MARGIN_MM`` into the window."""
+
+    marker_to_window: np.ndarray = field(default_factory=lambda: np.array(
+        [[1.0, 0.0, ROLL_MARGIN_MM], [0.0, 1.0, 0.0]]))
+    advances: list[Advance] = field(default_factory=list)
+
+    def advance_for(self, bite: Bite) -> float:
+        """The advance to command so that ``bite`` begins ``ROLL_MARGIN_MM`` into the
+        window: the planned one corrected by every slip measured so far."""
+        start = self.window_points(np.array([[bite.start_mm, 0.0]]))[0, 0]
+        return float(start - ROLL_MARGIN_MM)
+
+    def follow(self, advance: Advance, photo_origin_mm: tuple[float, float] = (0.0, 0.0)
+               ) -> RollTrack:
+        """The track after ``advance``, measured on photographs whose first pixel centre
+        lies at ``photo_origin_mm`` in window mm. The advance maps a point of the new
+        photograph onto the old one; the cloth (and the marker on it) moves the other way."""
+        theta = np.radians(advance.skew_deg)
+        c, s = np.cos(theta), np.sin(theta)
+        rot = np.array([[c, -s], [s, c]])
+        pivot = np.asarray(advance.pivot_mm, float) + np.asarray(photo_origin_mm, float)
+        shift = np.array([advance.advance_mm, advance.across_mm])
+        back = np.column_stack([rot.T, pivot - rot.T @ (pivot + shift)])  # new <- old
+        return RollTrack(compose(back, self.marker_to_window), [*self.advances, advance])
+
+    def window_points(self, marker_points: np.ndarray) -> np.ndarray:
+        """(n, 2) window mm of (n, 2) marker points."""
+        pts = np.asarray(marker_points, float).reshape(-1, 2)
+        return pts @ self.marker_to_window[:, :2].T + self.marker_to_window[:, 2]
+
+    def bite_layout(self, plan: BitePlan, bite: Bite) -> Layout:
+        """The pieces of ``bite`` where they now lie in the window (the marker's other
+        pieces left out), ready for `station.steps.program.machine_layout`."""
+        wanted = set(bite.pieces)
+        pieces = [moved_piece(p, self.marker_to_window) for p in plan.layout.pieces
+                  if p.id in wanted]
+        return replace(plan.layout, pieces=pieces, pairs=[],
+                       length=plan.window_mm + 2 * ROLL_MARGIN_MM)
+
+
+#: what the job waits at when the operator advances the roll by hand (`station resume`
+#: goes on); the conveyor of a machine profile is commanded instead where there is one
+OPERATOR_ADVANCE = "advance the fabric {mm:.1f} mm"
+
+
+@dataclass
+class BiteStep:
+    """One bite found on the table: the track after it, the bite with its measured
+    advance and skew (None for the first), the photograph the next advance compares to."""
+
+    track: RollTrack
+    bite: Bite
+    photograph: np.ndarray
+
+
+def find_bite(previous: BiteStep | None, bite: Bite, *, advance: Callable[[float], None],
+              photograph: Callable[[], np.ndarray], lattice: np.ndarray | None,
+              mm_per_px: float = 1.0) -> BiteStep:
+    """Bring ``bite`` onto the table: command the advance the track asks for (the planned
+    one corrected by the slips so far) through ``advance``, photograph the window, and
+    measure what the roll really did from the print. The first bite (``previous`` None)
+    is only photographed: the marker lies where it was planned."""
+    if previous is None:
+        return BiteStep(RollTrack(), bite, photograph())
+    commanded = previous.track.advance_for(bite)
+    advance(commanded)
+    after = photograph()
+    measured = measure_advance(previous.photograph, after, commanded_mm=commanded,
+                               mm_per_px=mm_per_px, lattice=lattice)
+    bite = replace(bite, advance_commanded_mm=commanded).measured(measured.advance_mm,
+                                                                  measured.skew_deg)
+    return BiteStep(previous.track.follow(measured), bite, after)
+
+
+def bites_report(bites: list[Bite]) -> list[dict[str, Any]]:
+    """The report's ``summary.bites``: per bite the commanded and measured advance, the
+    skew and the pieces it cut."""
+    return [b.to_dict() for b in bites]

@@ -1,0 +1,91 @@
+"""Bite by bite on the simulated roll (issue 35): each advance is measured from the print
+and the rest of the marker is carried onto the cloth as it really lies."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from simulators.fabric import random_print
+from simulators.roll import Conveyor, RollCamera, RollPrint
+from solver.nest import NestProblem, Piece
+from solver.nest.layout import build_layout
+from station.steps.bites import (
+    OPERATOR_ADVANCE,
+    ROLL_MARGIN_MM,
+    RollTrack,
+    bites_report,
+    find_bite,
+    plan_job_bites,
+)
+from station.steps.table import TableWindow
+
+WINDOW = TableWindow(0.0, 0.0, 800.0, 500.0)
+
+
+def _marker():
+    """Thirty 140 x 200 mm pieces in two rows: a marker 2.25 m long, three windows."""
+    pieces = [Piece(f"r{i}", [[0, 0], [140, 0], [140, 200], [0, 200]]) for i in range(30)]
+    problem = NestProblem(pieces, width=WINDOW.width, gap=5.0)
+    moves = [np.array([[1.0, 0.0, 5.0 + 150.0 * (i // 2)], [0.0, 1.0, 5.0 + 210.0 * (i % 2)]])
+             for i in range(30)]
+    return build_layout(problem, problem.items(), moves)
+
+
+def _truth_window_points(conv: Conveyor, cloth: np.ndarray) -> np.ndarray:
+    """Where the cloth points ``cloth`` lie on the table now (the simulator's truth)."""
+    pose = conv.pose
+    a = math.radians(-pose.angle_deg)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    pivot = np.asarray(pose.pivot)
+    return (cloth - pivot - [pose.along, pose.across]) @ rot.T + pivot
+
+
+def test_the_marker_follows_the_cloth_through_every_advance():
+    design = random_print("p2", 50.0, seed=4)
+    lattice = np.column_stack([design.wallpaper.w1, design.wallpaper.w2])
+    conv = Conveyor(pivot=(399.5, 249.5), seed=8)  # slips up to 3 mm, turns up to 0.2 deg
+    camera = RollCamera(RollPrint(design, width=WINDOW.width), conv,
+                        (WINDOW.x0, WINDOW.y0, WINDOW.x1, WINDOW.y1))
+    plan = plan_job_bites(_marker(), WINDOW, lattice)
+    assert len(plan.bites) == 3
+    step, done = None, []
+    for bite in plan.bites:
+        step = find_bite(step, bite, advance=conv.advance, photograph=camera.photograph,
+                         lattice=lattice)
+        bite = step.bite
+        done.append(bite)
+        layout = step.track.bite_layout(plan, bite)
+        assert sorted(p.id for p in layout.pieces) == sorted(bite.pieces)
+        for placed, planned in zip(layout.pieces, (p for p in plan.layout.pieces
+                                                   if p.id in bite.pieces)):
+            # the cloth under the planned outline at the first bite (the roll's pose then
+            # was the identity, the marker ROLL_MARGIN_MM into the window)
+            cloth = planned.outline + [ROLL_MARGIN_MM, 0.0]
+            err = np.hypot(*(placed.outline - _truth_window_points(conv, cloth)).T)
+            assert err.max() < 0.3
+            xs = placed.outline[:, 0]
+            assert xs.min() > WINDOW.x0 and xs.max() < WINDOW.x1  # the slips stay inside
+    report = bites_report(done)
+    assert [b["pieces"] for b in report] == [list(b.pieces) for b in plan.bites]
+    assert report[0]["advance_measured_mm"] is None
+    for row in report[1:]:
+        assert abs(row["advance_measured_mm"] - row["advance_commanded_mm"]) <= 3.3
+        assert abs(row["skew_deg"]) <= 0.25
+    assert sum(len(b["pieces"]) for b in report) == 30
+
+
+def test_an_operator_is_asked_for_the_advance_in_mm():
+    track = RollTrack()
+    plan = plan_job_bites(_marker(), WINDOW, None)
+    asked = OPERATOR_ADVANCE.format(mm=track.advance_for(plan.bites[1]))
+    assert asked == f"advance the fabric {plan.bites[1].start_mm:.1f} mm"
+
+
+def test_the_bites_keep_cloth_in_view_across_each_advance():
+    plan = plan_job_bites(_marker(), WINDOW, None)
+    usable = WINDOW.length - 2 * ROLL_MARGIN_MM
+    assert plan.window_mm == pytest.approx(usable)
+    assert max(b.advance_commanded_mm for b in plan.bites) <= usable - 40.0 + 1e-9
