@@ -11,7 +11,7 @@ program for the pieces not yet cut and can never cut one twice.
 The cut step also settles the one piece the store cannot know about: the one the
 machine may have finished on its buffered moves after the daemon died. The program
 carries markers the controller stores in EEPROM around each piece's final move
-(`gcode.recovery.with_markers`), the geometry those markers refer to is saved before streaming
+(`gcode.recovery`), the geometry those markers refer to is saved before streaming
 (`save_final_moves`), and on the next start the machine is asked (`wait_at_rest`,
 `read_params`, `station.cutting.reconcile`) before anything moves or resets it; the piece
 in progress then continues where its cut stopped (`station.cutting.resumed_program`).
@@ -39,7 +39,6 @@ from gcode.recovery import (
     read_params,
     save_final_moves,
     wait_at_rest,
-    with_markers,
 )
 from solver.jsonfile import read_json
 from station.config import Config
@@ -497,7 +496,7 @@ class StationPipeline:
         """Stream the pieces not yet cut; each becomes cut only at its sync point.
 
         Before anything is sent the machine is asked what it did while nobody was
-        listening (see `with_markers` and `reconcile`): the piece in flight when the last
+        listening (see `gcode.recovery` and `reconcile`): the piece in flight when the last
         daemon died may have finished on the machine's buffered moves.
         """
         from gcode.stream import BEAM_OFF, Streamer, StreamError
@@ -554,7 +553,6 @@ class StationPipeline:
             here = head_position(rest, alarm, params)
             program, journal = resumed_program(toolpaths, self.machine, store, job, index,
                                                job_dir, here, f"station {job_dir.name}")
-            program = with_markers(program, job.id, index)
             journal.follow(program, self.machine.cut.feed / 60.0, streamer.time_scale)
             # The geometry a marker refers to, saved before a line goes out: the toolpath
             # order (and so where each contour starts and ends) depends on which pieces
