@@ -251,6 +251,9 @@ def build_program(toolpaths: list[PieceToolpath], machine: Machine, *, title: st
     with everything else. A refusal names ``source`` (the layout file), the program line
     and the piece it cuts.
     """
+    missing = [tp.id for tp in toolpaths if markers is not None and tp.id not in markers.index]
+    if missing:
+        raise ValueError(f"{source}: the markers have no store index for piece(s) {missing}")
     w = _Writer(machine)
     _head(w, len(toolpaths), title)
     pieces = [_piece(w, number, tp, markers) for number, tp in enumerate(toolpaths, start=1)]

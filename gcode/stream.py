@@ -239,22 +239,8 @@ class Streamer(GrblSession):
         self._held = False
         self._frozen = check  # check mode proves nothing was cut
         self._messages = job.res.messages
-        if wd is not None and wd.catch_mm > CATCH_MM and not self.line_baud:
-            # an emulator's instant link: the host's own polling pace is the limit, and a
-            # paced emulator waits for the host; said, not refused (no beam is at stake)
-            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm "
-                    f"before a report shows it ({CATCH_MM:g} mm asked) at this emulator speed")
-            log.warning("%s%s", self.prefix, note)
-            job.res.messages.append(note)
-        elif wd is not None and wd.catch_mm > CATCH_MM:
-            fastest = max(wd.feeds)
-            # travel before a report is proportional to the feed: the fastest watchable one
-            watchable = fastest * CATCH_MM / wd.catch_mm
-            raise StreamError(
-                f"{self.prefix}at F{fastest:g} with the beam on a deviation may travel "
-                f"{wd.catch_mm:.1f} mm before a status report shows it ({CATCH_MM:g} mm is "
-                f"the limit): the serial line carries too few reports; cut at most "
-                f"F{math.floor(watchable):g} or raise the baud rate")
+        if wd is not None:
+            self._refuse_slow_reports(wd, job.res.messages)
         try:
             try:
                 self._enter(StreamState.CHECKING if check else StreamState.STREAMING)
@@ -287,6 +273,28 @@ class Streamer(GrblSession):
             else:
                 job.res.messages.append(f"disconnected during the safe stop: {exc}")
         return self._result(job, wd)
+
+    def _refuse_slow_reports(self, wd: Watchdog, messages: list[str]) -> None:
+        """Refuse a cut whose deviations the status reports would show too late; on an
+        emulator's instant link say so instead (no beam is at stake)."""
+        if wd.catch_mm <= CATCH_MM:
+            return
+        if not self.line_baud:
+            # an emulator's instant link: the host's own polling pace is the limit, and a
+            # paced emulator waits for the host
+            note = (f"at F{max(wd.feeds):g} a deviation may travel {wd.catch_mm:.1f} mm "
+                    f"before a report shows it ({CATCH_MM:g} mm asked) at this emulator speed")
+            log.warning("%s%s", self.prefix, note)
+            messages.append(note)
+            return
+        fastest = max(wd.feeds)
+        # travel before a report is proportional to the feed: the fastest watchable one
+        watchable = fastest * CATCH_MM / wd.catch_mm
+        raise StreamError(
+            f"{self.prefix}at F{fastest:g} with the beam on a deviation may travel "
+            f"{wd.catch_mm:.1f} mm before a status report shows it ({CATCH_MM:g} mm is "
+            f"the limit): the serial line carries too few reports; cut at most "
+            f"F{math.floor(watchable):g} or raise the baud rate")
 
     def _refuse_state(self, check: bool) -> None:
         """A controller in alarm, or in check mode for a real cut, cannot start a run."""

@@ -16,9 +16,9 @@ import pytest
 import serial
 
 import simulators.grbl  # noqa: F401  (registers grblsim://)
+from gcode.blocks import parse_lines
 from gcode.layout import layout_from_dict
 from gcode.machine import default_machine
-from gcode.blocks import parse_lines
 from gcode.program import Program, build_program, strip_comment
 from gcode.stream import BEAM_OFF, Streamer, StreamError
 
