@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from enum import Enum
-from functools import cached_property
 
 __all__ = ["MARKER_SYSTEM", "Block", "Motion", "Sync", "comment_block", "marker_block", "num",
            "parse_line", "parse_lines", "settle", "strip_comment"]
@@ -87,33 +86,27 @@ class Block:
     raw: str | None = None
     fault: str | None = None
 
-    @cached_property
-    def text(self) -> str:
-        """The line as written to a file."""
+    # derived from the fields once, when the block is made (read many times: checker,
+    # streamer loop, pictures), never set by hand
+    text: str = field(init=False, repr=False, compare=False)  # the line as written to a file
+    code: str = field(init=False, repr=False, compare=False)  # what goes on the wire
+    g: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    m: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    values: dict[str, float] = field(init=False, repr=False, compare=False)  # not G, M
+
+    def __post_init__(self) -> None:
         if self.raw is not None:
-            return self.raw
-        body = " ".join(self.words)
-        if self.comment is None:
-            return body
-        return f"{body} ({self.comment})" if body else f"({self.comment})"
-
-    @cached_property
-    def code(self) -> str:
-        """What goes on the wire: the line without comments ('' for a comment line)."""
-        return strip_comment(self.raw) if self.raw is not None else " ".join(self.words)
-
-    @cached_property
-    def g(self) -> tuple[float, ...]:
-        return tuple(float(w[1:]) for w in self.words if w[0] == "G")
-
-    @cached_property
-    def m(self) -> tuple[float, ...]:
-        return tuple(float(w[1:]) for w in self.words if w[0] == "M")
-
-    @cached_property
-    def values(self) -> dict[str, float]:
-        """Every word but G and M by letter (the parser refuses a letter given twice)."""
-        return {w[0]: float(w[1:]) for w in self.words if w[0] not in "GM"}
+            text, code = self.raw, strip_comment(self.raw)
+        else:
+            code = " ".join(self.words)
+            text = code if self.comment is None else (
+                f"{code} ({self.comment})" if code else f"({self.comment})")
+        for name, value in (
+                ("text", text), ("code", code),
+                ("g", tuple(float(w[1:]) for w in self.words if w[0] == "G")),
+                ("m", tuple(float(w[1:]) for w in self.words if w[0] == "M")),
+                ("values", {w[0]: float(w[1:]) for w in self.words if w[0] not in "GM"})):
+            object.__setattr__(self, name, value)
 
     @property
     def target(self) -> tuple[float | None, float | None, float | None] | None:
