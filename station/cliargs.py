@@ -1,13 +1,26 @@
-"""Arguments and loaders shared by the `station` commands that read garments and fabrics."""
+"""Arguments and loaders shared by the `station` commands that read garments and fabrics.
+
+Every command imports this module, the console's (`station status`, `pause`, ...) too, so
+the garment stack (solver.garment, station.allowance: SciPy and Shapely, about 0.4 s on
+this machine under load) is imported inside the loaders that need it, not here.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
+import warnings
 from pathlib import Path
 
+import numpy as np
+
 import untrusted
+from solver.jsonfile import read_json
 from solver.units import UNIT_CHOICES
 from solver.wallpaper import Wallpaper
+from station.config import load_config
+from station.stripes import stripe_print
 
 
 def add_garment_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,10 +43,6 @@ def load_garment_arg(args: argparse.Namespace, **options):
     a whole garment under a centimetre across was almost surely read in the wrong units
     (the Berkeley files are in metres and do not say so).
     """
-    import sys
-    import warnings
-
-    import numpy as np
 
     from solver.garment import load_garment
 
@@ -56,9 +65,6 @@ def load_garment_arg(args: argparse.Namespace, **options):
 def load_fabric(path: str | Path) -> Wallpaper:
     """The print of a FABRIC.json; a stripe print (``kind: stripes``, as `station detect`
     writes it) as the 1-D lattice that matches stripes across the seams."""
-    from solver.jsonfile import read_json
-    from station.stripes import stripe_print
-
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such fabric file")
@@ -75,10 +81,6 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def load_config_arg(args: argparse.Namespace, overrides=None):
-    import os
-
-    from station.config import load_config
-
     path = getattr(args, "config", None) or os.environ.get("STATION_CONFIG")
     if path is None and Path("station.toml").is_file():
         path = "station.toml"
@@ -118,8 +120,6 @@ def grain_tolerance(text: str) -> float | None:
 def garment_with_grain(garment, args: argparse.Namespace):
     """``garment`` with the grain the command line asks for; a guessed grain is told on
     stderr (one line) so that ``--json`` stays clean."""
-    import sys
-    import warnings
 
     from solver.garment.grain import parse_grain_lines
 
@@ -136,8 +136,6 @@ def garment_with_grain(garment, args: argparse.Namespace):
 def fabric_grain_deg(path: str | Path) -> float:
     """The fabric's grain direction in fabric space: FABRIC.json ``grain_deg``, else 0
     (the roll's length, fabric x)."""
-    from solver.jsonfile import read_json
-
     doc = read_json(Path(path))
     value = doc.get("grain_deg", 0.0) if isinstance(doc, dict) else 0.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
@@ -194,9 +192,9 @@ def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs
     """``garment`` and its `Symmetrised` record (None when nothing asks for it): as the
     placement recorded it, else with ``--symmetrise`` on ``pairs`` (default: the pairs
     found, with the command's ``--pairs`` file). How far each piece moved goes to stderr."""
-    import sys
 
-    from solver.garment.symmetrise import symmetrise, symmetrise_as_recorded
+    from solver.garment.symmetrise import symmetrise_as_recorded
+    from station.steps.garment import symmetrised
 
     record = placement.report.get("symmetrise") if placement is not None else None
     if record:
@@ -206,13 +204,7 @@ def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs
             raise ValueError(f"{args.placement}: {exc}") from None
         why = "as the placement was made"
     elif getattr(args, "symmetrise", False):
-        if pairs is None:
-            from solver.garment.symmetry import mirror_pairs, read_pairs_file
-
-            path = getattr(args, "pairs", None)
-            declared, vetoed = read_pairs_file(path, garment) if path else ([], [])
-            pairs = mirror_pairs(garment, declared=declared, vetoed=vetoed)
-        sym = symmetrise(garment, pairs)
+        _, sym = symmetrised(garment, cli_pairs(args, garment) if pairs is None else pairs)
         why = "--symmetrise"
     else:
         return garment, None
@@ -221,6 +213,15 @@ def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs
     for line in sym.lines():
         print(f"  {line}", file=sys.stderr)
     return sym.garment, sym
+
+
+def cli_pairs(args: argparse.Namespace, garment) -> list:
+    """The garment's left/right pairs: found, with the command's ``--pairs`` file heard."""
+    from solver.garment.symmetry import read_pairs_file
+    from station.steps.garment import found_pairs
+
+    path = getattr(args, "pairs", None)
+    return found_pairs(garment, read_pairs_file(path, garment) if path else ([], []))
 
 
 #: what the pictures can be written as (OpenCV's writers; anything else failed at the end)

@@ -44,14 +44,14 @@ from gcode.toolpath import PieceToolpath
 from station.daemon import JobControl
 from station.jobstore import Job, JobStore
 
-log = logging.getLogger("station.pipeline")
+log = logging.getLogger("station.cut")
 
 #: journal a piece's progress at most this often (s) and only when it moved (mm)
 JOURNAL_EVERY_S = 0.25
 JOURNAL_STEP_MM = 1.0
 
 
-def reconcile(job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool,
+def reconcile(job: Job, job_dir: Path, store: JobStore, rest, alarm: bool,
               params: dict[str, tuple[float, ...]]) -> None:
     """Record the piece the machine finished after the last daemon stopped listening.
 
@@ -61,7 +61,8 @@ def reconcile(job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool
     the position is trusted) at the final move's end, not its start, proves the final
     move ran too. Anything else leaves the piece unfinished: it resumes where it stopped.
     ``rest`` is the status read before anything reset the controller, ``alarm`` says
-    whether its position can be trusted, ``params`` is ``$#``.
+    whether its position can be trusted, ``params`` is ``$#``; ``job_dir`` holds the
+    final moves saved before the program went out.
     """
     marker = read_marker(params)
     if marker is None or marker.job != job.id:
@@ -70,7 +71,7 @@ def reconcile(job: Job, plan: dict[str, Any], store: JobStore, rest, alarm: bool
     record = next((p for p in store.pieces(job.id) if p["piece"] == piece), None)
     if record is None or record["state"] == "cut" or marker.phase not in (1, 2):
         return
-    path = load_final_moves(Path(plan["layout"]).parent / FINAL_MOVES, job.id).get(piece)
+    path = load_final_moves(job_dir / FINAL_MOVES, job.id).get(piece)
     done, why = piece_finished(marker.phase, path, head_position(rest, alarm, params))
     if done:
         store.set_piece_state(job.id, piece, "cut")

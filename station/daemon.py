@@ -17,10 +17,10 @@ therefore writes a marker into the controller's EEPROM (G59 offsets) just before
 just after each piece's final move, and GRBL writes it only once every move before it
 has run. At most one piece can be finished but unrecorded (the next piece's lines go out
 only after this one's markers and sync line were answered and stored). Before anything
-else on resume, `StationPipeline.cut` waits for the machine to come to rest (sending
+else on resume, `station.steps.cut.cut_job` waits for the machine to come to rest (sending
 only the real-time ``?``), reads the marker and the head's position, and records that
 piece cut exactly when the machine proves it (see `gcode.recovery` and
-`StationPipeline.reconcile`); then it clears the marker, homes if the position was
+`station.cutting.reconcile`); then it clears the marker, homes if the position was
 lost, and streams the rest. A piece the machine cannot prove finished resumes where it
 stopped. tests/station/test_crash.py checks all of it against the emulator's motion trace.
 """
@@ -55,6 +55,7 @@ from station.jobstore import (
     interrupted_reason,
 )
 from station.storeengine import StoreUnavailable
+from vision.pipeline import confirm_fabric
 
 log = logging.getLogger("station.daemon")
 
@@ -99,17 +100,36 @@ class JobControl:
         if self.pause.is_set() and not hold_in_place:
             raise JobInterrupted("paused", "paused by the operator")
 
+    def start_step(self, step: str, fraction: float | None = None) -> None:
+        """Announce a step in the job's progress (what `station status` and `watch` show);
+        ``fraction`` only where the step can measure how far it is."""
+        self.progress.clear()
+        self.progress.update(step=step, **({} if fraction is None else {"fraction": fraction}))
+
+
+class Recorded(Protocol):
+    """What a step hands on inside the process, and what the job store keeps of it (the
+    paths of the job's files, and for a plan its pieces by layout id)."""
+
+    def record(self) -> dict[str, Any]: ...
+
+
+class Planned(Recorded, Protocol):
+    pieces: list[str]
+
 
 class Pipeline(Protocol):
-    """The work of one job; `station.pipeline.StationPipeline` is the real one."""
+    """The work of one job (`station.pipeline.StationPipeline` is the real one): each step
+    takes the object the one before made in this process, or None when the job was
+    captured or planned by another process; it then reads ``job.plan``, the record the
+    store kept (`station.steps.capture.Captured`, `station.steps.plan.Plan`)."""
 
-    def capture(self, job: Job, workdir: Path, control: JobControl
-                ) -> str | os.PathLike[str]: ...
+    def capture(self, job: Job, workdir: Path, control: JobControl) -> Recorded: ...
 
-    def plan(self, job: Job, fabric: str | os.PathLike[str], workdir: Path,
-             control: JobControl) -> dict[str, Any]: ...
+    def plan(self, job: Job, captured: Recorded | None, workdir: Path,
+             control: JobControl) -> Planned: ...
 
-    def cut(self, job: Job, plan: dict[str, Any], store: JobStore, control: JobControl,
+    def cut(self, job: Job, plan: Planned | None, store: JobStore, control: JobControl,
             resuming: bool) -> None: ...
 
 
@@ -265,28 +285,25 @@ class Daemon(AnswersFromMemory):
             resuming = job.state == "cutting"
             # Each step hands the next what it made (objects, inside this process); the
             # store keeps the paths of the files, from which another process resumes.
-            fabric, plan = None, None
+            captured, plan = None, None
             if job.state == "submitted" and not self._admitted(job):
                 job = self._admit_from_store(job)
             if job.state in ("submitted", "capturing"):
                 job = self.store.transition(job.id, "capturing")
-                fabric = self.pipeline.capture(job, workdir, control)
+                captured = self.pipeline.capture(job, workdir, control)
                 control.checkpoint()
-                self.store.set_plan(job.id, {"fabric": os.fspath(fabric)})
+                self.store.set_plan(job.id, captured.record())
                 job = self.store.transition(job.id, "planning")
             if job.state == "planning":
-                fabric = (fabric or (job.plan or {}).get("fabric")
-                          or self.store.job(job.id).plan["fabric"])
-                plan = self.pipeline.plan(job, fabric, workdir, control)
-                self.store.set_plan(job.id, plan)
-                self.store.set_pieces(job.id, plan["pieces"])
+                plan = self.pipeline.plan(job, captured, workdir, control)
+                self.store.set_plan(job.id, plan.record())
+                self.store.set_pieces(job.id, plan.pieces)
                 control.checkpoint()
                 job = self.store.transition(job.id, "ready")
             if job.state == "ready":
                 job = self.store.transition(job.id, "cutting")
             if job.state == "cutting":
-                self.pipeline.cut(job, plan or self.store.job(job.id).plan, self.store,
-                                  control, resuming)
+                self.pipeline.cut(job, plan, self.store, control, resuming)
                 control.checkpoint()
                 self.store.transition(job.id, "done")
                 log.info("job %d done", job.id)
@@ -490,8 +507,6 @@ class Daemon(AnswersFromMemory):
         if job.state != "paused" or not job.reason.startswith(CONFIRM_FABRIC):
             raise ControlError(f"job {job.id} is {job.state}, not waiting at "
                                f"'{CONFIRM_FABRIC}'")
-        from vision.pipeline import confirm_fabric
-
         path = self.work_dir / f"job-{job.id}" / "fabric.json"
         try:
             doc = confirm_fabric(json.loads(path.read_text()), req.get("group"))

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import untrusted
+from solver.garment.obj import pair_partner
 from station.control import ControlError
 from station.sandbox import SandboxError, run_limited
 
@@ -192,8 +193,6 @@ SHAPES = {"allowance": '{"seam line": mm 0 to 1000}',
 
 def _copy_garment(garment: Path, target: Path) -> Path:
     """Copy the garment (with its pair partner and licence note) into ``target``."""
-    from solver.garment.obj import pair_partner
-
     copy = target / garment.name
     limit = untrusted.limits.MAX_OBJ_BYTES
     untrusted.copy_file(garment, copy, what="garment", max_bytes=limit)

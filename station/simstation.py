@@ -1,5 +1,7 @@
-"""The simulated station both demos run on: the real daemon and pipeline, on an emulated
-GRBL and the synthetic camera, and the job files they copy out of its temporary folders.
+"""The simulated station `station serve --simulate` and both demos run on: the real
+daemon and pipeline, on an emulated GRBL and the synthetic camera, and the job files the
+demos copy out of its temporary folders. The one place the station's own work meets the
+simulators: production modules take their camera and port from their caller.
 """
 
 from __future__ import annotations
@@ -11,11 +13,47 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from station.config import SCHEMA, load_config
+import serial
+
+import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
+from simulators.camera import Sheet, SyntheticCamera
+from simulators.classics import classic_print
+from station.config import SCHEMA, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
+from station.steps.cut import serial_port
+from vision.camera import Camera, open_camera
 
-__all__ = ["copy_job_files", "read_json_or_empty", "start_simulated_station"]
+__all__ = ["copy_job_files", "open_simulated_camera", "open_simulated_port",
+           "read_json_or_empty", "simulated_camera", "simulated_pipeline",
+           "start_simulated_station"]
+
+
+def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float = 80.0,
+                     seed: int = 3) -> SyntheticCamera:
+    """The dry run's camera: a plaid sheet covering the usable fabric, seen from above."""
+    n = config["nest"]
+    ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
+    sheet = Sheet(classic_print(print_name, repeat_mm, origin=(13.0, 21.0)),
+                  size=(n["length_mm"], n["width_mm"]), shift=(ox, oy))
+    return SyntheticCamera(sheet, seed=seed)
+
+
+def open_simulated_camera(config: Config) -> Camera:
+    """The synthetic camera, averaging as many frames as the configuration says."""
+    return open_camera(simulate=True, sim_factory=lambda: simulated_camera(config),
+                       average=config["camera"]["frames"])
+
+
+def open_simulated_port(config: Config) -> serial.SerialBase:
+    """The configured port, the emulator's grblsim:// URLs understood (or a pty)."""
+    return serial_port(config)
+
+
+def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline
+                       ) -> StationPipeline:
+    """The station's pipeline (or ``cls``, a subclass) on the simulated camera and GRBL."""
+    return cls(config, open_camera=open_simulated_camera, open_port=open_simulated_port)
 
 
 def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: dict[str, Any],
@@ -32,7 +70,7 @@ def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: 
         "nest": {"seconds": args.nest_seconds},
         **overrides,
     })
-    daemon = Daemon(config, StationPipeline(config, simulate=True))
+    daemon = Daemon(config, simulated_pipeline(config))
     daemon.recover()
     daemon.control.start()
     worker = threading.Thread(target=daemon.run_loop, name=thread, daemon=True)

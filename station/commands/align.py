@@ -6,19 +6,26 @@ import argparse
 import json
 import sys
 
+import untrusted
+from solver.fit import fit_report
+from solver.placement import Placement
 from station.cliargs import (
     add_fabric_argument,
     add_garment_arguments,
     add_grain_arguments,
     add_symmetrise_argument,
+    cli_pairs,
     fabric_grain_deg,
     garment_with_grain,
     grain_tolerance,
     load_fabric,
     load_garment_arg,
     picture_path,
+    read_name_map,
     symmetrised_garment,
 )
+from station.render import draw_fit
+from station.steps.place import align_garment
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -71,9 +78,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _load_weights(path: str, garment) -> dict:
     """The seam weights of W.json, their names and indices checked against the garment."""
-    import untrusted
-    from station.cliargs import read_name_map
-
     weights = read_name_map(path, "weight", hi=1e6)
     try:
         garment.with_seam_weights(weights)
@@ -82,18 +86,7 @@ def _load_weights(path: str, garment) -> dict:
     return weights
 
 
-def _mirror_pairs(args: argparse.Namespace, garment) -> list:
-    from solver.garment.symmetry import mirror_pairs, read_pairs_file
-
-    declared, vetoed = read_pairs_file(args.pairs, garment) if args.pairs else ([], [])
-    return mirror_pairs(garment, declared=declared, vetoed=vetoed)
-
-
 def run(args: argparse.Namespace) -> int:
-    # Imported here: solver.align pulls in SciPy, which every other command can skip.
-    from solver.align import align
-    from solver.placement import Placement
-
     if not 1 <= args.restarts <= 10_000:  # 10^9 restarts allocated 23 GB
         raise ValueError(f"--restarts must be 1 to 10,000, got {args.restarts}")
     tol = grain_tolerance(args.grain)
@@ -113,14 +106,9 @@ def run(args: argparse.Namespace) -> int:
         weights=weights, fix=args.fix, grain_tol_deg=tol, reflect=args.reflect,
         rotation=not args.no_rotation, translation=not args.no_translation, init=init,
         use_drape=not args.pattern_frames, progress=progress)
-    pairs = [] if args.no_symmetry else _mirror_pairs(args, garment)
-    if pairs:
-        from solver.align.symmetric import align_symmetric
-
-        placement = align_symmetric(garment, fabric, pairs, grain_deg=grain_deg, nap=args.nap,
-                                    **options)
-    else:
-        placement = align(garment, fabric, nap=args.nap, fabric_grain_deg=grain_deg, **options)
+    pairs = [] if args.no_symmetry else cli_pairs(args, garment)
+    placement = align_garment(garment, fabric, pairs, grain_deg=grain_deg, nap=args.nap,
+                              **options)
     if symmetrised is not None:  # later commands rebuild the same pattern from this
         placement.report["symmetrise"] = symmetrised.to_dict()
     placement.garment = str(args.garment)
@@ -129,9 +117,6 @@ def run(args: argparse.Namespace) -> int:
     rep = dict(placement.report)
     rep["output"] = str(args.output)
     if args.png:
-        from solver.fit import fit_report
-        from station.render import draw_fit
-
         draw_fit(garment, placement, fit_report(garment, placement), args.png)
         rep["png"] = str(args.png)
     if args.json:

@@ -18,6 +18,16 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from solver.garment import load_garment
+from solver.wallpaper import Wallpaper
+from station.control import request
+from station.daemon import setup_logging
+from station.fleetdemo import run as run_fleet
+from station.progress import follow
+from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
+
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
 #: What the demo leaves in --out, from the job's folder (missing optional ones are named).
@@ -65,15 +75,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # Here, not at the top: every command module is imported when `station` starts, and
-    # the daemon behind the demo pulls in SciPy and Shapely (test_cli_chain measures it).
-    from solver.garment import load_garment
-    from station.control import request
-    from station.daemon import setup_logging
-    from station.fleetdemo import run as run_fleet
-    from station.progress import follow
-    from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
-
     garment = Path(args.garment)
     if not garment.is_file():
         raise FileNotFoundError(f"{garment}: no such garment file")
@@ -130,9 +131,6 @@ def run(args: argparse.Namespace) -> int:
 def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | None:
     """Largest distance (mm) between the detected and true lattices' reduced basis
     vectors, matched up to order and sign (the same lattice has many bases)."""
-    import numpy as np
-
-    from solver.wallpaper import Wallpaper
 
     try:
         d = Wallpaper.from_dict(detected).reduced()

@@ -9,8 +9,12 @@ from pathlib import Path
 import cv2
 
 from station.cliargs import picture_path
+from station.errors import UserError
 from untrusted import read_image
 from untrusted.limits import MAX_REPEAT_MM
+from vision.calibration import Calibration
+from vision.pipeline import detect_fabric, draw_overlay
+from vision.rectify import rectify
 
 
 def register(sub) -> None:
@@ -43,11 +47,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from station.cli import UserError
-    from vision.calibration import Calibration
-    from vision.pipeline import detect_fabric, draw_overlay
-    from vision.rectify import rectify
-
     # checked before any work: NaN passes "<= 0", and 1e-300 mm per pixel or a 1e300 mm
     # repeat made the detector fail deep inside (exit 70)
     if args.mm_per_px is not None and not 1e-3 <= args.mm_per_px <= 100.0:

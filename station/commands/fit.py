@@ -8,6 +8,8 @@ import sys
 import time
 
 from solver.fit import fit_report
+from solver.garment.notches import cut_ready
+from solver.garment.symmetry import mirror_pairs
 from solver.placement import Placement
 from station.cliargs import (
     add_allowance_arguments,
@@ -23,6 +25,8 @@ from station.cliargs import (
     picture_path,
     symmetrised_garment,
 )
+from station.front_view import draw_front_view
+from station.render import draw_fit
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -80,16 +84,10 @@ def run(args: argparse.Namespace) -> int:
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
-        from solver.garment.notches import cut_ready
-        from station.render import draw_fit
-
         cuts, notches = cut_ready(garment, rules, placement)
         draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
         result["png"] = str(args.png)
     if args.front_view:
-        from solver.garment.symmetry import mirror_pairs
-        from station.front_view import draw_front_view
-
         draw_front_view(garment, placement, symmetrised.pairs if symmetrised is not None
                         else mirror_pairs(garment), args.front_view)
         result["front_view"] = str(args.front_view)

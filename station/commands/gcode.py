@@ -7,6 +7,10 @@ import json
 import sys
 import time
 
+from gcode.layout import load_layout
+from gcode.machine import default_machine, load_machine
+from station.steps.program import program_of
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -32,12 +36,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # Imported here so that `station --help` and the other commands start fast.
-    from gcode.layout import load_layout
-    from gcode.machine import default_machine, load_machine
-    from gcode.program import build_program
-    from gcode.toolpath import build_toolpaths
-
     start = time.perf_counter()
     machine = load_machine(args.machine) if args.machine else default_machine()
     changes = {}
@@ -56,8 +54,7 @@ def run(args: argparse.Namespace) -> int:
         machine = machine.with_cut(**changes)
     layout = load_layout(args.layout)
     only = {s.strip() for s in args.pieces.split(",") if s.strip()} if args.pieces else None
-    toolpaths = build_toolpaths(layout, machine, only=only)
-    program = build_program(toolpaths, machine, title=f"station job {layout.source}",
+    program, _ = program_of(layout, machine, only, title=f"station job {layout.source}",
                             source=str(args.layout))
     program.write(args.output)
     summary = program.summary()

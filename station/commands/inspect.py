@@ -9,7 +9,17 @@ import time
 
 import numpy as np
 
-from station.cliargs import add_garment_arguments, add_grain_arguments
+from solver.garment.allowance import open_edges
+from solver.garment.grain import paired_grains
+from solver.garment.symmetry import centre_seams, mirror_pairs
+from station.cliargs import (
+    add_garment_arguments,
+    add_grain_arguments,
+    cli_pairs,
+    garment_with_grain,
+    load_garment_arg,
+)
+from station.steps.garment import symmetrised
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,18 +47,39 @@ def register(sub: argparse._SubParsersAction) -> None:
 def garment_summary(g, pairs=None) -> dict:
     """Plain-JSON description of a garment: counts, units, per-piece sizes in mm, and its
     left/right pairs (``pairs``: MirrorPair list, found when not given)."""
-    from solver.garment.symmetry import centre_seams, mirror_pairs
-
     if pairs is None:
         pairs = mirror_pairs(g)
+    grains = g.grains()
+    return {
+        "opening_list": openings(g),
+        "garment": g.source,
+        "kind": g.kind,
+        "units_in_file": g.units_in_file,
+        "scale_recovered": g.scale_recovered,
+        "has_3d": g.xyz is not None,
+        "vertices": g.n_vertices,
+        "faces": int(len(g.faces)),
+        "pieces": g.n_pieces,
+        "seam_lines": len(g.seam_lines),
+        "seam_edges": int(len(g.seam_edges)),
+        "boundary_edges_3d": int(g.boundary_3d_edges),
+        "seam_weight_total": float(g.seam_weights().sum()),
+        "grainlines": len(g.grainlines),
+        "notches": sum(len(v) for v in g.notches.values()),
+        "grain_guessed": [g.piece_names[i] for i, gr in enumerate(grains) if gr.guessed],
+        "piece_list": _pieces(g, grains),
+        "seam_line_list": _seam_lines(g),
+        "mirror_pairs": [[p.first, p.second] for p in pairs],
+        "mirror_pair_fits": [p.to_dict() for p in pairs],
+        "centre_seams": centre_seams(g, pairs),
+    }
+
+
+def _pieces(g, grains) -> list[dict]:
+    """Per piece: its size in mm, vertices, holes and grain."""
     bbox = g.piece_bboxes()
     area = g.piece_areas()
-    seam_count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
-    weights = g.seam_weights()
-    uv_len = np.linalg.norm(g.uv[g.seam_edges[:, 1]] - g.uv[g.seam_edges[:, 0]], axis=1)
-    seam_len = np.bincount(g.seam_line_of_edge, weights=uv_len, minlength=len(g.seam_lines))
-    grains = g.grains()
-    pieces = [
+    return [
         {
             "index": i,
             "name": g.piece_names[i],
@@ -63,7 +94,14 @@ def garment_summary(g, pairs=None) -> dict:
         }
         for i in range(g.n_pieces)
     ]
-    lines = [
+
+
+def _seam_lines(g) -> list[dict]:
+    """Per seam line: its pieces, weight, seam edges and length in mm."""
+    seam_count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
+    uv_len = np.linalg.norm(g.uv[g.seam_edges[:, 1]] - g.uv[g.seam_edges[:, 0]], axis=1)
+    seam_len = np.bincount(g.seam_line_of_edge, weights=uv_len, minlength=len(g.seam_lines))
+    return [
         {
             "index": k,
             "name": s.name,
@@ -75,36 +113,11 @@ def garment_summary(g, pairs=None) -> dict:
         }
         for k, s in enumerate(g.seam_lines)
     ]
-    return {
-        "opening_list": openings(g),
-        "garment": g.source,
-        "kind": g.kind,
-        "units_in_file": g.units_in_file,
-        "scale_recovered": g.scale_recovered,
-        "has_3d": g.xyz is not None,
-        "vertices": g.n_vertices,
-        "faces": int(len(g.faces)),
-        "pieces": g.n_pieces,
-        "seam_lines": len(g.seam_lines),
-        "seam_edges": int(len(g.seam_edges)),
-        "boundary_edges_3d": int(g.boundary_3d_edges),
-        "seam_weight_total": float(weights.sum()),
-        "grainlines": len(g.grainlines),
-        "notches": sum(len(v) for v in g.notches.values()),
-        "grain_guessed": [g.piece_names[i] for i, gr in enumerate(grains) if gr.guessed],
-        "piece_list": pieces,
-        "seam_line_list": lines,
-        "mirror_pairs": [[p.first, p.second] for p in pairs],
-        "mirror_pair_fits": [p.to_dict() for p in pairs],
-        "centre_seams": centre_seams(g, pairs),
-    }
 
 
 def openings(g) -> list[dict]:
     """The garment's openings (open edges chained through the seams), named as
     ``--allowance`` takes them, with their kind (hem or opening) and length."""
-    from solver.garment.allowance import open_edges
-
     edges, opening, is_hem = open_edges(g)
     length = np.bincount(opening, weights=np.linalg.norm(
         g.uv[edges[:, 1]] - g.uv[edges[:, 0]], axis=1), minlength=len(is_hem))
@@ -166,21 +179,13 @@ def _print_text(s: dict, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from station.cliargs import garment_with_grain, load_garment_arg
-
     start = time.perf_counter()
-    from solver.garment.grain import paired_grains
-    from solver.garment.symmetry import mirror_pairs, read_pairs_file
-
     g = garment_with_grain(load_garment_arg(args, resolution_mm=args.resolution_mm), args)
-    declared, vetoed = read_pairs_file(args.pairs, g) if args.pairs else ([], [])
-    pairs = mirror_pairs(g, declared=declared, vetoed=vetoed)
+    pairs = cli_pairs(args, g)
     g.grain = paired_grains(g.grains(), pairs)  # as `station align` cuts them
     summary = garment_summary(g, pairs)
     if args.symmetrise:
-        from solver.garment.symmetrise import symmetrise
-
-        summary["symmetrise"] = symmetrise(g, pairs).to_dict()
+        summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)
     if args.json:
         print(json.dumps(summary))

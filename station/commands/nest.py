@@ -6,6 +6,15 @@ import json
 import sys
 import time
 
+import numpy as np
+
+from solver.nest.budget import Deadline
+from solver.nest.layout import verify_layout
+from solver.nest.plain import stderr_progress
+from solver.nest.regions import load_keepouts
+from solver.nest.solve import nest
+from solver.nest.sources import load_problem
+from solver.wallpaper import Wallpaper
 from station.cliargs import (
     add_allowance_arguments,
     add_config_argument,
@@ -13,6 +22,8 @@ from station.cliargs import (
     load_config_arg,
     picture_path,
 )
+from station.errors import UserError
+from station.render import draw_marker
 
 
 def register(sub) -> None:
@@ -67,17 +78,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
-
-    from solver.nest.budget import Deadline
-    from solver.nest.layout import verify_layout
-    from solver.nest.plain import stderr_progress
-    from solver.nest.regions import load_keepouts
-    from solver.nest.solve import nest
-    from solver.nest.sources import load_problem
-    from solver.wallpaper import Wallpaper
-    from station.cli import UserError
-
     if not 0 < args.time <= 3600:  # also refuses NaN; sparrow cannot take more than an hour
         raise UserError("--time must be above 0 and at most 3600 seconds")
     if args.gap < 0:
@@ -120,8 +120,6 @@ def run(args) -> int:
     layout.save(args.output)
     _warn_past_table(layout.length, args.length, config["nest"]["length_mm"])
     if args.png:
-        from station.render import draw_marker
-
         draw_marker(layout.to_dict(), args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),

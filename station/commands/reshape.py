@@ -6,10 +6,16 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+import numpy as np
+
+from solver.fit import fit_report
+from solver.garment import save_obj, save_spec
+from solver.garment.symmetry import fit_pairs
+from solver.nest.dxf_aama import write_dxf_aama
+from solver.nest.sources import garment_pieces
 from solver.placement import Placement
-from station.cli import UserError
+from solver.reshape import ReshapeOptions, reshape
 from station.cliargs import (
     add_allowance_arguments,
     add_fabric_argument,
@@ -23,9 +29,8 @@ from station.cliargs import (
     picture_path,
     symmetrised_garment,
 )
-
-if TYPE_CHECKING:
-    from solver.reshape import ReshapeOptions
+from station.errors import UserError
+from station.render import draw_fit
 
 FORMATS = (".obj", ".json", ".dxf")
 
@@ -68,8 +73,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _fixed_mask(garment, names: list[str]):
-    import numpy as np
-
     mask = np.zeros(garment.n_pieces, bool)
     for name in names:
         if name in garment.piece_names:
@@ -87,20 +90,14 @@ def write_garment(garment, path: Path, rules=None) -> None:
     allowances a DXF's cut lines get; default the built-in ones)."""
     suffix = path.suffix.lower()
     if suffix == ".obj":
-        from solver.garment import save_obj
-
         save_obj(garment, path)
     elif suffix == ".json":
         if garment.kind != "spec":
             raise UserError(f"{path}: JSON output needs a JSON specification as input "
                             f"(this garment came from {garment.kind}); write .obj or .dxf")
-        from solver.garment import save_spec
 
         save_spec(garment, path)
     elif suffix == ".dxf":
-        from solver.nest.dxf_aama import write_dxf_aama
-        from solver.nest.sources import garment_pieces
-
         # layer 1 the cut line (it follows the reshaped sew line), layer 14 the sew line
         write_dxf_aama(garment_pieces(garment, rules), path)
     else:
@@ -133,10 +130,6 @@ def _print_changes(report) -> None:
 
 def _options(args: argparse.Namespace) -> ReshapeOptions:
     """The reshape options the command line asks for, checked before any work is done."""
-    # Here, not at the top: solver.reshape pulls in SciPy, and every command module is
-    # imported when `station` starts (test_cli_chain measures it).
-    from solver.reshape import ReshapeOptions
-
     if args.method == "paper":
         if args.max_move is not None:
             raise UserError("--max-move: the paper's method has no move bound "
@@ -149,9 +142,6 @@ def _options(args: argparse.Namespace) -> ReshapeOptions:
 
 
 def run(args: argparse.Namespace) -> int:
-    from solver.garment.symmetry import fit_pairs
-    from solver.reshape import reshape
-
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:
         raise UserError(f"{out}: unknown output format {out.suffix!r} "
@@ -192,9 +182,6 @@ def run(args: argparse.Namespace) -> int:
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
-        from solver.fit import fit_report
-        from station.render import draw_fit
-
         draw_fit(new, placement, fit_report(new, placement), args.png, original=garment)
         result["png"] = str(args.png)
     if args.json:

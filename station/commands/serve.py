@@ -34,5 +34,11 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--simulate needs a simulated port (grblsim://...), the configuration "
                          f"names {config['serial']['port']}")
     os.umask(config["store"]["umask"])  # before any file: job files 0640, folders 0750
-    daemon = Daemon(config, StationPipeline(config, simulate=args.simulate))
+    if args.simulate:  # the simulators, only when the user asked for a simulation
+        from station.simstation import simulated_pipeline
+
+        pipeline = simulated_pipeline(config)
+    else:
+        pipeline = StationPipeline(config)
+    daemon = Daemon(config, pipeline)
     return daemon.serve(once=args.once)

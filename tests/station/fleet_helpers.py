@@ -24,7 +24,9 @@ from scipy.spatial import cKDTree
 from station.config import SCHEMA, Config, load_config
 from station.daemon import Daemon, JobControl
 from station.jobstore import Job
-from station.pipeline import StationPipeline, start_step
+from station.pipeline import StationPipeline
+from station.simstation import simulated_pipeline
+from station.steps.capture import Captured
 
 SQUARE_MM = 12.0
 PITCH_MM = 40.0
@@ -51,13 +53,14 @@ class TinyJobs(StationPipeline):
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
         """Nothing to check: the squares are planned from the options alone."""
 
-    def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
-        start_step(control, "photographing")
-        return job.fabric or "no fabric"
+    def capture(self, job: Job, workdir: Path, control: JobControl) -> Captured:
+        control.start_step("photographing")
+        return Captured(job.fabric or "no fabric", {})
 
-    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl
-             ) -> dict[str, Any]:
-        start_step(control, "planning")
+    def plan(self, job: Job, captured: Captured | None, workdir: Path, control: JobControl
+             ) -> SquaresPlan:
+        control.start_step("planning")
+        fabric = captured.path if captured is not None else job.plan["fabric"]
         n = int(job.options.get("pieces", 3))
         size = float(job.options.get("size", SQUARE_MM))
         pieces = []
@@ -69,7 +72,18 @@ class TinyJobs(StationPipeline):
         layout = workdir / "layout.json"
         layout.write_text(json.dumps({"version": 1, "units": "mm", "width": 1000,
                                       "length": 1600, "gap": 3, "pieces": pieces}))
-        return {"fabric": fabric, "layout": str(layout), "pieces": [p["name"] for p in pieces]}
+        return SquaresPlan({"fabric": fabric, "layout": str(layout)},
+                           [p["name"] for p in pieces])
+
+
+class SquaresPlan:
+    """The squares' plan as the store keeps it: the real cut reads their LAYOUT.json."""
+
+    def __init__(self, files: dict[str, str], pieces: list[str]) -> None:
+        self.files, self.pieces = files, pieces
+
+    def record(self) -> dict[str, Any]:
+        return {**self.files, "pieces": self.pieces}
 
 
 def station_config(tmp: Path, name: str, store: str, port: str | None = None,
@@ -92,7 +106,7 @@ class RunningStation:
 
     def __init__(self, config: Config) -> None:
         self.config = config
-        self.daemon = Daemon(config, TinyJobs(config, simulate=True))
+        self.daemon = Daemon(config, simulated_pipeline(config, TinyJobs))
         self.daemon.recover()
         self.thread = threading.Thread(target=self.daemon.run_loop, daemon=True,
                                        name=config["station"]["name"])
@@ -187,7 +201,7 @@ def main(argv: list[str]) -> int:
 
     setup_logging()
     config = load_config(argv[0])
-    return Daemon(config, TinyJobs(config, simulate=False)).serve()
+    return Daemon(config, simulated_pipeline(config, TinyJobs)).serve()
 
 
 if __name__ == "__main__":

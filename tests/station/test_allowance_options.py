@@ -47,7 +47,7 @@ def test_the_daemon_nests_a_job_with_its_own_allowances(tmp_path, data_dir):
     from solver.garment import load_garment
     from solver.placement import Placement
     from station.cli import main
-    from station.pipeline import nest_placement
+    from station.steps.nest import nest_placement
 
     fabric = tmp_path / "fabric.json"
     fabric.write_text(json.dumps({"group": "p4m", "w1": [50, 0], "w2": [0, 50]}))

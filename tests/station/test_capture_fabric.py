@@ -16,7 +16,7 @@ from simulators.fabric import render_print
 from station.config import load_config
 from station.daemon import CONFIRM_FABRIC, JobControl, JobInterrupted
 from station.jobstore import JobStore
-from station.pipeline import StationPipeline
+from station.simstation import simulated_pipeline
 
 GARMENT = (Path(__file__).resolve().parents[2] / "tests" / "data" / "garments" / "berkeley"
            / "tshirt-coarse.obj")
@@ -24,7 +24,7 @@ GARMENT = (Path(__file__).resolve().parents[2] / "tests" / "data" / "garments" /
 
 def _pipeline(monkeypatch, image, mm_per_px, **camera):
     config = load_config(None, {"camera": camera, "nest": {"seconds": 1.0}})
-    pipeline = StationPipeline(config, simulate=True)
+    pipeline = simulated_pipeline(config)
     monkeypatch.setattr(pipeline, "_photograph", lambda: (image, image, mm_per_px, None))
     return pipeline
 
@@ -36,9 +36,9 @@ def test_plain_cloth_is_nested_without_a_print(tmp_path, monkeypatch):
     job = store.submit(str(GARMENT), None, {"units": "m"})
     control = JobControl(job.id)
     fabric = pipeline.capture(job, tmp_path, control)
-    doc = json.loads(Path(fabric).read_text())
+    doc = json.loads(Path(fabric.path).read_text())
     assert doc["group"] is None and doc["kind"] == "plain"
-    plan = pipeline.plan(job, fabric, tmp_path, control)
+    plan = pipeline.plan(job, fabric, tmp_path, control).record()
     store.close()
     layout = json.loads(Path(plan["layout"]).read_text())
     assert len(plan["pieces"]) == len(layout["pieces"]) >= 2
@@ -73,9 +73,9 @@ def _stripes_job(tmp_path, monkeypatch, **options):
     job = store.submit(str(GARMENT), None, {"units": "m", **options})
     control = JobControl(job.id)
     fabric = pipeline.capture(job, tmp_path, control)
-    doc = json.loads(Path(fabric).read_text())
+    doc = json.loads(Path(fabric.path).read_text())
     assert doc["group"] is None and doc["kind"] == "stripes"
-    plan = pipeline.plan(job, fabric, tmp_path, control)
+    plan = pipeline.plan(job, fabric, tmp_path, control).record()
     store.close()
     return doc, plan, json.loads(Path(plan["report"]).read_text())
 

@@ -29,13 +29,13 @@ class UnsurePipeline(_daemon_tests.TickingPipeline):
     """Detects a print with low confidence, as the station's pipeline then does: the
     FABRIC.json is written and the job waits at 'confirm fabric'."""
 
-    def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
+    def capture(self, job: Job, workdir: Path, control: JobControl):
         (workdir / "fabric.json").write_text(json.dumps(DETECTED))
         raise JobInterrupted("paused", f"{CONFIRM_FABRIC}: pmm at confidence 0.55")
 
-    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl) -> dict:
-        self.planned_with = json.loads(Path(fabric).read_text())
-        return super().plan(job, fabric, workdir, control)
+    def plan(self, job: Job, captured, workdir: Path, control: JobControl):
+        self.planned_with = json.loads(Path(job.plan["fabric"]).read_text())
+        return super().plan(job, captured, workdir, control)
 
 
 @pytest.fixture

@@ -370,9 +370,10 @@ def recovery(tmp_path):
     # piece 1's final move in the program last streamed: a straight line (10,0) -> (10,40)
     save_final_moves(tmp_path / FINAL_MOVES, job.id,
                      {1: np.array([[10.0, 0.0], [10.0, 40.0]])})
-    pipeline = StationPipeline.__new__(StationPipeline)
-    plan = {"layout": str(tmp_path / "layout.json")}
-    yield store, job, pipeline, plan
+    import station.cutting
+
+    # the cut step's reconcile, with the job's folder that holds its final moves
+    yield store, job, station.cutting, tmp_path
     store.close()
 
 
@@ -420,6 +421,7 @@ def test_markers_bracket_each_pieces_final_move(tmp_path):
     from gcode.program import PieceMarkers, build_program
     from gcode.recovery import final_moves
     from gcode.stream import is_sync_command
+    from gcode.toolpath import build_toolpaths
 
     sys.path.insert(0, str(ROOT / "tests" / "gcode"))  # gcode_helpers (importlib mode)
     from gcode_helpers import make_layout  # a disc with a hole, notch and mark, ...
@@ -428,7 +430,8 @@ def test_markers_bracket_each_pieces_final_move(tmp_path):
     pipeline = StationPipeline(load_config(None))
     program = pipeline.program_for(tmp_path / "layout.json", None)
     index = {r.id: i for i, r in enumerate(program.pieces)}
-    toolpaths, _ = pipeline.toolpaths_for(tmp_path / "layout.json", None)
+    toolpaths = build_toolpaths(pipeline.marker_file(tmp_path / "layout.json"),
+                                pipeline.machine)
     marked = build_program(toolpaths, pipeline.machine, title=f"station {tmp_path.name}",
                            markers=PieceMarkers(7, index))  # the builder writes them
     assert [ln for ln in marked.lines if not ln.startswith("G10")] == program.lines

@@ -20,6 +20,16 @@ from station.daemon import Daemon, JobControl, wait_until
 from station.jobstore import Job, JobStore
 
 
+class Recorded:
+    """What a stand-in step hands on: the record the store keeps, and a plan's pieces."""
+
+    def __init__(self, files: dict, pieces: list | None = None) -> None:
+        self.files, self.pieces = files, pieces or []
+
+    def record(self) -> dict:
+        return {**self.files, **({"pieces": self.pieces} if self.pieces else {})}
+
+
 class TickingPipeline:
     """Three pieces, cut one per ``tick`` seconds, as the streamer would report them."""
 
@@ -31,13 +41,15 @@ class TickingPipeline:
         if not garment.endswith(".obj"):
             raise ValueError(f"{garment}: not a garment file")
 
-    def capture(self, job: Job, workdir: Path, control: JobControl) -> str:
-        return job.fabric or "detected.json"
+    def capture(self, job: Job, workdir: Path, control: JobControl) -> Recorded:
+        return Recorded({"fabric": job.fabric or "detected.json"})
 
-    def plan(self, job: Job, fabric: str, workdir: Path, control: JobControl) -> dict:
-        return {"fabric": fabric, "pieces": ["front", "back", "sleeve"]}
+    def plan(self, job: Job, captured: Recorded | None, workdir: Path, control: JobControl
+             ) -> Recorded:
+        fabric = (captured.record() if captured is not None else job.plan)["fabric"]
+        return Recorded({"fabric": fabric}, ["front", "back", "sleeve"])
 
-    def cut(self, job: Job, plan: dict, store: JobStore, control: JobControl,
+    def cut(self, job: Job, plan: Recorded | None, store: JobStore, control: JobControl,
             resuming: bool) -> None:
         self.cut_calls.append((job.id, resuming))
         for piece in store.pieces(job.id):

@@ -239,11 +239,11 @@ class FailingPipeline(CheckingPipeline):
     """Planning fails after the job was already marked failed: recording the failure then
     fails too (the store refuses failed -> failed)."""
 
-    def plan(self, job, fabric, workdir, control):
+    def plan(self, job, captured, workdir, control):
         if job.id == 1:
             self.store.transition(job.id, "failed", "failed elsewhere first")
             raise RuntimeError("planning broke")
-        return super().plan(job, fabric, workdir, control)
+        return super().plan(job, captured, workdir, control)
 
 
 def test_a_failure_while_handling_a_failure_never_kills_the_job_loop(tmp_path):

@@ -93,9 +93,10 @@ def test_station_defaults_cut_on_grain_and_bound_reshaping(tmp_path):
 
 
 def test_job_options_carry_grain_lines_and_bias_pieces():
-    from station.pipeline import StationPipeline, grained
+    from station.simstation import simulated_pipeline
+    from station.steps.garment import grained
 
-    station = StationPipeline(load_config(None), simulate=True)
+    station = simulated_pipeline(load_config(None))
     station.check(str(PANTS), None, {"units": "m", "grain_lines": {"piece0": 45.0},
                                      "bias": ["piece1"]})
     for bad in ({"grain_lines": {"piece0": "up"}}, {"grain_lines": [1]}, {"bias": "piece1"}):

@@ -12,7 +12,7 @@ from simulators.cloth import plain_cloth
 from station.config import SCHEMA, load_config
 from station.daemon import JobControl
 from station.jobstore import JobStore
-from station.pipeline import StationPipeline
+from station.simstation import simulated_pipeline
 
 sys.path.insert(0, str(Path(__file__).parent))  # job_io (importlib mode)
 from job_io import JobIO  # noqa: E402
@@ -45,7 +45,7 @@ def test_a_job_resumed_in_the_same_process_cuts_from_its_planned_layout(tmp_path
         "name=station", f"name=handover-{id(tmp_path)}")
     config = load_config(None, {"nest": {"seconds": 1.0}, "serial": {"port": port},
                                 "machine": {"check_mode": False}})
-    pipeline = StationPipeline(config, simulate=True)
+    pipeline = simulated_pipeline(config)
     image = plain_cloth((640, 480), 0.4 / 0.08, weave="twill", seed=4)
     monkeypatch.setattr(pipeline, "_photograph", lambda: (image, image, 0.08, None))
     job_io = JobIO(monkeypatch, threads=("daemon", "stream"))
@@ -59,14 +59,15 @@ def test_a_job_resumed_in_the_same_process_cuts_from_its_planned_layout(tmp_path
             return pipeline.plan(job, captured, tmp_path, control)
 
         planned = in_daemon_thread(plan)
-        store.set_plan(job.id, planned)
-        store.set_pieces(job.id, planned["pieces"])
+        store.set_plan(job.id, planned.record())
+        store.set_pieces(job.id, planned.pieces)
         for piece in store.pieces(job.id)[:-1]:  # paused with one piece left to cut
             store.set_piece_state(job.id, piece["piece"], "cut")
         # resumed: run_job starts afresh with the store's copy of the plan
-        stored = store.job(job.id).plan
-        assert type(stored) is dict and stored == planned
-        in_daemon_thread(lambda: pipeline.cut(job, stored, store, control, False))
+        resumed = store.job(job.id)
+        stored = resumed.plan
+        assert type(stored) is dict and stored == planned.record()
+        in_daemon_thread(lambda: pipeline.cut(resumed, None, store, control, False))
         pieces = store.pieces(job.id)
     finally:
         store.close()

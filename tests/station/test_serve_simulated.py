@@ -253,13 +253,14 @@ def test_capture_uses_the_simulators_truth_only_when_vision_is_missing(tmp_path,
     from station.config import load_config
     from station.daemon import JobControl
     from station.jobstore import JobStore
-    from station.pipeline import StationPipeline
+    from station.simstation import simulated_pipeline
 
     monkeypatch.setitem(sys.modules, "vision.pipeline", None)  # import fails
     store = JobStore(tmp_path / "jobs.db")
     job = store.submit(str(GARMENT), None, {"units": "m"})
-    pipeline = StationPipeline(load_config(None), simulate=True)
-    fabric = json.loads(Path(pipeline.capture(job, tmp_path, JobControl(job.id))).read_text())
+    pipeline = simulated_pipeline(load_config(None))
+    fabric = json.loads(Path(pipeline.capture(job, tmp_path, JobControl(job.id)).path
+                             ).read_text())
     store.close()
     assert fabric["source"] == "simulator truth: vision unavailable"
     camera = json.loads((tmp_path / "camera.json").read_text())

@@ -10,7 +10,9 @@ import pytest
 
 from solver.garment import load_garment
 from station.config import load_config
-from station.pipeline import StationPipeline, symmetrise_job
+from station.pipeline import StationPipeline
+from station.simstation import simulated_pipeline
+from station.steps.garment import symmetrise_job
 
 
 def test_the_job_option_is_checked_and_hears_the_vetoed_pairs(data_dir):
@@ -58,11 +60,12 @@ def test_a_job_asking_for_symmetrise_is_aligned_reshaped_and_cut_as_one_pattern(
     fabric.write_text(json.dumps({"group": "pmm", "w1": [60, 0], "w2": [0, 80]}))
     config = load_config(None, {"nest": {"seconds": 1.0}, "reshape": {"enabled": True},
                                 "align": {"restarts": 2, "method": "paper"}})
-    pipeline = StationPipeline(config, simulate=True)
+    pipeline = simulated_pipeline(config)
     store = JobStore(tmp_path / "jobs.db")
     job = store.submit(str(garment), str(fabric), {"units": "m", "symmetrise": True})
     control = JobControl(job.id)
-    plan = pipeline.plan(job, pipeline.capture(job, tmp_path, control), tmp_path, control)
+    plan = pipeline.plan(job, pipeline.capture(job, tmp_path, control), tmp_path,
+                         control).record()
     store.close()
     report = json.loads(Path(plan["report"]).read_text())
     assert sorted(map(tuple, report["symmetrise"]["pairs"])) == [(0, 1), (2, 3), (4, 5)]

@@ -1,0 +1,211 @@
+"""Steps 2 to 5 together: planning one job, from the captured print to a checked program.
+
+`plan_job` reads as the recipe: the garment (`steps.garment`), its placement on the print
+(`steps.place`: aligned, optionally reshaped; on plain cloth only turned onto the grain),
+the marker (`steps.nest`), the program (`steps.program`). It hands back a `Plan`, the
+objects the cut and the pictures need; each step also writes its file into the job's
+folder (placement.json, layout.json, job.nc, report.json after every step) for the
+operator and for a job resumed by another process, never read back here.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gcode.machine import Machine
+from solver.fit import FitReport, fit_report
+from solver.garment import Garment, save_obj
+from solver.nest.layout import Layout
+from solver.placement import Placement
+from solver.wallpaper import Wallpaper
+from station.allowance import rules_for_job
+from station.config import Config
+from station.daemon import JobControl
+from station.jobstore import Job
+from station.steps.capture import Captured
+from station.steps.garment import grained, job_garment
+from station.steps.nest import nest_placement
+from station.steps.pictures import draw_fits
+from station.steps.place import align_job, plain_placement, reshape_placed
+from station.steps.program import fabric_origin, machine_layout, program_of
+from station.steps.records import Plan, Stage
+from station.stripes import stripe_grain, stripe_print
+
+log = logging.getLogger("station.plan")
+
+FABRIC_KEYS = ("group", "w1", "w2", "origin", "source", "confidence", "kind", "period_mm",
+               "direction_deg", "grain_deg", "note")
+
+
+class JobReport:
+    """report.json, written after every step so a failed job still shows what it got
+    to, with the seconds each step took."""
+
+    def __init__(self, path: Path, data: dict[str, Any]) -> None:
+        self.path, self.data = path, {**data, "seconds": {}}
+        self._clock = time.perf_counter()
+
+    def step_done(self, step: str) -> None:
+        now = time.perf_counter()
+        self.data["seconds"][step] = round(now - self._clock, 3)
+        self._clock = now
+        self.write()
+
+    def write(self) -> None:
+        self.path.write_text(json.dumps(self.data, indent=2, default=float))
+
+
+@dataclass
+class Pattern:
+    """A pattern placed on the print: the garment, the job's copy of it, its fit."""
+
+    garment: Garment
+    path: Path
+    fit: FitReport | None = None
+
+
+def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
+             control: JobControl) -> Plan:
+    """Align, optionally reshape, nest and program one job (see the module's docstring)."""
+    garment, garment_path, symmetrised = job_garment(job, workdir)
+    kind = captured.fabric.get("kind")
+    report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment})
+    stages: list[Stage] = []  # the states of the fit, for the pictures
+    if kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes", True)):
+        wallpaper = None  # nothing to align: the pieces are nested on grain as drawn
+        chosen = Pattern(grained(garment, config, job.options), garment_path)
+        placement = _on_grain(chosen, captured, config, report)
+        control.start_step("nesting", 0.0)
+        layout = _nest(chosen, placement, workdir, config, job.options, None, plain=True)
+    else:
+        wallpaper = print_of(captured, config, report)
+        if symmetrised is not None:
+            report.data["symmetrise"] = symmetrised.to_dict()
+        try:
+            patterns, placement = _place(job, Pattern(garment, garment_path), wallpaper,
+                                         config, control, report, stages)
+            chosen, layout = _nest_printed(job, patterns, placement, workdir, config,
+                                           control, report)
+        except BaseException:
+            draw_fits(stages, captured, wallpaper)  # a failed job shows what it got to
+            raise
+    report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
+                           "density": layout.density, "pieces": len(layout.pieces)}
+    report.step_done("nest")
+    control.checkpoint()
+    control.start_step("programming")
+    marker = machine_layout(layout, fabric_origin(config), str(workdir / "layout.json"))
+    program, _ = program_of(marker, machine, title=f"station {workdir.name}")
+    program.write(workdir / "job.nc")
+    report.data["program"] = program.summary()
+    report.step_done("program")
+    return Plan(workdir, captured, chosen.garment, chosen.path, placement, layout, marker,
+                program, report.data, wallpaper, chosen.fit, stages)
+
+
+def print_of(captured: Captured, config: Config, report: JobReport) -> Wallpaper:
+    """The print to align on: capture's object, else FABRIC.json's (a stripe print as
+    the 1-D lattice that matches stripes across the seams); the report names it."""
+    fabric = captured.fabric
+    if fabric.get("kind") == "stripes":
+        fabric = stripe_print(fabric, config["align"]["fabric_grain_deg"])
+    report.data["fabric"] = {k: fabric.get(k) for k in FABRIC_KEYS if k in fabric}
+    if captured.wallpaper is not None and fabric is captured.fabric:
+        return captured.wallpaper
+    return Wallpaper.from_dict(fabric, captured.path)  # a file: checked as untrusted
+
+
+def _on_grain(pattern: Pattern, captured: Captured, config: Config, report: JobReport
+              ) -> Placement:
+    """Plain cloth (the camera found only the weave), or stripes the job does not match:
+    each piece turned so that its grain runs along the cloth's (stripes set it)."""
+    cloth = stripe_grain(captured.fabric, config["align"]["fabric_grain_deg"])
+    report.data["fabric"] = cloth
+    return plain_placement(pattern.garment, config, cloth["grain_deg"])
+
+
+def _place(job: Job, pattern: Pattern, wallpaper: Wallpaper, config: Config,
+           control: JobControl, report: JobReport, stages: list[Stage]
+           ) -> tuple[list[Pattern], Placement]:
+    """(the patterns to try, best first: reshaped, then aligned; the placement). Each
+    state of the fit joins ``stages`` for its picture."""
+    garment, group, folder = pattern.garment, wallpaper.group, pattern.path.parent
+    before = Placement.identity(garment.n_pieces, wallpaper)
+    identity = fit_report(garment, before)
+    report.data["e_fit_identity_mm2"] = identity.e_fit_mm2
+    stages.append(Stage(folder / "fit-before.png", f"before alignment on {group}", garment,
+                        before, identity))
+    control.start_step("aligning", 0.0)
+
+    def on_restart(k: int, n: int, _e_random: float, _e_aligned: float) -> None:
+        control.progress.update(step="aligning", fraction=min(1.0, k / max(n, 1)))
+        control.checkpoint()
+
+    garment = grained(garment, config, job.options)
+    placement = align_job(garment, wallpaper, config, job.options, on_restart,
+                          fabric_grain_deg=report.data["fabric"].get("grain_deg"))
+    placement.garment = str(pattern.path)
+    report.data["align"] = placement.report
+    aligned = Pattern(garment, pattern.path, fit_report(garment, placement))
+    rules = rules_for_job(config, job.options)
+    report.data["allowance"] = rules.to_dict()
+    stages.append(Stage(folder / "fit-aligned.png", f"aligned on {group}", garment,
+                        placement, aligned.fit, rules))
+    report.step_done("align")
+    control.checkpoint()
+    if not job.options.get("reshape", config["reshape"]["enabled"]):
+        return [aligned], placement
+    control.start_step("reshaping")
+    new, reshaped = reshape_placed(garment, placement, config)
+    path = folder / "garment-reshaped.obj"
+    save_obj(new, path)
+    report.data["reshape"] = reshaped.to_dict()
+    fitted = Pattern(new, path, fit_report(new, placement))
+    stages.append(Stage(folder / "fit-reshaped.png", f"reshaped on {group}", new,
+                        placement, fitted.fit, rules, original=garment))
+    report.step_done("reshape")
+    control.checkpoint()
+    return [fitted, aligned], placement
+
+
+def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workdir: Path,
+                  config: Config, control: JobControl, report: JobReport
+                  ) -> tuple[Pattern, Layout]:
+    """(the pattern cut, its marker): the reshaped pattern if the cutter can use it, else,
+    saying so, the aligned one (a reshaped outline crossing itself must not stop the job)."""
+    seconds = config["nest"]["seconds"]
+    control.start_step("nesting", 0.0)
+    t_nest = time.monotonic()
+
+    def on_nest(_message: str) -> None:
+        control.progress.update(step="nesting", fraction=min(
+            1.0, (time.monotonic() - t_nest) / seconds))
+
+    first = patterns[0]
+    try:
+        return first, _nest(first, placement, workdir, config, job.options, on_nest)
+    except ValueError as exc:
+        if len(patterns) == 1:
+            raise
+        log.error("job %d: the reshaped pattern cannot be nested (%s); cutting the "
+                  "aligned pattern instead", job.id, exc)
+        report.data["reshape"]["rejected"] = f"not used for cutting: {exc}"
+    aligned = patterns[1]
+    t_nest = time.monotonic()
+    return aligned, _nest(aligned, placement, workdir, config, job.options, on_nest)
+
+
+def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
+          options: dict[str, Any], progress, *, plain: bool = False) -> Layout:
+    """The marker of ``pattern``; placement.json and layout.json written beside it."""
+    placement.garment = str(pattern.path)
+    placement.save(workdir / "placement.json")
+    layout = nest_placement(pattern.garment, placement, config, progress, options,
+                            plain=plain)
+    layout.save(workdir / "layout.json")
+    return layout

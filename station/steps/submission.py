@@ -1,0 +1,46 @@
+"""Step 0 of a job: refuse at submission what could never run (the daemon runs this in a
+bounded child process, `station.intake`): the garment and fabric files, the job's
+options, and every piece or seam line an option names."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import solver.garment as garment_files
+from solver.garment.allowance import edge_allowances
+from solver.garment.symmetry import pairs_from_dict
+from solver.wallpaper import Wallpaper
+from station.allowance import rules_for_job
+from station.config import Config
+from station.steps.garment import grained
+
+JOB_OPTIONS = frozenset({"units", "reshape", "method", "restarts", "seed", "grain_lines",
+                         "bias", "seam_allowance", "allowance", "symmetry", "pairs",
+                         "symmetrise"})
+
+
+def check_job(garment: str, fabric: str | None, options: dict[str, Any],
+              config: Config) -> None:
+    """Raise ValueError, naming the file or option, for a job that could never run."""
+    loaded = garment_files.load_garment(garment, units=options.get("units"))
+    if fabric is not None:
+        Wallpaper.load(fabric)
+    unknown = set(options) - JOB_OPTIONS
+    if unknown:
+        raise ValueError(f"unknown job option {sorted(unknown)[0]!r}")
+    lines, bias = options.get("grain_lines", {}), options.get("bias", [])
+    if not isinstance(lines, dict) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in lines.values()):
+        raise ValueError('job option grain_lines must be {"piece": degrees}')
+    if not isinstance(bias, list) or not all(isinstance(b, (str, int)) for b in bias):
+        raise ValueError("job option bias must be a list of pieces")
+    with warnings.catch_warnings():  # a guessed grain is reported when the job runs
+        warnings.simplefilter("ignore")
+        grained(loaded, config, options)  # names every piece that does not exist
+    edge_allowances(loaded, rules_for_job(config, options), ())  # names must exist
+    for key in ("symmetry", "symmetrise"):
+        if not isinstance(options.get(key, key == "symmetry"), bool):
+            raise ValueError(f"job option {key} must be true or false")
+    if "pairs" in options:
+        pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
