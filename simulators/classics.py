@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -137,6 +138,19 @@ def _rot(deg: float) -> np.ndarray:
     return np.array([[math.cos(r), -math.sin(r)], [math.sin(r), math.cos(r)]])
 
 
+@dataclass(frozen=True)
+class _Placement:
+    """Where a classic lies: its turn, its symmetry origin (mm) and its repeat (mm)."""
+
+    rot: np.ndarray
+    origin: np.ndarray
+    repeat: float
+
+    def wallpaper(self, group: str, w1, w2) -> Wallpaper:
+        return Wallpaper(group, self.rot @ np.asarray(w1, float), self.rot @ np.asarray(w2, float),
+                         self.origin)
+
+
 def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
                   origin: tuple[float, float] = (0.0, 0.0)) -> Print:
     """A textile classic (see :data:`CLASSICS`) with repeat ``|w1| = repeat`` mm.
@@ -148,91 +162,104 @@ def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
         raise ValueError(f"unknown classic {name!r}; expected one of {', '.join(CLASSICS)}")
     if not repeat > 0:
         raise ValueError(f"repeat must be positive, got {repeat}")
-    rot = _rot(rotation)
-    o = np.asarray(origin, float)
-    r = float(repeat)
+    place = _Placement(_rot(rotation), np.asarray(origin, float), float(repeat))
+    return _BUILDERS[name](name, place)
 
-    def wallpaper(group: str, w1, w2) -> Wallpaper:
-        return Wallpaper(group, rot @ np.asarray(w1, float), rot @ np.asarray(w2, float), o)
 
-    if name == "stripes":
-        prof = _stripe_profile([(_NAVY, 0.34), (_WHITE, 0.18), (_RED, 0.08), (_WHITE, 0.1),
-                                (_YELLOW, 0.05), (_CREAM, 0.25)])
-        w1 = rot @ np.array([r, 0.0])
-        basis = np.column_stack([w1, rot @ np.array([0.0, r])])
-        truth = Frieze("p11m", w1, o.copy())
-        return Print(name, truth, lambda m: _supersampled(lambda u, v: prof(u), m),
-                     basis=basis, origin=o.copy())
+def _stripes(name: str, place: _Placement) -> Print:
+    r, rot, o = place.repeat, place.rot, place.origin
+    prof = _stripe_profile([(_NAVY, 0.34), (_WHITE, 0.18), (_RED, 0.08), (_WHITE, 0.1),
+                            (_YELLOW, 0.05), (_CREAM, 0.25)])
+    w1 = rot @ np.array([r, 0.0])
+    basis = np.column_stack([w1, rot @ np.array([0.0, r])])
+    truth = Frieze("p11m", w1, o.copy())
+    return Print(name, truth, lambda m: _supersampled(lambda u, v: prof(u), m),
+                 basis=basis, origin=o.copy())
 
-    if name == "gingham":
-        col = np.array(_RED)
-        white = np.array(_WHITE)
-        mid = 0.5 * (col + white)
-        dark = col * 0.75
 
-        def fn(u, v):
-            bu = (np.abs(_wrap(u)) < 0.25)[..., None]
-            bv = (np.abs(_wrap(v)) < 0.25)[..., None]
-            return np.where(bu & bv, dark, np.where(bu | bv, mid, white))
+def _gingham(name: str, place: _Placement) -> Print:
+    r = place.repeat
+    col = np.array(_RED)
+    white = np.array(_WHITE)
+    mid = 0.5 * (col + white)
+    dark = col * 0.75
 
-        return Print(name, wallpaper("p4m", (r, 0), (0, r)), lambda m: _supersampled(fn, m))
+    def fn(u, v):
+        bu = (np.abs(_wrap(u)) < 0.25)[..., None]
+        bv = (np.abs(_wrap(v)) < 0.25)[..., None]
+        return np.where(bu & bv, dark, np.where(bu | bv, mid, white))
 
-    if name in ("tartan", "plaid"):
-        warp = _sett([(_NAVY, 0.13), (_BLACK, 0.05), (_GREEN, 0.16), (_BLACK, 0.03),
-                      (_GREEN, 0.05), (_BLACK, 0.02), (_YELLOW, 0.01), (_BLACK, 0.05)])
-        if name == "tartan":
-            weft, ratio, group = warp, 1.0, "p4m"
-        else:
-            weft = _sett([(_RED, 0.17), (_BLACK, 0.04), (_CREAM, 0.02), (_BLACK, 0.04),
-                          (_BROWN, 0.15), (_BLACK, 0.08)])
-            ratio, group = 0.75, "pmm"
-        return Print(name, wallpaper(group, (r, 0), (0, r * ratio)),
-                     lambda m: _supersampled(lambda u, v: 0.5 * (warp(u) + weft(v)), m))
+    return Print(name, place.wallpaper("p4m", (r, 0), (0, r)), lambda m: _supersampled(fn, m))
 
-    if name == "houndstooth":
-        n = 8
-        block = (np.arange(n) % 8 < 4)
-        dark, light = np.array(_BLACK), np.array(_CREAM)
-        threads = np.where(block[:, None], dark, light)
-        i, j = np.meshgrid(np.arange(n), np.arange(n))  # i across (u), j down (v)
-        up = (i + j) % 4 < 2  # 2/2 twill
-        return Print(name, wallpaper("p1", (r, 0), (0, r)),
-                     _thread_texture(_weave(threads, threads, up)))
 
-    if name == "herringbone":
-        n = 6  # warp threads per twill direction; cell = 2n threads x 4 picks
-        p = r / (2 * n)
-        i, j = np.meshgrid(np.arange(2 * n), np.arange(4))
-        s = np.where(i < n, 1, -1)
-        up = (j + s * i) % 4 < 2
-        warp = np.tile(np.array(_BROWN), (2 * n, 1))
-        weft = np.tile(np.array(_CREAM), (4, 1))
-        # The half-turn centre (3.5, 2) threads is the pmg origin; mirrors then lie at
-        # the twill reversals (0.5 and 6.5 threads), glide lines along the warp axis.
-        return Print(name, wallpaper("pmg", (r, 0), (0, 4 * p)),
-                     _thread_texture(_weave(warp, weft, up), shift=(3.5 / (2 * n), 2 / 4)))
+def _tartan(name: str, place: _Placement) -> Print:
+    """Tartan (the same sett in warp and weft) or plaid (another sett in the weft)."""
+    r = place.repeat
+    warp = _sett([(_NAVY, 0.13), (_BLACK, 0.05), (_GREEN, 0.16), (_BLACK, 0.03),
+                  (_GREEN, 0.05), (_BLACK, 0.02), (_YELLOW, 0.01), (_BLACK, 0.05)])
+    if name == "tartan":
+        weft, ratio, group = warp, 1.0, "p4m"
+    else:
+        weft = _sett([(_RED, 0.17), (_BLACK, 0.04), (_CREAM, 0.02), (_BLACK, 0.04),
+                      (_BROWN, 0.15), (_BLACK, 0.08)])
+        ratio, group = 0.75, "pmm"
+    return Print(name, place.wallpaper(group, (r, 0), (0, r * ratio)),
+                 lambda m: _supersampled(lambda u, v: 0.5 * (warp(u) + weft(v)), m))
 
-    if name in ("polka-square", "polka-hex"):
-        hexagonal = name == "polka-hex"
-        w2 = r * np.array([-0.5, math.sqrt(3) / 2]) if hexagonal else np.array([0.0, r])
-        wp = wallpaper("p6m" if hexagonal else "p4m", (r, 0), w2)
-        basis = np.column_stack([np.array([r, 0.0]), w2])
-        dot, ground = np.array(_WHITE), np.array(_NAVY)
-        radius = 0.3 * r
 
-        def fn(u, v):
-            best = np.full(u.shape, np.inf)
-            fu, fv = _wrap(u), _wrap(v)
-            for a in (-1, 0, 1):  # nearest lattice point among the neighbours
-                for b in (-1, 0, 1):
-                    x = (fu + a) * basis[0, 0] + (fv + b) * basis[0, 1]
-                    y = (fu + a) * basis[1, 0] + (fv + b) * basis[1, 1]
-                    best = np.minimum(best, np.hypot(x, y))
-            return np.where((best < radius)[..., None], dot, ground)
+def _houndstooth(name: str, place: _Placement) -> Print:
+    r = place.repeat
+    n = 8
+    block = (np.arange(n) % 8 < 4)
+    dark, light = np.array(_BLACK), np.array(_CREAM)
+    threads = np.where(block[:, None], dark, light)
+    i, j = np.meshgrid(np.arange(n), np.arange(n))  # i across (u), j down (v)
+    up = (i + j) % 4 < 2  # 2/2 twill
+    return Print(name, place.wallpaper("p1", (r, 0), (0, r)),
+                 _thread_texture(_weave(threads, threads, up)))
 
-        return Print(name, wp, lambda m: _supersampled(fn, m))
 
-    # diamonds: uniform outlined diamonds on a rhombic (centred rectangular) lattice.
+def _herringbone(name: str, place: _Placement) -> Print:
+    r = place.repeat
+    n = 6  # warp threads per twill direction; cell = 2n threads x 4 picks
+    p = r / (2 * n)
+    i, j = np.meshgrid(np.arange(2 * n), np.arange(4))
+    s = np.where(i < n, 1, -1)
+    up = (j + s * i) % 4 < 2
+    warp = np.tile(np.array(_BROWN), (2 * n, 1))
+    weft = np.tile(np.array(_CREAM), (4, 1))
+    # The half-turn centre (3.5, 2) threads is the pmg origin; mirrors then lie at
+    # the twill reversals (0.5 and 6.5 threads), glide lines along the warp axis.
+    return Print(name, place.wallpaper("pmg", (r, 0), (0, 4 * p)),
+                 _thread_texture(_weave(warp, weft, up), shift=(3.5 / (2 * n), 2 / 4)))
+
+
+def _polka(name: str, place: _Placement) -> Print:
+    """Polka dots on a square (p4m) or hexagonal (p6m) grid."""
+    r = place.repeat
+    hexagonal = name == "polka-hex"
+    w2 = r * np.array([-0.5, math.sqrt(3) / 2]) if hexagonal else np.array([0.0, r])
+    wp = place.wallpaper("p6m" if hexagonal else "p4m", (r, 0), w2)
+    basis = np.column_stack([np.array([r, 0.0]), w2])
+    dot, ground = np.array(_WHITE), np.array(_NAVY)
+    radius = 0.3 * r
+
+    def fn(u, v):
+        best = np.full(u.shape, np.inf)
+        fu, fv = _wrap(u), _wrap(v)
+        for a in (-1, 0, 1):  # nearest lattice point among the neighbours
+            for b in (-1, 0, 1):
+                x = (fu + a) * basis[0, 0] + (fv + b) * basis[0, 1]
+                y = (fu + a) * basis[1, 0] + (fv + b) * basis[1, 1]
+                best = np.minimum(best, np.hypot(x, y))
+        return np.where((best < radius)[..., None], dot, ground)
+
+    return Print(name, wp, lambda m: _supersampled(fn, m))
+
+
+def _diamonds(name: str, place: _Placement) -> Print:
+    """Uniform outlined diamonds on a rhombic (centred rectangular) lattice."""
+    r = place.repeat
     half = math.radians(34.0)  # half-angle of the diamond at its top vertex
     w1 = r * np.array([math.sin(half), math.cos(half)])
     w2 = r * np.array([-math.sin(half), math.cos(half)])
@@ -243,7 +270,20 @@ def classic_print(name: str, repeat: float = 40.0, *, rotation: float = 0.0,
         return np.where((d < 0.33)[..., None], fill,
                         np.where((d < 0.41)[..., None], ground, line))
 
-    return Print(name, wallpaper("cmm", w1, w2), lambda m: _supersampled(fn, m))
+    return Print(name, place.wallpaper("cmm", w1, w2), lambda m: _supersampled(fn, m))
+
+
+_BUILDERS: dict[str, Callable[[str, _Placement], Print]] = {
+    "stripes": _stripes,
+    "gingham": _gingham,
+    "tartan": _tartan,
+    "plaid": _tartan,
+    "houndstooth": _houndstooth,
+    "herringbone": _herringbone,
+    "polka-square": _polka,
+    "polka-hex": _polka,
+    "diamonds": _diamonds,
+}
 
 
 def woven_check(repeat: float = 10.0, threads: int = 10, *, weft_threads: int | None = None,

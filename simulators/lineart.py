@@ -164,23 +164,7 @@ def _name_group(found: list[tuple[np.ndarray, np.ndarray]], basis: np.ndarray,
                 span: float) -> str:
     """The group's name from its isometries: rotation order, then per reflection
     class whether it holds a mirror and whether it holds a glide."""
-    inv = np.linalg.inv(basis)
-    ij = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3)], float) @ basis.T
-    rotations, classes = set(), {}
-    for lin, t in found:
-        key = tuple(np.round(lin, 4).ravel())
-        if np.linalg.det(lin) > 0:
-            rotations.add(key)
-            continue
-        ev, vec = np.linalg.eigh((lin + lin.T) / 2)
-        d = vec[:, np.argmax(ev)]
-        parts = ((t + ij) @ d)[:, None] * d  # the glide part of every (lin, t + v)
-        frac = parts @ inv.T
-        mirror = bool((np.linalg.norm(parts, axis=1) < 1e-4 * span).any())
-        glide = bool((np.abs(frac - np.rint(frac)).max(1) > 1e-4).any())
-        old = classes.get(key, (False, False, d))
-        classes[key] = (old[0] or mirror, old[1] or glide, d)
-    n, refl = len(rotations), list(classes.values())
+    n, refl = _rotations_and_reflections(found, basis, span)
     if not refl:
         return {1: "p1", 2: "p2", 3: "p3", 4: "p4", 6: "p6"}[n]
     if n == 1:
@@ -200,6 +184,29 @@ def _name_group(found: list[tuple[np.ndarray, np.ndarray]], basis: np.ndarray,
              if abs(np.hypot(*v) - np.hypot(*u1)) < 1e-4 * np.hypot(*u1)]
     along = any(abs(d[0] * v[1] - d[1] * v[0]) < 1e-4 * np.hypot(*v) for v in short)
     return "p31m" if along else "p3m1"
+
+
+def _rotations_and_reflections(found: list[tuple[np.ndarray, np.ndarray]], basis: np.ndarray,
+                               span: float) -> tuple[int, list[tuple[bool, bool, np.ndarray]]]:
+    """(number of rotations, per reflection class (holds a mirror, holds a glide, the
+    mirror's direction))."""
+    inv = np.linalg.inv(basis)
+    ij = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3)], float) @ basis.T
+    rotations, classes = set(), {}
+    for lin, t in found:
+        key = tuple(np.round(lin, 4).ravel())
+        if np.linalg.det(lin) > 0:
+            rotations.add(key)
+            continue
+        ev, vec = np.linalg.eigh((lin + lin.T) / 2)
+        d = vec[:, np.argmax(ev)]
+        parts = ((t + ij) @ d)[:, None] * d  # the glide part of every (lin, t + v)
+        frac = parts @ inv.T
+        mirror = bool((np.linalg.norm(parts, axis=1) < 1e-4 * span).any())
+        glide = bool((np.abs(frac - np.rint(frac)).max(1) > 1e-4).any())
+        old = classes.get(key, (False, False, d))
+        classes[key] = (old[0] or mirror, old[1] or glide, d)
+    return len(rotations), list(classes.values())
 
 
 # ---------------------------------------------------------------- near-symmetric prints

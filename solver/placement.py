@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 import untrusted
+from solver.geometry import rotation_matrices
 from solver.jsonfile import read_json
 from solver.wallpaper import Wallpaper
 
@@ -31,12 +32,6 @@ def _pairs(value: Any, n_pieces: int) -> list[list]:
                              f"different pieces of 0..{n_pieces - 1}")
         out.append([item[0], item[1], item[2]])
     return out
-
-
-def rotation_matrices(angles: np.ndarray) -> np.ndarray:
-    """(P,) angles in radians -> (P, 2, 2) rotation matrices."""
-    c, s = np.cos(angles), np.sin(angles)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
 
 
 @dataclass

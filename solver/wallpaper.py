@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 import untrusted
+from solver.geometry import rotation_matrix
 from solver.jsonfile import read_json
 from solver.units import mm_per_unit
 
@@ -380,8 +381,7 @@ class Wallpaper:
 
     def moved(self, rotation: float = 0.0, translation=(0.0, 0.0)) -> Wallpaper:
         """The print after the rigid motion ``p -> R(rotation) p + translation``."""
-        c, s = math.cos(rotation), math.sin(rotation)
-        r = np.array([[c, -s], [s, c]])
+        r = rotation_matrix(rotation)
         return Wallpaper(self.group, r @ self.w1, r @ self.w2,
                          r @ self.origin + np.asarray(translation, float), motif=self.motif)
 

@@ -89,6 +89,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "check_memory_mb": Key(int, 4096, "memory allowed to read and check one submission",
                                minimum=64, maximum=1 << 20),
     },
+    "console": {  # the web console (station.web): loopback, a token for any change
+        "listen": Key(str, "127.0.0.1:8410", "HOST:PORT of the web console (empty: none); "
+                      "beyond loopback only with a token_file"),
+        "token_file": Key(str, "station-data/console.token", "the token changes need (made "
+                          "0640 for the control group if missing; empty: read-only console)"),
+    },
     "align": {
         "method": Key(str, "global", "alignment method", choices=("paper", "global")),
         "restarts": Key(int, 15, "random restarts", minimum=1, maximum=10_000),

@@ -55,6 +55,7 @@ from station.jobstore import (
     interrupted_reason,
 )
 from station.storeengine import StoreUnavailable
+from station.web import ConsoleServer
 from vision.pipeline import confirm_fabric
 
 log = logging.getLogger("station.daemon")
@@ -148,6 +149,7 @@ class Daemon(AnswersFromMemory):
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
+        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm"})  # refuses unsafe
         # first of all: a second daemon on this store (by any path or name) must leave
         # everything untouched
         self.lock = lock_store(config)
@@ -188,11 +190,13 @@ class Daemon(AnswersFromMemory):
         try:
             self.recover()
             self.control.start()
+            self.console.start()
             log.info("serving on %s, job store %s%s", self.control.path, self.store.location,
                      f", station {self.fleet.info.name}" if self.fleet else "")
             self.run_loop(once)
         finally:
             self.intake.stop()
+            self.console.stop()
             self.control.stop()
             if self.fleet is not None:
                 self.fleet.stop()

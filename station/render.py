@@ -1,7 +1,10 @@
 """Pictures for people: the pattern pieces over the print, seams coloured by mismatch.
 
 As in the paper's Fig. 1: every seam edge is drawn on both twins, coloured from green
-(0 mm) to red (``red_mm`` or more), over the print as it lies on each piece.
+(0 mm) to red (``red_mm`` or more), over the print as it lies on each piece. The print is
+always the fabric as it is: the rectified photograph of the table (:func:`photo_colours`),
+or, for a fabric given only as a FABRIC.json, its lattice ruled on plain cloth
+(:func:`lattice_colours`); never a motif invented for the group.
 """
 
 from __future__ import annotations
@@ -12,8 +15,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+import untrusted
+from gcode.program import program_moves
 from solver.fit import FitReport
+from solver.garment.grain import grain_lines
+from solver.jsonfile import read_json
 from solver.placement import Placement
+from solver.wallpaper import Wallpaper
 
 ColourOf = Callable[[np.ndarray], np.ndarray]  # (N, 2) wallpaper mm -> (N, 3) BGR uint8
 
@@ -26,22 +34,21 @@ def mismatch_colours(distance: np.ndarray, red_mm: float = 20.0) -> np.ndarray:
     return (np.stack([np.zeros_like(s), green, red], -1) * 220).astype(np.uint8)
 
 
-def default_print_colours(wallpaper, pixel_mm: float, seed: int = 7) -> ColourOf:
-    """The print as the simulators render it (motif built from the group's operations)."""
-    from simulators.fabric import random_print, to_uint8
-
-    fabric = random_print(wallpaper.group, w1=wallpaper.w1, w2=wallpaper.w2,
-                          origin=tuple(wallpaper.origin), seed=seed)
+def lattice_colours(wallpaper, pixel_mm: float) -> ColourOf:
+    """Plain cloth ruled with the print's lattice cells, for a fabric nobody photographed
+    (a FABRIC.json given by hand): all the station knows of that print is its lattice,
+    so that is all the picture shows; an invented motif would pass for the real cloth."""
+    lengths = np.array([np.hypot(*wallpaper.w1), np.hypot(*wallpaper.w2)])
+    half_line = np.maximum(0.75 * pixel_mm, 0.3) / lengths  # fractional half-width
 
     def colour_of(points: np.ndarray) -> np.ndarray:
-        # cv2.remap wants 2D maps no wider than 32767: lay the points out in rows.
-        n, width = len(points), 4096
-        rows = -(-n // width)
-        padded = np.zeros((rows * width, 2))
-        padded[:n] = points
-        grid = padded.reshape(rows, width, 2)
-        colours = fabric.colour_at(grid[..., 0], grid[..., 1], pixel_mm)
-        return to_uint8(colours.reshape(-1, 3)[:n])
+        f = wallpaper.to_fractional(np.asarray(points, float))
+        off = np.abs(f - np.round(f))  # distance to the nearest cell edge, in cells
+        on_line = (off < half_line).any(axis=1)
+        out = np.empty((len(f), 3), np.uint8)
+        out[:] = (222, 226, 230)
+        out[on_line] = (150, 150, 150)
+        return out
 
     return colour_of
 
@@ -71,6 +78,23 @@ def photo_colours(photo: np.ndarray | None, mm_per_px: float, wallpaper) -> Colo
         return out.reshape(-1, 3)[:n]
 
     return colour_of
+
+
+def fabric_picture(fabric_path: str | Path, wallpaper) -> ColourOf | None:
+    """Colours of the print as the picture a FABRIC.json names shows it (``image``, with
+    ``mm_per_px``, as `station simulate-fabric` writes them beside the lattice), None
+    when it names no picture: the desk commands then rule the lattice on plain cloth.
+    The picture is read within the limits of any untrusted image."""
+    source = str(fabric_path)
+    doc = read_json(fabric_path)
+    if not isinstance(doc, dict) or doc.get("image") is None:
+        return None
+    image = Path(untrusted.text(doc["image"], source, "image", max_len=4096))
+    if not image.is_absolute():
+        image = Path(fabric_path).parent / image
+    mm_per_px = untrusted.number(doc.get("mm_per_px"), source, "mm_per_px", lo=0.0,
+                                 hi=1000.0, lo_open=True)
+    return photo_colours(untrusted.read_image(image), mm_per_px, wallpaper)
 
 
 def garment_credit(source: str | Path) -> str | None:
@@ -130,7 +154,7 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
     margin = 0.04 * float(np.max(hi - lo))
     lo, hi = lo - margin, hi + margin
     scale = width_px / float(hi[0] - lo[0])
-    colour_of = colour_of or default_print_colours(placement.fabric, 1.0 / scale)
+    colour_of = colour_of or lattice_colours(placement.fabric, 1.0 / scale)
     height_px = max(1, int(np.ceil((hi[1] - lo[1]) * scale)))
     banner = 60
 
@@ -203,8 +227,6 @@ def draw_fit(garment, placement: Placement, report: FitReport, path: str | Path,
 
 def draw_grain_arrows(image: np.ndarray, garment, to_px, scale: float) -> None:
     """Each piece's grain line, dark blue, arrow head at the grain's direction."""
-    from solver.garment.grain import grain_lines
-
     for tail, head in grain_lines(garment):
         a, b = to_px(np.array([tail])), to_px(np.array([head]))
         length = max(float(np.hypot(*(head - tail))) * scale, 1.0)
@@ -225,6 +247,25 @@ def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str
                 0.45, (30, 30, 30), 1, cv2.LINE_AA)
 
 
+def cloth_image(layout: dict, width_px: int, *, photo: np.ndarray | None = None,
+                photo_mm_per_px: float = 1.0) -> np.ndarray:
+    """The fabric under a marker, ``width_px`` wide over the layout's length (BGR): the
+    rectified photo when there is one, else the layout's lattice ruled on plain cloth,
+    else plain cloth. The console draws its live marker over this very picture."""
+    length = float(layout["length"]) or 1.0
+    scale = width_px / length
+    height_px = max(1, int(np.ceil(float(layout["width"]) * scale)))
+    if photo is not None:
+        m = np.array([[scale * photo_mm_per_px, 0, 0], [0, scale * photo_mm_per_px, 0]])
+        return cv2.warpAffine(photo, m, (width_px, height_px), flags=cv2.INTER_AREA)
+    if not layout.get("fabric"):
+        return np.full((height_px, width_px, 3), 225, np.uint8)
+    colour_of = lattice_colours(Wallpaper.from_dict(layout["fabric"]), 1.0 / scale)
+    ys, xs = np.mgrid[0:height_px, 0:width_px]
+    pts = np.column_stack([(xs.ravel() + 0.5) / scale, (ys.ravel() + 0.5) / scale])
+    return colour_of(pts).reshape(height_px, width_px, 3)
+
+
 def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitReport | None = None,
                 photo: np.ndarray | None = None, photo_mm_per_px: float = 1.0,
                 width_px: int = 1600, red_mm: float = 20.0,
@@ -233,26 +274,14 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
 
     ``layout`` is LAYOUT.json's content (fabric mm, x along the roll, y across it, drawn
     with y down like the rectified photo). The background is the rectified photo when
-    given (pixel (c, r) at (c, r) * ``photo_mm_per_px`` mm), else the print rendered from
-    the layout's fabric, else plain cloth.
+    given (pixel (c, r) at (c, r) * ``photo_mm_per_px`` mm), else the layout's lattice
+    ruled on plain cloth (:func:`cloth_image`).
     """
     length = float(layout["length"]) or 1.0
-    width = float(layout["width"])
     scale = width_px / length
-    height_px = max(1, int(np.ceil(width * scale)))
+    cloth = cloth_image(layout, width_px, photo=photo, photo_mm_per_px=photo_mm_per_px)
+    height_px = cloth.shape[0]
     banner = 40
-    if photo is not None:
-        m = np.array([[scale * photo_mm_per_px, 0, 0], [0, scale * photo_mm_per_px, 0]])
-        cloth = cv2.warpAffine(photo, m, (width_px, height_px), flags=cv2.INTER_AREA)
-    elif layout.get("fabric"):
-        from solver.wallpaper import Wallpaper
-
-        colour_of = default_print_colours(Wallpaper.from_dict(layout["fabric"]), 1.0 / scale)
-        ys, xs = np.mgrid[0:height_px, 0:width_px]
-        pts = np.column_stack([(xs.ravel() + 0.5) / scale, (ys.ravel() + 0.5) / scale])
-        cloth = colour_of(pts).reshape(height_px, width_px, 3)
-    else:
-        cloth = np.full((height_px, width_px, 3), 225, np.uint8)
     # Waste is dimmed so the pieces stand out.
     image = np.full((height_px + banner, width_px, 3), 245, np.uint8)
     image[banner:] = (0.45 * cloth + 0.55 * 245).astype(np.uint8)
@@ -282,7 +311,7 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
     if credit:  # the garment's licence may ask for it on every image (garment_credit)
         _draw_credit(image, credit)
     density = layout.get("density")
-    text = (f"marker {length:.0f} x {width:.0f} mm, {len(layout['pieces'])} pieces"
+    text = (f"marker {length:.0f} x {float(layout['width']):.0f} mm, {len(layout['pieces'])} pieces"
             + (f", density {100 * density:.1f}%" if density is not None else ""))
     cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
                 cv2.LINE_AA)
@@ -342,8 +371,6 @@ def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
 def program_paths(program) -> list[tuple[bool, int, np.ndarray]]:
     """Every move of a checked G-code program as (cutting, piece number or 0, (k, 2) points),
     as the program checker read it (`gcode.program.program_moves`)."""
-    from gcode.program import program_moves
-
     return [(on, piece, pts) for _, on, piece, pts in program_moves(program)]
 
 

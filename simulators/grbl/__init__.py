@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import serial
 
-from simulators.grbl.emulator import Faults, GrblEmulator
+from simulators.grbl.emulator import GrblEmulator
+from simulators.grbl.faults import Faults
 from simulators.grbl.motion import Segment
-from simulators.grbl.parser import GrblError
+from simulators.grbl.parser_state import GrblError
 from simulators.grbl.registry import forget, get_or_create, lookup
 
 __all__ = ["Faults", "GrblEmulator", "GrblError", "Segment", "forget", "get_or_create", "lookup"]

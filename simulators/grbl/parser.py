@@ -1,138 +1,393 @@
-"""GRBL 1.1 line pre-parser and G-code block parser.
+"""GRBL 1.1 G-code block parser.
 
 A block is validated completely before anything changes, as GRBL's gc_execute_line does:
 "Grbl did not recognize the command and did not execute anything inside that message"
 (interface.md, `error:X`). The parser keeps GRBL's modal state (`$G`) and the parser position,
 and turns a valid block into a list of actions that the machine executes in order
 (planner moves, buffer syncs, dwells, spindle/coolant changes, program pause/end).
+
+Like the firmware's gcode.c, a block goes through steps in a fixed order: its words are read
+and sorted into modal groups, then one small step per modal group or word checks and applies
+it (`_STEPS`), the non-modal commands through a table of their own (`_NON_MODAL`). The order of
+the steps is the order in which errors are found, which a sender sees.
 """
 
 from __future__ import annotations
 
 import copy
-import math
-import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 import simulators.grbl.codes as C
-
-MM_PER_INCH = 25.4
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
-
-
-class GrblError(Exception):
-    """A status code GRBL answers as `error:N`."""
-
-    def __init__(self, code: int):
-        super().__init__(f"error:{code}")
-        self.code = code
-
-
-def preparse(raw: bytes) -> tuple[str, bool]:
-    """Strip a received line as GRBL's protocol loop does; return (line, overflowed).
-
-    Whitespace and control characters are dropped, `(...)` and `;` comments removed, `/` block
-    delete ignored, letters upper-cased, and more than LINE_BUFFER_SIZE-1 (79) significant
-    characters flag a line overflow (error:11).
-    """
-    out: list[str] = []
-    paren = semicolon = overflow = False
-    for byte in raw:
-        c = chr(byte)
-        if paren or semicolon or overflow:
-            if c == ")" and paren:
-                paren = False
-            continue
-        if byte <= 0x20 or c == "/":
-            continue
-        if c == "(":
-            paren = True
-        elif c == ";":
-            semicolon = True
-        elif len(out) >= C.LINE_BUFFER_SIZE - 1:
-            overflow = True
-        else:
-            out.append(c.upper() if "a" <= c <= "z" else c)
-    return "".join(out), overflow
-
-
-def split_words(line: str) -> list[tuple[str, float]]:
-    """`G1X10.5F300` -> [("G",1.0),("X",10.5),("F",300.0)]; error:1 / error:2 on bad syntax."""
-    words = []
-    i = 0
-    while i < len(line):
-        letter = line[i]
-        if not ("A" <= letter <= "Z"):
-            raise GrblError(C.E_EXPECTED_COMMAND_LETTER)
-        m = _NUMBER.match(line, i + 1)
-        if m is None:
-            raise GrblError(C.E_BAD_NUMBER_FORMAT)
-        words.append((letter, float(m.group())))
-        i = m.end()
-    return words
+from simulators.grbl.arc import arc_points
+from simulators.grbl.parser_state import (
+    MM_PER_INCH,
+    GrblError,
+    Move,
+    Params,
+    ParserState,
+    work_offset,
+)
+from simulators.grbl.words import AXIS, Words, read_words
 
 
 @dataclass
-class ParserState:
-    """GRBL's gc_state: modal groups, T/F/S, parser position (machine mm) and offsets."""
+class _Block:
+    """One block on its way through the steps: its words, the parser state before it, the
+    state and parameters it makes, and the actions it asks of the machine."""
 
-    motion: str = "G0"  # G0 G1 G2 G3 G80
-    coord_index: int = 0  # 0..5 -> G54..G59
-    plane: int = 17
-    inches: bool = False
-    incremental: bool = False
-    inverse_time: bool = False
-    program: str = ""  # "M0", "M1" shown by $G while paused
-    spindle: str = "M5"
-    flood: bool = False
-    tool: int = 0
-    feed: float = 0.0  # mm/min (stored in mm as GRBL does)
-    speed: float = 0.0
-    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    g92: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    tlo: float = 0.0
+    words: Words
+    old: ParserState
+    new: ParserState
+    params: Params
+    settings: dict[int, float]
+    jog: bool
+    axis_words: dict[str, float]
+    used: set[str]  # value letters some step consumed; any other is error:36
+    axis_command: str | None
+    unit: float = 1.0  # mm per unit of the block's numbers
+    jog_feed: float = 0.0
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(3))  # work offset
+    motion_target: np.ndarray | None = None
+    pre: list[tuple] = field(default_factory=list)  # spindle, coolant, dwell: before motion
+    actions: list[tuple] = field(default_factory=list)
+    post: list[tuple] = field(default_factory=list)  # program pause or end
+
+    @classmethod
+    def start(cls, words: Words, state: ParserState, params: Params,
+              settings: dict[int, float], jog: bool) -> _Block:
+        axis_words = {k: v for k, v in words.values.items() if k in AXIS}
+        axis_command = words.axis_command or ("motion" if axis_words else None)
+        return cls(words=words, old=state, new=copy.deepcopy(state),
+                   params=copy.deepcopy(params), settings=settings, jog=jog,
+                   axis_words=axis_words, used=set("NFST") | set(axis_words),
+                   axis_command=axis_command)
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.words.values
+
+    @property
+    def nonmodal(self) -> tuple[int, int] | None:
+        return self.words.g.get(0)
+
+    def target(self, pos: np.ndarray, machine: bool = False) -> np.ndarray:
+        """``pos`` moved by the block's axis words (machine mm): G53 machine coordinates,
+        G91 increments, or G90 work coordinates."""
+        t = pos.copy()
+        for k, v in self.axis_words.items():
+            i = AXIS[k]
+            v *= self.unit
+            if machine:
+                t[i] = v
+            elif self.new.incremental:
+                t[i] = pos[i] + v
+            else:
+                t[i] = v + self.offset[i]
+        return t
 
 
-@dataclass
-class Params:
-    """Non-volatile G-code parameters (EEPROM): G54..G59, G28, G30."""
-
-    coord: np.ndarray = field(default_factory=lambda: np.zeros((6, 3)))
-    g28: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    g30: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-
-# Modal groups of the G and M words GRBL 1.1 accepts (commands.md "Modal Group Meaning").
-_G_GROUPS = {
-    4: 0, 10: 0, 28: 0, 30: 0, 53: 0, 92: 0,
-    0: 1, 1: 1, 2: 1, 3: 1, 80: 1,
-    17: 2, 18: 2, 19: 2,
-    90: 3, 91: 3,
-    93: 5, 94: 5,
-    20: 6, 21: 6,
-    40: 7,
-    43: 8, 49: 8,
-    54: 12, 55: 12, 56: 12, 57: 12, 58: 12, 59: 12,
-    61: 13,
-}  # fmt: skip
-_M_GROUPS = {0: 4, 1: 4, 2: 4, 30: 4, 3: 7, 4: 7, 5: 7, 8: 8, 9: 8}
-_AXIS = {"X": 0, "Y": 1, "Z": 2}
-_VALUE_LETTERS = set("FIJKLNPRSTXYZ")
-_PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+def _check_jog(b: _Block) -> None:
+    """commands.md: only G20/G21, G90/G91 and G53 are allowed in a jog; F is required."""
+    if not b.jog:
+        return
+    if b.words.m or set(b.words.g) - {0, 3, 6}:
+        raise GrblError(C.E_INVALID_JOG_COMMAND)
+    if 0 in b.words.g and b.words.g[0] != (53, 0):
+        raise GrblError(C.E_INVALID_JOG_COMMAND)
+    if set(b.values) - set("XYZFN"):
+        raise GrblError(C.E_INVALID_JOG_COMMAND)
+    if "F" not in b.values:
+        raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
 
 
-@dataclass
-class Move:
-    """One planner block request: target in machine mm, feed in mm/min (None = rapid)."""
+def _check_line_number(b: _Block) -> None:
+    if b.values.get("N", 0) > C.MAX_LINE_NUMBER:
+        raise GrblError(C.E_GCODE_INVALID_LINE_NUMBER)
 
-    target: np.ndarray
-    feed: float | None
-    jog: bool = False
-    spindle: str = "M5"
-    speed: float = 0.0
-    line_number: int = 0
+
+def _set_reading_modes(b: _Block) -> None:
+    """G20/G21, G90/G91, G93/G94 first: they change how the block's numbers are read."""
+    g = b.words.g
+    if 6 in g:
+        b.new.inches = g[6][0] == 20
+    if 3 in g:
+        b.new.incremental = g[3][0] == 91
+    if 5 in g and not b.jog:
+        b.new.inverse_time = g[5][0] == 93
+    b.unit = MM_PER_INCH if b.new.inches else 1.0
+
+
+def _set_feed(b: _Block) -> None:
+    if b.jog:
+        b.jog_feed = b.values["F"] * b.unit
+    elif "F" in b.values:
+        if not b.new.inverse_time:  # an inverse-time F is per block, read with the motion
+            b.new.feed = b.values["F"] * b.unit
+    elif 5 in b.words.g and b.old.inverse_time and not b.new.inverse_time:
+        b.new.feed = 0.0  # "Feed rate is not defined after switching to G94 from G93"
+
+
+def _set_tool(b: _Block) -> None:
+    if "T" in b.values:
+        if b.values["T"] > C.MAX_TOOL_NUMBER:
+            raise GrblError(C.E_GCODE_MAX_VALUE_EXCEEDED)
+        b.new.tool = int(b.values["T"])
+
+
+def _set_speed(b: _Block) -> None:
+    if "S" in b.values and not b.jog:
+        b.new.speed = b.values["S"]
+
+
+def _check_dwell(b: _Block) -> None:
+    if b.nonmodal and b.nonmodal[0] == 4:
+        if "P" not in b.values:
+            raise GrblError(C.E_GCODE_VALUE_WORD_MISSING)
+        b.used.add("P")
+
+
+def _set_plane(b: _Block) -> None:
+    if 2 in b.words.g:
+        b.new.plane = b.words.g[2][0]
+
+
+def _set_tool_length(b: _Block) -> None:
+    """G43.1 Z sets the dynamic tool length offset (its Z word is not a motion), G49
+    cancels it."""
+    if 8 not in b.words.g:
+        return
+    number, _ = b.words.g[8]
+    if number == 43:
+        if set(b.axis_words) != {"Z"}:
+            raise GrblError(C.E_GCODE_G43_DYNAMIC_AXIS_ERROR)
+        b.axis_command = "nonmodal"
+    b.new.tlo = b.axis_words["Z"] * b.unit if number == 43 else 0.0
+
+
+def _select_coordinates(b: _Block) -> None:
+    if 12 in b.words.g:
+        b.new.coord_index = b.words.g[12][0] - 54
+
+
+def _set_motion_mode(b: _Block) -> None:
+    if 1 in b.words.g and not b.jog:
+        b.new.motion = f"G{b.words.g[1][0]}"
+
+
+def _check_axis_words(b: _Block) -> None:
+    """Axis words need a motion mode (not G80); G53 needs G0 or G1. The work offset that
+    reads them is the one in force before this block's G10 or G92."""
+    b.offset = work_offset(b.new, b.params)
+    if b.new.motion == "G80" and b.axis_words and b.axis_command == "motion" and not b.jog:
+        raise GrblError(C.E_GCODE_AXIS_WORDS_EXIST)
+    if b.nonmodal == (53, 0) and not b.jog and b.new.motion not in ("G0", "G1"):
+        raise GrblError(C.E_GCODE_G53_INVALID_MOTION_MODE)
+
+
+def _set_coordinate_data(b: _Block) -> None:
+    """G10 L2 Pn / G10 L20 Pn: store a work origin (L20: such that here is the given
+    position) in EEPROM."""
+    if not b.axis_words:
+        raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
+    if "P" not in b.values or "L" not in b.values:
+        raise GrblError(C.E_GCODE_VALUE_WORD_MISSING)
+    b.used |= {"P", "L"}
+    p = int(b.values["P"])
+    if p > 6:
+        raise GrblError(C.E_GCODE_UNSUPPORTED_COORD_SYS)
+    idx = b.new.coord_index if p == 0 else p - 1
+    l_value = int(b.values["L"])
+    if l_value not in (2, 20):
+        raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)
+    new = b.new
+    for k, v in b.axis_words.items():
+        i = AXIS[k]
+        v *= b.unit
+        if l_value == 20:
+            v = new.position[i] - new.g92[i] - (new.tlo if i == 2 else 0.0) - v
+        b.params.coord[idx, i] = v
+    b.actions.append(("store_params",))
+
+
+def _go_home(b: _Block) -> None:
+    """G28 / G30: rapid through the given point (if any) to the stored position."""
+    home = b.params.g28 if b.nonmodal[0] == 28 else b.params.g30
+    if b.axis_words:
+        b.actions.append(("move", Move(b.target(b.new.position), None)))
+    final = home.copy()
+    b.actions.append(("move", Move(final, None)))
+    b.new.position = final
+
+
+def _set_home(b: _Block) -> None:
+    """G28.1 / G30.1: store the present position in EEPROM."""
+    if b.nonmodal[0] == 28:
+        b.params.g28 = b.new.position.copy()
+    else:
+        b.params.g30 = b.new.position.copy()
+    b.actions.append(("store_params",))
+
+
+def _set_g92(b: _Block) -> None:
+    """G92: offset the work coordinates so that here reads as the given position."""
+    if not b.axis_words:
+        raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
+    new = b.new
+    for k, v in b.axis_words.items():
+        i = AXIS[k]
+        new.g92[i] = new.position[i] - b.params.coord[new.coord_index, i] - v * b.unit
+        if i == 2:
+            new.g92[i] -= new.tlo
+    b.actions.append(("wco",))
+
+
+def _clear_g92(b: _Block) -> None:
+    b.new.g92 = np.zeros(3)
+    b.actions.append(("wco",))
+
+
+_NON_MODAL: dict[tuple[int, int], Callable[[_Block], None]] = {
+    (10, 0): _set_coordinate_data,
+    (28, 0): _go_home,
+    (30, 0): _go_home,
+    (28, 10): _set_home,
+    (30, 10): _set_home,
+    (92, 0): _set_g92,
+    (92, 10): _clear_g92,
+}  # G4 and G53 act elsewhere (_check_dwell, _dwell, _motion)
+
+
+def _non_modal(b: _Block) -> None:
+    handler = _NON_MODAL.get(b.nonmodal) if b.nonmodal else None
+    if handler is not None:
+        handler(b)
+
+
+def _report_offsets(b: _Block) -> None:
+    """A new work offset is reported (`WCO:`) in the next status report."""
+    g = b.words.g
+    active_g10 = (b.nonmodal and b.nonmodal[0] == 10
+                  and int(b.values["P"]) in (0, b.new.coord_index + 1))
+    if 12 in g or 8 in g or active_g10:
+        b.actions.append(("wco",))
+
+
+def _check_feed_defined(b: _Block, mode: str) -> None:
+    if mode not in ("G1", "G2", "G3") or b.jog:
+        return
+    if b.new.inverse_time:
+        if "F" not in b.values:
+            raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
+    elif b.new.feed == 0.0:
+        raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
+
+
+def _motion(b: _Block) -> None:
+    """The block's motion in the modal motion mode (a jog is always G1)."""
+    if b.axis_command != "motion" or (b.new.motion == "G80" and not b.jog):
+        return
+    mode = "G1" if b.jog else b.new.motion
+    _check_feed_defined(b, mode)
+    if mode in ("G2", "G3") and not b.axis_words:
+        raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
+    if not b.axis_words:
+        return
+    target = b.target(b.new.position, machine=b.nonmodal == (53, 0))
+    feed = b.jog_feed if b.jog else (None if mode == "G0" else b.new.feed)
+    if mode in ("G2", "G3"):
+        _arc_moves(b, target, feed, clockwise=mode == "G2")
+    else:
+        _line_move(b, target, feed)
+    b.motion_target = target
+    b.new.position = target
+
+
+def _arc_moves(b: _Block, target: np.ndarray, feed: float | None, clockwise: bool) -> None:
+    points, used = arc_points(b.new, b.values, target, clockwise, b.settings, b.unit)
+    b.used |= used
+    if b.new.inverse_time:  # F is 1/minutes for the whole arc
+        length = float(np.sum(np.linalg.norm(np.diff(
+            np.vstack([b.new.position, points]), axis=0), axis=1)))
+        feed = length * b.values["F"]
+    for pt in points:
+        b.actions.append(("move", Move(pt, feed, spindle=b.new.spindle, speed=b.new.speed)))
+
+
+def _line_move(b: _Block, target: np.ndarray, feed: float | None) -> None:
+    if b.new.inverse_time and feed is not None and not b.jog:
+        feed = float(np.linalg.norm(target - b.new.position)) * b.values["F"]
+    b.actions.append(("move", Move(target, feed, jog=b.jog, spindle=b.new.spindle,
+                                   speed=b.new.speed, line_number=int(b.values.get("N", 0)))))
+
+
+def _check_unused(b: _Block) -> None:
+    if set(b.values) - b.used:
+        raise GrblError(C.E_GCODE_UNUSED_WORDS)
+
+
+def _spindle(b: _Block) -> None:
+    """M3/M4/M5 and S, applied before the block's motion; the moves carry the new state."""
+    if 7 in b.words.m:
+        b.new.spindle = f"M{b.words.m[7]}"
+        for kind, *rest in b.actions:
+            if kind == "move":
+                rest[0].spindle = b.new.spindle
+    spindle_changed = b.new.spindle != b.old.spindle
+    speed_changed = "S" in b.values and b.new.speed != b.old.speed
+    if spindle_changed or speed_changed:
+        b.pre.append(("spindle", b.new.spindle, b.new.speed, spindle_changed,
+                      b.motion_target is None))
+
+
+def _coolant(b: _Block) -> None:
+    if 8 in b.words.m:
+        b.new.flood = b.words.m[8] == 8
+        b.pre.append(("coolant", b.new.flood))
+
+
+def _dwell(b: _Block) -> None:
+    if b.nonmodal and b.nonmodal[0] == 4:
+        b.pre.append(("dwell", b.values["P"]))
+
+
+def _program_flow(b: _Block) -> None:
+    """M0/M1 pause after the block, M2/M30 end the program."""
+    if 4 not in b.words.m:
+        return
+    stop = b.words.m[4]
+    if stop in (0, 1):
+        b.new.program = f"M{stop}"
+        b.post.append(("pause", f"M{stop}"))
+    else:
+        b.post.append(("end",))
+
+
+#: The steps of a block, in GRBL's order (gcode.c's "STEP 3" checks then "STEP 4" execution).
+_STEPS: tuple[Callable[[_Block], None], ...] = (
+    _check_jog,
+    _check_line_number,
+    _set_reading_modes,
+    _set_feed,
+    _set_tool,
+    _set_speed,
+    _check_dwell,
+    _set_plane,
+    _set_tool_length,
+    _select_coordinates,
+    _set_motion_mode,
+    _check_axis_words,
+    _non_modal,
+    _report_offsets,
+    _motion,
+    _check_unused,
+    _spindle,
+    _coolant,
+    _dwell,
+    _program_flow,
+)
 
 
 def parse_block(
@@ -148,355 +403,7 @@ def parse_block(
     Actions: ("move", Move), ("sync",), ("dwell", s), ("spindle", M, S), ("coolant", flood),
     ("wco",), ("pause", "M0"), ("end",), ("store_params",).
     """
-    words = split_words(line)
-    g_groups: dict[int, tuple[int, int]] = {}
-    m_groups: dict[int, int] = {}
-    values: dict[str, float] = {}
-    axis_command: str | None = None  # "nonmodal" | "motion"
-    for letter, value in words:
-        if letter == "G":
-            ival = int(value)
-            mant = int(round(100 * (value - ival)))
-            if ival == 38:
-                raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)  # no probe on a cutter
-            if ival not in _G_GROUPS:
-                raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)
-            allowed_mant = {28: {0, 10}, 30: {0, 10}, 92: {0, 10}, 91: {0, 10}, 43: {10}}
-            if mant not in allowed_mant.get(ival, {0}):
-                if ival == 90 or (ival == 43 and mant == 0):
-                    raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)
-                raise GrblError(C.E_GCODE_COMMAND_VALUE_NOT_INTEGER)
-            group = _G_GROUPS[ival]
-            if ival == 91 and mant == 10:
-                group = 4  # G91.1 arc IJK distance mode
-            if group == 0 and ival in (10, 28, 30, 92) and mant == 0:
-                if axis_command:
-                    raise GrblError(C.E_GCODE_AXIS_COMMAND_CONFLICT)
-                axis_command = "nonmodal"
-            elif group == 1:
-                if axis_command:
-                    raise GrblError(C.E_GCODE_AXIS_COMMAND_CONFLICT)
-                axis_command = "motion"
-            if group in g_groups:
-                raise GrblError(C.E_GCODE_MODAL_GROUP_VIOLATION)
-            g_groups[group] = (ival, mant)
-        elif letter == "M":
-            ival = int(value)
-            if value != ival:
-                raise GrblError(C.E_GCODE_COMMAND_VALUE_NOT_INTEGER)
-            if ival not in _M_GROUPS:
-                raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)  # M7 needs ENABLE_M7
-            group = _M_GROUPS[ival]
-            if group in m_groups:
-                raise GrblError(C.E_GCODE_MODAL_GROUP_VIOLATION)
-            m_groups[group] = ival
-        elif letter in _VALUE_LETTERS:
-            if letter in values:
-                raise GrblError(C.E_GCODE_WORD_REPEATED)
-            if letter in "FNPST" and value < 0:
-                raise GrblError(C.E_NEGATIVE_VALUE)
-            values[letter] = value
-        else:
-            raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)
-
-    new = copy.deepcopy(state)
-    par = copy.deepcopy(params)
-    actions: list[tuple] = []
-    axis_words = {k: v for k, v in values.items() if k in _AXIS}
-    used = set("NFST") | set(axis_words)
-    if axis_words and axis_command is None:
-        axis_command = "motion"
-
-    if jog:
-        # commands.md: only G20/G21, G90/G91 and G53 are allowed in a jog; F is required.
-        if m_groups or set(g_groups) - {0, 3, 6}:
-            raise GrblError(C.E_INVALID_JOG_COMMAND)
-        if 0 in g_groups and g_groups[0] != (53, 0):
-            raise GrblError(C.E_INVALID_JOG_COMMAND)
-        if set(values) - set("XYZFN"):
-            raise GrblError(C.E_INVALID_JOG_COMMAND)
-        if "F" not in values:
-            raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
-
-    if values.get("N", 0) > C.MAX_LINE_NUMBER:
-        raise GrblError(C.E_GCODE_INVALID_LINE_NUMBER)
-    # Modal words that change how values are read come first.
-    if 6 in g_groups:
-        new.inches = g_groups[6][0] == 20
-    if 3 in g_groups:
-        new.incremental = g_groups[3][0] == 91
-    if 5 in g_groups and not jog:
-        new.inverse_time = g_groups[5][0] == 93
-    unit = MM_PER_INCH if new.inches else 1.0
-    if jog:
-        jog_feed = values["F"] * unit
-    elif "F" in values:
-        if new.inverse_time:
-            pass  # inverse-time F is per block, handled with the motion
-        else:
-            new.feed = values["F"] * unit
-    elif 5 in g_groups and state.inverse_time and not new.inverse_time:
-        new.feed = 0.0  # "Feed rate is not defined after switching to G94 from G93"
-    if "T" in values:
-        if values["T"] > C.MAX_TOOL_NUMBER:
-            raise GrblError(C.E_GCODE_MAX_VALUE_EXCEEDED)
-        new.tool = int(values["T"])
-    if "S" in values and not jog:
-        new.speed = values["S"]
-
-    nonmodal = g_groups.get(0)
-    if nonmodal and nonmodal[0] == 4:
-        if "P" not in values:
-            raise GrblError(C.E_GCODE_VALUE_WORD_MISSING)
-        used.add("P")
-    if 2 in g_groups:
-        new.plane = g_groups[2][0]
-    if 8 in g_groups:
-        ival, _ = g_groups[8]
-        if ival == 43:
-            if set(axis_words) != {"Z"}:
-                raise GrblError(C.E_GCODE_G43_DYNAMIC_AXIS_ERROR)
-            axis_command = "nonmodal"
-        new.tlo = axis_words["Z"] * unit if ival == 43 else 0.0
-    if 12 in g_groups:
-        new.coord_index = g_groups[12][0] - 54
-    if 1 in g_groups and not jog:
-        new.motion = f"G{g_groups[1][0]}"
-
-    def wco(s: ParserState, p: Params) -> np.ndarray:
-        off = p.coord[s.coord_index] + s.g92
-        off = off.copy()
-        off[2] += s.tlo
-        return off
-
-    offset = wco(new, par)
-    if new.motion == "G80" and axis_words and axis_command == "motion" and not jog:
-        raise GrblError(C.E_GCODE_AXIS_WORDS_EXIST)
-
-    absolute_override = nonmodal == (53, 0)
-    if absolute_override and not jog and new.motion not in ("G0", "G1"):
-        raise GrblError(C.E_GCODE_G53_INVALID_MOTION_MODE)
-
-    def target_of(pos: np.ndarray, machine: bool = False) -> np.ndarray:
-        t = pos.copy()
-        for k, v in axis_words.items():
-            i = _AXIS[k]
-            v *= unit
-            if machine:
-                t[i] = v
-            elif new.incremental:
-                t[i] = pos[i] + v
-            else:
-                t[i] = v + offset[i]
-        return t
-
-    # Non-modal actions (G10, G28, G30, G92, G92.1, G28.1, G30.1).
-    if nonmodal and nonmodal[0] == 10:
-        if not axis_words:
-            raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
-        if "P" not in values or "L" not in values:
-            raise GrblError(C.E_GCODE_VALUE_WORD_MISSING)
-        used |= {"P", "L"}
-        p = int(values["P"])
-        if p > 6:
-            raise GrblError(C.E_GCODE_UNSUPPORTED_COORD_SYS)
-        idx = new.coord_index if p == 0 else p - 1
-        lval = int(values["L"])
-        if lval not in (2, 20):
-            raise GrblError(C.E_GCODE_UNSUPPORTED_COMMAND)
-        for k, v in axis_words.items():
-            i = _AXIS[k]
-            v *= unit
-            if lval == 20:
-                v = new.position[i] - new.g92[i] - (new.tlo if i == 2 else 0.0) - v
-            par.coord[idx, i] = v
-        actions.append(("store_params",))
-    elif nonmodal and nonmodal[0] in (28, 30):
-        if nonmodal[1] == 10:
-            if nonmodal[0] == 28:
-                par.g28 = new.position.copy()
-            else:
-                par.g30 = new.position.copy()
-            actions.append(("store_params",))
-        else:
-            home = par.g28 if nonmodal[0] == 28 else par.g30
-            if axis_words:  # "G28 X.. Y..": rapid to the intermediate point first
-                actions.append(("move", Move(target_of(new.position), None)))
-            final = home.copy()
-            actions.append(("move", Move(final, None)))
-            new.position = final
-    elif nonmodal and nonmodal[0] == 92:
-        if nonmodal[1] == 10:
-            new.g92 = np.zeros(3)
-        else:
-            if not axis_words:
-                raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
-            for k, v in axis_words.items():
-                i = _AXIS[k]
-                new.g92[i] = new.position[i] - par.coord[new.coord_index, i] - v * unit
-                if i == 2:
-                    new.g92[i] -= new.tlo
-        actions.append(("wco",))
-    if (
-        12 in g_groups
-        or 8 in g_groups
-        or (nonmodal and nonmodal[0] == 10 and (int(values["P"]) in (0, new.coord_index + 1)))
-    ):
-        actions.append(("wco",))
-
-    # Motion.
-    motion_target = None
-    if axis_command == "motion" and (new.motion != "G80" or jog):
-        mode = "G1" if jog else new.motion
-        if mode in ("G1", "G2", "G3") and not jog:
-            if new.inverse_time:
-                if "F" not in values:
-                    raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
-            elif new.feed == 0.0:
-                raise GrblError(C.E_GCODE_UNDEFINED_FEED_RATE)
-        if mode in ("G2", "G3") and not axis_words:
-            raise GrblError(C.E_GCODE_NO_AXIS_WORDS)
-        if axis_words:
-            target = target_of(new.position, machine=absolute_override)
-            feed = jog_feed if jog else (None if mode == "G0" else new.feed)
-            if mode in ("G2", "G3"):
-                points, used_words = _arc(new, values, target, mode == "G2", settings, unit)
-                used |= used_words
-                length = float(np.sum(np.linalg.norm(np.diff(
-                    np.vstack([new.position, points]), axis=0), axis=1)))
-                if new.inverse_time:
-                    feed = length * values["F"]
-                for pt in points:
-                    actions.append(("move", Move(pt, feed, spindle=new.spindle, speed=new.speed)))
-            else:
-                if new.inverse_time and feed is not None and not jog:
-                    feed = float(np.linalg.norm(target - new.position)) * values["F"]
-                actions.append(("move", Move(target, feed, jog=jog, spindle=new.spindle,
-                                             speed=new.speed,
-                                             line_number=int(values.get("N", 0)))))
-            motion_target = target
-    elif axis_words and axis_command == "nonmodal":
-        pass
-    if motion_target is not None:
-        new.position = motion_target
-
-    unused = set(values) - used
-    if unused:
-        raise GrblError(C.E_GCODE_UNUSED_WORDS)
-
-    # Spindle / coolant / dwell / program flow, in GRBL's execution order. Motion entries in
-    # `actions` carry the new spindle state; the spindle change itself is applied before them.
-    pre: list[tuple] = []
-    if 7 in m_groups:
-        new.spindle = f"M{m_groups[7]}"
-        for kind, *rest in actions:
-            if kind == "move":
-                rest[0].spindle = new.spindle
-    spindle_changed = new.spindle != state.spindle
-    speed_changed = "S" in values and new.speed != state.speed
-    if spindle_changed or speed_changed:
-        pre.append(("spindle", new.spindle, new.speed, spindle_changed, motion_target is None))
-    if 8 in m_groups:
-        new.flood = m_groups[8] == 8
-        pre.append(("coolant", new.flood))
-    if nonmodal and nonmodal[0] == 4:
-        pre.append(("dwell", values["P"]))
-    post: list[tuple] = []
-    if 4 in m_groups:
-        stop = m_groups[4]
-        if stop in (0, 1):
-            new.program = f"M{stop}"
-            post.append(("pause", f"M{stop}"))
-        else:
-            post.append(("end",))
-    return new, par, pre + actions + post
-
-
-def _arc(
-    state: ParserState,
-    values: dict[str, float],
-    target: np.ndarray,
-    clockwise: bool,
-    settings: dict[int, float],
-    unit: float,
-) -> tuple[np.ndarray, set[str]]:
-    """Segment a G2/G3 arc into chords within the `$12` arc tolerance; (k,3) points."""
-    a0, a1, lin = _PLANES[state.plane]
-    pos = state.position
-    if not any(k in values for k in ("XYZ"[a0], "XYZ"[a1])):
-        raise GrblError(C.E_GCODE_NO_AXIS_WORDS_IN_PLANE)
-    dx, dy = target[a0] - pos[a0], target[a1] - pos[a1]
-    if "R" in values:
-        used = {"R"}
-        if np.allclose(pos, target):
-            raise GrblError(C.E_GCODE_INVALID_TARGET)
-        r = values["R"] * unit
-        h2 = 4.0 * r * r - dx * dx - dy * dy
-        if h2 < 0:
-            raise GrblError(C.E_GCODE_ARC_RADIUS_ERROR)
-        h = -math.sqrt(h2) / math.hypot(dx, dy)
-        if not clockwise:
-            h = -h
-        if r < 0:
-            h, r = -h, -r
-        i_off, j_off = 0.5 * (dx - dy * h), 0.5 * (dy + dx * h)
-    else:
-        names = ("IJK"[a0], "IJK"[a1])
-        if not any(n in values for n in names):
-            raise GrblError(C.E_GCODE_NO_OFFSETS_IN_PLANE)
-        used = {n for n in "IJK" if n in values}
-        i_off = values.get(names[0], 0.0) * unit
-        j_off = values.get(names[1], 0.0) * unit
-        r = math.hypot(i_off, j_off)
-        r_end = math.hypot(dx - i_off, dy - j_off)
-        delta = abs(r_end - r)
-        if delta > 0.005 and (delta > 0.5 or delta > 0.001 * r):
-            raise GrblError(C.E_GCODE_INVALID_TARGET)
-    cx, cy = pos[a0] + i_off, pos[a1] + j_off
-    start = math.atan2(pos[a1] - cy, pos[a0] - cx)
-    end = math.atan2(target[a1] - cy, target[a0] - cx)
-    travel = end - start
-    eps = 5e-7
-    if clockwise:
-        if travel >= -eps:
-            travel -= 2 * math.pi
-    elif travel <= eps:
-        travel += 2 * math.pi
-    tol = float(settings[12])
-    n = int(abs(0.5 * travel * r) / math.sqrt(tol * (2 * r - tol))) if r > tol else 0
-    n = max(n, 1)
-    t = np.arange(1, n + 1) / n
-    ang = start + travel * t
-    pts = np.repeat(pos[None, :], n, axis=0).astype(float)
-    pts[:, a0] = cx + r * np.cos(ang)
-    pts[:, a1] = cy + r * np.sin(ang)
-    pts[:, lin] = pos[lin] + (target[lin] - pos[lin]) * t
-    pts[-1] = target
-    return pts, used
-
-
-def gc_report(state: ParserState) -> str:
-    """The `$G` line, e.g. `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`."""
-    parts = [
-        state.motion,
-        f"G{54 + state.coord_index}",
-        f"G{state.plane}",
-        "G20" if state.inches else "G21",
-        "G91" if state.incremental else "G90",
-        "G93" if state.inverse_time else "G94",
-    ]
-    if state.program:
-        parts.append(state.program)
-    parts.append(state.spindle)
-    parts.append("M8" if state.flood else "M9")
-    feed = state.feed / MM_PER_INCH if state.inches else state.feed
-    parts += [f"T{state.tool}", f"F{fmt(feed, 0)}", f"S{fmt(state.speed, 0)}"]
-    return "[GC:" + " ".join(parts) + "]"
-
-
-def fmt(value: float, decimals: int) -> str:
-    """GRBL's printFloat: fixed decimals, no decimal point when decimals == 0, no `-0`."""
-    text = f"{value:.{decimals}f}"
-    if text.startswith("-") and float(text) == 0.0:
-        text = text[1:]
-    return text
+    block = _Block.start(read_words(line), state, params, settings, jog)
+    for step in _STEPS:
+        step(block)
+    return block.new, block.params, block.pre + block.actions + block.post

@@ -14,8 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from solver.align.kernels import grid_pair_sum, grid_step_offsets, joint_grid_best
-from solver.align.problem import AlignProblem, apply_rt
+from solver.align.problem import AlignProblem
 from solver.align.refine import bfgs_refine, irls_translations
+from solver.geometry import rotate_back
 
 GRID = {1: 48, 2: 20, 3: 12, 4: 8}  # points per cell axis for 1..4 movable pieces
 
@@ -48,7 +49,7 @@ def grid_tables(problem: AlignProblem, angles: np.ndarray, t_ref: np.ndarray,
     frac_lin = np.rint(problem.wp.info.ops[:, :, :2]).astype(np.int64)
 
     def q(piece, mids, tt):  # wallpaper points for translations tt (K,2) -> (K,n,2)
-        return apply_rt(angles[piece], mids[None, :, :] - tt[:, None, :])
+        return rotate_back(angles[piece], mids[None, :, :] - tt[:, None, :])
 
     for pa, pb in sorted({(int(x), int(y)) for x, y in zip(a, b)}):
         sel = (a == pa) & (b == pb)

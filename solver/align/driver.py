@@ -87,15 +87,37 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
                           grains=[g.to_dict() for g in garment.grains()],
                           grain_rule={"tolerance_deg": grain_tol_deg, "nap": bool(nap),
                                       "fabric_grain_deg": float(fabric_grain_deg)})
-    fit = fit_report(garment, placement)
-    own_w = garment.seam_weights()
-    e_random = problem.energy(res.info["random_angles"], res.info["random_translations"],
-                              weight=own_w)
-    report = {
+    placement.report = {
         "method": method,
         "restarts": int(restarts),
         "seed": int(seed),
         "group": fabric.group,
+        **_fit_figures(garment, placement, problem, res),
+        "rotation": bool(rotation),
+        "translation": bool(translation),
+        "reflect": bool(reflect),
+        "grain_tol_deg": grain_tol_deg,
+        **grain_report(garment, res.angles, nap=nap, fabric_grain_deg=fabric_grain_deg),
+        "fixed": {garment.piece_names[i]: ("both" if fix_rot[i] and fix_trans[i]
+                                           else "rot" if fix_rot[i] else "trans")
+                  for i in np.flatnonzero(fix_rot | fix_trans)},
+    }
+    if "paper_energy" in res.info:
+        placement.report["e_fit_paper_objective_mm2"] = float(res.info["paper_energy"])
+    if weights:
+        placement.report["weights"] = {str(k): float(v) for k, v in weights.items()}
+        placement.report["objective_mm2"] = float(res.energy)
+    placement.report["seconds"] = time.perf_counter() - start
+    return placement
+
+
+def _fit_figures(garment, placement: Placement, problem: AlignProblem, res) -> dict:
+    """The report's size, E_fit (aligned, and of the random starts, with the garment's own
+    seam weights) and iteration figures."""
+    fit = fit_report(garment, placement)
+    e_random = problem.energy(res.info["random_angles"], res.info["random_translations"],
+                              weight=garment.seam_weights())
+    return {
         "pieces": int(garment.n_pieces),
         "seam_edges": int(len(garment.seam_edges)),
         "frames": "drape" if problem.frames.drape else "pattern",
@@ -108,23 +130,7 @@ def align(garment, fabric: Wallpaper, *, method: str = "paper", restarts: int = 
                                  if e_random.mean() > 0 else 0.0),
         "rotation_iterations_mean": float(np.mean(res.rotation_iterations)),
         "translation_iterations_mean": float(np.mean(res.translation_iterations)),
-        "rotation": bool(rotation),
-        "translation": bool(translation),
-        "reflect": bool(reflect),
-        "grain_tol_deg": grain_tol_deg,
-        **grain_report(garment, res.angles, nap=nap, fabric_grain_deg=fabric_grain_deg),
-        "fixed": {garment.piece_names[i]: ("both" if fix_rot[i] and fix_trans[i]
-                                           else "rot" if fix_rot[i] else "trans")
-                  for i in np.flatnonzero(fix_rot | fix_trans)},
     }
-    if "paper_energy" in res.info:
-        report["e_fit_paper_objective_mm2"] = float(res.info["paper_energy"])
-    if weights:
-        report["weights"] = {str(k): float(v) for k, v in weights.items()}
-        report["objective_mm2"] = float(res.energy)
-    report["seconds"] = time.perf_counter() - start
-    placement.report = report
-    return placement
 
 
 def grain_report(garment, angles: np.ndarray, *, nap: bool = False,

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver.fit import seam_lengths
+from solver.garment.mesh import edge_keys
 
 
 @dataclass(frozen=True)
@@ -63,9 +64,9 @@ class SeamFrames:
 def _edge_faces(faces: np.ndarray, n_vertices: int, a: np.ndarray, b: np.ndarray):
     """Face holding each boundary edge (a, b) and its third vertex."""
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key = np.minimum(he[:, 0], he[:, 1]) * n_vertices + np.maximum(he[:, 0], he[:, 1])
+    key = edge_keys(he[:, 0], he[:, 1], n_vertices)
     order = np.argsort(key, kind="stable")
-    want = np.minimum(a, b) * n_vertices + np.maximum(a, b)
+    want = edge_keys(a, b, n_vertices)
     pos = np.searchsorted(key[order], want)
     pos = np.minimum(pos, len(key) - 1)
     if np.any(key[order][pos] != want):

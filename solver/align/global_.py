@@ -38,11 +38,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
 from solver.align.brute import brute_force
-from solver.align.problem import AlignProblem, rot
+from solver.align.problem import AlignProblem
 from solver.align.refine import bfgs_refine, irls_translations
 from solver.align.restarts import AlignResult, align_paper, enforce_fixed
 from solver.align.translation import optimise_translations
 from solver.align.tree_dp import tree_dp_placement
+from solver.geometry import rotation_matrices
 
 #: joint-grid points per cell axis inside the global method, by number of movable pieces,
 #: coarse first: each size searches the best candidate while the previous one found a
@@ -52,14 +53,6 @@ from solver.align.tree_dp import tree_dp_placement
 GLOBAL_GRID = {1: (40, 48), 2: (12, 16, 20), 3: (10, 12, 16), 4: (10, 12, 16)}
 ALTERNATE_ROUNDS = 3
 GRID_GAIN = 1e-3  # a joint grid "finds a better basin" when it lowers E_fit this much
-
-
-def _piece_graph(problem: AlignProblem) -> np.ndarray:
-    fr = problem.frames
-    rec = problem.live_records()
-    w = np.zeros((problem.n_pieces, problem.n_pieces))
-    np.add.at(w, (fr.piece[rec], fr.other[rec]), problem.record_weight[rec])
-    return w
 
 
 def _tree_order(problem: AlignProblem, w: np.ndarray):
@@ -104,9 +97,9 @@ def _best_offset(problem: AlignProblem, angles, t, c: int, rec: np.ndarray, cell
         rec = rec[np.linspace(0, len(rec) - 1, score_sample).astype(int)]
     src = rec[np.linspace(0, len(rec) - 1, min(sample, len(rec))).astype(int)]
     o = fr.other[src]
-    q_o = np.einsum("nji,nj->ni", rot(angles[o]), fr.mid_other[src] - t[o])
+    q_o = np.einsum("nji,nj->ni", rotation_matrices(angles[o]), fr.mid_other[src] - t[o])
     g_q = np.einsum("kij,nj->nki", ops[:, :2, :2], q_o) + ops[None, :, :2, 2]
-    rc = rot(angles[c])
+    rc = rotation_matrices(angles[c])
     zeros = fr.mid[src][:, None, :] - g_q @ rc.T  # t_c with q_c = g(q_o) exactly
     cand = np.concatenate([zeros.reshape(-1, 2), t[c] - cell @ rc.T, t[c][None]])
     cost = _cost(problem, angles, t, c, cand, rec)
@@ -123,7 +116,7 @@ def tree_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, *,
                    grid: int = 6, sample: int = 16, score_sample: int = 64) -> np.ndarray:
     """Translations (P,2) placed piece by piece along the seam tree (module docstring)."""
     fr = problem.frames
-    order, _ = _tree_order(problem, _piece_graph(problem))
+    order, _ = _tree_order(problem, problem.piece_weights())
     t = t.copy()
     placed = np.zeros(problem.n_pieces, bool)
     live = problem.live_records()
@@ -194,50 +187,15 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
     kw = {} if rotation_eps is None else {"rotation_eps": rotation_eps}
     paper = align_paper(problem, restarts=restarts, seed=seed, rotation=rotation,
                         translation=translation, progress=progress, **kw)
-    best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
     if not translation:  # rotations alone: E_fit needs positions, nothing more to search
-        return _result(paper, best_a, best_t, problem)
-    # distinct rotation solutions, best first
-    order = np.argsort(paper.energies, kind="stable")
-    picks = []
-    for k in order:
-        a = paper.all_angles[k]
-        if all(np.abs(np.angle(np.exp(1j * (a - paper.all_angles[j])))).max() > 1e-3
-               for j in picks):
-            picks.append(int(k))
-        if len(picks) >= candidates:
-            break
-    ang = paper.all_angles[picks]
-    t0 = paper.all_translations[picks]
-    # The rotational energy hardly sees one rotation common to all pieces, so the
-    # paper's fields come out at a random overall angle to the print; E_fit does see
-    # it. Screen a grid of common turns over one r-th of a turn (Eq. 9 + IRLS, batched)
-    # and carry the best few on.
+        return _result(paper, paper.angles, paper.translations, problem)
+    ang, t0 = _distinct_rotations(paper, candidates)
     if rotation and not problem.fix_rot.any():
-        steps = max(8, 24 // problem.rosy)
-        beta = 2 * np.pi * np.arange(steps) / (steps * problem.rosy)
-        free = ~problem.fix_rot
-        ang_b = (ang[:, None, :] + beta[None, :, None] * free).reshape(-1, problem.n_pieces)
-        if problem.grain is not None:
-            ang_b = problem.grain.project(ang_b, problem.rosy, problem.fix_rot)
-        t_b = np.repeat(t0, steps, axis=0)
-        t_b = optimise_translations(problem, ang_b, t_b, polish_rounds=1).t
-        t_b = irls_translations(problem, ang_b, t_b, iterations=8)
-        keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
-        ang, t0 = ang_b[keep], t_b[keep]
-    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
-                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
-    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
-    cand_t = np.concatenate([ts.t, t0])
-    cand_a = np.concatenate([ang, ang, ang])
-    cand_t = irls_translations(problem, cand_a, cand_t)
+        ang, t0 = _screen_common_turns(problem, ang, t0, candidates)
+    cand_a, cand_t = _tree_candidates(problem, ang, t0)
     zero = 1e-9 * float(paper.random_energies.mean())  # nothing below this matters
     for _ in range(sweeps if problem.energy(cand_a, cand_t).min() > zero else 0):
-        e = problem.energy(cand_a, cand_t)
-        top = np.argsort(e, kind="stable")[:candidates]
-        moved = cand_t.copy()
-        moved[top] = np.stack([exhaustive_sweep(problem, cand_a[i], cand_t[i]) for i in top])
-        cand_t = irls_translations(problem, cand_a, moved)
+        cand_t = _sweep_best(problem, cand_a, cand_t, candidates)
     e = problem.energy(cand_a, cand_t)
     if rotation and (~problem.fix_rot).any() and e.min() > zero:
         i = int(np.argmin(e))
@@ -247,49 +205,120 @@ def align_global(problem: AlignProblem, *, restarts: int = 15, seed: int = 0,
         cand_t = np.concatenate([cand_t, t_h[None]])
         e = np.append(e, e_h)
     perfect = float(e.min()) <= zero
-    small = int((~problem.fix_trans).sum()) in GLOBAL_GRID and not perfect
-    if small:
-        # few movable pieces: the joint grid over all their translations is affordable;
-        # grids of several sizes, as their sample points interleave and a basin narrower
-        # than one grid step ranks among the best grid points of one size, not another.
-        # The grid is worth its cost only where the tree, sweeps and hops missed a basin:
-        # the sizes are tried in turn while they find a better one
-        i = int(np.argmin(e))
-        e_best = float(e[i])
-        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())]:
-            tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid, polish=False)
-            cand_a = np.concatenate([cand_a, cand_a[i][None]])
-            cand_t = np.concatenate([cand_t, tb[None]])
-            e = np.append(e, eb)
-            if eb >= e_best * (1 - GRID_GAIN):
-                break
-            e_best = eb
-    top = np.argsort(e, kind="stable")[: 0 if perfect else 2]
-    for i in top:
+    grids = GLOBAL_GRID.get(int((~problem.fix_trans).sum())) if not perfect else None
+    if grids:
+        cand_a, cand_t, e = _joint_grids(problem, cand_a, cand_t, e, grids)
+    _refine_best(problem, cand_a, cand_t, e, 0 if perfect else 2, rotation)
+    i = int(np.argmin(e))
+    if grids:
+        cand_a[i], cand_t[i], e[i] = _alternate(problem, cand_a[i], cand_t[i], float(e[i]),
+                                                grids, rotation)
+    best_a, best_t, best_e = paper.angles, paper.translations, paper.energy
+    if e[i] < best_e:
+        best_a, best_t = cand_a[i], cand_t[i]
+    best_a, best_t = enforce_fixed(problem, best_a, best_t)
+    out = _result(paper, best_a, best_t, problem)
+    out.info["paper_energy"] = paper.energy
+    return out
+
+
+def _distinct_rotations(paper: AlignResult, candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``candidates`` of the paper's restarts with distinct rotations, best first:
+    their angles (c, P) and translations (c, P, 2)."""
+    picks: list[int] = []
+    for k in np.argsort(paper.energies, kind="stable"):
+        a = paper.all_angles[k]
+        if all(np.abs(np.angle(np.exp(1j * (a - paper.all_angles[j])))).max() > 1e-3
+               for j in picks):
+            picks.append(int(k))
+        if len(picks) >= candidates:
+            break
+    return paper.all_angles[picks], paper.all_translations[picks]
+
+
+def _screen_common_turns(problem: AlignProblem, ang: np.ndarray, t0: np.ndarray,
+                         candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rotational energy hardly sees one rotation common to all pieces, so the
+    paper's fields come out at a random overall angle to the print; E_fit does see it.
+    Screen a grid of common turns over one r-th of a turn (Eq. 9 + IRLS, batched) and
+    carry the best few on."""
+    steps = max(8, 24 // problem.rosy)
+    beta = 2 * np.pi * np.arange(steps) / (steps * problem.rosy)
+    free = ~problem.fix_rot
+    ang_b = (ang[:, None, :] + beta[None, :, None] * free).reshape(-1, problem.n_pieces)
+    if problem.grain is not None:
+        ang_b = problem.grain.project(ang_b, problem.rosy, problem.fix_rot)
+    t_b = np.repeat(t0, steps, axis=0)
+    t_b = optimise_translations(problem, ang_b, t_b, polish_rounds=1).t
+    t_b = irls_translations(problem, ang_b, t_b, iterations=8)
+    keep = np.argsort(problem.energy(ang_b, t_b), kind="stable")[:candidates]
+    return ang_b[keep], t_b[keep]
+
+
+def _tree_candidates(problem: AlignProblem, ang: np.ndarray, t0: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Per rotation three translation starts (the greedy tree, the tree DP, as given),
+    each optimised (Eq. 9 from the trees) and IRLS-polished."""
+    trees = np.stack([tree_placement(problem, ang[i], t0[i]) for i in range(len(ang))]
+                     + [tree_dp_placement(problem, ang[i], t0[i]) for i in range(len(ang))])
+    ts = optimise_translations(problem, np.concatenate([ang, ang]), trees)
+    cand_a = np.concatenate([ang, ang, ang])
+    return cand_a, irls_translations(problem, cand_a, np.concatenate([ts.t, t0]))
+
+
+def _sweep_best(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                candidates: int) -> np.ndarray:
+    """One exhaustive sweep of the best ``candidates`` placements, then IRLS for all."""
+    top = np.argsort(problem.energy(cand_a, cand_t), kind="stable")[:candidates]
+    moved = cand_t.copy()
+    moved[top] = np.stack([exhaustive_sweep(problem, cand_a[i], cand_t[i]) for i in top])
+    return irls_translations(problem, cand_a, moved)
+
+
+def _joint_grids(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                 e: np.ndarray, grids: tuple[int, ...]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Few movable pieces: the joint grid over all their translations is affordable;
+    grids of several sizes, as their sample points interleave and a basin narrower than
+    one grid step ranks among the best grid points of one size, not another. The grid is
+    worth its cost only where the tree, sweeps and hops missed a basin: the sizes are
+    tried in turn while they find a better one. Each grid's answer is a new candidate."""
+    i = int(np.argmin(e))
+    e_best = float(e[i])
+    for grid in grids:
+        tb, eb = brute_force(problem, cand_a[i], cand_t[i], grid=grid, polish=False)
+        cand_a = np.concatenate([cand_a, cand_a[i][None]])
+        cand_t = np.concatenate([cand_t, tb[None]])
+        e = np.append(e, eb)
+        if eb >= e_best * (1 - GRID_GAIN):
+            break
+        e_best = eb
+    return cand_a, cand_t, e
+
+
+def _refine_best(problem: AlignProblem, cand_a: np.ndarray, cand_t: np.ndarray,
+                 e: np.ndarray, n: int, rotation: bool) -> None:
+    """BFGS on the ``n`` best candidates, kept (in place) where it lowers E_fit."""
+    for i in np.argsort(e, kind="stable")[:n]:
         a, tt, ei = bfgs_refine(problem, cand_a[i], cand_t[i], rotations=rotation,
                                 max_iter=60)
         if ei < e[i]:
             tt = irls_translations(problem, a[None], tt[None])[0]
             cand_a[i], cand_t[i] = a, tt
             e[i] = float(problem.energy(a[None], tt[None])[0])
-    i = int(np.argmin(e))
-    if small:
-        # alternate: the polished angles may open a better joint-grid basin; repeat while
-        # the grid finds one, so the answer is grid-optimal for its own final angles
-        a_i, t_i, e_i = cand_a[i], cand_t[i], float(e[i])
-        for grid in GLOBAL_GRID[int((~problem.fix_trans).sum())][:ALTERNATE_ROUNDS]:
-            tb, eb = brute_force(problem, a_i, t_i, grid=grid, polish=False)
-            if eb >= e_i * (1 - 1e-9):
-                break
-            a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
-            a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
-        cand_a[i], cand_t[i], e[i] = a_i, t_i, e_i
-    if e[i] < best_e:
-        best_a, best_t, best_e = cand_a[i], cand_t[i], float(e[i])
-    best_a, best_t = enforce_fixed(problem, best_a, best_t)
-    out = _result(paper, best_a, best_t, problem)
-    out.info["paper_energy"] = paper.energy
-    return out
+
+
+def _alternate(problem: AlignProblem, a_i: np.ndarray, t_i: np.ndarray, e_i: float,
+               grids: tuple[int, ...], rotation: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    """The polished angles may open a better joint-grid basin: grid and BFGS in turn
+    while the grid finds one, so the answer is grid-optimal for its own final angles."""
+    for grid in grids[:ALTERNATE_ROUNDS]:
+        tb, eb = brute_force(problem, a_i, t_i, grid=grid, polish=False)
+        if eb >= e_i * (1 - 1e-9):
+            break
+        a2, t2, e2 = bfgs_refine(problem, a_i, tb, rotations=rotation, max_iter=60)
+        a_i, t_i, e_i = (a2, t2, e2) if e2 < eb else (a_i, tb, eb)
+    return a_i, t_i, e_i
 
 
 def _result(paper: AlignResult, a, t, problem: AlignProblem) -> AlignResult:

@@ -14,25 +14,8 @@ import numpy as np
 from solver.align.frames import SeamFrames, seam_frames
 from solver.align.grain import GrainRule
 from solver.align.kernels import seam_points
+from solver.geometry import rotate_back
 from solver.wallpaper import Wallpaper
-
-
-def rot(angles: np.ndarray) -> np.ndarray:
-    """(..., ) angles -> (..., 2, 2) rotation matrices."""
-    c, s = np.cos(angles), np.sin(angles)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
-
-
-def apply_rt(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """R(angles)^T x for (...) angles and (..., 2) vectors, without building matrices."""
-    c, s = np.cos(angles), np.sin(angles)
-    return np.stack([c * x[..., 0] + s * x[..., 1], c * x[..., 1] - s * x[..., 0]], -1)
-
-
-def apply_r(angles: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """R(angles) x."""
-    c, s = np.cos(angles), np.sin(angles)
-    return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], -1)
 
 
 def greedy_colouring(n: int, pairs: np.ndarray) -> list[np.ndarray]:
@@ -142,6 +125,15 @@ class AlignProblem:
             ok &= np.isin(fr.piece, pieces)
         return np.flatnonzero(ok)
 
+    def piece_weights(self) -> np.ndarray:
+        """(P, P) summed weight of the live seam records of piece i facing piece j: the
+        piece graph the tree placements span."""
+        fr = self.frames
+        rec = self.live_records()
+        w = np.zeros((self.n_pieces, self.n_pieces))
+        np.add.at(w, (fr.piece[rec], fr.other[rec]), self.record_weight[rec])
+        return w
+
     # -------------------------------------------------------------- random starts
     def random_starts(self, rng: np.random.Generator, n: int):
         """(n,P) angles and (n,P,2) translations: uniform angle, uniform offset in a cell.
@@ -162,8 +154,8 @@ class AlignProblem:
         """Midpoints of records ``rec`` on both sides in wallpaper space: (B,n,2) twice."""
         fr = self.frames
         c, o = fr.piece[rec], fr.other[rec]
-        return (apply_rt(angles[:, c], fr.mid[rec] - trans[:, c]),
-                apply_rt(angles[:, o], fr.mid_other[rec] - trans[:, o]))
+        return (rotate_back(angles[:, c], fr.mid[rec] - trans[:, c]),
+                rotate_back(angles[:, o], fr.mid_other[rec] - trans[:, o]))
 
     def seam_mismatch(self, angles: np.ndarray, trans: np.ndarray,
                       rec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,8 +15,9 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import minimize
 
-from solver.align.problem import AlignProblem, rot
+from solver.align.problem import AlignProblem
 from solver.align.translation import polish
+from solver.geometry import rotation_matrices
 
 
 def irls_translations(problem: AlignProblem, angles: np.ndarray, t: np.ndarray,
@@ -46,7 +47,7 @@ def _energy_grad(problem: AlignProblem, angles, t, rec, w):
     """E_fit over records ``rec`` (side a) and its gradient in angles (P,) and t (P,2)."""
     fr = problem.frames
     a, b = fr.piece[rec], fr.other[rec]
-    ra, rb = rot(angles[a]), rot(angles[b])
+    ra, rb = rotation_matrices(angles[a]), rotation_matrices(angles[b])
     xa, xb = fr.mid[rec] - t[a], fr.mid_other[rec] - t[b]
     d, op = problem.seam_mismatch(angles[None], t[None], rec)
     d, op = d[0], op[0]

@@ -28,14 +28,22 @@ minimises the garment's own E_fit over the same unknowns, j following i (`PairTi
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from solver.align.driver import align, grain_report, parse_fix
+from solver.align.grain import GrainRule
+from solver.align.problem import AlignProblem
+from solver.align.refine import _energy_grad, bfgs_refine
+from solver.fit import fit_report
+from solver.garment.grain import paired_grains
 from solver.garment.model import Garment
-from solver.garment.symmetry import FLIP, MirrorPair
-from solver.placement import Placement, rotation_matrices
+from solver.garment.symmetry import MirrorPair
+from solver.geometry import FLIP, rotation_matrices
+from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 
 MODES = ("mirror", "same")
@@ -205,12 +213,6 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     constraint's price: ``symmetry.e_fit_unconstrained_mm2`` beside ``e_fit_aligned_mm2``.
     ``fix`` names pieces as `align` does; the second piece of a pair follows its first.
     """
-    import time
-
-    from solver.align.driver import align, grain_report
-    from solver.fit import fit_report
-    from solver.garment.grain import paired_grains
-
     start = time.perf_counter()
     garment = garment.copy()  # the pairs' two pieces take mirrored grains
     garment.grain = paired_grains(garment.grains(), pairs)
@@ -227,12 +229,7 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         q_init = Placement(init.angles[first_of], init.translations[first_of], fabric)
     q_fix = [_fix_in_quotient(spec, garment, quotient, keep) for spec in fix or []]
     options = dict(options, nap=nap, fabric_grain_deg=grain_deg)
-    q_options = dict(options)
-    if options.get("grain_tol_deg", 1.0) is not None:
-        # the second piece inherits the first's angle to the grain, plus the pair's own
-        # small disagreement of grain lines: keep the first that much closer to grain
-        slack = _pair_grain_disagreement(garment, fabric, rules, keep)
-        q_options["grain_tol_deg"] = max(options.get("grain_tol_deg", 1.0) - slack, 0.0)
+    q_options = _quotient_options(garment, fabric, rules, keep, options)
     t0 = time.perf_counter()
     q_place = align(quotient, fabric, fix=q_fix or None, init=q_init, **q_options)
     tie = PairTie(tuple(rules), keep)
@@ -249,15 +246,54 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
                           grains=[g.to_dict() for g in garment.grains()],
                           grain_rule=dict(q_place.grain_rule))
     fit = fit_report(garment, placement)
-    report = dict(q_place.report)
+    report = _expanded_report(q_place.report, garment, fit, angles, nap, grain_deg,
+                              options.get("grain_tol_deg", 1.0))
+    placement.grain_rule["tolerance_deg"] = report["grain_tol_deg"]
+    symmetry = _symmetry_section(garment, quotient, placement, rules, fit, tied)
+    if compare:
+        t0 = time.perf_counter()
+        free = align(garment, fabric, fix=fix, init=init, **options)
+        seconds["unconstrained"] = time.perf_counter() - t0
+        e_free = free.report["e_fit_aligned_mm2"]
+        symmetry["e_fit_unconstrained_mm2"] = e_free
+        symmetry["price_ratio"] = fit.e_fit_mm2 / e_free if e_free > 0 else 1.0
+    symmetry["seconds"] = seconds
+    report["symmetry"] = symmetry
+    report["seconds"] = time.perf_counter() - start
+    placement.report = report
+    placement.pairs = symmetry["pairs"]
+    return placement
+
+
+def _quotient_options(garment: Garment, fabric: Wallpaper, rules: Sequence[PairRule],
+                      keep: np.ndarray, options: dict) -> dict:
+    """`align`'s options for the quotient: the second piece inherits the first's angle to
+    the grain, plus the pair's own small disagreement of grain lines, so the first is
+    kept that much closer to grain."""
+    q_options = dict(options)
+    if options.get("grain_tol_deg", 1.0) is not None:
+        slack = _pair_grain_disagreement(garment, fabric, rules, keep)
+        q_options["grain_tol_deg"] = max(options.get("grain_tol_deg", 1.0) - slack, 0.0)
+    return q_options
+
+
+def _expanded_report(q_report: dict, garment: Garment, fit, angles: np.ndarray, nap: bool,
+                     grain_deg: float, grain_tol_deg: float | None) -> dict:
+    """The quotient's report with the whole garment's figures (E_fit, grain, sizes)."""
+    report = dict(q_report)
     report.update(fit.summary())
     report.update(grain_report(garment, angles, nap=nap, fabric_grain_deg=grain_deg))
-    report["grain_tol_deg"] = options.get("grain_tol_deg", 1.0)
-    placement.grain_rule["tolerance_deg"] = report["grain_tol_deg"]
+    report["grain_tol_deg"] = grain_tol_deg
     report.update(pieces=int(garment.n_pieces), seam_edges=int(len(garment.seam_edges)),
                   e_fit_aligned_mm2=fit.e_fit_mm2, e_fit_aligned_cm2=fit.e_fit_cm2)
     if report.get("e_fit_random_mm2"):
         report["ratio_aligned_random"] = fit.e_fit_mm2 / report["e_fit_random_mm2"]
+    return report
+
+
+def _symmetry_section(garment: Garment, quotient: Garment, placement: Placement,
+                      rules: Sequence[PairRule], fit, tied: float | None) -> dict:
+    """The report's ``symmetry`` entry: the pairs, their mirrors and print mismatch."""
     symmetry = {
         "pairs": [[r.first, r.second, r.mode] for r in rules],
         # the pattern mirror each pair was kept by (p_second = M [p_first; 1]): reshaping
@@ -272,22 +308,10 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
         symmetry["e_fit_quotient_search_mm2"] = tied
     same = [f"{r.first}-{r.second}" for r in rules if r.mode == "same"]
     if same:
-        symmetry["note"] = (f"{fabric.group} has no mirror or glide along the grain: pairs "
-                            f"{', '.join(same)} keep the same print position on the flipped "
-                            "outline, but their print is not mirrored")
-    if compare:
-        t0 = time.perf_counter()
-        free = align(garment, fabric, fix=fix, init=init, **options)
-        seconds["unconstrained"] = time.perf_counter() - t0
-        e_free = free.report["e_fit_aligned_mm2"]
-        symmetry["e_fit_unconstrained_mm2"] = e_free
-        symmetry["price_ratio"] = fit.e_fit_mm2 / e_free if e_free > 0 else 1.0
-    symmetry["seconds"] = seconds
-    report["symmetry"] = symmetry
-    report["seconds"] = time.perf_counter() - start
-    placement.report = report
-    placement.pairs = symmetry["pairs"]
-    return placement
+        symmetry["note"] = (f"{placement.fabric.group} has no mirror or glide along the "
+                            f"grain: pairs {', '.join(same)} keep the same print position "
+                            "on the flipped outline, but their print is not mirrored")
+    return symmetry
 
 
 def search_tied(garment: Garment, quotient: Garment, fabric: Wallpaper, tie: PairTie,
@@ -305,11 +329,6 @@ def search_tied(garment: Garment, quotient: Garment, fabric: Wallpaper, tie: Pai
     every candidate scored on the whole garment in one batch), then BFGS over angles and
     translations within the grain limits. Returns (angles, translations, E_fit before).
     """
-    from solver.align.driver import parse_fix
-    from solver.align.grain import GrainRule
-    from solver.align.problem import AlignProblem
-    from solver.align.refine import _energy_grad, bfgs_refine
-
     weighted = garment.with_seam_weights(weights) if weights else garment
     full = AlignProblem.build(weighted, fabric, use_drape=use_drape)
     fix_rot, fix_trans = parse_fix(quotient, fix)
@@ -354,8 +373,6 @@ def _pair_grain_disagreement(garment: Garment, fabric: Wallpaper, rules: Sequenc
                              keep: np.ndarray) -> float:
     """Degrees by which a pair's second piece lies off its grain when its first lies
     exactly on grain (0 for a pair whose grain lines mirror each other)."""
-    from solver.align.grain import GrainRule
-
     if not rules:
         return 0.0
     grain = GrainRule.from_garment(garment, 0.0)  # the turns, whatever the fabric's grain

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from solver.align.kernels import translation_normal_equations
-from solver.align.problem import AlignProblem, apply_r
+from solver.align.problem import AlignProblem
+from solver.geometry import rotate
 
 EPS_TRANS = 1e-4  # mm^2; the polish then jumps to the exact limit
 
@@ -63,7 +64,7 @@ def translation_step(problem: AlignProblem, state: TranslationState,
     for pieces, rec, mean in state.plan:
         d, _ = problem.seam_mismatch(ang, t, rec)
         step = mean @ d  # (B,k,2) mean mismatch of each piece, wallpaper space
-        t[:, pieces] -= apply_r(ang[:, pieces], step)
+        t[:, pieces] -= rotate(ang[:, pieces], step)
     change = np.sum((t - before) ** 2, axis=(1, 2))
     state.t[active] = t
     state.iterations[active] += 1

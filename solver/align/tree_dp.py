@@ -26,10 +26,7 @@ def tree_dp_placement(problem: AlignProblem, angles: np.ndarray, t: np.ndarray, 
     movable = np.flatnonzero(~problem.fix_trans)
     if len(movable) == 0:
         return t.copy()
-    fr = problem.frames
-    rec = problem.live_records()
-    seams = np.zeros((problem.n_pieces, problem.n_pieces))
-    np.add.at(seams, (fr.piece[rec], fr.other[rec]), problem.record_weight[rec])
+    seams = problem.piece_weights()
     strength = (seams + seams.T)[np.ix_(movable, movable)]
     tree = minimum_spanning_tree(csr_matrix(-strength))
     tree = (tree + tree.T).tocsr()

@@ -11,6 +11,8 @@ from pathlib import Path
 from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, SeamLine, build_garment
 from solver.garment.obj import load_obj, pair_partner, save_obj
+from solver.garment.spec import load_spec
+from solver.garment.spec_save import save_spec
 from solver.units import MM_PER_UNIT, UNIT_CHOICES, mm_per_unit
 
 __all__ = [
@@ -47,8 +49,6 @@ def load_garment(
         raise FileNotFoundError(f"{path}: no such garment file")
     suffix = path.suffix.lower()
     if suffix == ".json":
-        from solver.garment.spec import load_spec
-
         return load_spec(path, units=units, resolution_mm=resolution_mm)
     if suffix == ".obj":
         if world is None:
@@ -58,10 +58,3 @@ def load_garment(
                 return load_obj(pattern, units=units, world=world)
         return load_obj(path, units=units, world=world)
     raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj or .json)")
-
-
-def save_spec(g: Garment, path: str | Path) -> None:
-    """Write ``g`` as a GarmentCode-style JSON specification (see :mod:`solver.garment.spec`)."""
-    from solver.garment.spec import save_spec as _save_spec
-
-    _save_spec(g, path)

@@ -33,16 +33,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from solver.garment.grain import LIMB_ANGLE_DEG, PANEL_UP, detect_up, panel_positions
-from solver.garment.model import Garment, _components
+from solver.garment.drape import drape_up, limb_end_axes, open_edges
+from solver.garment.mesh import edge_keys, loop_edge_keys
+from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, mirror_pairs, mirrored_edges
 
 __all__ = ["AllowanceRules", "CutLine", "cut_lines", "dart_fills", "dart_runs", "drape_up",
            "edge_allowances", "limb_end_axes", "offset_outline", "open_edges", "pair_allowances"]
-
-TOP_FRACTION = 0.05  # an opening within this fraction of the height from the top is not a hem
-LEVEL = 0.7  # |cos| between a loop's plane normal and up above which the loop is level
-VOTE_LEVEL = 0.9  # level enough (within ~25 degrees) to vote on which end is up
 
 
 @dataclass(frozen=True)
@@ -121,128 +118,6 @@ class CutLine:
         return [np.asarray(r.coords)[:-1, :2] for r in self.cut.interiors]
 
 
-def _edge_key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
-
-
-def open_edges(garment: Garment, up: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Open boundary edges (sewn to nothing), the opening each belongs to, and whether hem.
-
-    Returns ``edges`` (k,2) vertex pairs as in their face, ``opening`` (k,) int and
-    ``is_hem`` (n_openings,) bool. Openings are numbered by their first edge. ``up`` is
-    the drape's up direction (default: :func:`drape_up`).
-    """
-    g, n = garment, garment.n_vertices
-    bhe = g.boundary_half_edges()
-    seam = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
-                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n)])
-    edges = bhe[~np.isin(_edge_key(bhe[:, 0], bhe[:, 1], n), seam)]
-    if len(edges) == 0:
-        return edges, np.zeros(0, np.int64), np.zeros(0, bool)
-    pts = g.point_of_vertex[edges]
-    _, label = _components(int(g.point_of_vertex.max()) + 1, pts)
-    _, first, inv = np.unique(label[pts[:, 0]], return_index=True, return_inverse=True)
-    rank = np.empty(len(first), np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
-    opening = rank[inv.ravel()]
-    flat = g.xyz is None or float(np.ptp(g.xyz, axis=0).min()) <= 1e-9 * max(
-        float(np.ptp(g.xyz, axis=0).max()), 1e-9)  # a drape with no depth says nothing
-    if not flat:
-        pos = g.xyz
-        up = drape_up(pos, edges, opening) if up is None else np.asarray(up, float)
-    elif (placed := panel_positions(g)) is not None:  # a specification places its panels
-        pos = placed
-        up = PANEL_UP if up is None else np.asarray(up, float)
-    else:  # flat pattern: heights relative to each piece's own box
-        box = g.piece_bboxes()
-        piece = g.piece_of_vertex
-        rel = (g.uv[:, 1] - box[piece, 1]) / np.maximum(box[piece, 3] - box[piece, 1], 1e-9)
-        reach = np.full(len(first), -np.inf)
-        np.maximum.at(reach, opening, rel[edges].max(axis=1))
-        return edges, opening, reach < 1.0 - TOP_FRACTION
-    up = up / np.linalg.norm(up)
-    h = pos @ up
-    top, span = float(h.max()), float(np.ptp(h)) or 1.0
-    reach = np.full(len(first), -np.inf)
-    np.maximum.at(reach, opening, h[edges].max(axis=1))
-    _, normal, _ = _opening_planes(pos, edges, opening)
-    level = np.abs(normal @ up) > LEVEL
-    # a limb's end: an upright loop (a T-pose sleeve's cuff reaches the shoulder's height)
-    # on pieces that have no other opening; an armhole's pieces also carry the neckline
-    alone = _alone(g, edges, opening).any(axis=1)
-    return edges, opening, (reach < top - TOP_FRACTION * span) | (~level & alone)
-
-
-def _alone(g: Garment, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
-    """(k, P) bool: opening k touches piece p, and every piece it touches carries no other
-    opening (a limb's end: a cuff, a leg's hem; a torso also has its neckline)."""
-    k = int(opening.max()) + 1
-    touches = np.zeros((k, g.n_pieces), bool)
-    touches[opening, g.piece_of_vertex[edges[:, 0]]] = True
-    others = touches.sum(0)[None, :] - touches  # other openings on each piece
-    return touches & ~np.any(touches & (others > 0), axis=1)[:, None]
-
-
-def limb_end_axes(garment: Garment, pos: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """(P,3) per piece the axis of the limb it belongs to, or NaN: the plane normal of an
-    upright opening alone on its pieces (a sleeve's cuff), for patterns whose pieces lie
-    flat in 3D (a specification's panels), where the drape's wrapping says nothing.
-    It points towards the garment's middle (the sleeve's cap), as ``limb_axes`` does."""
-    out = np.full((garment.n_pieces, 3), np.nan)
-    edges, opening, _ = open_edges(garment, up)
-    if len(edges) == 0:
-        return out
-    centre, normal, _ = _opening_planes(pos, edges, opening)
-    upright = np.abs(normal @ up) < np.cos(np.radians(LIMB_ANGLE_DEG))
-    towards = np.einsum("ki,ki->k", normal, pos.mean(0) - centre)
-    normal = normal * np.where(towards < 0, -1.0, 1.0)[:, None]
-    for k, piece in zip(*np.nonzero(_alone(garment, edges, opening) & upright[:, None])):
-        out[piece] = normal[k]
-    return out
-
-
-def _opening_planes(pos: np.ndarray, edges: np.ndarray, opening: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per opening its centre (k,3), unit plane normal (k,3) and length (k,) in 3D."""
-    k = int(opening.max()) + 1
-    length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
-    total = np.bincount(opening, weights=length, minlength=k)
-    mid = 0.5 * (pos[edges[:, 0]] + pos[edges[:, 1]])
-    centre = np.stack([np.bincount(opening, weights=mid[:, j] * length, minlength=k)
-                       for j in range(3)], 1) / np.maximum(total, 1e-12)[:, None]
-    normal = np.zeros((k, 3))
-    for o in range(k):  # one small SVD per opening (a handful per garment)
-        p = mid[opening == o] - centre[o]
-        if len(p) >= 3:
-            normal[o] = np.linalg.svd(p, full_matrices=False)[2][-1]
-    return centre, normal, total
-
-
-def drape_up(xyz: np.ndarray, edges: np.ndarray, opening: np.ndarray) -> np.ndarray:
-    """The drape's up direction (the files disagree: Berkeley is z-up, GarmentCode y-up).
-
-    The axis is the one across which the garment is least mirror-symmetric
-    (:func:`~solver.garment.grain.detect_up`, as the grain takes it): a garment mirrors
-    left to right, and the openings' planes favour the wrong axis on an open front (a
-    shirt's or jacket's hem, front edges and neckline are one loop, standing upright) or
-    with T-pose sleeves. The sense: a garment hangs from its smaller end, the neckline
-    or waist shorter than the hems below it, so up is the side of the mid-height with
-    less length of level openings; only loops within ``VOTE_LEVEL`` of level vote (a
-    sleeve's cuff at 45 degrees is neither hem nor neckline).
-    """
-    axis = int(np.argmax(detect_up(xyz)))
-    centre, normal, total = _opening_planes(xyz, edges, opening)
-    level = np.abs(normal[:, axis]) > VOTE_LEVEL
-    h = centre[:, axis]
-    middle = 0.5 * (xyz[:, axis].min() + xyz[:, axis].max())
-    above = total[level & (h > middle)].sum()
-    below = total[level & (h <= middle)].sum()
-    up = np.zeros(3)
-    up[axis] = 1.0 if above <= below else -1.0
-    return up
-
-
 def edge_allowances(garment: Garment, rules: AllowanceRules,
                     pairs: Sequence[MirrorPair] | None = None) -> list[list[np.ndarray]]:
     """Per piece, per loop of :meth:`Garment.piece_loops`, the (k,) allowance of each edge.
@@ -279,9 +154,9 @@ def edge_allowances(garment: Garment, rules: AllowanceRules,
             raise ValueError(f"{where}no seam line, opening or piece {key!r}; seam lines are "
                              f"{', '.join(names) or 'none'}, openings open#0..open#"
                              f"{len(open_mm) - 1}, pieces take PIECE/open")
-    keys = np.concatenate([_edge_key(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
-                           _edge_key(g.seam_edges[:, 2], g.seam_edges[:, 3], n),
-                           _edge_key(edges[:, 0], edges[:, 1], n)])
+    keys = np.concatenate([edge_keys(g.seam_edges[:, 0], g.seam_edges[:, 1], n),
+                           edge_keys(g.seam_edges[:, 2], g.seam_edges[:, 3], n),
+                           edge_keys(edges[:, 0], edges[:, 1], n)])
     values = np.concatenate([seam_mm[g.seam_line_of_edge], seam_mm[g.seam_line_of_edge],
                              open_mm[opening]])
     order = np.argsort(keys, kind="stable")
@@ -292,7 +167,7 @@ def edge_allowances(garment: Garment, rules: AllowanceRules,
     for i in range(g.n_pieces):
         per_loop = []
         for loop in g.piece_loops(i):
-            k = _edge_key(loop, np.roll(loop, -1), n)
+            k = edge_keys(loop, np.roll(loop, -1), n)
             pos = np.clip(np.searchsorted(keys, k), 0, max(len(keys) - 1, 0))
             a = values[pos].copy() if len(keys) else np.full(len(loop), rules.opening_mm)
             if i in piece_open:
@@ -315,7 +190,7 @@ def pair_allowances(garment: Garment, per_piece: list[list[np.ndarray]],
     """
     g, n = garment, garment.n_vertices
     loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
-    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
+    keys = loop_edge_keys(loops, n)
     values = np.concatenate([a for per_loop in per_piece for a in per_loop]).astype(float)
     order = np.argsort(keys)
     for pair in pairs:

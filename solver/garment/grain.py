@@ -34,11 +34,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from solver.garment.drape import (
+    LIMB_ANGLE_DEG,
+    PANEL_UP,
+    detect_up,
+    limb_end_axes,
+    panel_positions,
+)
+from solver.geometry import FLIP, signed_areas
+
 SOURCES = ("file", "operator", "drape", "outline")
 LIMB_SPREAD = 0.45  # normals' 2nd / 1st spread above which a piece wraps around an axis
-LIMB_ANGLE_DEG = 30.0  # a wrapped piece whose axis is this far from vertical is a limb
 AXES = {"x": 0, "y": 1, "z": 2}
-PANEL_UP = np.array([0.0, 1.0, 0.0])  # specifications place their panels y-up (GarmentCode)
 
 
 @dataclass(frozen=True)
@@ -68,23 +75,6 @@ def parse_up(text: str) -> np.ndarray:
         raise ValueError(f"up axis must be x, y or z with an optional sign, got {text!r}")
     v = np.zeros(3)
     v[AXES[t]] = sign
-    return v
-
-
-def detect_up(xyz: np.ndarray) -> np.ndarray:
-    """Unit (3,) up axis of a draped garment: the coordinate axis across which it is least
-    mirror-symmetric (median distance from each reflected vertex to the garment)."""
-    from scipy.spatial import cKDTree
-
-    xyz = np.asarray(xyz, float)
-    tree = cKDTree(xyz)
-    err = np.empty(3)
-    for a in range(3):  # three axes: a loop of three queries, each vectorised
-        mirrored = xyz.copy()
-        mirrored[:, a] = xyz[:, a].min() + xyz[:, a].max() - xyz[:, a]
-        err[a] = np.median(tree.query(mirrored)[0])
-    v = np.zeros(3)
-    v[int(np.argmax(err))] = 1.0
     return v
 
 
@@ -144,29 +134,17 @@ def limb_axes(garment, up: np.ndarray) -> np.ndarray:
     return np.where(limb[:, None], axis, np.nan)
 
 
-def panel_positions(garment) -> np.ndarray | None:
-    """(V,3) mm: where a specification places its flat panels around the body (``PANEL_UP``
-    up), or None when not every piece is placed."""
-    g = garment
-    if len(g.panel_frames) != g.n_pieces or g.n_pieces == 0:
-        return None
-    frames = np.stack([g.panel_frames[i] for i in range(g.n_pieces)])[g.piece_of_vertex]
-    return np.einsum("vij,vj->vi", frames, np.column_stack([g.uv, np.ones(g.n_vertices)]))
-
-
 def drape_grain(garment, up: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(P,) grain angles in degrees from the drape, and (P,) bool: the piece is a limb.
 
     A specification without a drape places its panels around the body: that placement is
     the drape here (body pieces up ``PANEL_UP``). Flat panels do not wrap around a limb,
-    so its axis is read off its end instead (`solver.garment.allowance.limb_end_axes`).
+    so its axis is read off its end instead (`solver.garment.drape.limb_end_axes`).
     """
     placed = panel_positions(garment) if garment.xyz is None else None
     if garment.xyz is None and placed is None:
         raise ValueError("the garment has no 3D drape")
     if placed is not None:
-        from solver.garment.allowance import limb_end_axes
-
         up = PANEL_UP if up is None else np.asarray(up, float) / np.linalg.norm(up)
         jac = drape_maps(garment, placed)
         limb = limb_end_axes(garment, placed, up)
@@ -190,8 +168,7 @@ def outline_grain(garment) -> np.ndarray:
     """(P,) degrees: each piece's longest principal axis (area second moments), a guess."""
     f, uv = garment.faces, garment.uv
     p = uv[f]  # (F,3,2)
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    area = np.abs(signed_areas(uv, f))
     # second moment of a triangle about the origin: A/12 (sum v v^T + (sum v)(sum v)^T)
     s = p.sum(1)
     m2 = area[:, None, None] / 12.0 * (np.einsum("fki,fkj->fij", p, p)
@@ -214,8 +191,6 @@ def paired_grains(grains: tuple[PieceGrain, ...], pairs) -> tuple[PieceGrain, ..
     source wins (file, operator, drape, outline), two inferred grains meet halfway; two
     given grains are kept as given. Without it a left and a right sleeve inferred from
     a slightly asymmetric drape could not both be on grain once they are mirrored."""
-    from solver.garment.symmetry import FLIP
-
     out = list(grains)
     for pair in pairs:
         gi, gj = out[pair.first], out[pair.second]

@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 import untrusted
 from solver.garment.errors import GarmentError
 from solver.garment.grain import PieceGrain, piece_grains
+from solver.garment.mesh import boundary_half_edges, connected_components, edge_keys
+from solver.geometry import polygon_area, signed_areas
 
 
 @dataclass(frozen=True)
@@ -184,7 +185,7 @@ class Garment:
     def boundary_half_edges(self) -> np.ndarray:
         """(B,2) int pattern boundary edges oriented as in their face (interior on the left)."""
         he = self.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        return _boundary_half_edges(he, self.n_vertices)
+        return boundary_half_edges(he, self.n_vertices)
 
     def piece_loops(self, i: int) -> list[np.ndarray]:
         """Vertex-index loops of piece ``i``: outer boundary first (CCW), then holes (CW)."""
@@ -204,7 +205,7 @@ class Garment:
 
     def piece_areas(self) -> np.ndarray:
         """(n_pieces,) float pattern area of each piece in mm^2."""
-        area = triangle_areas(self.uv, self.faces)
+        area = signed_areas(self.uv, self.faces)
         return np.bincount(self.piece_of_face(), weights=area, minlength=self.n_pieces)
 
     def piece_bboxes(self) -> np.ndarray:
@@ -219,14 +220,6 @@ class Garment:
 
 
 # ---------------------------------------------------------------------- helpers
-
-
-def triangle_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F,) signed area of each triangle in ``uv`` (positive = counter-clockwise)."""
-    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
-    return 0.5 * (
-        (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    )
 
 
 def unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -246,21 +239,6 @@ def unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     inv = np.empty(len(a), dtype=np.int64)
     inv[order] = np.cumsum(new) - 1
     return srt[new], inv
-
-
-def _boundary_half_edges(he: np.ndarray, n: int) -> np.ndarray:
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    key = lo.astype(np.int64) * n + hi
-    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return he[counts[inv] == 1]
-
-
-def _components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of an n-vertex graph given (k,2) vertex pairs."""
-    graph = coo_matrix(
-        (np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n)
-    )
-    return connected_components(graph, directed=False)
 
 
 def _piece_loops(g: Garment) -> list[list[np.ndarray]]:
@@ -283,15 +261,10 @@ def _piece_loops(g: Garment) -> list[list[np.ndarray]]:
         if not loops:
             out.append([np.zeros(0, dtype=np.int64)])
             continue
-        areas = [_polygon_area(g.uv[lp]) for lp in loops]
+        areas = [polygon_area(g.uv[lp]) for lp in loops]
         order = np.argsort(-np.abs(areas), kind="stable")
         out.append([loops[k] for k in order])
     return out
-
-
-def _polygon_area(p: np.ndarray) -> float:
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def _check_extent(source: str | Path, points: np.ndarray, what: str) -> None:
@@ -346,94 +319,27 @@ def build_garment(
     uv = np.asarray(uv, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
     point_of_vertex = np.asarray(point_of_vertex, dtype=np.int64)
-    n = uv.shape[0]
     if faces.size == 0:
         raise GarmentError(source, "no faces")
     _check_extent(source, uv, "sewing pattern")
     _check_not_degenerate(source, uv)
     if xyz is not None:
         _check_extent(source, np.asarray(xyz, dtype=float), "3D garment")
-
-    # degenerate slivers: repeated corner or (numerically) zero pattern area
-    area = triangle_areas(uv, faces)
-    scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if n else 0.0
-    repeated = (
-        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    )
-    degenerate = repeated | (np.abs(area) <= 1e-14 * max(scale2, 1e-300))
-    if degenerate.any():
-        warnings.warn(
-            f"{source}: removed {int(degenerate.sum())} degenerate (zero-area) faces",
-            stacklevel=3,
-        )
-        faces, area = faces[~degenerate], area[~degenerate]
-        if faces.size == 0:
-            raise GarmentError(source, "all faces are degenerate")
-
-    # orientation: make every piece counter-clockwise in the pattern (before renumbering,
-    # so that the numbering below is that of the faces as they will be written out)
-    _, comp = _components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
-    comp_of_face = comp[faces[:, 0]]
-    comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
-    flip = comp_area[comp_of_face] < 0
-    if flip.any():
-        faces[flip] = faces[flip][:, [0, 2, 1]]
-
-    # renumber vertices by first appearance so that exports re-import in the same order
-    flat = faces.ravel()
-    used, first = np.unique(flat, return_index=True)
-    order = used[np.argsort(first, kind="stable")]
-    if len(order) < n:
-        warnings.warn(f"{source}: removed {n - len(order)} unused vertices", stacklevel=3)
-    remap = np.full(n, -1, dtype=np.int64)
-    remap[order] = np.arange(len(order))
-    faces = remap[faces]
-    uv = uv[order]
-    xyz = None if xyz is None else np.asarray(xyz, dtype=float)[order]
-    # compact 3D point ids too, numbered by first appearance
-    pts = point_of_vertex[order]
-    _, pfirst, pinv = np.unique(pts, return_index=True, return_inverse=True)
-    prank = np.empty(len(pfirst), dtype=np.int64)
-    prank[np.argsort(pfirst, kind="stable")] = np.arange(len(pfirst))
-    point_of_vertex = prank[pinv.ravel()]
-    n = len(order)
-
+    faces, area = _without_degenerate_faces(source, uv, faces)
+    # orientation before renumbering, so that the numbering below is that of the faces
+    # as they will be written out
+    _orient_counter_clockwise(len(uv), faces, area)
+    uv, faces, xyz, point_of_vertex, remap = _renumbered(source, uv, faces, xyz,
+                                                         point_of_vertex)
+    n = len(uv)
     # pieces: connected components of the pattern mesh (labels follow vertex order, which
     # is the order in which pieces first appear in the faces)
     he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    n_pieces, piece_of_vertex = _components(n, he)
-
-    # pattern edges used by more than two faces make no sense in a sewing pattern
-    lo, hi = np.minimum(he[:, 0], he[:, 1]), np.maximum(he[:, 0], he[:, 1])
-    _, inv, counts = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
-    if counts.max() > 2:
-        bad = he[np.argmax(counts[inv])]
-        raise GarmentError(
-            source,
-            f"pattern edge {int(bad[0]) + 1}-{int(bad[1]) + 1} is used by "
-            f"{int(counts.max())} faces (non-manifold pattern)",
-        )
-    bhe = he[counts[inv] == 1]
-
-    if twins is None:
-        seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
-    else:
-        seam_edges, boundary_3d = _explicit_twins(bhe, remap[np.asarray(twins)], source)
-    # keep seam edges in a stable, readable order: by piece, then by vertex
-    so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
-    seam_edges = seam_edges[so]
-
-    names = list(piece_names) if piece_names is not None else []
-    panels_are_pieces = len(names) == n_pieces  # else per-panel facts cannot be kept
-    if len(names) != n_pieces:
-        if piece_names is not None:
-            warnings.warn(
-                f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
-                "connected pieces; using generic names",
-                stacklevel=3,
-            )
-        names = [f"piece{i}" for i in range(n_pieces)]
-
+    n_pieces, piece_of_vertex = connected_components(n, he)
+    seam_edges, boundary_3d = _seam_edges(source, _manifold_boundary(source, he, n),
+                                          point_of_vertex, piece_of_vertex, twins, remap)
+    names = _piece_names(source, piece_names, n_pieces)
+    panels_are_pieces = piece_names is not None and len(piece_names) == n_pieces
     seam_line_of_edge, seam_lines = _seam_lines(seam_edges, piece_of_vertex, n, names)
     return Garment(
         uv=uv,
@@ -448,12 +354,109 @@ def build_garment(
         boundary_3d_edges=boundary_3d,
         grainlines=dict(grainlines or {}),
         notches=dict(notches or {}),
+        # per-panel facts are kept only when the panels are the pieces
         panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),
         kind=kind,
     )
+
+
+def _seam_edges(source: str | Path, bhe: np.ndarray, point_of_vertex: np.ndarray,
+                piece_of_vertex: np.ndarray, twins: np.ndarray | None, remap: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Seam edges (E,4) from the importer's ``twins`` (input numbering) or inferred from
+    shared 3D points, in a stable, readable order (by piece, then by vertex), and the
+    boundary edges of the 3D garment."""
+    if twins is None:
+        seam_edges, boundary_3d = _infer_twins(bhe, point_of_vertex, piece_of_vertex, source)
+    else:
+        seam_edges, boundary_3d = _explicit_twins(bhe, remap[np.asarray(twins)], source)
+    so = np.lexsort((seam_edges[:, 0], piece_of_vertex[seam_edges[:, 0]]))
+    return seam_edges[so], boundary_3d
+
+
+def _piece_names(source: str | Path, piece_names: list[str] | None, n_pieces: int
+                 ) -> list[str]:
+    """The importer's names when there is one per piece, else generic ones (with a
+    warning when names were given)."""
+    names = list(piece_names) if piece_names is not None else []
+    if len(names) != n_pieces:
+        if piece_names is not None:
+            warnings.warn(
+                f"{source}: {len(names)} pieces named but the pattern has {n_pieces} "
+                "connected pieces; using generic names",
+                stacklevel=4,
+            )
+        names = [f"piece{i}" for i in range(n_pieces)]
+    return names
+
+
+def _without_degenerate_faces(source: str | Path, uv: np.ndarray, faces: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """Faces without slivers (a repeated corner or numerically zero pattern area), with
+    a warning that says how many, and their (F,) signed areas."""
+    area = signed_areas(uv, faces)
+    scale2 = float(np.ptp(uv, axis=0).max()) ** 2 if len(uv) else 0.0
+    repeated = (
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    )
+    degenerate = repeated | (np.abs(area) <= 1e-14 * max(scale2, 1e-300))
+    if degenerate.any():
+        warnings.warn(
+            f"{source}: removed {int(degenerate.sum())} degenerate (zero-area) faces",
+            stacklevel=4,
+        )
+        faces, area = faces[~degenerate], area[~degenerate]
+        if faces.size == 0:
+            raise GarmentError(source, "all faces are degenerate")
+    return faces, area
+
+
+def _orient_counter_clockwise(n: int, faces: np.ndarray, area: np.ndarray) -> None:
+    """Turn (in place) the faces of every piece whose pattern area is negative."""
+    _, comp = connected_components(n, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2))
+    comp_of_face = comp[faces[:, 0]]
+    comp_area = np.bincount(comp_of_face, weights=area, minlength=int(comp.max()) + 1)
+    flip = comp_area[comp_of_face] < 0
+    if flip.any():
+        faces[flip] = faces[flip][:, [0, 2, 1]]
+
+
+def _renumbered(source: str | Path, uv: np.ndarray, faces: np.ndarray,
+                xyz: np.ndarray | None, point_of_vertex: np.ndarray) -> tuple:
+    """Vertices renumbered by first appearance in the faces, so that exports re-import in
+    the same order (unused ones dropped, with a warning), 3D point ids compacted the
+    same way: ``(uv, faces, xyz, point_of_vertex, remap)``, ``remap`` old -> new id."""
+    n = len(uv)
+    used, first = np.unique(faces.ravel(), return_index=True)
+    order = used[np.argsort(first, kind="stable")]
+    if len(order) < n:
+        warnings.warn(f"{source}: removed {n - len(order)} unused vertices", stacklevel=4)
+    remap = np.full(n, -1, dtype=np.int64)
+    remap[order] = np.arange(len(order))
+    xyz = None if xyz is None else np.asarray(xyz, dtype=float)[order]
+    pts = point_of_vertex[order]
+    _, pfirst, pinv = np.unique(pts, return_index=True, return_inverse=True)
+    prank = np.empty(len(pfirst), dtype=np.int64)
+    prank[np.argsort(pfirst, kind="stable")] = np.arange(len(pfirst))
+    return uv[order], remap[faces], xyz, prank[pinv.ravel()], remap
+
+
+def _manifold_boundary(source: str | Path, he: np.ndarray, n: int) -> np.ndarray:
+    """The boundary half-edges of ``he``; a pattern edge used by more than two faces
+    makes no sense in a sewing pattern and is an error."""
+    _, inv, counts = np.unique(edge_keys(he[:, 0], he[:, 1], n), return_inverse=True,
+                               return_counts=True)
+    if counts.max() > 2:
+        bad = he[np.argmax(counts[inv])]
+        raise GarmentError(
+            source,
+            f"pattern edge {int(bad[0]) + 1}-{int(bad[1]) + 1} is used by "
+            f"{int(counts.max())} faces (non-manifold pattern)",
+        )
+    return he[counts[inv] == 1]
 
 
 def _seam_lines(
@@ -474,7 +477,7 @@ def _seam_lines(
     inc.data[:] = 1
     adj = (inc @ inc.T).tocoo()
     keep = pair_key[adj.row] == pair_key[adj.col]
-    _, label = _components(e, np.column_stack([adj.row[keep], adj.col[keep]]))
+    _, label = connected_components(e, np.column_stack([adj.row[keep], adj.col[keep]]))
     # number seam lines by their first seam edge
     _, first, inv = np.unique(label, return_index=True, return_inverse=True)
     rank = np.empty(len(first), dtype=np.int64)
@@ -508,7 +511,7 @@ def _infer_twins(
         )
         bhe, pa, pb = bhe[~collapsed], pa[~collapsed], pb[~collapsed]
     n_points = int(point_of_vertex.max()) + 1
-    key3 = np.minimum(pa, pb) * n_points + np.maximum(pa, pb)
+    key3 = edge_keys(pa, pb, n_points)
     # sort by 3D key, then piece, then vertex so the first twin is deterministic
     order = np.lexsort((bhe[:, 0], piece_of_vertex[bhe[:, 0]], key3))
     bhe, key3 = bhe[order], key3[order]
@@ -551,14 +554,8 @@ def _explicit_twins(
     if not ((ok1_f | ok1_r) & ok2).all():
         raise GarmentError(source, "a stitched edge is not on a panel boundary")
     out = np.where(ok1_f[:, None], twins, twins[:, [1, 0, 3, 2]]).astype(np.int64)
-    used = np.unique(
-        np.concatenate(
-            [
-                np.minimum(out[:, 0], out[:, 1]) * n + np.maximum(out[:, 0], out[:, 1]),
-                np.minimum(out[:, 2], out[:, 3]) * n + np.maximum(out[:, 2], out[:, 3]),
-            ]
-        )
-    )
+    used = np.unique(np.concatenate([edge_keys(out[:, 0], out[:, 1], n),
+                                     edge_keys(out[:, 2], out[:, 3], n)]))
     if len(used) < 2 * len(out):
         raise GarmentError(source, "a pattern edge is sewn more than once")
     return out, len(bhe) - 2 * len(out)

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from solver.garment.allowance import CutLine, dart_runs
+from solver.garment.allowance import CutLine, cut_lines, dart_runs
+from solver.garment.mesh import connected_components, loop_edge_keys
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, fit_pairs, mirror_pairs, mirrored_edges
 
@@ -76,11 +77,9 @@ def _reference_side_first(uv: np.ndarray, rows: np.ndarray, forward) -> np.ndarr
     piece with itself may list either side first row by row); the longer one is the same
     on a seam and on its mirror image, so a pair's notches mirror. ``forward(u, v)``
     tells whether edges u->v run as in their faces."""
-    from solver.garment.model import _components
-
     verts, local = np.unique(rows, return_inverse=True)
     local = local.reshape(rows.shape)
-    _, comp = _components(len(verts), np.concatenate([local[:, :2], local[:, 2:]]))
+    _, comp = connected_components(len(verts), np.concatenate([local[:, :2], local[:, 2:]]))
     other = comp[local[:, 0]] != comp[local[0, 0]]  # a row listing the other side first
     rows = np.where(other[:, None], rows[:, [2, 3, 0, 1]], rows)
     as_in_face = forward(rows[:, 0], rows[:, 1])  # so that the first side chains
@@ -119,90 +118,113 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     waist is three runs), and a pair's notches would not mirror.
     """
     g = garment
-    n = g.n_vertices
-    loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
-    keys = np.concatenate([lp * n + np.roll(lp, -1) for lp in loops])  # directed, as in face
-    values = np.concatenate([a for c in cuts for a in (c.allowance, *c.hole_allowance)])
-    order = np.argsort(keys)
-    keys, values = keys[order], values[order]
+    notcher = _Notcher(g, cuts, depth_mm)
+    darts = {line: (piece, run) for piece in range(g.n_pieces)
+             for line, run in dart_runs(g, piece)}
+    images = _edge_images(g, pairs)
+    sources = _mirror_sources(g, images)
+    for line in range(len(g.seam_lines)):
+        if line in darts:
+            notcher.dart(line, *darts[line])
+        elif line in sources:
+            notcher.mirrored(line, sources[line], images)
+        else:
+            notcher.measured(line, spacing_mm, lattice_coords)
+    return notcher.out
 
-    def lookup(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+
+class _Notcher:
+    """The notches of one garment's seam lines as :func:`seam_notches` places them, with
+    the per-edge allowances of its cut lines to look up."""
+
+    def __init__(self, garment: Garment, cuts: list[CutLine], depth_mm: float) -> None:
+        g = self.g = garment
+        self.depth_mm = depth_mm
+        n = g.n_vertices
+        loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
+        keys = loop_edge_keys(loops, n)
+        values = np.concatenate([a for c in cuts for a in (c.allowance, *c.hole_allowance)])
+        order = np.argsort(keys)
+        self.keys, self.values = keys[order], values[order]
+        self.out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
+        self.boundaries = [c.cut.boundary for c in cuts]
+        self.sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+
+    def lookup(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Allowance of edge u-v and whether u->v runs as in its face."""
+        keys, values, n = self.keys, self.values, self.g.n_vertices
         fk, bk = u * n + v, v * n + u
         fi = np.clip(np.searchsorted(keys, fk), 0, len(keys) - 1)
         bi = np.clip(np.searchsorted(keys, bk), 0, len(keys) - 1)
         fwd = keys[fi] == fk
         return np.where(fwd, values[fi], np.where(keys[bi] == bk, values[bi], 0.0)), fwd
 
-    out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
-    boundaries = [c.cut.boundary for c in cuts]
-    sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
-    darts = {line: (piece, run) for piece in range(g.n_pieces)
-             for line, run in dart_runs(g, piece)}
-
-    def emit(line: int, sides: list, ids: np.ndarray | None = None) -> np.ndarray:
+    def emit(self, line: int, sides: list, ids: np.ndarray | None = None) -> np.ndarray:
         """Add the notches of stations (numbered ``ids``, default in order) that are clear
         on both twin sides; the numbers of those added."""
-        made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, boundaries[piece],
-                                                      sews[piece], depth_mm))
+        made = [(piece, point, nrm, a, b, f, *_slits(point, nrm, w, self.boundaries[piece],
+                                                      self.sews[piece], self.depth_mm))
                 for piece, point, nrm, w, a, b, f in sides]
         both = made[0][-1] & made[1][-1]
         ids = np.arange(len(both)) if ids is None else ids
         for piece, point, nrm, a, b, f, at, depth, _ in made:
             for j in np.flatnonzero(both):
-                out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
-                                        line, int(ids[j]), (int(a[j]), int(b[j])),
-                                        float(f[j])))
+                self.out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
+                                             line, int(ids[j]), (int(a[j]), int(b[j])),
+                                             float(f[j])))
         return ids[both]
 
-    def twin_sides(rows: np.ndarray, k: np.ndarray, f: np.ndarray) -> list:
+    def twin_sides(self, rows: np.ndarray, k: np.ndarray, f: np.ndarray) -> list:
         """Both sides of stations at fraction ``f`` along twin rows ``rows[k]``."""
-        sides = []
+        g, sides = self.g, []
         for cols in ((0, 1), (2, 3)):
             a, b = rows[k, cols[0]], rows[k, cols[1]]
-            w, fwd = lookup(a, b)
+            w, fwd = self.lookup(a, b)
             point = g.uv[a] + f[:, None] * (g.uv[b] - g.uv[a])
             sides.append((int(g.piece_of_vertex[a[0]]), point, _outward(g.uv, a, b, fwd), w,
                           a, b, f))
         return sides
 
-    images = _edge_images(g, pairs)
-    sources = _mirror_sources(g, images)
+    def dart(self, line: int, piece: int, run: np.ndarray) -> None:
+        """A dart: one notch at each end of its mouth, its legs sewn shut."""
+        g = self.g
+        loop = g.piece_loops(piece)[0]
+        k = {int(v): j for j, v in enumerate(loop.tolist())}
+        before = loop[k[int(run[0])] - 1]
+        after = loop[(k[int(run[-1])] + 1) % len(loop)]
+        sides = []
+        for a, b, f in ((before, run[0], 1.0), (run[-1], after, 0.0)):
+            a, b = np.array([a]), np.array([b])
+            w, fwd = self.lookup(a, b)
+            sides.append((piece, g.uv[b] if f else g.uv[a], _outward(g.uv, a, b, fwd), w,
+                          a, b, np.array([f])))
+        self.emit(line, sides)
 
-    for line in range(len(g.seam_lines)):
-        if line in darts:  # a dart: one notch at each end of its mouth, its legs sewn shut
-            piece, run = darts[line]
-            loop = g.piece_loops(piece)[0]
-            k = {int(v): j for j, v in enumerate(loop.tolist())}
-            before = loop[k[int(run[0])] - 1]
-            after = loop[(k[int(run[-1])] + 1) % len(loop)]
-            sides = []
-            for a, b, f in ((before, run[0], 1.0), (run[-1], after, 0.0)):
-                a, b = np.array([a]), np.array([b])
-                w, fwd = lookup(a, b)
-                sides.append((piece, g.uv[b] if f else g.uv[a], _outward(g.uv, a, b, fwd), w,
-                              a, b, np.array([f])))
-            emit(line, sides)
-            continue
-        if line in sources:
-            rows = g.seam_edges[g.seam_line_of_edge == line]
-            k, f, ids = _mirrored_stations(rows, sources[line], out, images)
-            kept = emit(line, twin_sides(rows, k, f), ids) if len(k) else ids
-            # a mirror image not clear here (beside an unpaired piece) drops its original
-            dropped = set(ids.tolist()) - set(kept.tolist())
-            for notches in out:
-                notches[:] = [n for n in notches
-                              if n.seam_line != sources[line] or n.station not in dropped]
-            continue
+    def mirrored(self, line: int, source: int, images: EdgeImages) -> None:
+        """The mirror image of seam line ``source``'s notches; a mirror image not clear
+        here (beside an unpaired piece) drops its original."""
+        rows = self.g.seam_edges[self.g.seam_line_of_edge == line]
+        k, f, ids = _mirrored_stations(rows, source, self.out, images)
+        kept = self.emit(line, self.twin_sides(rows, k, f), ids) if len(k) else ids
+        dropped = set(ids.tolist()) - set(kept.tolist())
+        for notches in self.out:
+            notches[:] = [n for n in notches
+                          if n.seam_line != source or n.station not in dropped]
+
+    def measured(self, line: int, spacing_mm: float,
+                 lattice_coords: LatticeCoords | None) -> None:
+        """Stations measured along the longer side: every ``spacing_mm`` inside the
+        allowance at both ends, or on the print's lattice lines."""
+        g = self.g
         rows = _reference_side_first(g.uv, g.seam_edges[g.seam_line_of_edge == line],
-                                     lambda u, v: lookup(u, v)[1])
+                                     lambda u, v: self.lookup(u, v)[1])
         pa, pb = g.uv[rows[:, 0]], g.uv[rows[:, 1]]
         seg = np.hypot(*(pb - pa).T)
         s = np.concatenate([[0.0], np.cumsum(seg)])
         total = float(s[-1])
         if total <= 1e-9:
-            continue
-        allow, _ = lookup(rows[:, 0], rows[:, 1])
+            return
+        allow, _ = self.lookup(rows[:, 0], rows[:, 1])
         inset = min(float(allow.max()), total / 4)
         if lattice_coords is None:
             count = int(np.ceil((total - 2 * inset) / spacing_mm)) if spacing_mm > 0 else 1
@@ -215,8 +237,7 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
                                       min_gap=max(2.0 * float(allow.max()), spacing_mm / 2))
         k = np.clip(np.searchsorted(s, stations, side="right") - 1, 0, len(rows) - 1)
         f = np.clip((stations - s[k]) / np.maximum(seg[k], 1e-12), 0.0, 1.0)
-        emit(line, twin_sides(rows, k, f))
-    return out
+        self.emit(line, self.twin_sides(rows, k, f))
 
 
 EdgeImages = dict[tuple[int, int], tuple[int, int]]
@@ -283,8 +304,6 @@ def cut_ready(garment: Garment, rules, placement=None,
     placement the balance notches sit on the print's lattice lines. Mirror ``pairs`` get
     mirrored allowances and notches; by default the pairs the placement records, else
     the garment's own (:func:`~solver.garment.symmetry.mirror_pairs`)."""
-    from solver.garment.allowance import cut_lines
-
     if pairs is None:
         pairs = placement_pairs(garment, placement)
     cuts = cut_lines(garment, rules, pairs)

@@ -359,37 +359,8 @@ def load_obj(
             kind="obj",
             units_in_file=unit,
         )
-    # one v per 3D point: exact duplicates would hide the seams through them, so merge them
-    # (not in our own 2D-only files, whose placeholder v may coincide where pieces overlap)
-    if two_d:
-        uniq_v, v_id = obj.v, np.arange(len(obj.v))
-    else:
-        uniq_v, v_id = unique_rows(obj.v)
-    v_id = v_id.ravel()
-    if len(uniq_v) < len(obj.v):
-        warnings.warn(
-            f"{path}: merged {len(obj.v) - len(uniq_v)} duplicate vertices (identical positions)",
-            stacklevel=2,
-        )
-    corner_v = v_id[obj.f_v.ravel()]
-    corner_vt = obj.f_vt.ravel()
-    if vt_indexed:  # our own files: one vt per pattern vertex, even where values coincide
-        key = np.column_stack([corner_v, corner_vt])
-    else:
-        key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
-    uniq, inv = unique_rows(key)
-    inv = inv.ravel()
-    per_corner = np.bincount(corner_vt, minlength=len(obj.vt)).max() <= 1
-    if not per_corner:
-        by_index = len(np.unique(corner_v * len(obj.vt) + corner_vt))
-        if by_index > len(uniq):
-            warnings.warn(
-                f"{path}: welded {by_index - len(uniq)} duplicate texture vertices",
-                stacklevel=2,
-            )
-    point = uniq[:, 0].astype(np.int64)
-    uv = obj.vt[uniq[:, 1]] if vt_indexed else uniq[:, 1:]
-    faces = inv.reshape(-1, 3)
+    uniq_v, v_id = _merged_points(path, obj, two_d)
+    point, uv, faces = _pattern_vertices(path, obj, v_id, vt_indexed)
     xyz = uniq_v[point]
     scale = None if two_d else _recover_scale(uv, xyz, faces)
     if scale is not None:
@@ -405,6 +376,48 @@ def load_obj(
         scale_recovered=scale,
         piece_names=declared_piece_names(obj.comments),
     )
+
+
+def _merged_points(path: Path, obj, two_d: bool) -> tuple[np.ndarray, np.ndarray]:
+    """One v per 3D point, and the (V,) point of each v: exact duplicates would hide the
+    seams through them, so they are merged (not in our own 2D-only files, whose
+    placeholder v may coincide where pieces overlap)."""
+    if two_d:
+        uniq_v, v_id = obj.v, np.arange(len(obj.v))
+    else:
+        uniq_v, v_id = unique_rows(obj.v)
+    if len(uniq_v) < len(obj.v):
+        warnings.warn(
+            f"{path}: merged {len(obj.v) - len(uniq_v)} duplicate vertices (identical positions)",
+            stacklevel=3,
+        )
+    return uniq_v, v_id.ravel()
+
+
+def _pattern_vertices(path: Path, obj, v_id: np.ndarray, vt_indexed: bool
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pattern vertices: one per distinct (3D point, texture vertex) of the face corners
+    (texture vertices that coincide are welded, with a warning, except in our own files,
+    one vt per pattern vertex). Returns each one's 3D point, its uv, and the faces."""
+    corner_v = v_id[obj.f_v.ravel()]
+    corner_vt = obj.f_vt.ravel()
+    if vt_indexed:
+        key = np.column_stack([corner_v, corner_vt])
+    else:
+        key = np.column_stack([corner_v.astype(float), obj.vt[corner_vt]])
+    uniq, inv = unique_rows(key)
+    inv = inv.ravel()
+    per_corner = np.bincount(corner_vt, minlength=len(obj.vt)).max() <= 1
+    if not per_corner:
+        by_index = len(np.unique(corner_v * len(obj.vt) + corner_vt))
+        if by_index > len(uniq):
+            warnings.warn(
+                f"{path}: welded {by_index - len(uniq)} duplicate texture vertices",
+                stacklevel=3,
+            )
+    point = uniq[:, 0].astype(np.int64)
+    uv = obj.vt[uniq[:, 1]] if vt_indexed else uniq[:, 1:]
+    return point, uv, inv.reshape(-1, 3)
 
 
 def pair_partner(path: Path) -> Path | None:

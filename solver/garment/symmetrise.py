@@ -27,18 +27,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.optimize import linear_sum_assignment
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from solver.garment.barycentric import barycentric_matrix
-from solver.garment.model import Garment, _components, build_garment, triangle_areas
+from solver.garment.mesh import connected_components
+from solver.garment.model import Garment, build_garment
 from solver.garment.symmetry import (
     FLIP,
     MirrorPair,
-    _closest_on_polygon,
     fit_pairs,
     mirror_correspondence,
 )
+from solver.geometry import closest_on_polygon, signed_areas
 
 _KEPT, _FIRST, _SECOND = 0, 1, 2
 
@@ -192,22 +194,15 @@ def _averaged_first(g: Garment, p: MirrorPair) -> np.ndarray:
     best = np.full(len(pts), np.inf)
     target = pts.copy()
     for loop in g.piece_loops(p.second):
-        q = _closest(pts, _inverse_map(p, g.uv[loop]))
+        q = closest_on_polygon(pts, _inverse_map(p, g.uv[loop]))
         d = np.linalg.norm(q - pts, axis=1)
         closer = d < best
         best[closer], target[closer] = d[closer], q[closer]
     disp = _harmonic(len(verts), faces, local[boundary], target - pts)
     new = g.uv[verts] + 0.5 * disp
-    if (triangle_areas(new, faces) <= 0).any():
+    if (signed_areas(new, faces) <= 0).any():
         raise _Skip("averaging the outlines would fold a triangle")
     return new
-
-
-def _closest(points: np.ndarray, polygon: np.ndarray, chunk: int = 256) -> np.ndarray:
-    """Closest points of a closed polygon, in chunks so that fine outlines (thousands of
-    vertices) stay within a few megabytes."""
-    return np.concatenate([_closest_on_polygon(points[k:k + chunk], polygon)
-                           for k in range(0, len(points), chunk)] or [points[:0]])
 
 
 def _harmonic(n: int, faces: np.ndarray, fixed: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -267,7 +262,7 @@ def _rebuilt(g: Garment, pairs: Sequence[MirrorPair], averaged: dict[int, np.nda
     faces = np.concatenate(face_parts)
     twins = _new_twins(g, pairs, role, new_index, mirror_index)
     _check_seams(pairs, twins, span, offset)
-    _, point = _components(offset, np.concatenate([twins[:, [0, 2]], twins[:, [1, 3]]]))
+    _, point = connected_components(offset, np.concatenate([twins[:, [0, 2]], twins[:, [1, 3]]]))
     xyz = None
     if g.xyz is not None:
         xyz = np.concatenate(xyz_parts)
@@ -292,8 +287,6 @@ def _keep_seam_lines(old: Garment, new: Garment) -> None:
     those of the old line between the same pieces that lies nearest (the centres of their
     edges).
     """
-    from scipy.optimize import linear_sum_assignment
-
     def centres(g: Garment) -> np.ndarray:
         mid = g.uv[g.seam_edges].mean(axis=1)  # (E,2) centre of each twin row
         count = np.bincount(g.seam_line_of_edge, minlength=len(g.seam_lines))
@@ -505,7 +498,7 @@ def _moves(old: Garment, new: Garment, pairs: Sequence[MirrorPair]) -> list[Piec
             pts = old.uv[np.concatenate(old.piece_loops(k))]
             d = np.full(len(pts), np.inf)
             for loop in new.piece_loops(k):
-                q = _closest(pts, new.uv[loop])
+                q = closest_on_polygon(pts, new.uv[loop])
                 d = np.minimum(d, np.linalg.norm(q - pts, axis=1))
             out.append(PieceMove(k, float(d.max()), float(np.sqrt(np.mean(d ** 2))),
                                  100.0 * (area_new[k] / area_old[k] - 1.0)))

@@ -20,8 +20,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from solver.garment.model import Garment
+from solver.geometry import FLIP, closest_on_polygon, resample_closed, rotation_matrix
+from solver.jsonfile import read_json
 
 #: Outline RMS distance, as a fraction of the piece's bounding-box diagonal, below which
 #: two pieces count as mirror images.
@@ -37,9 +40,6 @@ _ICP_STEPS = 4
 #: as an exact mirrored copy of the first's mesh (a symmetrised pair, also after a file
 #: round trip that rounds coordinates).
 COPY_TOLERANCE = 1e-6
-
-FLIP = np.diag([-1.0, 1.0])
-
 
 @dataclass(frozen=True)
 class MirrorPair:
@@ -86,16 +86,27 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
     n = garment.n_pieces
     declared = [_ordered(p, n) for p in declared]
     vetoed_set = {_ordered(p, n) for p in vetoed}
-    outlines = [garment.piece_outline(i) for i in range(n)]
-    labels = _seam_partner_per_boundary_edge(garment)
     out = fit_pairs(garment, declared)
     taken = {k for p in out for k in (p.first, p.second)}
+    for pair in _candidates(garment, taken, vetoed_set, tolerance):
+        if pair.first in taken or pair.second in taken:
+            continue
+        out.append(pair)
+        taken.update((pair.first, pair.second))
+    return _with_corresponding_seams(garment, out)
 
+
+def _candidates(garment: Garment, taken: set[int], vetoed: set[tuple[int, int]],
+                tolerance: float) -> list[MirrorPair]:
+    """Every pair of pieces not ``taken`` nor ``vetoed`` whose mirrored outlines fit within
+    ``tolerance``, best fit first."""
+    n = garment.n_pieces
+    outlines = [garment.piece_outline(i) for i in range(n)]
     area = np.abs(garment.piece_areas())
     candidates: list[MirrorPair] = []
     for i in range(n):
         for j in range(i + 1, n):
-            if {i, j} & taken or (i, j) in vetoed_set:
+            if {i, j} & taken or (i, j) in vetoed:
                 continue
             if abs(area[i] - area[j]) > 4 * tolerance * max(area[i], area[j]):
                 continue  # area differs more than a 1 % outline offset allows
@@ -103,15 +114,17 @@ def mirror_pairs(garment: Garment, *, tolerance: float = MIRROR_TOLERANCE,
             rot, t, rms = _exact_or(garment, i, j, *_mirror_fit(outlines[i], outlines[j]))
             if rms <= tolerance * size:
                 candidates.append(MirrorPair(i, j, rms, size, rot, t))
-    for pair in sorted(candidates, key=lambda p: p.relative_rms):
-        if pair.first in taken or pair.second in taken:
-            continue
-        out.append(pair)
-        taken.update((pair.first, pair.second))
-    # Seams must correspond under the pairing itself: drop the worst pair until they do (a
-    # skirt's front and back are congruent, but sewn to different pieces than a pair is).
+    return sorted(candidates, key=lambda p: p.relative_rms)
+
+
+def _with_corresponding_seams(garment: Garment, pairs: list[MirrorPair]) -> list[MirrorPair]:
+    """Seams must correspond under the pairing itself: the worst pair is dropped until
+    they do (a skirt's front and back are congruent, but sewn to different pieces than a
+    pair is). Declared pairs stay."""
+    labels = _seam_partner_per_boundary_edge(garment)
+    out = list(pairs)
     while True:
-        sigma = _partner_map(out, n)
+        sigma = _partner_map(out, garment.n_pieces)
         score = [1.0 if p.declared else _seams_correspond(garment, p, labels, sigma)
                  for p in out]
         worst = int(np.argmin(score)) if out else -1
@@ -170,8 +183,6 @@ def mirror_correspondence(garment: Garment, pair: MirrorPair) -> np.ndarray | No
     second = np.flatnonzero(garment.piece_of_vertex == pair.second)
     if len(first) != len(second) or len(first) == 0:
         return None
-    from scipy.spatial import cKDTree
-
     moved = pair.map_first_to_second(garment.uv[first])
     gap, near = cKDTree(moved).query(garment.uv[second])
     if gap.max() > COPY_TOLERANCE * pair.size_mm or len(np.unique(near)) != len(near):
@@ -189,8 +200,6 @@ def mirrored_edges(garment: Garment, pair: MirrorPair) -> np.ndarray:
     nearest edge midpoint under the pair's mirror: exact for a mirrored copy (a
     symmetrised pair), the nearest edge for halves meshed apart.
     """
-    from scipy.spatial import cKDTree
-
     g = garment
     bhe = g.boundary_half_edges()
     mine = bhe[g.piece_of_vertex[bhe[:, 0]] == pair.first]
@@ -211,8 +220,8 @@ def mirror_gap(pair: MirrorPair, a: np.ndarray, b: np.ndarray) -> float:
     the two are exact mirror images, as a pair's outlines and cut lines must be."""
     moved = pair.map_first_to_second(np.asarray(a, float))
     b = np.asarray(b, float)
-    return float(max(np.linalg.norm(_closest_on_polygon(moved, b) - moved, axis=1).max(),
-                     np.linalg.norm(_closest_on_polygon(b, moved[::-1]) - b, axis=1).max()))
+    return float(max(np.linalg.norm(closest_on_polygon(moved, b) - moved, axis=1).max(),
+                     np.linalg.norm(closest_on_polygon(b, moved[::-1]) - b, axis=1).max()))
 
 
 def cut_mismatch(pair: MirrorPair, cuts: Sequence, notches: Sequence) -> tuple[float, float]:
@@ -243,8 +252,6 @@ def _exact_or(g: Garment, i: int, j: int, rot: np.ndarray, t: np.ndarray, rms: f
     second = np.flatnonzero(g.piece_of_vertex == j)
     if len(first) != len(second) or rms > MIRROR_TOLERANCE * _size(g.piece_outline(i)):
         return rot, t, rms
-    from scipy.spatial import cKDTree
-
     a = g.uv[first] @ FLIP.T
     _, near = cKDTree(a @ rot.T + t).query(g.uv[second])
     if len(np.unique(near)) != len(near):
@@ -273,39 +280,19 @@ def _size(outline: np.ndarray) -> float:
     return float(np.hypot(*span))
 
 
-def _resample(poly: np.ndarray, n: int) -> np.ndarray:
-    """(n,2) points evenly spaced by arc length along the closed polygon."""
-    closed = np.vstack([poly, poly[:1]])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
-    t = np.linspace(0.0, s[-1], n, endpoint=False)
-    return np.column_stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])])
-
-
 def _procrustes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation and translation taking rows of ``a`` closest to rows of ``b``."""
     ca, cb = a.mean(axis=0), b.mean(axis=0)
     h = (a - ca).T @ (b - cb)
     ang = np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-    c, s = np.cos(ang), np.sin(ang)
-    rot = np.array([[c, -s], [s, c]])
+    rot = rotation_matrix(ang)
     return rot, cb - rot @ ca
-
-
-def _closest_on_polygon(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """(n,2) closest point of the closed polygon to each point (vectorised over segments)."""
-    a = poly
-    d = np.roll(poly, -1, axis=0) - a
-    rel = points[:, None, :] - a[None, :, :]
-    t = np.clip(np.einsum("nkj,kj->nk", rel, d) / np.maximum((d * d).sum(1), 1e-300), 0, 1)
-    foot = a[None] + t[..., None] * d[None]
-    k = np.argmin(((points[:, None, :] - foot) ** 2).sum(-1), axis=1)
-    return foot[np.arange(len(points)), k]
 
 
 def _mirror_fit(first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Best rigid map of the mirrored ``first`` outline onto ``second``: (R, t, RMS mm)."""
-    a = _resample(first @ FLIP.T, _SAMPLES)[::-1]  # mirroring reverses the orientation
-    b = _resample(second, _SAMPLES)
+    a = resample_closed(first @ FLIP.T, _SAMPLES)[::-1]  # mirroring reverses the orientation
+    b = resample_closed(second, _SAMPLES)
     n = len(a)
     shifted = b[(np.arange(n)[:, None] + np.arange(n)[None, :]) % n]  # every cyclic start
     a0 = a - a.mean(axis=0)
@@ -316,11 +303,11 @@ def _mirror_fit(first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.n
     rot, t = _procrustes(a, shifted[int(np.argmin(ssd))])
     for _ in range(_ICP_STEPS):
         moved = a @ rot.T + t
-        rot, t = _procrustes(a, _closest_on_polygon(moved, second))
+        rot, t = _procrustes(a, closest_on_polygon(moved, second))
     moved = a @ rot.T + t
-    there = np.linalg.norm(moved - _closest_on_polygon(moved, second), axis=1)
-    back = _resample(second, _SAMPLES)
-    back_dist = np.linalg.norm(back - _closest_on_polygon(back, moved[::-1]), axis=1)
+    there = np.linalg.norm(moved - closest_on_polygon(moved, second), axis=1)
+    back = resample_closed(second, _SAMPLES)
+    back_dist = np.linalg.norm(back - closest_on_polygon(back, moved[::-1]), axis=1)
     rms = float(np.sqrt(0.5 * (np.mean(there ** 2) + np.mean(back_dist ** 2))))
     return rot, t, rms
 
@@ -388,8 +375,6 @@ def read_pairs_file(path, garment: Garment) -> tuple[list[tuple[int, int]], list
     Pieces are named by index or by name (as `station inspect` lists them). Errors name the
     file, in one line.
     """
-    from solver.jsonfile import read_json
-
     return pairs_from_dict(read_json(path), garment, str(path))
 
 

@@ -38,14 +38,14 @@ from solver.nest.engine import (
     Board,
     Filler,
     clear_of,
-    default_resolution,
     exact_batches,
     moves_of,
     stamp,
 )
+from solver.nest.fill import default_resolution
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
-from solver.nest.regions import repair, snap_to_lattice
+from solver.nest.regions import near_pairs, repair, snap_to_lattice
 
 SHRINK = (0.03, 0.015, 0.007, 0.003)  # strip steps tried in turn, fraction of the length
 GROW = 1.5  # weight factor of a pair still colliding after a round of moves (sparrow: 1.2-2)
@@ -125,11 +125,7 @@ class CosetSearch:
         g = self.gap
         n = len(polys)
         polys = np.concatenate([polys, self.fixed])  # keep-outs never move (j >= n)
-        tree = shapely.STRtree(polys)
-        if g > 0:
-            i, j = tree.query(polys, predicate="dwithin", distance=g * (1 - 1e-7))
-        else:
-            i, j = tree.query(polys, predicate="intersects")
+        i, j = near_pairs(polys, g)
         keep = (i < j) & (i < n)
         i, j = i[keep], j[keep]
         if not len(i):
@@ -330,25 +326,11 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     start_len = math.inf if start is None else max(
         float(shapely.Polygon(affine(m, it.ref)).bounds[2])
         for it, m in zip(items, start)) + problem.gap
-    cap = min(start_len, free_len * GROW_TARGET[-1])
-    search = CosetSearch(problem, items, cap, res, rng)
+    search = CosetSearch(problem, items, min(start_len, free_len * GROW_TARGET[-1]), res, rng)
     best = None if start is None else [search.filler.pose(k, m) for k, m in enumerate(start)]
     if free is not None:
-        snapped = [search.filler.pose(k, m)
-                   for k, m in enumerate(snap_to_lattice(problem, items, free))]
-        tries = [grow for grow in GROW_TARGET for _ in range(TRIES)]
-        for grow in tries:
-            target = min(free_len * grow, problem.length or math.inf)
-            if target >= start_len or deadline.expired():
-                break
-            trial = list(snapped)
-            attempt = deadline.within(max(ATTEMPT_MIN, ATTEMPT * deadline.left()))
-            if search.squeeze(trial, target, attempt):
-                best = trial
-                if progress:
-                    progress(f"coset search: snapped free nest separated at "
-                             f"{search.length_of(trial):.4g} (free {free_len:.4g})")
-                break
+        separated = _separated(search, free, free_len, start_len, deadline, progress)
+        best = best if separated is None else separated
     if best is None and free is not None:  # each piece to the free position nearest its own
         r = repair(problem, items, snap_to_lattice(problem, items, free),
                    time_limit=deadline, seed=seed, everything=True)
@@ -360,3 +342,25 @@ def coset_search(problem: NestProblem, items: list[Item], *, time_limit: float |
     if length >= start_len - 1e-9:
         return None  # nothing shorter than the marker it was given
     return moves_of(search.filler, best), length
+
+
+def _separated(search: CosetSearch, free: list[np.ndarray], free_len: float,
+               start_len: float, deadline: Deadline, progress: Progress | None
+               ) -> list | None:
+    """The free nest snapped to the lattice and separated on a strip a little longer than
+    it (longer after each failure, never as long as ``start_len``); None if it is not."""
+    problem, items = search.problem, search.items
+    snapped = [search.filler.pose(k, m)
+               for k, m in enumerate(snap_to_lattice(problem, items, free))]
+    for grow in [grow for grow in GROW_TARGET for _ in range(TRIES)]:
+        target = min(free_len * grow, problem.length or math.inf)
+        if target >= start_len or deadline.expired():
+            return None
+        trial = list(snapped)
+        attempt = deadline.within(max(ATTEMPT_MIN, ATTEMPT * deadline.left()))
+        if search.squeeze(trial, target, attempt):
+            if progress:
+                progress(f"coset search: snapped free nest separated at "
+                         f"{search.length_of(trial):.4g} (free {free_len:.4g})")
+            return trial
+    return None

@@ -244,20 +244,8 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     # every `station nest`, plain fabric and large inputs included, would otherwise pay
     from ortools.sat.python import cp_model
 
-    g = problem.gap
-    period = 0.0
-    if any_phase:
-        along = [abs(v[0]) for v in items[0].lattice.T if abs(v[1]) < 1e-9]
-        if not along or problem.keepouts or problem.length is not None:
-            raise ValueError("any_phase needs a lattice vector along the roll, and a roll "
-                             "without keep-outs or a table length (they fix the phase)")
-        period = along[0]
-    if hint is not None:
-        rings = [affine(m, it.ref)[:, 0] for it, m in zip(items, hint)]
-        start = min(float(r.min()) for r in rings) - g if any_phase else 0.0
-        limit = max(float(r.max()) for r in rings) - start + g
-    if limit is None:
-        raise ValueError("the dotted-board model needs a hint or a length limit")
+    period = _phase_period(problem, items) if any_phase else 0.0
+    limit = _length_limit(problem, items, hint, limit, any_phase)
     reach = limit + period  # any phase: a marker starting up to a period in
     if max_options is not None and (n := positions(problem, items, reach)) > max_options:
         if progress:
@@ -267,85 +255,14 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     opts = [item_options(problem, it, reach) for it in items]
     if any(len(o.cand) == 0 for o in opts):  # a piece alone does not fit
         return DottedResult(None, math.inf, limit, True, 0, time.monotonic() - t0, 0.0)
-    total = sum(len(o.cand) for o in opts)
-    starts = np.cumsum([0] + [len(o.cand) for o in opts])
-    ids = [np.arange(starts[i], starts[i + 1]) for i in range(len(items))]
-    basis = items[0].lattice
-    model = cp_model.CpModel()
-    x = [model.new_bool_var(f"x{j}") for j in range(int(starts[-1]))]
-    for i in range(len(items)):
-        model.add_exactly_one(x[j] for j in ids[i])
-    # colliding offsets, once per pair of (item key, map): copies share them
-    rings = {}
-    for it in items:
-        for c in range(len(it.candidates)):
-            rings.setdefault((it.key, c), shape_at_zero(it, c))
-    offsets: dict = {}
-    for i, a in enumerate(items):
-        for j, b in enumerate(items):
-            if j <= i:  # one way: half the model, and solved 3x faster than both ways
-                continue
-            if deadline.expired():
-                return None
-            table = {}
-            for ca in range(len(a.candidates)):
-                for cb in range(len(b.candidates)):
-                    key = (a.key, ca, b.key, cb)
-                    if key not in offsets:
-                        offsets[key] = clash_offsets(rings[a.key, ca], rings[b.key, cb],
-                                                     basis, g)
-                    table[ca, cb] = offsets[key]
-            for n, (row, clashing) in enumerate(zip(ids[i], clash_lists(opts[i], opts[j],
-                                                                         table, ids[j]))):
-                if n % 256 == 255 and deadline.expired():
-                    return None
-                if len(clashing):
-                    model.add_at_most_one([x[row], *(x[c] for c in clashing)])
-    right = model.new_int_var(0, int(math.ceil(reach * SCALE)) + 1, "right")
-    area = sum(shapely.Polygon(it.ref).area for it in items)
-    model.add(right >= int(math.floor((g + area / (problem.width - 2 * g)) * SCALE)))
-    for i in range(len(items)):
-        if deadline.expired():
-            return None
-        ends = np.ceil(opts[i].right * SCALE).astype(np.int64)
-        model.add(right >= sum(int(e) * x[j] for e, j in zip(ends, ids[i])))
-    # interchangeable copies (same options, adjacent in ``items``) in the order of their
-    # options, so the solver does not explore their permutations
-    for i in range(len(items) - 1):
-        if items[i].key == items[i + 1].key:
-            model.add(sum(n * x[j] for n, j in enumerate(ids[i]))
-                      < sum(n * x[j] for n, j in enumerate(ids[i + 1])))
-    up = [v for v in basis.T if abs(v[0]) < 1e-9]
-    if up and not problem.keepouts:
-        # a shift across the roll by a period keeps everything: start near the bottom
-        low = np.concatenate([ids[i][o.bottom < g + abs(up[0][1]) - EDGE_EPS]
-                              for i, o in enumerate(opts)])
-        model.add_bool_or([x[j] for j in low])
-    if any_phase:
-        left = model.new_int_var(0, int(math.floor((g + period) * SCALE)), "left")
-        for i in range(len(items)):
-            starts_i = np.floor(opts[i].left * SCALE).astype(np.int64)
-            model.add(left <= sum(int(e) * x[j] for e, j in zip(starts_i, ids[i])))
-        model.add(right - left <= int(math.ceil((limit - 2 * g) * SCALE)) + 2)
-        model.add(right - left >= int(math.floor(area / (problem.width - 2 * g) * SCALE)))
-        model.minimize(right - left)
-    else:
-        model.minimize(right)
-    if hint is not None:  # complete (every boolean): CP-SAT then starts from it at once
-        local = [_option_of(it, m, o) for it, m, o in zip(items, hint, opts)]
-        runs: dict = {}  # interchangeable copies take their positions in the order above
-        for i, it in enumerate(items):
-            runs.setdefault(it.key, []).append(i)
-        for run in runs.values():
-            got = sorted((local[i] for i in run), key=lambda v: (v is None, v or 0))
-            for i, v in zip(run, got):
-                local[i] = v
-        chosen = {int(ids[i][j]) for i, j in enumerate(local) if j is not None}
-        for j, v in enumerate(x):
-            model.add_hint(v, j in chosen)
+    board = _Board(problem, items, opts, cp_model.CpModel())
+    if not board.build(deadline, reach, limit, period if any_phase else None):
+        return None
+    if hint is not None:
+        board.add_hint(hint)
     build = time.monotonic() - t0
     if progress:
-        progress(f"dotted: {total} allowed positions, model built in {build:.2f} s")
+        progress(f"dotted: {board.n_options} allowed positions, model built in {build:.2f} s")
     # Handing the model over costs about a tenth of building it, outside the solver's own
     # time limit (0.08 s after a 0.92 s build of the shorts' 4940 positions): kept back.
     left = deadline.left() - HANDOVER * build
@@ -353,8 +270,50 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
         if progress:
             progress(f"dotted: {left:.2f} s left, less than its presolve takes: skipped")
         return None
+    solver = _solver(cp_model, left, workers)
+    gap = 2 * problem.gap if any_phase else problem.gap
+    status = solver.solve(board.model, _reporter(cp_model, progress, gap, t0))
+    if progress:
+        progress(f"dotted: {solver.status_name(status)} after {time.monotonic() - t0:.1f} s")
+    build_and_solve = (board.n_options, build, time.monotonic() - t0 - build)
+    if status == cp_model.INFEASIBLE:
+        return DottedResult(None, math.inf, limit, True, *build_and_solve)
+    if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
+        return None
+    moves, length = board.solution(solver, any_phase)
+    # edges were rounded outwards by up to one unit each
+    bound = ((solver.best_objective_bound - 2) / SCALE + 2 * problem.gap if any_phase
+             else (solver.best_objective_bound - 1) / SCALE + problem.gap)
+    return DottedResult(moves, length, min(bound, length), status == cp_model.OPTIMAL,
+                        *build_and_solve)
+
+
+def _phase_period(problem: NestProblem, items: list[Item]) -> float:
+    """The print's period along the roll (mm), for a marker that may start at any phase."""
+    along = [abs(v[0]) for v in items[0].lattice.T if abs(v[1]) < 1e-9]
+    if not along or problem.keepouts or problem.length is not None:
+        raise ValueError("any_phase needs a lattice vector along the roll, and a roll "
+                         "without keep-outs or a table length (they fix the phase)")
+    return along[0]
+
+
+def _length_limit(problem: NestProblem, items: list[Item], hint: list[np.ndarray] | None,
+                  limit: float | None, any_phase: bool) -> float:
+    """The longest marker the model allows: the hint's length, else ``limit``."""
+    if hint is not None:
+        g = problem.gap
+        rings = [affine(m, it.ref)[:, 0] for it, m in zip(items, hint)]
+        start = min(float(r.min()) for r in rings) - g if any_phase else 0.0
+        limit = max(float(r.max()) for r in rings) - start + g
+    if limit is None:
+        raise ValueError("the dotted-board model needs a hint or a length limit")
+    return limit
+
+
+def _solver(cp_model, seconds: float, workers: int):
+    """A CP-SAT solver tuned for the dotted board, stopping after ``seconds``."""
     solver = cp_model.CpSolver()
-    solver.parameters.max_time_in_seconds = left
+    solver.parameters.max_time_in_seconds = seconds
     solver.parameters.num_workers = max(1, min(workers, os.cpu_count() or 1))
     # one presolve pass, no probing, no symmetry detection: the model is already tight and
     # its at-most-ones are large, so the default presolve took 2.8 s of a t-shirt p2 nest
@@ -363,26 +322,145 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     solver.parameters.max_presolve_iterations = 1
     solver.parameters.cp_model_probing_level = 0
     solver.parameters.symmetry_level = 0
-    status = solver.solve(model, _reporter(cp_model, progress, 2 * g if any_phase else g, t0))
-    if progress:
-        progress(f"dotted: {solver.status_name(status)} after {time.monotonic() - t0:.1f} s")
-    build_and_solve = (int(starts[-1]), build, time.monotonic() - t0 - build)
-    if status == cp_model.INFEASIBLE:
-        return DottedResult(None, math.inf, limit, True, *build_and_solve)
-    if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return None
-    moves = []
-    for i, it in enumerate(items):
-        j = next(j for j in range(len(ids[i])) if solver.boolean_value(x[ids[i][j]]))
-        moves.append(_move(it, opts[i], j))
-    xs = [affine(m, it.ref)[:, 0] for it, m in zip(items, moves)]
-    start = min(float(r.min()) for r in xs) - g if any_phase else 0.0
-    length = max(float(r.max()) for r in xs) - start + g
-    # edges were rounded outwards by up to one unit each
-    bound = ((solver.best_objective_bound - 2) / SCALE + 2 * g if any_phase
-             else (solver.best_objective_bound - 1) / SCALE + g)
-    return DottedResult(moves, length, min(bound, length), status == cp_model.OPTIMAL,
-                        *build_and_solve)
+    return solver
+
+
+class _Board:
+    """The dotted-board CP-SAT model of one nest: a boolean per (item, option)."""
+
+    def __init__(self, problem: NestProblem, items: list[Item], opts: list[Options],
+                 model) -> None:
+        self.problem, self.items, self.opts, self.model = problem, items, opts, model
+        starts = np.cumsum([0] + [len(o.cand) for o in opts])
+        self.n_options = int(starts[-1])
+        self.ids = [np.arange(starts[i], starts[i + 1]) for i in range(len(items))]
+        self.x = [model.new_bool_var(f"x{j}") for j in range(self.n_options)]
+        self.right = None  # the right edge's variable, once built
+        self.area = sum(shapely.Polygon(it.ref).area for it in items)
+
+    def build(self, deadline: Deadline, reach: float, limit: float,
+              period: float | None) -> bool:
+        """Every constraint and the objective (``period``: any phase); False when the
+        deadline passes first."""
+        for i in range(len(self.items)):
+            self.model.add_exactly_one(self.x[j] for j in self.ids[i])
+        if not self._add_clashes(deadline) or not self._add_right_edge(deadline, reach):
+            return False
+        self._order_copies()
+        self._start_near_the_bottom()
+        if period is not None:
+            self._minimise_span(limit, period)
+        else:
+            self.model.minimize(self.right)
+        return True
+
+    def _add_clashes(self, deadline: Deadline) -> bool:
+        """Per option of one item and each later item: at most one of it and the later
+        item's options it clashes with. Colliding offsets are computed once per pair of
+        (item key, map): copies share them."""
+        items, opts, ids, x = self.items, self.opts, self.ids, self.x
+        rings = {}
+        for it in items:
+            for c in range(len(it.candidates)):
+                rings.setdefault((it.key, c), shape_at_zero(it, c))
+        offsets: dict = {}
+        for i, a in enumerate(items):
+            for j in range(i + 1, len(items)):  # one way: half the model, solved 3x faster
+                if deadline.expired():
+                    return False
+                table = self._offset_table(a, items[j], rings, offsets)
+                for n, (row, clashing) in enumerate(zip(ids[i], clash_lists(
+                        opts[i], opts[j], table, ids[j]))):
+                    if n % 256 == 255 and deadline.expired():
+                        return False
+                    if len(clashing):
+                        self.model.add_at_most_one([x[row], *(x[c] for c in clashing)])
+        return True
+
+    def _offset_table(self, a: Item, b: Item, rings: dict, offsets: dict) -> dict:
+        """Colliding lattice offsets of ``b`` against ``a`` per pair of candidate maps."""
+        table = {}
+        for ca in range(len(a.candidates)):
+            for cb in range(len(b.candidates)):
+                key = (a.key, ca, b.key, cb)
+                if key not in offsets:
+                    offsets[key] = clash_offsets(rings[a.key, ca], rings[b.key, cb],
+                                                 self.items[0].lattice, self.problem.gap)
+                table[ca, cb] = offsets[key]
+        return table
+
+    def _add_right_edge(self, deadline: Deadline, reach: float) -> bool:
+        """The marker's right edge: beyond every piece, and beyond the area bound."""
+        g = self.problem.gap
+        self.right = self.model.new_int_var(0, int(math.ceil(reach * SCALE)) + 1, "right")
+        self.model.add(self.right >= int(math.floor(
+            (g + self.area / (self.problem.width - 2 * g)) * SCALE)))
+        for i in range(len(self.items)):
+            if deadline.expired():
+                return False
+            ends = np.ceil(self.opts[i].right * SCALE).astype(np.int64)
+            self.model.add(self.right >= sum(int(e) * self.x[j]
+                                             for e, j in zip(ends, self.ids[i])))
+        return True
+
+    def _order_copies(self) -> None:
+        """Interchangeable copies (same options, adjacent in ``items``) in the order of
+        their options, so the solver does not explore their permutations."""
+        x, ids = self.x, self.ids
+        for i in range(len(self.items) - 1):
+            if self.items[i].key == self.items[i + 1].key:
+                self.model.add(sum(n * x[j] for n, j in enumerate(ids[i]))
+                               < sum(n * x[j] for n, j in enumerate(ids[i + 1])))
+
+    def _start_near_the_bottom(self) -> None:
+        """A shift across the roll by a period keeps everything: one piece starts within
+        a period of the bottom edge."""
+        up = [v for v in self.items[0].lattice.T if abs(v[0]) < 1e-9]
+        if up and not self.problem.keepouts:
+            reach = self.problem.gap + abs(up[0][1]) - EDGE_EPS
+            low = np.concatenate([self.ids[i][o.bottom < reach]
+                                  for i, o in enumerate(self.opts)])
+            self.model.add_bool_or([self.x[j] for j in low])
+
+    def _minimise_span(self, limit: float, period: float) -> None:
+        """Any phase: minimise the span from the leftmost piece (within the first period)
+        to the right edge."""
+        g, model = self.problem.gap, self.model
+        left = model.new_int_var(0, int(math.floor((g + period) * SCALE)), "left")
+        for i in range(len(self.items)):
+            starts_i = np.floor(self.opts[i].left * SCALE).astype(np.int64)
+            model.add(left <= sum(int(e) * self.x[j] for e, j in zip(starts_i, self.ids[i])))
+        model.add(self.right - left <= int(math.ceil((limit - 2 * g) * SCALE)) + 2)
+        model.add(self.right - left >= int(math.floor(
+            self.area / (self.problem.width - 2 * g) * SCALE)))
+        model.minimize(self.right - left)
+
+    def add_hint(self, hint: list[np.ndarray]) -> None:
+        """Start from the ``hint`` marker, complete (every boolean): CP-SAT then starts
+        from it at once. Interchangeable copies take their positions in option order."""
+        local = [_option_of(it, m, o) for it, m, o in zip(self.items, hint, self.opts)]
+        runs: dict = {}
+        for i, it in enumerate(self.items):
+            runs.setdefault(it.key, []).append(i)
+        for run in runs.values():
+            got = sorted((local[i] for i in run), key=lambda v: (v is None, v or 0))
+            for i, v in zip(run, got):
+                local[i] = v
+        chosen = {int(self.ids[i][j]) for i, j in enumerate(local) if j is not None}
+        for j, v in enumerate(self.x):
+            self.model.add_hint(v, j in chosen)
+
+    def solution(self, solver, any_phase: bool) -> tuple[list[np.ndarray], float]:
+        """The solver's marker: every item's move, and the marker's length (mm)."""
+        moves = []
+        for i, it in enumerate(self.items):
+            ids = self.ids[i]
+            j = next(j for j in range(len(ids)) if solver.boolean_value(self.x[ids[j]]))
+            moves.append(_move(it, self.opts[i], j))
+        g = self.problem.gap
+        xs = [affine(m, it.ref)[:, 0] for it, m in zip(self.items, moves)]
+        start = min(float(r.min()) for r in xs) - g if any_phase else 0.0
+        return moves, max(float(r.max()) for r in xs) - start + g
 
 
 def _move(item: Item, opts: Options, j: int) -> np.ndarray:

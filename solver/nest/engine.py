@@ -1,4 +1,4 @@
-"""The search engine below the nesting strategies: raster board, bottom-left filler, restarts.
+"""The search engine below the nesting strategies: raster board and bottom-left filler.
 
 Pieces and fabric are rasterised (each piece's mask eroded by a pixel, so the raster test
 is optimistic at contact); for one piece and one operation the overlap with everything
@@ -7,8 +7,8 @@ FFTs (the fabric's transform is shared by all candidates of a step). It is read 
 the piece's allowed translations (a lattice coset on a print, every pixel on plain
 cloth), bottom-left first, and the best candidates are verified exactly with shapely
 (vectorised), so rasterisation never produces an overlap, only a missed opportunity.
-Several orderings (area, length, randomised) restart the greedy fill, and a compaction
-pass re-inserts the right-most pieces while time remains. Every placement reads the
+A compaction pass re-inserts the right-most pieces while time remains (the restarts over
+several orderings are :mod:`solver.nest.fill`). Every placement reads the
 deadline between candidate maps and between batches of exact checks; the first fill,
 which must give a marker, shelves the pieces it has not placed when only the time to
 shelve them is left (columns right of its marker, no raster), so it ends on time.
@@ -20,7 +20,6 @@ module; it imports none of them.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import cv2
@@ -28,8 +27,8 @@ import numpy as np
 import scipy.fft as sfft
 import shapely
 
-from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.instance import Item, NestProblem, affine
+from solver.nest.budget import Deadline
+from solver.nest.instance import Item, affine
 
 # weight of "low y" against "short x" in the bottom-left score, cycled over restarts: no
 # single value wins everywhere (1 suits many small pieces, 0 a few large ones)
@@ -40,6 +39,10 @@ EXACT_BATCH = 32  # checked at once (vectorised); the deadline is read between b
 # the first batches are smaller: the best raster-free position passes the exact check on 83
 # of the 99 placements of a fill of the shirts, and checking 32 then wasted a tenth of it
 FIRST_BATCHES = (1, 3, 12)
+#: measured cost of shelving one item (:meth:`Filler.shelve`): 0.4-1 ms on the shirts and
+#: albano at load 7, 1.5-6 ms at load 10-11 on 2 cores; a fill that must give a result
+#: starts shelving this long per item left before its end
+SHELF_PER_ITEM = 0.005
 
 
 def exact_batches(n: int) -> list[slice]:
@@ -335,15 +338,22 @@ class Filler:
         ci = np.concatenate([o[1] for o in options])
         t = np.concatenate([o[2] for o in options])
         order = np.argsort(sc, kind="stable")
+        return self._first_clear(item, board, order, ci, t, EXACT_CHECKS, deadline)
+
+    def _first_clear(self, item: Item, board: Board, order: np.ndarray, ci: np.ndarray,
+                     t: np.ndarray, limit: int, deadline: Deadline | None = None,
+                     ) -> tuple[int, np.ndarray] | None:
+        """The first of the first ``limit`` positions (candidate map ``ci``, translation
+        ``t``) in ``order`` that is clear of ``board`` by the exact check, in batches
+        with the deadline read between them; None if none is."""
         area = self.area[item.key]
-        for batch in exact_batches(min(len(order), EXACT_CHECKS)):
+        for batch in exact_batches(min(len(order), limit)):
             if deadline is not None and deadline.expired():
                 return None
             idx = order[batch]
-            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
             # all candidate maps of one item share the ring length
-            polys = shapely.polygons(rings + t[idx][:, None, :])
-            ok = board.clear_of(polys, area)
+            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
+            ok = board.clear_of(shapely.polygons(rings + t[idx][:, None, :]), area)
             if ok.any():
                 k = idx[np.argmax(ok)]
                 return int(ci[k]), t[k]
@@ -424,15 +434,7 @@ class Filler:
             options.append((top, np.full(len(t), ci), t))
         top, ci, t = (np.concatenate(o) for o in zip(*options))
         order = np.argsort(top, kind="stable")
-        for batch in exact_batches(min(len(order), 2 * EXACT_BATCH)):
-            idx = order[batch]
-            rings = np.stack([self.shapes[item.key][c].ring for c in ci[idx]])
-            ok = board.clear_of(shapely.polygons(rings + t[idx][:, None, :]),
-                                self.area[item.key])
-            if ok.any():
-                pick = idx[np.argmax(ok)]
-                return int(ci[pick]), t[pick]
-        return None
+        return self._first_clear(item, board, order, ci, t, 2 * EXACT_BATCH)
 
     def pose(self, k: int, move: np.ndarray) -> tuple[int, np.ndarray]:
         """(candidate index, translation) of a given move of item ``k``."""
@@ -471,17 +473,6 @@ class Filler:
         return sol
 
 
-def orderings(items: list[Item], rng: np.random.Generator):
-    """Area, length and width orders first, then randomised area orders, forever."""
-    area = np.array([shapely.Polygon(it.ref).area for it in items])
-    ext = np.array([np.ptp(it.ref, axis=0) for it in items])
-    yield list(np.argsort(-area, kind="stable"))
-    yield list(np.argsort(-ext[:, 0] * 1e6 - area, kind="stable"))
-    yield list(np.argsort(-ext[:, 1] * 1e6 - area, kind="stable"))
-    while True:
-        yield list(np.argsort(-area * rng.uniform(0.6, 1.4, len(items)), kind="stable"))
-
-
 def moves_of(filler: Filler, sol: list) -> list[np.ndarray]:
     out = []
     for it, (ci, t) in zip(filler.items, sol):
@@ -489,125 +480,3 @@ def moves_of(filler: Filler, sol: list) -> list[np.ndarray]:
         g[:, 2] += t
         out.append(g)
     return out
-
-
-#: measured cost of one greedy placement per candidate map (s; 2-20 ms on the benchmark
-#: inputs at load average 4-7 on 2 cores, the high end for albano's and shirts' long
-#: boards): what a fill that must finish is given before the time runs out
-FILL_PER_CANDIDATE = 0.012
-
-
-#: pixel size factor when a fill that must finish has less time than it needs: about
-#: halves its time (measured on shirts under a 0.5 p1 print: 1.05 -> 0.58 s); a coarser
-#: raster does not save more (the exact checks dominate)
-COARSE = 2.0
-
-
-#: measured cost of shelving one item (:meth:`Filler.shelve`): 0.4-1 ms on the shirts and
-#: albano at load 7, 1.5-6 ms at load 10-11 on 2 cores; a fill that must give a result
-#: starts shelving this long per item left before its end
-SHELF_PER_ITEM = 0.005
-
-
-def first_fill_estimate(items: list[Item]) -> float:
-    """Seconds one greedy fill of ``items`` takes, roughly (see FILL_PER_CANDIDATE)."""
-    return FILL_PER_CANDIDATE * sum(len(it.candidates) for it in items)
-
-
-def default_resolution(problem: NestProblem, items: list[Item]) -> float:
-    """Pixel size: fine enough for the smallest piece and the lattice, small enough to be fast."""
-    small = min(float(np.min(np.ptp(it.ref, axis=0))) for it in items)
-    return max(min(problem.width / 256.0, small / 8.0), problem.width / 1000.0)
-
-
-def estimate_length(problem: NestProblem, items: list[Item]) -> float:
-    area = sum(shapely.Polygon(it.ref).area for it in items)
-    longest = max(float(np.ptp(it.ref[:, 0])) for it in items)
-    return 2.0 * area / problem.width + 2 * longest + 4 * problem.gap
-
-
-def fill_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
-                seed: int | None, progress: Progress | None = None, res: float | None = None,
-                start: list[np.ndarray | None] | None = None,
-                targets: list[np.ndarray | None] | None = None, interruptible: bool = False,
-                ) -> tuple[list[np.ndarray], float] | None:
-    """Best greedy fill + compaction over several orderings within ``time_limit``.
-
-    ``start`` optionally gives the moves of items that are already placed (None for the
-    items to insert); they stay put during the fill and may move during compaction.
-    ``targets`` optionally gives, for the items to insert, where they would like to be:
-    the first run inserts them as close to it as possible instead of bottom-left.
-    Every fill after the first stops at the deadline (its partial layout is dropped);
-    the first one gives a result on time, shelving the items left at the deadline
-    (:meth:`Filler.shelve`): a greedy fill cut short and shelved beats the naive marker
-    on many small pieces (shirts under a 0.5 p1 print). ``interruptible`` (the caller
-    has another result): None at once when not even shelving every item fits.
-    """
-    t0 = time.monotonic()
-    deadline = deadline_of(time_limit)
-    total = deadline.left()
-    n = len(items)
-    missing = n if start is None else sum(m is None for m in start)
-    if interruptible and not deadline.allows(SHELF_PER_ITEM * missing):
-        return None
-    if res is None:
-        res = default_resolution(problem, items)
-        if deadline.left() < first_fill_estimate(items):
-            res *= COARSE  # a fill that must finish in less than it needs: fewer pixels
-    fixed = [shapely.Polygon(k) for k in problem.keepouts]
-    length = problem.length or estimate_length(problem, items)
-    if start is not None and problem.length is None:
-        placed = [shapely.Polygon(affine(m, it.ref)).bounds[2]
-                  for it, m in zip(items, start) if m is not None]
-        length += max(placed, default=0.0)
-    rng = np.random.default_rng(seed)
-    best, best_len, runs = None, math.inf, 0
-    for _ in range(8):
-        filler = Filler(items, problem.width, length, problem.gap, res, fixed)
-        pre = [None] * n if start is None else [
-            None if m is None else filler.pose(k, m) for k, m in enumerate(start)]
-        wish = None if targets is None else [
-            None if m is None else filler.pose(k, m) for k, m in enumerate(targets)]
-        stuck = False
-        for order in orderings(items, rng):
-            if best is not None and deadline.expired():
-                break
-            board, sol, index = filler.board(), list(pre), [0] * n
-            for k in range(n):
-                if sol[k] is not None:
-                    index[k] = board.add(filler.polygon(k, sol[k]))
-            runs += 1
-            filler.lean = LEANS[(runs - 1) % len(LEANS)]
-            complete = best is None
-            if wish is not None and runs == 1:  # nearest to the wished positions, left first
-                todo = [k for k in range(n) if pre[k] is None]
-                todo.sort(key=lambda k: filler.left(k, wish[k]) if wish[k] else math.inf)
-                ok = filler.fill(todo, board, sol, index, wish, deadline, complete)
-            else:
-                ok = filler.fill([k for k in order if pre[k] is None], board, sol, index,
-                                 deadline=deadline, complete=complete)
-            if not ok:
-                if not complete and deadline.expired():
-                    return (best, best_len) if best is not None else None
-                stuck = True
-                break
-            # each ordering compacts within a share of the time
-            sol = filler.compact(sol, board, deadline.within(total / 4), index)
-            used = max(filler.right(k, p) for k, p in enumerate(sol)) + problem.gap
-            if used < best_len:
-                best, best_len = moves_of(filler, sol), used
-                if progress:
-                    progress(f"lattice fill: {time.monotonic() - t0:5.1f} s  run {runs}  "
-                             f"length {used:.4g}  "
-                             f"density {problem_density(items, problem, used):.1%}")
-        if not stuck or best is not None:
-            break
-        if problem.length is not None:
-            return None
-        length *= 1.6  # the estimate was too short for a greedy fill: widen the board
-    return (best, best_len) if best is not None else None
-
-
-def problem_density(items: list[Item], problem: NestProblem, length: float) -> float:
-    area = sum(shapely.Polygon(it.ref).area for it in items)
-    return area / (problem.width * length)

@@ -13,7 +13,6 @@ vectors when a print is present.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +20,8 @@ import numpy as np
 import shapely
 
 import untrusted
+from solver.geometry import polygon_area
+from solver.geometry import rotation_affine as rotation  # dxf_aama imports it from here
 from solver.jsonfile import read_json
 from solver.wallpaper import gauss_reduce
 
@@ -45,11 +46,6 @@ def invert(m: np.ndarray) -> np.ndarray:
     return np.column_stack([inv, -inv @ m[:, 2]])
 
 
-def rotation(deg: float) -> np.ndarray:
-    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
-    return np.array([[c, -s, 0.0], [s, c, 0.0]])
-
-
 def angle_of(m: np.ndarray, mirrored: bool) -> float:
     """Rotation angle (deg, in [0, 360)) of a linear part ``R(θ)`` or ``R(θ)·diag(1, -1)``."""
     return float(np.degrees(np.arctan2(m[1, 0], m[0, 0])) % 360.0)
@@ -69,8 +65,7 @@ def ccw_ring(points) -> np.ndarray:
         p = p[:-1]
     if len(p) < 3:
         raise ValueError(f"a piece outline needs at least 3 points, got {len(p)}")
-    x, y = p[:, 0], p[:, 1]
-    if np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) < 0:
+    if polygon_area(p) < 0:
         p = p[::-1]
     return p
 

@@ -6,7 +6,7 @@ vector and by any operation of the print's group that keeps the grain (see
 a few *cosets* of the lattice. Several searches compete (see :func:`nest_lattice`):
 
 - the bottom-left fill of :mod:`solver.nest.engine` reads its FFT collision maps only at
-  each piece's lattice coset, with restarts and compaction;
+  each piece's lattice coset, with restarts (:mod:`solver.nest.fill`) and compaction;
 - a free sparrow nest is snapped to the lattice and swept left to right onto the
   nearest allowed positions ("resnap", :mod:`solver.nest.regions`), or jointly onto
   allowed positions around the free ones that do not collide ("joint",
@@ -19,10 +19,14 @@ The shortest marker wins.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
+import numpy as np
+
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
 from solver.nest.dotted import MAX_OPTIONS, dotted_nest, positions
-from solver.nest.engine import fill_search, first_fill_estimate, problem_density
+from solver.nest.fill import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem
 from solver.nest.layout import Layout, build_layout
 from solver.nest.naive import naive_moves
@@ -77,75 +81,117 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     items = problem.items()
     deadline = deadline_of(time_limit)
     if strategies is None:
-        small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
-        strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
-            "joint", "fill", "coset")
-        first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
-        if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
-            # too short for a whole fill: the naive marker is certain and quick, a fill
-            # cut short and shelved may beat it, strip shrinking improves the better one
-            strategies = ("naive", "fill", "coset")
-    results = []
-    proven = False  # the dotted model proved the best marker shortest
+        strategies = _default_strategies(problem, items, deadline)
+    run = _Run(problem, items, seed, progress)
     for i, strategy in enumerate(strategies):
+        if strategy not in _STRATEGIES:
+            raise ValueError(f"unknown nesting strategy {strategy!r}")
         # a share of what is left, so an overrun shrinks the later strategies; once one
         # marker exists the others may be cut short by the deadline
         rest = sum(SHARES.get(s, 0.0) for s in strategies[i:]) or 1.0
         share = deadline.share(SHARES.get(strategy, 0.0) / rest)
-        late = bool(results)
-        if strategy == "naive":
-            try:
-                r = naive_moves(problem, items, time_limit=share, seed=seed,
-                                progress=progress, interruptible=late)
-            except ValueError as exc:  # a piece too wide with the margin: the others may do
-                if progress:
-                    progress(f"naive: {exc}")
-                r = None
-        elif strategy == "fill":
-            r = fill_search(problem, items, time_limit=share, seed=seed, progress=progress,
-                            interruptible=late)
-        elif strategy in ("resnap", "resnap-margin", "repair"):
-            extra = 0.5 * covering_radius(problem.lattice) if strategy == "resnap-margin" else 0.0
-            try:
-                r = repair_snapped(problem, items, time_limit=share, seed=seed,
-                                   progress=progress, everything=strategy != "repair",
-                                   extra=extra, interruptible=late)
-            except ValueError as exc:  # sparrow gave up; the other strategies may not
-                if progress:
-                    progress(f"{strategy}: {exc}")
-                r = None
-        elif strategy == "joint":
-            # many small pieces lose more to a margin than to collisions after snapping;
-            # for few, a quarter of the covering radius leaves the joint snap room (half
-            # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
-            extra = 0.0 if len(items) >= MANY else 0.25 * covering_radius(problem.lattice)
-            r = joint_search(problem, items, time_limit=share, seed=seed, progress=progress,
-                             extra=extra, interruptible=late)
-        elif strategy == "dotted":
-            r = None
-            if results and share.left() >= DOTTED_MIN:
-                d = dotted_nest(problem, items, time_limit=share, progress=progress,
-                                hint=min(results, key=lambda r: r[1])[0],
-                                max_options=MAX_OPTIONS)
-                if d is not None and d.moves is not None:
-                    r, proven = (d.moves, d.length), d.optimal
-                    if progress:
-                        progress(f"dotted: bound {d.bound:.4g}{' (optimal)' if proven else ''}")
-        elif strategy == "coset":
-            if proven:
-                continue
-            start = min(results, key=lambda r: r[1])[0] if results else None
-            r = coset_search(problem, items, time_limit=share, seed=seed, progress=progress,
-                             start=start)
-        else:
-            raise ValueError(f"unknown nesting strategy {strategy!r}")
+        r = _STRATEGIES[strategy](run, strategy, share, bool(run.results))
         if r is not None:
             if progress:
                 progress(f"{strategy}: length {r[1]:.4g}  "
                          f"density {problem_density(items, problem, r[1]):.1%}")
-            results.append(r)
-    if not results:
+            run.results.append(r)
+    if not run.results:
         raise ValueError(f"the pieces do not fit on the fabric ({problem.width:g} x "
                          f"{problem.length:g} mm)" if problem.length else "nesting failed")
-    moves, _ = min(results, key=lambda r: r[1])
-    return build_layout(problem, items, moves)
+    return build_layout(problem, items, run.best()[0])
+
+
+def _default_strategies(problem: NestProblem, items: list, deadline: Deadline
+                        ) -> tuple[str, ...]:
+    """Joint, fill, dotted (if the model is small enough), coset; naive first when not
+    even a whole fill fits the time."""
+    small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
+    strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
+        "joint", "fill", "coset")
+    first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
+    if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
+        # too short for a whole fill: the naive marker is certain and quick, a fill
+        # cut short and shelved may beat it, strip shrinking improves the better one
+        return ("naive", "fill", "coset")
+    return strategies
+
+
+Moves = tuple[list[np.ndarray], float]  # a marker: every item's move, and its length (mm)
+
+
+@dataclass
+class _Run:
+    """One :func:`nest_lattice` call: its inputs and the markers its strategies gave."""
+
+    problem: NestProblem
+    items: list
+    seed: int | None
+    progress: Progress | None
+    results: list[Moves] = field(default_factory=list)
+    proven: bool = False  # the dotted model proved the best marker shortest
+
+    def best(self) -> Moves:
+        return min(self.results, key=lambda r: r[1])
+
+    def say(self, line: str) -> None:
+        if self.progress:
+            self.progress(line)
+
+
+def _naive(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    try:
+        return naive_moves(run.problem, run.items, time_limit=share, seed=run.seed,
+                           progress=run.progress, interruptible=late)
+    except ValueError as exc:  # a piece too wide with the margin: the others may do
+        run.say(f"naive: {exc}")
+        return None
+
+
+def _fill(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    return fill_search(run.problem, run.items, time_limit=share, seed=run.seed,
+                       progress=run.progress, interruptible=late)
+
+
+def _resnap(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    extra = 0.5 * covering_radius(run.problem.lattice) if name == "resnap-margin" else 0.0
+    try:
+        return repair_snapped(run.problem, run.items, time_limit=share, seed=run.seed,
+                              progress=run.progress, everything=name != "repair",
+                              extra=extra, interruptible=late)
+    except ValueError as exc:  # sparrow gave up; the other strategies may not
+        run.say(f"{name}: {exc}")
+        return None
+
+
+def _joint(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    # many small pieces lose more to a margin than to collisions after snapping;
+    # for few, a quarter of the covering radius leaves the joint snap room (half
+    # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
+    extra = 0.0 if len(run.items) >= MANY else 0.25 * covering_radius(run.problem.lattice)
+    return joint_search(run.problem, run.items, time_limit=share, seed=run.seed,
+                        progress=run.progress, extra=extra, interruptible=late)
+
+
+def _dotted(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    if not run.results or share.left() < DOTTED_MIN:
+        return None
+    d = dotted_nest(run.problem, run.items, time_limit=share, progress=run.progress,
+                    hint=run.best()[0], max_options=MAX_OPTIONS)
+    if d is None or d.moves is None:
+        return None
+    run.proven = d.optimal
+    run.say(f"dotted: bound {d.bound:.4g}{' (optimal)' if run.proven else ''}")
+    return d.moves, d.length
+
+
+def _coset(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    if run.proven:
+        return None
+    start = run.best()[0] if run.results else None
+    return coset_search(run.problem, run.items, time_limit=share, seed=run.seed,
+                        progress=run.progress, start=start)
+
+
+_STRATEGIES = {"naive": _naive, "fill": _fill, "resnap": _resnap, "resnap-margin": _resnap,
+               "repair": _resnap, "joint": _joint, "dotted": _dotted, "coset": _coset}

@@ -15,14 +15,16 @@ import atexit
 import sys
 import threading
 import time
+from dataclasses import dataclass, field
 from datetime import timedelta
 
 import numpy as np
 import shapely
 import spyrrow
 
+from solver.geometry import rotation_affine
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose, rotation
+from solver.nest.instance import MIRROR_X, Item, NestProblem, angle_of, compose
 from solver.nest.layout import Layout, build_layout
 
 #: sparrow's constructive start plus how far it runs past its own clock, about this much
@@ -133,38 +135,61 @@ def spyrrow_pack(shapes: dict, height: float, *, time_limit: float | Deadline,
             _RUNNING.discard(threading.current_thread())
 
     thread = threading.Thread(target=work, daemon=True)
-    t0 = time.monotonic()
+    watch = _Watch(queue, deadline, progress, label, time.monotonic())
     thread.start()
-    last, best, feasible = 0.0, None, []
-    while thread.is_alive():
-        thread.join(POLL)
-        reports = queue.drain()
-        for kind, sol in reports:
-            if kind in FEASIBLE:
-                feasible.append(sol)
-            if kind in FEASIBLE and (best is None or sol.width < best.width):
-                best = sol
-        if progress and reports and time.monotonic() - last > 2.0:
-            _, sol = reports[-1]
-            progress(f"{label}: {time.monotonic() - t0:5.1f} s  length {sol.width:.4g}  "
-                     f"density {sol.density:.1%}")
-            last = time.monotonic()
-        if interruptible and best is None and deadline.expired() and thread.is_alive():
-            _RUNNING.add(thread)
-            raise Late(f"{label}: no marker before the deadline")
-        if best is not None and deadline.expired() and thread.is_alive():
-            if progress:
-                progress(f"{label}: deadline; sparrow's best feasible marker is the answer")
-            _RUNNING.add(thread)
-            break
-    else:
+    if watch.until_done(thread, interruptible):
         if "sol" not in result:
             raise ValueError(f"the strip packer failed: {result.get('error')!r}")
-        best = result["sol"]
+        watch.best = result["sol"]
     if others is not None:
-        others.extend((_placements(shapes, s), float(s.width)) for s in feasible
-                      if s is not best)
-    return _placements(shapes, best), float(best.width)
+        others.extend((_placements(shapes, s), float(s.width)) for s in watch.feasible
+                      if s is not watch.best)
+    return _placements(shapes, watch.best), float(watch.best.width)
+
+
+@dataclass
+class _Watch:
+    """sparrow's progress reports read while it runs: the feasible markers and the best."""
+
+    queue: object  # spyrrow.ProgressQueue
+    deadline: Deadline
+    progress: Progress | None
+    label: str
+    t0: float
+    best: object = None
+    feasible: list = field(default_factory=list)
+    last: float = 0.0  # when progress was last told
+
+    def until_done(self, thread: threading.Thread, interruptible: bool) -> bool:
+        """Read the reports until sparrow ends (True) or, with a feasible marker, the
+        deadline passes (False; sparrow ends in the background). Without one at the
+        deadline: wait on, or raise :class:`Late` if ``interruptible``."""
+        while thread.is_alive():
+            thread.join(POLL)
+            self._read(self.queue.drain())
+            if interruptible and self.best is None and self.deadline.expired() \
+                    and thread.is_alive():
+                _RUNNING.add(thread)
+                raise Late(f"{self.label}: no marker before the deadline")
+            if self.best is not None and self.deadline.expired() and thread.is_alive():
+                if self.progress:
+                    self.progress(f"{self.label}: deadline; sparrow's best feasible marker "
+                                  "is the answer")
+                _RUNNING.add(thread)
+                return False
+        return True
+
+    def _read(self, reports: list) -> None:
+        for kind, sol in reports:
+            if kind in FEASIBLE:
+                self.feasible.append(sol)
+                if self.best is None or sol.width < self.best.width:
+                    self.best = sol
+        if self.progress and reports and time.monotonic() - self.last > 2.0:
+            _, sol = reports[-1]
+            self.progress(f"{self.label}: {time.monotonic() - self.t0:5.1f} s  length "
+                          f"{sol.width:.4g}  density {sol.density:.1%}")
+            self.last = time.monotonic()
 
 
 def _placements(shapes: dict, sol) -> dict:
@@ -223,7 +248,7 @@ def _moves(items: list[Item], placed: dict, g: float) -> list[np.ndarray]:
     for it in items:
         ang, t = placed[it.key][used[it.key]]
         used[it.key] += 1
-        m = rotation(ang)
+        m = rotation_affine(ang)
         m[:, 2] = np.asarray(t) + shift
         moves.append(compose(m, MIRROR_X) if it.mirrored else m)
     return moves

@@ -18,7 +18,7 @@ import shapely
 import untrusted
 from solver.jsonfile import read_json
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.engine import fill_search, first_fill_estimate
+from solver.nest.fill import fill_search, first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine, angle_of, ccw_ring
 from solver.nest.plain import plain_moves
 
@@ -38,6 +38,15 @@ def load_keepouts(path: str | Path) -> list[np.ndarray]:
     return out
 
 
+def near_pairs(polys: np.ndarray, gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j) of ``polys`` closer than ``gap`` (that intersect when ``gap`` is
+    0), both ways round and each with itself: the caller keeps the pairs it counts."""
+    tree = shapely.STRtree(polys)
+    if gap > 0:
+        return tree.query(polys, predicate="dwithin", distance=gap * (1 - 1e-7))
+    return tree.query(polys, predicate="intersects")
+
+
 def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:
     """(n,) bool: a small set of pieces whose removal leaves a valid partial layout."""
     g = problem.gap
@@ -51,11 +60,7 @@ def conflicting(problem: NestProblem, polys: np.ndarray) -> np.ndarray:
         k = shapely.Polygon(ring)
         bad |= shapely.dwithin(polys, k, g * (1 - 1e-7)) if g > 0 else (
             shapely.area(shapely.intersection(polys, k)) > 1e-7 * shapely.area(polys))
-    tree = shapely.STRtree(polys)
-    if g > 0:
-        i, j = tree.query(polys, predicate="dwithin", distance=g * (1 - 1e-7))
-    else:
-        i, j = tree.query(polys, predicate="intersects")
+    i, j = near_pairs(polys, g)
     keep = i < j
     i, j = i[keep], j[keep]
     if g <= 0 and len(i):

@@ -19,7 +19,7 @@ import numpy as np
 import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.engine import first_fill_estimate
+from solver.nest.fill import first_fill_estimate
 from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice
@@ -112,13 +112,32 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
         o = np.argsort(right[k], kind="stable")
         opts[k] = (opts[k][0][o], opts[k][1][o])
         right[k] = right[k][o]
+    clash = _clash_tables(problem, opts, deadline)
+    if clash is None:
+        return None
+    choice = _Choice(right, clash, deadline)
+    try:
+        choice.search([np.ones(len(p), bool) for _, p in opts], [-1] * n, 0.0)
+    except TimeoutError:
+        pass
+    if choice.pick is None:
+        return None
+    out = [opts[k][0][o] for k, o in enumerate(choice.pick)]
+    return out, choice.length + problem.gap
+
+
+def _clash_tables(problem: NestProblem, opts: list, deadline: float
+                  ) -> dict[tuple[int, int], np.ndarray] | None:
+    """``(i, j) -> (m_i, m_j)`` bool: which options of pieces i and j collide, for the
+    pairs whose options' boxes come within the gap; None when the tables alone outgrow
+    the budget."""
+    n, g = len(opts), problem.gap
     box = np.array([np.concatenate([shapely.bounds(p)[:, :2].min(0), shapely.bounds(p)[:, 2:]
                                     .max(0)]) for _, p in opts])
-    g = problem.gap
-    clash: dict[tuple[int, int], np.ndarray] = {}  # (i, j) -> (m_i, m_j) bool
+    clash: dict[tuple[int, int], np.ndarray] = {}
     for i in range(n):
         if time.monotonic() > deadline:
-            return None  # the table alone outgrew the budget
+            return None
         near = np.flatnonzero((box[:, 0] <= box[i, 2] + g) & (box[:, 2] >= box[i, 0] - g)
                               & (box[:, 1] <= box[i, 3] + g) & (box[:, 3] >= box[i, 1] - g))
         for j in near[near > i]:
@@ -128,49 +147,57 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
             if m.any():
                 clash[i, j] = m
                 clash[j, i] = m.T
-    neighbours = [[j for j in range(n) if (i, j) in clash] for i in range(n)]
-    best: dict = {"len": math.inf, "pick": None}
-    nodes = [0]
+    return clash
 
-    def search(allowed: list[np.ndarray], pick: list[int], length: float) -> None:
-        nodes[0] += 1
-        if nodes[0] % 256 == 0 and time.monotonic() > deadline:
+
+class _Choice:
+    """Branch and bound over one option per piece: the shortest choice free of clashes.
+    ``right[k]`` (sorted) is the right edge of piece k's options."""
+
+    def __init__(self, right: list[np.ndarray], clash: dict, deadline: float) -> None:
+        self.right, self.clash, self.deadline = right, clash, deadline
+        n = len(right)
+        self.neighbours = [[j for j in range(n) if (i, j) in clash] for i in range(n)]
+        self.length, self.pick = math.inf, None  # the best choice so far
+        self.nodes = 0
+
+    def search(self, allowed: list[np.ndarray], pick: list[int], length: float) -> None:
+        """Extend ``pick`` (-1: not chosen yet) within the ``allowed`` options; raises
+        TimeoutError at the deadline."""
+        self.nodes += 1
+        if self.nodes % 256 == 0 and time.monotonic() > self.deadline:
             raise TimeoutError
-        todo = [k for k in range(n) if pick[k] < 0]
+        todo = [k for k in range(len(pick)) if pick[k] < 0]
         if not todo:
-            best["len"], best["pick"] = length, list(pick)
+            self.length, self.pick = length, list(pick)
             return
         # bound: every piece still to place ends at least at its best allowed option
-        lows = [right[k][allowed[k]].min() for k in todo]
-        if max(length, max(lows)) >= best["len"] - 1e-9:
+        lows = [self.right[k][allowed[k]].min() for k in todo]
+        if max(length, max(lows)) >= self.length - 1e-9:
             return
         k = todo[int(np.argmin([allowed[k].sum() for k in todo]))]  # fewest options first
         for o in np.flatnonzero(allowed[k]):
-            new_len = max(length, right[k][o])
-            if new_len >= best["len"] - 1e-9:
+            new_len = max(length, self.right[k][o])
+            if new_len >= self.length - 1e-9:
                 break  # options are sorted by their right edge
-            sub = list(allowed)
-            dead = False
-            for j in neighbours[k]:
-                if pick[j] < 0:
-                    sub[j] = allowed[j] & ~clash[k, j][o]
-                    if not sub[j].any():
-                        dead = True
-                        break
-            if dead:
+            sub = self._without_clashes(allowed, pick, k, o)
+            if sub is None:
                 continue
             pick[k] = o
-            search(sub, pick, new_len)
+            self.search(sub, pick, new_len)
             pick[k] = -1
 
-    try:
-        search([np.ones(len(p), bool) for _, p in opts], [-1] * n, 0.0)
-    except TimeoutError:
-        pass
-    if best["pick"] is None:
-        return None
-    out = [opts[k][0][o] for k, o in enumerate(best["pick"])]
-    return out, best["len"] + problem.gap
+    def _without_clashes(self, allowed: list[np.ndarray], pick: list[int], k: int, o: int
+                         ) -> list[np.ndarray] | None:
+        """The options still allowed once piece k takes option o; None when a piece not
+        chosen yet is left without one."""
+        sub = list(allowed)
+        for j in self.neighbours[k]:
+            if pick[j] < 0:
+                sub[j] = allowed[j] & ~self.clash[k, j][o]
+                if not sub[j].any():
+                    return None
+        return sub
 
 
 # (reach, push) in lattice steps, tried in turn: no one setting wins everywhere (a wider

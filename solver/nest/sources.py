@@ -1,8 +1,8 @@
 """Turn the station's inputs into a :class:`NestProblem`: instances, DXF, PLACEMENT.json.
 
-Each reader's stack is imported where that kind of input is read, a measured start-up
-cost against ``--time``: ezdxf 0.6 s, the garment stack 0.3 s on top of the nesting
-imports (load ~9 on 2 cores), paid only by the inputs that need them.
+The DXF reader's stack is imported where a DXF is read: ezdxf costs 0.3-0.6 s, measured
+against ``--time``, which instances and placements need not pay. The garment stack
+(0.16 s on top of the nesting imports) is imported with the module.
 """
 
 from __future__ import annotations
@@ -13,8 +13,16 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from solver.garment import load_garment
+from solver.garment.allowance import AllowanceRules
+from solver.garment.grain import grain_lines
+from solver.garment.notches import cut_ready, dart_marks
+from solver.garment.symmetrise import symmetrise_as_recorded
+from solver.garment.symmetry import fit_pairs
+from solver.geometry import FLIP, rotation_matrix
 from solver.jsonfile import read_json
 from solver.nest.instance import NestProblem, Piece, PiecePair, load_esicup
+from solver.placement import Placement
 from untrusted import limits
 
 
@@ -43,9 +51,6 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     Notches: the seam notches (with ``placement``, on the print's lattice lines), plus any
     the file gives (moved out to the cut line); marks: a drill mark near each dart's point.
     """
-    from solver.garment.allowance import AllowanceRules
-    from solver.garment.notches import cut_ready, dart_marks
-
     rules = rules or AllowanceRules()
     cuts, notches = cut_ready(garment, rules, placement)
     names = names or list(garment.piece_names)
@@ -74,8 +79,6 @@ def placement_pairs(garment, placement) -> list[PiecePair]:
     """The placement's left/right pairs with their mirror maps (pattern coordinates), so
     that a layout can be checked to keep each "mirror" pair's print mirrored: the maps
     the alignment recorded, else fitted on ``garment``."""
-    from solver.garment.symmetry import FLIP, fit_pairs
-
     modes = {(int(i), int(j)): str(m) for i, j, m in placement.pairs}
     maps = (placement.report.get("symmetry") or {}).get("mirror_maps")
     if maps is not None and len(maps) == len(placement.pairs):
@@ -102,9 +105,6 @@ def placement_input(path: str | Path, *, orientations=None, units: str | None = 
 
     ``units`` are the garment file's (Berkeley OBJ files are in metres and do not say so).
     """
-    from solver.garment import load_garment
-    from solver.placement import Placement
-
     path = Path(path)
     placement = Placement.load(path)
     if not placement.garment:
@@ -117,8 +117,6 @@ def placement_input(path: str | Path, *, orientations=None, units: str | None = 
         raise ValueError(f"{path}: {placement.n_pieces} placed pieces but garment {gpath} has "
                          f"{garment.n_pieces}")
     if placement.report.get("symmetrise"):  # aligned on the symmetrised pattern: cut that
-        from solver.garment.symmetrise import symmetrise_as_recorded
-
         try:
             garment = symmetrise_as_recorded(garment, placement.report["symmetrise"]).garment
         except ValueError as exc:
@@ -153,13 +151,11 @@ def placed_pieces(garment, placement, *, orientations=None, allowance=None, fabr
                             None if plain else placement)
     for i, piece in enumerate(pieces):
         a = placement.angles[i]
-        r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        r = rotation_matrix(a)
         piece.base = np.column_stack([r.T, -r.T @ placement.translations[i]])
         piece.orientations = (None if orientations is None
                               else tuple(float(o) % 360.0 for o in orientations))
     if placement.grains:  # the grain the alignment kept, drawn where the file has none
-        from solver.garment.grain import grain_lines
-
         lines = grain_lines(garment, [g["grain_deg"] for g in placement.grains])
         for i, piece in enumerate(pieces):
             if piece.grainline is None:
@@ -171,8 +167,6 @@ def placement_problem(garment, placement, *, width: float, length: float | None 
                       gap: float = 0.0, allowance=None, plain: bool = False) -> NestProblem:
     """The marker problem of one aligned garment, from the objects alignment handed over
     (the station's plan: no trip through PLACEMENT.json and the garment file)."""
-    from solver.garment.allowance import AllowanceRules
-
     pieces, fabric, pairs = placed_pieces(garment, placement, allowance=allowance, plain=plain)
     return assemble_problem(pieces, width=width, length=length, gap=gap,
                             fabric=None if plain else fabric, what="the garment",
@@ -203,7 +197,7 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
             pieces += inst.pieces
             found_width = found_width or inst.width
         elif kind == "dxf":
-            from solver.nest.dxf_aama import read_dxf_aama
+            from solver.nest.dxf_aama import read_dxf_aama  # ezdxf: 0.3-0.6 s, DXF only
 
             seam = None if allowance is None else allowance.seam_mm
             pieces += read_dxf_aama(path, size=sizes, units=units, allowance_mm=seam)
@@ -220,8 +214,6 @@ def load_problem(paths: list[str | Path], *, width: float | None = None,
         raise ValueError("give the fabric width with --width (the input does not say it)")
     rules = None  # reported where this run made cut lines (garments), not a DXF's own
     if any(kind_of(p) == "placement" for p in paths):
-        from solver.garment.allowance import AllowanceRules
-
         rules = (allowance or AllowanceRules()).to_dict()
     return assemble_problem(pieces, width=width, length=length, gap=gap,
                             fabric=None if plain else fabric or found_fabric,

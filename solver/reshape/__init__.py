@@ -13,14 +13,18 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from solver.fit import fit_report
+from solver.garment.refine import refined
 from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams
 from solver.reshape.optimise import (  # the driver optimise() stays in its module, so
-    OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module
-    OptimiseState,
+    OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module: bound
+    OptimiseState,  # here under another name
     ReshapeOptions,
     optimise_step,
 )
+from solver.reshape.optimise import optimise as _optimise
 from solver.reshape.quality import outline_roughness, seam_ease_changes, sewn_drift
 from solver.reshape.report import ReshapeReport, reshape_report
 
@@ -58,17 +62,13 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     if placement.n_pieces != garment.n_pieces:
         raise ValueError(f"placement is for {placement.n_pieces} pieces but the garment "
                          f"has {garment.n_pieces}")
-    from solver.fit import fit_report
-    from solver.garment.refine import refined
-    from solver.reshape.optimise import optimise
-
     options = options or ReshapeOptions()
     if not options.max_move_mm > 0:
         raise ValueError(f"the largest move must be > 0 mm, got {options.max_move_mm}")
     levels = 0
     if options.refine and fit_report(garment, placement).e_fit_mm2 > 0:
         garment, levels = refined(garment, placement.fabric.covering_radius)
-    result = optimise(garment, placement, fixed=fixed, options=options, progress=progress,
+    result = _optimise(garment, placement, fixed=fixed, options=options, progress=progress,
                       pairs=pairs)
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
@@ -81,8 +81,6 @@ def _carry_marks(garment, uv: np.ndarray):
     on their piece); notches kept at the same place along their outline edge (the same
     fraction of the same edge), so a notch stays on the reshaped outline and, since twin
     edges keep their lengths, at the same sewn position as its partner across the seam."""
-    from scipy.spatial import cKDTree
-
     disp = uv - garment.uv
     grains, notches = {}, {}
     edges = garment.boundary_half_edges()

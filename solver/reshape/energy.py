@@ -44,6 +44,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
+from solver.geometry import edge_vectors, signed_areas
+
 if TYPE_CHECKING:
     from solver.reshape.outline import OutlineGuard
 
@@ -51,21 +53,6 @@ if TYPE_CHECKING:
 def _corners(uv: np.ndarray, faces: np.ndarray):
     p = uv[faces]  # one gather (F,3,2)
     return p[:, 0], p[:, 1], p[:, 2]
-
-
-def _edges(uv: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, ...]:
-    """x and y of each face's edge vectors 0->1 and 0->2, as contiguous (F,) arrays
-    (gathering x and y apart is several times faster than slicing a gathered (F,3,2))."""
-    x, y = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
-    i, j, k = faces.T
-    x0, y0 = x[i], y[i]
-    return x[j] - x0, y[j] - y0, x[k] - x0, y[k] - y0
-
-
-def signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F,) signed triangle areas (positive = counter-clockwise)."""
-    ax, ay, bx, by = _edges(uv, faces)
-    return 0.5 * (ax * by - ay * bx)
 
 
 def area_gradients(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -295,8 +282,8 @@ def max_bounded_step(uv: np.ndarray, rest: np.ndarray, direction: np.ndarray,
 # ---------------------------------------------------------------------- piece areas
 def _area_coefficients(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray):
     """Per face A(t) = a0 + b1 t + c2 t^2 of the signed area along ``uv + t direction``."""
-    ax, ay, bx, by = _edges(uv, faces)
-    fx, fy, gx, gy = _edges(direction, faces)
+    ax, ay, bx, by = edge_vectors(uv, faces)
+    fx, fy, gx, gy = edge_vectors(direction, faces)
     return (0.5 * (ax * by - ay * bx), 0.5 * (ax * gy + fx * by - ay * gx - fy * bx),
             0.5 * (fx * gy - fy * gx))
 
@@ -411,8 +398,8 @@ def max_flip_free_step(uv: np.ndarray, faces: np.ndarray, direction: np.ndarray)
         return np.inf
     if not moving.all():
         faces = faces[moving[faces].any(axis=1)]
-    ax, ay, bx, by = _edges(uv, faces)
-    fx, fy, gx, gy = _edges(direction, faces)
+    ax, ay, bx, by = edge_vectors(uv, faces)
+    fx, fy, gx, gy = edge_vectors(direction, faces)
     a0 = 0.5 * (ax * by - ay * bx)
     c2 = 0.5 * (fx * gy - fy * gx)
     b1 = 0.5 * (ax * gy + fx * by - ay * gx - fy * bx)

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.placement import Placement, rotation_matrices
+from solver.geometry import rotation_matrices
+from solver.placement import Placement
 
 # seam length (mm) that carries one unit of proximity weight: E_prox integrates along the
 # seams in these units, which sets its balance with the conformal, Dirichlet and bending
@@ -178,10 +179,47 @@ def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
                           np.zeros(n_lines, np.int64), np.zeros(n_lines), np.zeros(n_lines))
     piece = garment.piece_of_vertex
     pi, pj = piece[v1], piece[v2]
+    m, best = _twin_maps(placement, uv, v1, v2, pi, pj, line, n_lines)
+    s1 = uv[v1]
+    s1_star = _apply(m, uv[v2])
+    # Procrustes (rotation only) of S1 onto S1*, per line, uniform vertex weights
+    count = np.bincount(line, minlength=n_lines).astype(float)
+
+    def centroid(x: np.ndarray) -> np.ndarray:
+        return np.stack([np.bincount(line, weights=x[:, c], minlength=n_lines)
+                         for c in range(2)], -1) / np.maximum(count, 1.0)[:, None]
+
+    c1, cs = centroid(s1), centroid(s1_star)
+    x, y = s1 - c1[line], s1_star - cs[line]
+    dot = np.bincount(line, weights=np.einsum("pi,pi->p", x, y), minlength=n_lines)
+    crs = np.bincount(line, weights=x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0], minlength=n_lines)
+    theta = np.arctan2(crs, dot)  # S1 rotated by theta best matches S1*
+    share, share_j = _shares(garment, fixed, pi, pj)
+    s1_ideal = _meeting_line(share if blend_shapes else (share > 0).astype(float), share,
+                             theta[line], c1[line], (cs - c1)[line], x, y)
+    s2_ideal = _apply(np.linalg.inv(m), s1_ideal)
+    stuck = (share == 0) & (share_j == 0)  # both pieces fixed: targets where they are
+    s1_ideal[stuck] = s1[stuck]
+    s2_ideal[stuck] = uv[v2][stuck]
+    return IdealSeams(
+        vertex=np.concatenate([v1, v2]),
+        target=np.concatenate([s1_ideal, s2_ideal]),
+        weight=np.concatenate([weight, weight]),
+        line=np.concatenate([line, line]),
+        op=best,
+        theta=theta,
+        shift=np.hypot(*(cs - c1).T),
+    )
+
+
+def _twin_maps(placement: Placement, uv: np.ndarray, v1: np.ndarray, v2: np.ndarray,
+               pi: np.ndarray, pj: np.ndarray, line: np.ndarray, n_lines: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Per twin vertex pair the map M (K,3,3) from piece j's pattern to piece i's taking
+    S2 onto S1*, and per seam line the symmetry operation chosen (S,)."""
     wp = placement.fabric
     ops = wp.cartesian_ops()  # (n,3,3) in wallpaper mm
     n_ops = len(ops)
-
     # step 1: both twin lines into wallpaper space (S2 "moved into P_i" = same wp coords)
     a_i = _homogeneous(rotation_matrices(placement.angles[pi]), placement.translations[pi])
     a_j = _homogeneous(rotation_matrices(placement.angles[pj]), placement.translations[pj])
@@ -204,50 +242,25 @@ def ideal_seams(garment, placement: Placement, *, uv: np.ndarray | None = None,
                                  minlength=n_lines) for k in range(n_ops)], 1)
     best = np.argmin(cost, axis=1)  # (S,)
     lat_best = lattice[np.arange(n_lines), best]  # (S, 2)
-    # M: pattern of piece j -> pattern of piece i, taking S2 onto S1*
     shift_h = np.tile(np.eye(3), (n_lines, 1, 1))
     shift_h[:, :2, 2] = lat_best
     g = shift_h @ ops[best]  # (S,3,3) in wallpaper space
-    m = a_i @ g[line] @ np.linalg.inv(a_j)  # (K,3,3)
-    s1 = uv[v1]
-    s1_star = _apply(m, uv[v2])
+    return a_i @ g[line] @ np.linalg.inv(a_j), best
 
-    # Procrustes (rotation only) of S1 onto S1*, per line, uniform vertex weights
-    def centroid(x: np.ndarray) -> np.ndarray:
-        return np.stack([np.bincount(line, weights=x[:, c], minlength=n_lines)
-                         for c in range(2)], -1) / np.maximum(count, 1.0)[:, None]
 
-    c1, cs = centroid(s1), centroid(s1_star)
-    x, y = s1 - c1[line], s1_star - cs[line]
-    dot = np.bincount(line, weights=np.einsum("pi,pi->p", x, y), minlength=n_lines)
-    crs = np.bincount(line, weights=x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0], minlength=n_lines)
-    theta = np.arctan2(crs, dot)  # S1 rotated by theta best matches S1*
-
-    # S1's share of the displacement: half, all (twin fixed) or none (own piece fixed).
-    # Both lines meet in the middle pose: S1 turned forward by share*theta, S1* turned
-    # back by the rest, both about the interpolated centroid; the ideal line blends their
-    # shapes in the same proportion, so each side also takes its share of the shape
-    # difference (S1 no longer has to take S2's whole shape, e.g. a straight edge sewn
-    # to a curved one)
-    share, share_j = _shares(garment, fixed, pi, pj)
-    centre = c1[line] + share[:, None] * (cs - c1)[line]
-    fwd = np.einsum("pij,pj->pi", rotation_matrices(share * theta[line]), x)
-    bwd = np.einsum("pij,pj->pi", rotation_matrices((share - 1.0) * theta[line]), y)
-    shape = share if blend_shapes else (share > 0).astype(float)  # S1*'s share of the shape
-    s1_ideal = (1.0 - shape)[:, None] * fwd + shape[:, None] * bwd + centre
-    s2_ideal = _apply(np.linalg.inv(m), s1_ideal)
-    stuck = (share == 0) & (share_j == 0)  # both pieces fixed: targets where they are
-    s1_ideal[stuck] = s1[stuck]
-    s2_ideal[stuck] = uv[v2][stuck]
-    return IdealSeams(
-        vertex=np.concatenate([v1, v2]),
-        target=np.concatenate([s1_ideal, s2_ideal]),
-        weight=np.concatenate([weight, weight]),
-        line=np.concatenate([line, line]),
-        op=best,
-        theta=theta,
-        shift=np.hypot(*(cs - c1).T),
-    )
+def _meeting_line(shape: np.ndarray, share: np.ndarray, theta: np.ndarray, c1: np.ndarray,
+                  shift: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """S1's ideal line. S1's ``share`` of the displacement is half, all (twin fixed) or
+    none (own piece fixed). Both lines meet in the middle pose: S1 (``x`` about its
+    centroid ``c1``) turned forward by share*theta, S1* (``y``) turned back by the rest,
+    both about the interpolated centroid (``shift``: S1*'s centroid from S1's); the ideal
+    line blends their shapes by S1*'s ``shape`` share, so each side also takes its share
+    of the shape difference (S1 no longer has to take S2's whole shape, e.g. a straight
+    edge sewn to a curved one)."""
+    centre = c1 + share[:, None] * shift
+    fwd = np.einsum("pij,pj->pi", rotation_matrices(share * theta), x)
+    bwd = np.einsum("pij,pj->pi", rotation_matrices((share - 1.0) * theta), y)
+    return (1.0 - shape)[:, None] * fwd + shape[:, None] * bwd + centre
 
 
 def initial_targets(garment, placement: Placement, ideal: IdealSeams, *,

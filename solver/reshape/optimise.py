@@ -41,9 +41,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
+from cholespy import CholeskySolverD, MatrixType
+from scipy.spatial import cKDTree
 
 from solver.fit import fit_report
 from solver.garment.symmetry import MirrorPair
+from solver.geometry import signed_areas
 from solver.reshape.ease import SeamSewing, across_only, ease_targets, eased_lines
 from solver.reshape.energy import (
     PatternEnergy,
@@ -51,7 +54,6 @@ from solver.reshape.energy import (
     length_constraints,
     move_barrier_diagonal,
     outline_bending_matrix,
-    signed_areas,
     stiffened_conformal_matrix,
 )
 from solver.reshape.ideal import (
@@ -123,8 +125,6 @@ class _Preconditioner:
     and scale pieces, so L-BFGS needs many more iterations.)"""
 
     def __init__(self, matrix: sp.spmatrix) -> None:
-        from cholespy import CholeskySolverD, MatrixType
-
         c = sp.coo_matrix(matrix)
         self.n = c.shape[0]
         self._chol = CholeskySolverD(self.n, c.row.astype(np.int32), c.col.astype(np.int32),
@@ -279,7 +279,27 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
         return True
     if state.precond is None:
         refresh_preconditioner(state, energy)
-    # two-loop recursion, H0 = (convex model)^-1
+    d, slope = _lbfgs_direction(state, gf)
+    direction = np.zeros_like(state.uv)
+    direction[free] = d.reshape(-1, 2)
+    e0 = state.energy
+    found = _line_search(state, energy, direction, d, slope)
+    if found is None:
+        state.round_done = True
+        return True
+    t, d, trial, e1, g1 = found
+    _take_step(state, options, t, t * d, gf, trial, e1, _in_subspace(state, g1))
+    small_f = (e0 - e1) <= options.ftol * max(1.0, abs(e1))
+    small_x = state.last_step_mm <= options.xtol_mm
+    state.round_done = (small_f or small_x
+                        or state.round_iterations >= options.max_iterations_per_round)
+    return state.round_done
+
+
+def _lbfgs_direction(state: OptimiseState, gf: np.ndarray) -> tuple[np.ndarray, float]:
+    """The L-BFGS direction over the free unknowns (two-loop recursion, H0 = the convex
+    model's inverse) and its slope; the model's Newton direction, the memory cleared,
+    when the recursion lost descent."""
     q = gf.copy()
     alphas = []
     for s, y in zip(reversed(state.s_hist), reversed(state.y_hist)):
@@ -298,16 +318,22 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
         state.y_hist.clear()
         d = _free_direction(state, -state.precond.solve(gf))
         slope = _dot(gf, d)
-    direction = np.zeros_like(state.uv)
-    direction[free] = d.reshape(-1, 2)
-    # capped short of the first flip and of the move bound: every iterate satisfies both
+    return d, slope
+
+
+def _line_search(state: OptimiseState, energy: PatternEnergy, direction: np.ndarray,
+                 d: np.ndarray, slope: float) -> tuple | None:
+    """Armijo backtracking from a step capped short of the first flip and of the move
+    bound (every iterate satisfies both): ``(t, d, trial uv, energy, gradient)``, or None
+    when no step decreases the energy. ``direction`` (V,2) is ``d`` on the free vertices;
+    both change when outline vertices near a crossing sit the step out."""
     t = min(1.0, 0.9 * energy.max_step(state.uv, direction))
     e0 = state.energy
     for _ in range(60):
         trial = state.uv + t * direction
         e1, g1 = energy(trial, state.gamma)
         if np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope:
-            break
+            return t, d, trial, e1, g1
         if not np.isfinite(e1) and energy.outline is not None:
             # the outline vertices near a crossing sit this step out, so that one dart
             # pressed shut does not stop everything else from moving
@@ -315,19 +341,19 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
             if np.any(direction[stuck]):
                 d, slope = _descent_without(state, direction, stuck)
                 if not slope < 0:
-                    break
-                direction[free] = d.reshape(-1, 2)
+                    return None
+                direction[state.free] = d.reshape(-1, 2)
                 continue
         t *= 0.5
-    else:
-        state.round_done = True
-        return True
-    if not (np.isfinite(e1) and e1 <= e0 + 1e-4 * t * slope):
-        state.round_done = True
-        return True
-    g1 = _in_subspace(state, g1)
-    step = t * d
-    yv = g1[free].ravel() - gf
+    return None
+
+
+def _take_step(state: OptimiseState, options: ReshapeOptions, t: float, step: np.ndarray,
+               gf: np.ndarray, trial: np.ndarray, e1: float, g1: np.ndarray) -> None:
+    """Move to ``trial`` (the step ``t`` along the direction), remembering the curvature
+    pair when it is positive; a short step means the barrier binds and the model is
+    stale, so it is refactorised before the next step."""
+    yv = g1[state.free].ravel() - gf
     if _dot(yv, step) > 1e-12 * _dot(step, step):
         state.s_hist.append(step)
         state.y_hist.append(yv)
@@ -340,13 +366,7 @@ def optimise_step(state: OptimiseState, energy: PatternEnergy,
     state.last_step_mm = float(np.abs(step).max())
     state.since_refresh += 1
     if t < 0.5 and state.since_refresh >= options.refresh_every:
-        # the barrier binds: the model is stale, refactorise before the next step
         state.precond = None
-    small_f = (e0 - e1) <= options.ftol * max(1.0, abs(e1))
-    small_x = state.last_step_mm <= options.xtol_mm
-    state.round_done = (small_f or small_x
-                        or state.round_iterations >= options.max_iterations_per_round)
-    return state.round_done
 
 
 @dataclass
@@ -422,8 +442,6 @@ def _smoothing(garment, options: ReshapeOptions) -> np.ndarray:
     ends = np.unique(keys[counts == 1] // n_lines)
     if not len(ends):
         return smooth
-    from scipy.spatial import cKDTree
-
     boundary = np.unique(garment.boundary_half_edges())
     d, _ = cKDTree(garment.uv[ends]).query(garment.uv[boundary])
     smooth[boundary[d < options.corner_smooth_mm]] = options.corner_smooth_mm
@@ -494,12 +512,7 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     energy = build_energy(garment, across_only(garment, initial_targets(
         garment, placement, ideal, fixed=fixed, unit_mm=unit, reach=options.reach),
         garment.uv, eased), options)
-    free = ~fixed[garment.piece_of_vertex]
-    idx = np.flatnonzero(free)
-    moving = [p for p in pairs if not (fixed[p.first] or fixed[p.second])]
-    state = OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
-                          dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
-                          tie=PairTie(garment, moving) if moving else None)
+    state = _start_state(garment, fixed, pairs, options)
     sewn = SeamSewing(garment, keep_ease=options.keep_ease, give_mm=options.ease_give_mm,
                       ease_tol_mm=options.ease_tol_mm, eps_floor=options.eps_floor)
 
@@ -519,8 +532,7 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         _gamma_rounds(state, energy, options, sewn, "matched", e_fit, progress)
         fit = state.history[-1]["e_fit_mm2"]
         gain = (best_fit - fit) / max(best_fit, 1e-12)
-        if fit < best_fit and (sewn(state.uv)
-                               or sewn.mismatch(state.uv) <= sewn.mismatch(best_uv)):
+        if fit < best_fit and _sews_as_well(sewn, state.uv, best_uv):
             best_uv, best_fit = state.uv, fit
         if gain < options.refine_gain:
             break
@@ -536,3 +548,20 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
         flipped_triangles=flipped,
         ease_change_max_mm=sewn.ease_change(best_uv),
     )
+
+
+def _start_state(garment, fixed: np.ndarray, pairs: Sequence[MirrorPair],
+                 options: ReshapeOptions) -> OptimiseState:
+    """The optimisation's start: the input pattern, the free vertices (those of pieces
+    not ``fixed``) and their unknowns, mirror pairs that move tied."""
+    free = ~fixed[garment.piece_of_vertex]
+    idx = np.flatnonzero(free)
+    moving = [p for p in pairs if not (fixed[p.first] or fixed[p.second])]
+    return OptimiseState(uv=garment.uv.copy(), free=free, gamma=options.gamma0,
+                         dofs=(2 * idx[:, None] + np.array([0, 1])).ravel(),
+                         tie=PairTie(garment, moving) if moving else None)
+
+
+def _sews_as_well(sewn: SeamSewing, uv: np.ndarray, best_uv: np.ndarray) -> bool:
+    """``uv``'s seams sew, or their length mismatch is no worse than ``best_uv``'s."""
+    return bool(sewn(uv) or sewn.mismatch(uv) <= sewn.mismatch(best_uv))

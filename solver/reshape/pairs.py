@@ -27,7 +27,8 @@ from scipy.sparse.linalg import splu
 
 from solver.garment.barycentric import barycentric_matrix
 from solver.garment.model import Garment
-from solver.garment.symmetry import FLIP, MirrorPair, mirror_correspondence
+from solver.garment.symmetry import MirrorPair, mirror_correspondence
+from solver.geometry import FLIP
 
 
 @dataclass

@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from solver.fit import fit_report
+from solver.geometry import signed_areas
 from solver.reshape.quality import outline_roughness, seam_ease_changes
 
 
@@ -64,13 +65,11 @@ class ReshapeReport:
 def piece_changes(garment, uv: np.ndarray) -> list[dict]:
     """Per piece what reshaping to ``uv`` changed: its largest vertex move (mm), its area
     (%) and the length of its seams (mm and %), so a pattern maker can judge it."""
-    from solver.garment.model import triangle_areas
-
     n, pf = garment.n_pieces, garment.piece_of_face()
     move = np.zeros(n)
     np.maximum.at(move, garment.piece_of_vertex, np.hypot(*(uv - garment.uv).T))
-    a0 = np.bincount(pf, weights=triangle_areas(garment.uv, garment.faces), minlength=n)
-    a1 = np.bincount(pf, weights=triangle_areas(uv, garment.faces), minlength=n)
+    a0 = np.bincount(pf, weights=signed_areas(garment.uv, garment.faces), minlength=n)
+    a1 = np.bincount(pf, weights=signed_areas(uv, garment.faces), minlength=n)
     e = garment.seam_edges
     sides = np.concatenate([e[:, :2], e[:, 2:]])  # both twins: each piece's own seam edges
     owner = garment.piece_of_vertex[sides[:, 0]]

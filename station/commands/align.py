@@ -24,7 +24,7 @@ from station.cliargs import (
     read_name_map,
     symmetrised_garment,
 )
-from station.render import draw_fit
+from station.render import draw_fit, fabric_picture
 from station.steps.place import align_garment
 
 
@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
     rep = dict(placement.report)
     rep["output"] = str(args.output)
     if args.png:
-        draw_fit(garment, placement, fit_report(garment, placement), args.png)
+        draw_fit(garment, placement, fit_report(garment, placement), args.png,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         rep["png"] = str(args.png)
     if args.json:
         print(json.dumps(rep))

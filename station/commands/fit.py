@@ -26,7 +26,7 @@ from station.cliargs import (
     symmetrised_garment,
 )
 from station.front_view import draw_front_view
-from station.render import draw_fit
+from station.render import draw_fit, fabric_picture
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -85,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
         cuts, notches = cut_ready(garment, rules, placement)
-        draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches)
+        draw_fit(garment, placement, report, args.png, cuts=cuts, notches=notches,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         result["png"] = str(args.png)
     if args.front_view:
         draw_front_view(garment, placement, symmetrised.pairs if symmetrised is not None

@@ -2,7 +2,7 @@
 
 The daemon tells where the job's plan lives (over the control socket, like every console
 command); the picture is drawn from those files: the rectified photo of the fabric when
-the job photographed it, else the print rendered from the job's FABRIC.json.
+the job photographed it, else the lattice of the job's FABRIC.json on plain cloth.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "preview", help="picture of a job's marker on the fabric",
         description="Draw the job's pieces where they lie on the fabric photo (or the "
-        "rendered print when the job was given a FABRIC.json), seams coloured from green "
+        "print's lattice when the job was given a FABRIC.json), seams coloured from green "
         "(matching) to red (20 mm or more off).")
     p.add_argument("job", type=int, metavar="JOB")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png", type=picture_path)
@@ -73,7 +73,7 @@ def preview(plan: dict, output: str | Path, *, width_px: int = 1600) -> None:
     if photo is not None and camera.is_file():
         mm_per_px = float(json.loads(camera.read_text())["mm_per_px"])
     else:
-        photo = None  # the job was given a FABRIC.json: draw the print from it
+        photo = None  # the job was given a FABRIC.json: its lattice on plain cloth
     draw_marker(layout, output, garment=garment, report=fit_report(garment, placement),
                 photo=photo, photo_mm_per_px=mm_per_px, width_px=width_px,
                 credit=garment_credit(plan["garment"]))

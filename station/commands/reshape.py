@@ -30,7 +30,7 @@ from station.cliargs import (
     symmetrised_garment,
 )
 from station.errors import UserError
-from station.render import draw_fit
+from station.render import draw_fit, fabric_picture
 
 FORMATS = (".obj", ".json", ".dxf")
 
@@ -182,7 +182,8 @@ def run(args: argparse.Namespace) -> int:
     if symmetrised is not None:
         result["symmetrise"] = symmetrised.to_dict()
     if args.png:
-        draw_fit(new, placement, fit_report(new, placement), args.png, original=garment)
+        draw_fit(new, placement, fit_report(new, placement), args.png, original=garment,
+                 colour_of=fabric_picture(args.fabric, placement.fabric))
         result["png"] = str(args.png)
     if args.json:
         print(json.dumps(result))

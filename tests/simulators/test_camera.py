@@ -207,7 +207,7 @@ def test_simulate_camera_command(tmp_path):
 def test_each_pixel_is_filtered_for_its_own_footprint():
     """A tilted view sees the fabric at several scales: near pixels get the fine texture,
     far ones the coarse, so neither side is blurred or aliased by a single filter."""
-    from simulators.camera import _sample_print
+    from simulators.camera.render import _sample_print
 
     p = random_print("p2", 10.0, seed=1)
     y, x = np.mgrid[0:40, 0:80].astype(np.float32) * np.float32(0.7)

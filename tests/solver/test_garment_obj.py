@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from solver.garment import Garment, load_garment, save_obj
-from solver.garment.model import triangle_areas
+from solver.geometry import signed_areas
 
 # (pieces, seam edges, 3D boundary edges) from the SOURCE.md tables in shared/data/garments
 BERKELEY = {
@@ -63,7 +63,7 @@ def check_invariants(g: Garment) -> None:
         assert g.xyz.shape == (v, 3)
     # pieces are the connected components, all CCW in the pattern
     assert g.piece_of_vertex.max() + 1 == g.n_pieces == len(g.piece_names)
-    area = triangle_areas(g.uv, g.faces)
+    area = signed_areas(g.uv, g.faces)
     assert (g.piece_areas() > 0).all()
     assert (area > 0).mean() > 0.99
     # twins: a~a2 and b~b2 are the same 3D point, the two edges are distinct pattern edges

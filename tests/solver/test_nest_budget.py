@@ -19,14 +19,8 @@ import shapely.affinity
 from solver.nest import NestProblem, Piece, load_esicup, verify_layout
 from solver.nest.budget import Deadline, deadline_of, finish_reserve
 from solver.nest.coset import CosetSearch
-from solver.nest.engine import (
-    Board,
-    Filler,
-    default_resolution,
-    estimate_length,
-    fill_search,
-    moves_of,
-)
+from solver.nest.engine import Board, Filler, moves_of
+from solver.nest.fill import default_resolution, estimate_length, fill_search
 from solver.nest.layout import build_layout
 from solver.nest.plain import SPARROW_MAX_POINTS, Late, coarsened, spyrrow_pack
 from solver.nest.solve import nest
