@@ -14,10 +14,8 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:  # pragma: no cover
-    from gcode.machine import Machine
+from gcode.machine import Machine
 
 __all__ = [
     "ALARM_CODES",

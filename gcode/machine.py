@@ -7,7 +7,7 @@ of range are errors naming the file and the key, so a typo fails before anything
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -82,8 +82,6 @@ class Machine:
 
     def with_cut(self, **changes: Any) -> Machine:
         """A copy with some cutting parameters changed (validated like the TOML)."""
-        from dataclasses import replace
-
         m = replace(self, cut=replace(self.cut, **changes))
         _check(m)  # the cut against the machine too: feed, power, min_cut_feed
         return m

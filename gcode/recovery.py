@@ -1,12 +1,30 @@
 """Knowing what the machine did while nobody listened: piece markers, final moves, rest.
 
-When the daemon dies the machine goes on with the moves in its buffers, so the piece in
-flight may finish after the last answer anybody read. The program carries markers the
-controller stores in EEPROM around each piece's final move (`with_markers`), the geometry
-those markers refer to is saved before streaming (`save_final_moves`), and on the next start
-the machine is asked (`wait_at_rest`, `read_params`) before anything moves or resets it;
-`read_marker` and `piece_finished` judge its answer, and
-`station.pipeline.StationPipeline.reconcile` records the verdict in the job store.
+When the daemon dies the machine goes on with the moves in its buffers (up to 128 bytes
+of lines and 15 planned blocks), so the piece in flight may finish after the last answer
+anybody read. So the program builder, asked with `gcode.program.PieceMarkers`, brackets
+each piece's final move with G59 writes (``G10 L2 P6 X<job> Y<piece + 1> Z<phase>``), which
+GRBL keeps in EEPROM across resets and power cuts and writes only after every move before
+it has finished (FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE); the checker checks them with
+everything else, and the streamer sends each alone, once every line before it is answered,
+and nothing after it until it is answered:
+
+* phase 1, before the final move: written only once every move but the final one has run;
+  while it stands, nothing but the final move can move the head;
+* phase 2, after the final move: written only once the final move has run, and no line of
+  the next piece is sent before it is answered;
+* cleared (zeros) before every stream, once the store holds what it said: a piece cut
+  again must not be judged by the marker of its interrupted earlier attempt.
+
+The geometry those markers refer to is saved before streaming (`save_final_moves`), since
+where a contour starts and ends depends on which pieces were left to cut; on the next
+start the machine is asked (`wait_at_rest`, `read_params`) before anything moves or resets
+it; `read_marker` and `piece_finished` judge its answer (phase 2 proves the piece cut;
+phase 1 only with the head resting, position trusted, at the final move's end), and the
+station records the verdict in the job store. Only the 1-2 ms between the final move's
+answer and the phase-2 block going out, followed by a loss of position before the restart,
+leaves a finished piece unproven: it is cut again, and the operator is told in the log.
+A piece interrupted before its final move resumes where its cut stopped (`gcode.resume`).
 """
 
 from __future__ import annotations
@@ -19,72 +37,14 @@ from pathlib import Path
 
 import numpy as np
 
+from gcode.blocks import MARKER_SYSTEM
 from gcode.grbl import Response, Status
-from gcode.program import Program, ProgramError, parse_pieces, program_moves
-from gcode.session import ResponseReader
-from gcode.stream import Streamer
+from gcode.program import Program, program_moves
+from gcode.session import GrblSession, ResponseReader
 
 __all__ = ["FINAL_MOVES", "MARKER_SYSTEM", "Marker", "distance_to_path", "final_moves",
            "head_position", "load_final_moves", "piece_finished", "read_marker",
-           "read_params", "save_final_moves", "wait_at_rest", "with_markers"]
-
-#: The work coordinate system (G54 + n - 1) the station writes its piece markers into:
-#: programs run in G54 and never select G59, so its offsets are free for bookkeeping.
-MARKER_SYSTEM = 6
-
-def with_markers(program: Program, job_id: int, index: dict[str, int]) -> Program:
-    """The program with a persistent record of each piece's progress in the controller.
-
-    Why: when the daemon dies the machine goes on with the moves in its buffers (up to
-    128 bytes of lines and 15 planned blocks), so the piece in flight may finish after the
-    last answer anybody read. Around each piece's final move the program writes G59
-    (``G10 L2 P6 X<job> Y<piece + 1> Z<phase>``), which GRBL keeps in EEPROM across
-    resets and power cuts and writes only after every move before it has finished
-    (FORCE_BUFFER_SYNC_DURING_EEPROM_WRITE). The streamer sends such a line alone, once
-    every line before it is answered, and nothing after it until it is answered. So:
-
-    * phase 1, before the final move: written only once every move but the final one
-      has run; while it stands, nothing but the final move can move the head;
-    * phase 2, after the final move: written only once the final move has run, and no
-      line of the next piece is sent before it is answered;
-    * cleared (zeros) before every stream, once the store holds what it said: a piece cut
-      again must not be judged by the marker of its interrupted earlier attempt (whose
-      head position at the contour's start would look like a finished final move).
-
-    On restart `StationPipeline.reconcile` reads G59 and the head's rest position before
-    any reset: phase 2 proves the piece cut; phase 1 proves it only if the head rests at
-    the final move's end with its position trusted (no alarm). The final move is taken
-    from the program that was streamed (saved by `save_final_moves` before streaming),
-    since where a contour starts and ends depends on which pieces were left to cut.
-    Only the 1-2 ms between the final move's answer and the phase-2 line going out, then
-    followed by a loss of position before the restart (power cut, or a board reset by
-    opening its port), leaves a finished piece unproven: it is cut again, and the
-    operator is told in the log. At most this one piece can
-    be unrecorded: the next piece's phase 1 is only sent after this piece's sync line was
-    answered and stored. A piece interrupted before its final move resumes where its cut
-    stopped (`gcode.resume`).
-    """
-    lines: list[str] = []
-    new_index = np.zeros(len(program.lines), int)  # old line -> its line in the new program
-    c = program.check
-    if c is None or c.line_motion is None:
-        raise ProgramError("with_markers needs a validated program (Program.check)")
-    final = {}
-    for r in program.pieces:
-        moves = [k for k in range(r.first_line, r.sync_line) if c.line_motion[k] in (1, 2, 3)]
-        if moves:
-            final[moves[-1]] = index[r.id]
-    for k, line in enumerate(program.lines):
-        piece = final.get(k)
-        if piece is not None:
-            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{piece + 1} Z1")
-        new_index[k] = len(lines)
-        lines.append(line)
-        if piece is not None:
-            lines.append(f"G10 L2 P{MARKER_SYSTEM} X{job_id} Y{piece + 1} Z2")
-    return Program(lines, parse_pieces(lines), check=c.moved(new_index, len(lines)),
-                   warnings=list(program.warnings))
-
+           "read_params", "save_final_moves", "wait_at_rest"]
 
 FINAL_MOVES = "final-moves.json"
 
@@ -240,7 +200,7 @@ def wait_at_rest(port, timeout: float = 120.0, stop=None) -> Status | None:
     return seen
 
 
-def read_params(streamer: Streamer) -> dict[str, tuple[float, ...]]:
+def read_params(streamer: GrblSession) -> dict[str, tuple[float, ...]]:
     """``$#``: the controller's stored offsets by name (G54..G59, G28, G30, G92...)."""
     r, pushed = streamer.command("$#")
     out: dict[str, tuple[float, ...]] = {}

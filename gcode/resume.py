@@ -4,9 +4,10 @@ A piece's strokes (tool-down runs, in cut order) are saved before its first line
 streamed (`save_strokes`); they are the reference its progress is measured on for as long
 as the piece is unfinished, since a program built again later starts its contours from
 wherever the head then is. While cutting, a stroke counts as cut once the sync line after
-it (`gcode.program.STROKE_SYNC`) is answered; within the stroke in progress, each status
-report's head position is matched to that stroke only (`advance`), and no further than
-the feed can have cut since, so a rapid crossing a stroke not yet cut never counts. The
+it (`gcode.program.STROKE_SYNC`, a block of role `Sync.STROKE`) is answered; within the
+stroke in progress, each status report's head position is matched to that stroke only
+(`advance`), and no further than the feed can have cut since, so a rapid crossing a stroke
+not yet cut never counts. The
 station journals that length; after a kill the head's rest position (at the end of the
 last buffered line, when still trusted) carries it to where the machine really stopped.
 The resumed piece (`resumed_toolpath`) starts `OVERLAP_MM` before that point, so the
@@ -24,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from gcode.arcs import sample_path
+from gcode.blocks import Sync
 from gcode.machine import Machine
-from gcode.program import STROKE_SYNC, Program, strip_comment
+from gcode.program import Program
 from gcode.toolpath import PieceToolpath, open_contour
 
 __all__ = ["OVERLAP_MM", "STROKES", "PieceStrokes", "advance", "load_strokes",
@@ -158,11 +160,11 @@ def strokes_before(strokes: PieceStrokes, count: int) -> float:
 
 
 def stroke_syncs(program: Program) -> dict[str, np.ndarray]:
-    """Piece id -> the wire ordinals (counting only lines that carry code, as the streamer
+    """Piece id -> the wire ordinals (counting only blocks that carry code, as the streamer
     sends them) of its stroke syncs, in order: stroke i is cut once ordinal i is answered."""
-    wire = np.cumsum([bool(strip_comment(line)) for line in program.lines]) - 1
+    wire = np.cumsum([bool(b.code) for b in program.blocks]) - 1
     return {r.id: np.array([wire[k] for k in range(r.first_line, r.sync_line)
-                            if program.lines[k] == STROKE_SYNC], int)
+                            if program.blocks[k].sync == Sync.STROKE], int)
             for r in program.pieces}
 
 

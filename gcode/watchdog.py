@@ -316,6 +316,12 @@ class Watchdog:
             self._slow_since = None
             return self._check_dark(inside, now)
         self._dark_since = None
+        return self._judge_beam(st, inside, now, starved)
+
+    def _judge_beam(self, st: Status, inside: int | None, now: float, starved: bool
+                    ) -> Breach | None:
+        """A running report with the beam on: on a cutting line, at a power the program
+        asks for at the feed shown, then the feed itself (`_judge_feed`)."""
         power = float(st.speed or 0.0)
         if inside == _LEG or (inside is not None and self.line_power[inside] <= 0):
             return Breach(StopReason.POWER, f"laser at S{power:g} on a travel move "
@@ -333,6 +339,13 @@ class Watchdog:
             return Breach(StopReason.POWER, f"laser at S{power:g} at F{feed:g} where the "
                           f"program's {self._asked_power(feed)} (corrupted S word?)",
                           self.last_line)
+        return self._judge_feed(st, feed, now, starved)
+
+    def _judge_feed(self, st: Status, feed: float, now: float, starved: bool
+                    ) -> Breach | None:
+        """The beam on at a feed the program asks for: never above its cutting feed, and
+        below it no longer than the machine takes to reach it (corners and a starved
+        planner slow it down legitimately)."""
         low, high = min(self.feeds), max(self.feeds)
         expected = low
         if st.planner_free is not None:  # Bf: reported ($10 has 2)

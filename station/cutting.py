@@ -2,7 +2,7 @@
 it got within a piece.
 
 `reconcile` records the piece the machine may have finished on its buffered moves after
-the daemon died (from the EEPROM markers, see `gcode.recovery.with_markers`).
+the daemon died (from the EEPROM markers, see `gcode.recovery`).
 `resumed_program` builds the program of the pieces left, the one in progress resumed
 where its cut stopped (`gcode.resume`), and `PieceJournal` keeps that place in the job
 store while the machine cuts. `stream_with_control` runs the streamer while relaying the
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gcode.machine import Machine
-from gcode.program import Program, build_program
+from gcode.program import PieceMarkers, Program, build_program
 from gcode.recovery import (
     FINAL_MOVES,
     head_position,
@@ -123,7 +123,8 @@ def resumed_program(toolpaths: list[PieceToolpath], machine: Machine, store: Job
         else:
             rest.append(tp)
             strokes[k], bases[k] = piece_strokes(tp), 0
-    program = build_program(first + rest, machine, title=title)
+    program = build_program(first + rest, machine, title=title,
+                            markers=PieceMarkers(job.id, index))
     order = {index[tp.id]: strokes[index[tp.id]] for tp in first + rest}
     save_strokes(job_dir / STROKES, job.id, order)
     journal = PieceJournal(store, job.id, order, bases, program, index)
@@ -166,8 +167,8 @@ class PieceJournal:
 
     def follow(self, program: Program, feed_mm_s: float = np.inf, time_scale: float = 1.0
                ) -> None:
-        """Count stroke syncs in ``program`` as streamed (after `with_markers` added its
-        lines, which shift every ordinal after them); progress within a stroke grows at
+        """Count stroke syncs in ``program`` as streamed (its recovery markers shift every
+        ordinal after them); progress within a stroke grows at
         most by what ``feed_mm_s`` cuts in the machine time since it last grew
         (``time_scale``: machine seconds per wall second)."""
         self.syncs = {self.index[pid]: wire for pid, wire in stroke_syncs(program).items()}

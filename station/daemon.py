@@ -19,7 +19,7 @@ has run. At most one piece can be finished but unrecorded (the next piece's line
 only after this one's markers and sync line were answered and stored). Before anything
 else on resume, `station.steps.cut.cut_job` waits for the machine to come to rest (sending
 only the real-time ``?``), reads the marker and the head's position, and records that
-piece cut exactly when the machine proves it (see `gcode.recovery.with_markers` and
+piece cut exactly when the machine proves it (see `gcode.recovery` and
 `station.cutting.reconcile`); then it clears the marker, homes if the position was
 lost, and streams the rest. A piece the machine cannot prove finished resumes where it
 stopped. tests/station/test_crash.py checks all of it against the emulator's motion trace.

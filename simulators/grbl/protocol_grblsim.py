@@ -16,7 +16,9 @@ name: share one machine between opens
 several values separated by commas; out_* count the bytes GRBL sends, *_ok_at its `ok`s;
 insert bursts are given in hex); force_origin: homing sets the origin at the home switches
 (build option Z); settings: `$N` values stored before power-up, e.g. settings=22:1,20:1.
-The port object exposes the machine as `port.emulator`.
+The port object exposes the machine as `port.emulator`, and declares its time as any port
+may (`gcode.session.PortTiming`): `time_scale` (the machine's speed), `machine_clock()`
+(its simulated seconds) and `line_baud` (the modelled wire's rate, None for an instant link).
 """
 
 from __future__ import annotations
@@ -118,6 +120,21 @@ class Serial(SerialBase):
         self._cancel = False
         self.wire: SerialLine | None = None  # the modelled wire (`baud=`), else none
         super().__init__(*args, **kwargs)
+
+    # -- the time this port's machine runs on (gcode.session.PortTiming) -----------------
+    @property
+    def time_scale(self) -> float:
+        """Machine seconds per wall second: the emulator's speed."""
+        return self.emulator.speed if self.emulator is not None else 1.0
+
+    def machine_clock(self) -> float:
+        """The emulator's simulated seconds."""
+        return self.emulator.sim_time if self.emulator is not None else 0.0
+
+    @property
+    def line_baud(self) -> float | None:
+        """The modelled wire's baud rate (``baud=``); None: bytes arrive at once."""
+        return 10.0 / self.wire.byte_time if self.wire is not None else None
 
     # -- pyserial contract --------------------------------------------------------------
     def open(self) -> None:

@@ -28,7 +28,6 @@ from gcode.recovery import (
     read_params,
     save_final_moves,
     wait_at_rest,
-    with_markers,
 )
 from gcode.stream import BEAM_OFF, Streamer, StreamError
 from gcode.toolpath import build_toolpaths
@@ -85,7 +84,6 @@ def cut_job(job: Job, job_dir: Path, marker: MachineLayout, store: JobStore,
         program, journal = resumed_program(toolpaths, machine, store, job, index, job_dir,
                                            head_position(rest, bool(alarm), params),
                                            f"station {job_dir.name}")
-        program = with_markers(program, job.id, index)
         journal.follow(program, machine.cut.feed / 60.0, streamer.time_scale)
         # The geometry a marker refers to, saved before a line goes out: the toolpath
         # order (and so where each contour starts and ends) depends on which pieces

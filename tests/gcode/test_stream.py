@@ -16,6 +16,7 @@ import pytest
 import serial
 
 import simulators.grbl  # noqa: F401  (registers grblsim://)
+from gcode.blocks import parse_lines
 from gcode.layout import layout_from_dict
 from gcode.machine import default_machine
 from gcode.program import Program, build_program, strip_comment
@@ -323,7 +324,7 @@ def test_character_counting_and_one_at_a_time_settings(job):
     ref.append(st)
     st.connect()
     head = ["$11=0.010", "$12=0.002", "$32=1"]
-    prog = Program(head + job.lines, [])
+    prog = Program(parse_lines(head + job.lines), [])
     t0 = time.monotonic()
     res = st.run(prog)
     t1 = time.monotonic()
@@ -364,7 +365,7 @@ def test_streamer_refuses_dangerous_lines_before_sending(line):
     st.connect()
     before = port.emulator.lines_received
     with pytest.raises(StreamError, match="line 2"):
-        st.run(Program(["G21 G90", line], []))
+        st.run(Program(parse_lines(["G21 G90", line]), []))
     assert port.emulator.lines_received == before
     port.close()
 

@@ -418,8 +418,10 @@ def test_recovery_ignores_markers_of_other_jobs_cleared_markers_and_cut_pieces(r
 def test_markers_bracket_each_pieces_final_move(tmp_path):
     """Every piece: G59 phase 1 just before its last beam-on move and phase 2 just after,
     both lines the streamer sends alone; nothing else in the program changes."""
-    from gcode.recovery import final_moves, with_markers
+    from gcode.program import PieceMarkers, build_program
+    from gcode.recovery import final_moves
     from gcode.stream import is_sync_command
+    from gcode.toolpath import build_toolpaths
 
     sys.path.insert(0, str(ROOT / "tests" / "gcode"))  # gcode_helpers (importlib mode)
     from gcode_helpers import make_layout  # a disc with a hole, notch and mark, ...
@@ -428,7 +430,10 @@ def test_markers_bracket_each_pieces_final_move(tmp_path):
     pipeline = StationPipeline(load_config(None))
     program = pipeline.program_for(tmp_path / "layout.json", None)
     index = {r.id: i for i, r in enumerate(program.pieces)}
-    marked = with_markers(program, 7, index)
+    toolpaths = build_toolpaths(pipeline.marker_file(tmp_path / "layout.json"),
+                                pipeline.machine)
+    marked = build_program(toolpaths, pipeline.machine, title=f"station {tmp_path.name}",
+                           markers=PieceMarkers(7, index))  # the builder writes them
     assert [ln for ln in marked.lines if not ln.startswith("G10")] == program.lines
     assert len(marked.check.seconds) == len(marked.lines)
     assert [r.id for r in marked.pieces] == [r.id for r in program.pieces]
