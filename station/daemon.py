@@ -134,9 +134,23 @@ class Pipeline(Protocol):
             resuming: bool) -> None: ...
 
 
+class _StderrHandler(logging.StreamHandler):
+    """A handler on whatever ``sys.stderr`` is when a record comes, not the one it was made
+    with: a command run inside another program (a test's captured stream, closed after it)
+    must not leave the root logger writing to a closed file."""
+
+    @property
+    def stream(self):  # type: ignore[override]
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value) -> None:
+        pass
+
+
 def setup_logging(level: int = logging.INFO) -> None:
     """Log to stderr as journald keeps it: one line per record, no timestamps of our own."""
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _StderrHandler()
     handler.setFormatter(logging.Formatter("<%(levelno)s>%(name)s: %(message)s"))
     root = logging.getLogger()
     root.handlers[:] = [handler]

@@ -10,6 +10,7 @@ and the nesting reader (:mod:`solver.nest.dxf_aama`) stand on it.
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -18,6 +19,10 @@ import numpy as np
 
 import untrusted
 from solver.units import mm_per_unit
+
+# ezdxf narrates every R12 file it reads at INFO ("creating ACAD_COLOR dictionary", ...):
+# nothing a station's log should carry per pattern read; its warnings still come through.
+logging.getLogger("ezdxf").setLevel(logging.WARNING)
 
 __all__ = ["BadPlacement", "chain_rings", "read_blocks", "reflect", "texts", "units_scale"]
 

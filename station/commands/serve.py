@@ -28,7 +28,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     config = checked_config(args)
-    setup_logging(logging.DEBUG if args.verbose else logging.INFO)
     os.umask(config["store"]["umask"])  # before any file: job files 0640, folders 0750
     if args.simulate:
         # Only a dry run loads the simulators (107 ms on top of the daemon, measured): a
@@ -39,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         pipeline = StationPipeline(config)
     daemon = Daemon(config, pipeline)
+    # only once every check at start has passed: a refused start leaves logging as it was
+    setup_logging(logging.DEBUG if args.verbose else logging.INFO)
     return daemon.serve(once=args.once)
 
 
