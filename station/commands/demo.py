@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
 import sys
 import tempfile
 import time
@@ -69,6 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "demo always does)")
     p.add_argument("--speed", type=float, default=20.0,
                    help="emulated machine's speed-up (simulated s per wall s)")
+    p.add_argument("--copies", type=int, default=1, metavar="N",
+                   help="an order of N copies of the garment, nested in one marker and cut "
+                   "in bites when it is longer than the table (the simulated roll slips)")
     p.add_argument("--fleet", type=int, default=0, metavar="N",
                    help="N simulated stations sharing one PostgreSQL job store (started "
                    "here), each with its own emulator and camera")
@@ -96,8 +100,8 @@ def run(args: argparse.Namespace) -> int:
         if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
             raise ValueError("--restarts, --nest-seconds and --speed must be positive")
         return run_fleet(args)
-    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
-        raise ValueError("--restarts, --nest-seconds and --speed must be positive")
+    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0 or args.copies < 1:
+        raise ValueError("--restarts, --nest-seconds, --speed and --copies must be positive")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     setup_logging(logging.WARNING)
@@ -108,9 +112,12 @@ def run(args: argparse.Namespace) -> int:
             "control": {"socket": f"{tmp}/station.sock"},
         })
         sock = daemon.control.path
+        submitted = garment.resolve() if args.copies == 1 else copies_order(
+            garment, args.copies, args.units, Path(tmp))
         try:
-            job = request(sock, "submit", garment=str(garment.resolve()), fabric=None,
-                          options={"units": args.units})["job"]["id"]
+            job = request(sock, "submit", garment=str(submitted), fabric=None,
+                          options={"units": args.units} if args.copies == 1 else {}
+                          )["job"]["id"]
             print(f"station demo: job {job} submitted to the simulated station "
                   f"(store and socket in {tmp})", file=sys.stderr)
             status = follow(sock, job)
@@ -124,9 +131,12 @@ def run(args: argparse.Namespace) -> int:
         plan_report = read_json_or_empty(workdir / "report.json")
         camera = read_json_or_empty(workdir / "camera.json")
         fabric = read_json_or_empty(workdir / "fabric.json")
+        pieces = pieces_cut(daemon.store.pieces(job), events)
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
+    summary["bites"] = plan_report.get("bites")
+    summary["pieces"] = pieces
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,
@@ -134,6 +144,27 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
+
+
+def copies_order(garment: Path, copies: int, units: str | None, folder: Path) -> Path:
+    """An order of ``copies`` of ``garment``, written in ``folder`` beside a copy of it
+    (an order names its patterns relative to itself)."""
+    shutil.copyfile(garment, folder / garment.name)
+    order = folder / "order.toml"
+    lines = ['name = "demo"', "[[garment]]", f"pattern = {json.dumps(garment.name)}",
+             f"copies = {copies}", *([f'units = "{units}"'] if units else [])]
+    order.write_text("\n".join(lines) + "\n")
+    return order
+
+
+def pieces_cut(pieces: list[dict[str, Any]], events: list[dict[str, Any]]
+               ) -> list[dict[str, Any]]:
+    """The report's ``pieces``: each piece's bite (None: the marker was cut whole) and how
+    many times the job's log says it was cut (exactly once, or something went wrong)."""
+    cut_events = [e["message"] for e in events if e.get("kind") == "piece"]
+    return [{"piece": p["name"], "bite": p.get("bite"),
+             "times_cut": sum(m == f"piece {p['piece']} ({p['name']}) cut" for m in cut_events)}
+            for p in pieces]
 
 
 def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | None:
@@ -223,7 +254,8 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     lines.append(f"  cut-ready     {'; '.join(parts)}")
     lines += [
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
-        f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",
+        f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}"
+        + (f" in {len(s['bites'])} bites" if s.get("bites") else ""),
         f"  time          {s['seconds']:.1f} s",
         f"  files in      {out}/ (report.json has everything)",
     ]
