@@ -51,10 +51,11 @@ def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | No
 class RollTrack:
     """Where the marker lies on the table window: ``marker_to_window`` maps marker mm to
     window mm (x along the roll from the window's start), composed of every advance. At
-    the first bite the marker lies ``ROLL_MARGIN_MM`` into the window."""
+    the first bite the marker lies where it was planned (the identity): it was aligned on
+    the print photographed there, and a shift would move every piece off its print."""
 
     marker_to_window: np.ndarray = field(default_factory=lambda: np.array(
-        [[1.0, 0.0, ROLL_MARGIN_MM], [0.0, 1.0, 0.0]]))
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
     advances: list[Advance] = field(default_factory=list)
 
     def advance_for(self, bite: Bite) -> float:
