@@ -65,6 +65,11 @@ class StationPipeline:
         # one's (another station may have planned the job again since).
         self._planned: dict[int, Plan] = {}
 
+    @property
+    def roll(self) -> Roll | None:
+        """The roll on the table, once a marker has been cut in bites here."""
+        return self._roll
+
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
         """Refuse at submission what could never run (raises ValueError)."""
         table_window(self.config, self.machine)

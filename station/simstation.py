@@ -78,6 +78,14 @@ class SimulatedRoll:
     def photograph(self):
         return self.camera.photograph()
 
+    def truth(self) -> list[dict[str, float]]:
+        """Each advance as the conveyor really made it (the simulator's truth), to hold
+        the station's measurements against."""
+        poses = self.conveyor.poses
+        return [{"advance_mm": round(b.along - a.along, 3),
+                 "skew_deg": round(b.angle_deg - a.angle_deg, 4)}
+                for a, b in zip(poses, poses[1:])]
+
 
 def simulated_roll(config: Config, _machine: Machine, _open_camera: CameraOpener,
                    _open_port: PortOpener) -> SimulatedRoll:

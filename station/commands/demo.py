@@ -28,7 +28,12 @@ from station.daemon import setup_logging
 from station.fleetdemo import run as run_fleet
 from station.order import is_order_file, read_order
 from station.progress import follow
-from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
+from station.simstation import (
+    SimulatedRoll,
+    copy_job_files,
+    read_json_or_empty,
+    start_simulated_station,
+)
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -91,17 +96,8 @@ def run(args: argparse.Namespace) -> int:
         read_order(garment)
     else:
         load_garment(garment, units=args.units)
-    fleet = args.fleet > 0
-    args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
-    args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
-                         else 3.0 if fleet else 4.0)
-    if fleet:
-        args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
-        if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
-            raise ValueError("--restarts, --nest-seconds and --speed must be positive")
+    if _settle_args(args):
         return run_fleet(args)
-    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0 or args.copies < 1:
-        raise ValueError("--restarts, --nest-seconds, --speed and --copies must be positive")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     setup_logging(logging.WARNING)
@@ -132,10 +128,13 @@ def run(args: argparse.Namespace) -> int:
         camera = read_json_or_empty(workdir / "camera.json")
         fabric = read_json_or_empty(workdir / "fabric.json")
         pieces = pieces_cut(daemon.store.pieces(job), events)
+        roll = daemon.pipeline.roll
+        truth = roll.truth() if isinstance(roll, SimulatedRoll) else None
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
     summary["bites"] = plan_report.get("bites")
+    summary["advances_truth"] = truth  # the simulated conveyor's, slips included
     summary["pieces"] = pieces
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
@@ -144,6 +143,20 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
+
+
+def _settle_args(args: argparse.Namespace) -> bool:
+    """Fill the defaults that depend on --fleet and refuse what is not positive; whether
+    this is a fleet demo."""
+    fleet = args.fleet > 0
+    args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
+    args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
+                         else 3.0 if fleet else 4.0)
+    if fleet:
+        args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
+    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0 or args.copies < 1:
+        raise ValueError("--restarts, --nest-seconds, --speed and --copies must be positive")
+    return fleet
 
 
 def copies_order(garment: Path, copies: int, units: str | None, folder: Path) -> Path:

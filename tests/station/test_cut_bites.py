@@ -132,3 +132,34 @@ def test_a_kill_right_after_the_advance_neither_advances_nor_cuts_twice(tmp_path
     assert len(roll.feeds) == 1
     assert [pieces for _, pieces in calls] == [set(b.pieces) for b in plan.bites]
     assert all(p["state"] == "cut" for p in store.pieces(job.id))
+
+
+def test_a_kill_within_a_bite_resumes_it_on_the_same_marker(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(), []
+    index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
+    first_try = {}
+
+    cut_whole = _cutter(store, job, calls)
+
+    def cut_bite(marker, pieces):  # the second bite: two pieces cut, then the power goes
+        if not pieces <= set(plan.bites[1].pieces):
+            return cut_whole(marker, pieces)
+        first_try.update({p.id: p.outline for p in marker.pieces})
+        for name in sorted(pieces)[:2]:
+            store.set_piece_state(job.id, index[name], "cut")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        cut_in_bites(job, tmp_path, plan, store, JobControl(job.id), roll=roll,
+                     lattice=roll.lattice,
+                     machine_marker=lambda track, bite: track.bite_layout(plan, bite),
+                     cut_bite=cut_bite)
+    _run(tmp_path, store, job, plan, roll, calls)  # the next daemon
+    assert len(roll.feeds) == 1
+    marker, pieces = calls[-1]
+    assert pieces == set(sorted(plan.bites[1].pieces)[2:])  # only what was left
+    for p in marker.pieces:  # the journalled track: the very outlines of the first try
+        np.testing.assert_array_equal(p.outline, first_try[p.id])
+    assert all(p["state"] == "cut" for p in store.pieces(job.id))
