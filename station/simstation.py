@@ -28,7 +28,8 @@ from station.steps.cut import PortOpener, serial_port
 from vision.camera import Camera, open_camera
 
 __all__ = ["SimulatedRoll", "copy_job_files", "open_simulated_camera", "open_simulated_port",
-           "read_json_or_empty", "simulated_camera", "simulated_pipeline", "simulated_roll",
+           "read_json_or_empty", "roll_by_hand", "simulated_camera", "simulated_pipeline",
+           "simulated_roll",
            "start_simulated_station"]
 
 #: the simulated camera's print, and where its lattice's origin lies on the fabric
@@ -64,15 +65,17 @@ class SimulatedRoll:
 
     mm_per_px = 1.0
 
-    def __init__(self, config: Config, seed: int = 0) -> None:
+    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False) -> None:
         n = config["nest"]
         length, width = float(n["length_mm"]), float(n["width_mm"])
         self.print = RollPrint(classic_print(PRINT, REPEAT_MM, origin=PRINT_ORIGIN), width)
         self.conveyor = Conveyor(pivot=(length / 2, width / 2), seed=seed)
         self.camera = RollCamera(self.print, self.conveyor, (0.0, 0.0, length, width),
                                  self.mm_per_px, seed=seed)
+        # by hand: the job waits for the operator, whose hands slip like the conveyor
+        self.feed = None if by_hand else self.advance
 
-    def feed(self, mm: float) -> None:
+    def advance(self, mm: float) -> None:
         self.conveyor.advance(mm)
 
     def photograph(self):
@@ -93,12 +96,18 @@ def simulated_roll(config: Config, _machine: Machine, _open_camera: CameraOpener
     return SimulatedRoll(config)
 
 
-def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline
-                       ) -> StationPipeline:
+def roll_by_hand(config: Config, _machine: Machine, _open_camera: CameraOpener,
+                 _open_port: PortOpener) -> SimulatedRoll:
+    """`simulated_roll` with no conveyor: the job waits for the operator at each advance."""
+    return SimulatedRoll(config, by_hand=True)
+
+
+def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline, *,
+                       by_hand: bool = False) -> StationPipeline:
     """The station's pipeline (or ``cls``, a subclass) on the simulated camera, GRBL and
-    roll."""
+    roll (``by_hand``: advanced by the operator)."""
     return cls(config, open_camera=open_simulated_camera, open_port=open_simulated_port,
-               open_roll=simulated_roll)
+               open_roll=roll_by_hand if by_hand else simulated_roll)
 
 
 def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: dict[str, Any],
@@ -115,7 +124,8 @@ def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: 
         "nest": {"seconds": args.nest_seconds},
         **overrides,
     })
-    daemon = Daemon(config, simulated_pipeline(config))
+    daemon = Daemon(config, simulated_pipeline(config,
+                                               by_hand=getattr(args, "by_hand", False)))
     daemon.recover()
     daemon.control.start()
     worker = threading.Thread(target=daemon.run_loop, name=thread, daemon=True)

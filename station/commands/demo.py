@@ -34,6 +34,7 @@ from station.simstation import (
     read_json_or_empty,
     start_simulated_station,
 )
+from station.steps.bites import operator_advance_mm
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -78,6 +79,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--copies", type=int, default=1, metavar="N",
                    help="an order of N copies of the garment, nested in one marker and cut "
                    "in bites when it is longer than the table (the simulated roll slips)")
+    p.add_argument("--by-hand", action="store_true",
+                   help="no conveyor: the job waits at 'advance the fabric N mm' and the demo "
+                   "plays the operator (advances the simulated roll, then station resume)")
     p.add_argument("--fleet", type=int, default=0, metavar="N",
                    help="N simulated stations sharing one PostgreSQL job store (started "
                    "here), each with its own emulator and camera")
@@ -116,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
                           )["job"]["id"]
             print(f"station demo: job {job} submitted to the simulated station "
                   f"(store and socket in {tmp})", file=sys.stderr)
-            status = follow(sock, job)
+            status = follow_by_hand(sock, job, daemon) if args.by_hand else follow(sock, job)
             events = request(sock, "log", job=job, limit=100000)["events"]
         finally:
             daemon.shutdown()
@@ -157,6 +161,20 @@ def _settle_args(args: argparse.Namespace) -> bool:
     if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0 or args.copies < 1:
         raise ValueError("--restarts, --nest-seconds, --speed and --copies must be positive")
     return fleet
+
+
+def follow_by_hand(sock: Path, job: int, daemon) -> dict[str, Any]:
+    """`follow` the job, playing the operator whenever it waits for the roll to be
+    advanced: the simulated roll moved by the mm asked (slipping), then `resume`."""
+    status = follow(sock, job)
+    while status["state"] == "paused" and (
+            mm := operator_advance_mm(status["reason"])) is not None:
+        print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
+              file=sys.stderr)
+        daemon.pipeline.roll.advance(mm)
+        request(sock, "resume", job=job)
+        status = follow(sock, job)
+    return status
 
 
 def copies_order(garment: Path, copies: int, units: str | None, folder: Path) -> Path:

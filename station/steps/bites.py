@@ -19,6 +19,7 @@ here: local maps of the print's own bow and stretch under each piece.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -95,6 +96,14 @@ class RollTrack:
 #: what the job waits at when the operator advances the roll by hand (`station resume`
 #: goes on); the conveyor of a machine profile is commanded instead where there is one
 OPERATOR_ADVANCE = "advance the fabric {mm:.1f} mm"
+_ASKED = re.compile(r"^advance the fabric (-?[0-9]+(?:\.[0-9]+)?) mm")
+
+
+def operator_advance_mm(reason: str) -> float | None:
+    """The mm a job paused at `OPERATOR_ADVANCE` asks for (None: it waits for something
+    else)."""
+    asked = _ASKED.match(reason or "")
+    return float(asked.group(1)) if asked else None
 
 
 @dataclass

@@ -37,9 +37,10 @@ def nest_placement(garment: Garment, placement: Placement, config: Config,
                    options: dict[str, Any] | None = None, *, plain: bool = False) -> Layout:
     """The verified marker of the placed pieces (fabric mm); ``options`` are the job's
     (its seam allowances), ``plain`` nests without the print."""
+    deadline = Deadline(config["nest"]["seconds"])  # making the cut lines counts too
     problem = placement_problem(garment, placement, **problem_size(config),
                                 allowance=rules_for_job(config, options or {}), plain=plain)
-    return nest_verified(problem, Deadline(config["nest"]["seconds"]), progress)
+    return nest_verified(problem, deadline, progress)
 
 
 def placed_marker(garment: Garment, placement: Placement, config: Config,
@@ -48,10 +49,12 @@ def placed_marker(garment: Garment, placement: Placement, config: Config,
                   ) -> tuple[Layout, BitePlan | None]:
     """(the verified marker, its bites or None): as `nest_placement`, but a marker longer
     than the table window is nested on the roll and planned in bites."""
+    seconds = config["nest"]["seconds"]
+    deadline = Deadline(seconds)  # making the cut lines and verifying count too
     problem = placement_problem(garment, placement, **problem_size(config),
                                 allowance=rules_for_job(config, options or {}), plain=plain)
-    return nest_in_window_or_bites(problem, config_window(config), config["nest"]["seconds"],
-                                   progress)
+    return nest_in_window_or_bites(problem, config_window(config), seconds, progress,
+                                   deadline=deadline)
 
 
 def problem_size(config: Config) -> dict[str, float]:
@@ -66,26 +69,27 @@ def nest_verified(problem: NestProblem, deadline: Deadline,
     layout = nest(problem, time_limit=deadline, seed=0, progress=progress)
     faults = verify_layout(layout, problem)
     if faults:
-        raise ValueError(f"the marker failed verification: {faults[0]} ({len(faults)} "
-                         "faults)")
+        raise ValueError(f"the marker failed verification: {faults[0]}")
     return layout
 
 
 def nest_in_window_or_bites(problem: NestProblem, window: TableWindow, seconds: float,
-                            progress: Callable[[str], None] | None = None
+                            progress: Callable[[str], None] | None = None, *,
+                            deadline: Deadline | None = None
                             ) -> tuple[Layout, BitePlan | None]:
-    """(the marker, its bites or None): the marker within the window when it fits there,
-    else nested on the roll with no length limit and planned in bites of the window."""
-    deadline = Deadline(seconds)
+    """(the marker, its bites or None): the marker within the window when it fits there
+    (by ``deadline``, default ``seconds`` from now), else nested on the roll with no
+    length limit, in ``seconds`` more, and planned in bites of the window."""
     area = sum(p.area * p.quantity * (2 if p.mirrored_pair else 1) for p in problem.pieces)
     if area < WINDOW_FILL_LIMIT * window.length * window.width:
-        try:
-            return nest_verified(problem, deadline.share(0.5), progress), None
+        try:  # the whole time, as ever: a marker that fits is nested as it always was
+            return nest_verified(problem, deadline or Deadline(seconds), progress), None
         except ValueError as exc:
             if "verification" in str(exc):
                 raise  # a fault of the nest, not a marker too long for the window
-    roll = replace(problem, length=None)
-    bites = plan_job_bites(nest_verified(roll, deadline, progress), window, problem.lattice)
+    roll = replace(problem, length=None)  # (a second budget: the window was not enough)
+    bites = plan_job_bites(nest_verified(roll, Deadline(seconds), progress), window,
+                           problem.lattice)
     faults = verify_layout(bites.layout, roll)  # its blocks moved off the boundaries
     if faults:
         raise ValueError(f"the marker's bites failed verification: {faults[0]}")

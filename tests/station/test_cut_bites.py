@@ -12,7 +12,7 @@ from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
 from station.daemon import JobControl, JobInterrupted
 from station.jobstore import JobStore
-from station.steps.bites import plan_job_bites
+from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
 from station.steps.cutbites import BiteJournal, cut_in_bites
 from station.steps.table import TableWindow
 
@@ -104,8 +104,8 @@ def test_without_a_conveyor_the_job_waits_for_the_operator(tmp_path):
     with pytest.raises(JobInterrupted) as waiting:
         _run(tmp_path, store, job, plan, roll, calls)
     assert waiting.value.state == "paused"
-    mm = float(waiting.value.reason.split()[3])
-    assert waiting.value.reason.startswith(f"advance the fabric {mm:.1f} mm")
+    mm = operator_advance_mm(waiting.value.reason)
+    assert mm == pytest.approx(plan.bites[1].start_mm - ROLL_MARGIN_MM, abs=0.05)
     assert [pieces for _, pieces in calls] == [set(plan.bites[0].pieces)]
     roll.conveyor.advance(mm)  # the operator's hands, slip included
     measured = _run(tmp_path, store, job, plan, roll, calls)  # `station resume`
