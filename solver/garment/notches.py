@@ -148,7 +148,7 @@ class _Notcher:
         self.keys, self.values = keys[order], values[order]
         self.out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
         self.boundaries = [c.cut.boundary for c in cuts]
-        self.sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+        self.sews = [shapely.Polygon(c.sew_outline, c.sew_holes) for c in cuts]
 
     def lookup(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Allowance of edge u-v and whether u->v runs as in its face."""

@@ -72,8 +72,8 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
         grain = grains.get(i)
         pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=slits,
                             grainline=None if grain is None else np.asarray(grain, float),
-                            marks=dart_marks(garment, i), sew_line=cut.sew,
-                            allowance=cut.allowance))
+                            marks=dart_marks(garment, i), sew_line=cut.sew_outline,
+                            allowance=cut.sew_outline_allowance))
     return pieces
 
 
