@@ -27,6 +27,7 @@ patterns are drawn upright).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -51,7 +52,8 @@ class AllowanceRules:
     ``"hem"``, ``"opening"`` (the class defaults), ``"open#K"`` (one opening, numbered as
     :func:`open_edges` numbers them) or ``"PIECE/open"`` (every open edge of a piece).
     Notches (:mod:`solver.garment.notches`) are ``notch_depth_mm`` deep (at most half the
-    allowance) and at most ``notch_spacing_mm`` apart along a seam.
+    allowance) and at most ``notch_spacing_mm`` apart along a seam; with ``notch_on_print``
+    (``--match-notches``) a placed garment's balance notches go on the print's lattice lines.
     """
 
     seam_mm: float = 10.0
@@ -60,7 +62,8 @@ class AllowanceRules:
     cap: float = 2.0
     overrides: Mapping[int | str, float] = field(default_factory=dict)
     notch_depth_mm: float = 3.0
-    notch_spacing_mm: float = 100.0
+    notch_spacing_mm: float = 200.0
+    notch_on_print: bool = False
     source: str = ""  # the file the overrides came from, named when one names nothing
 
     def __post_init__(self) -> None:
@@ -79,17 +82,18 @@ class AllowanceRules:
         ``seam``/``hem``/``opening`` set defaults."""
         merged = {**self.overrides, **more}
         base = {k: _check_mm(k, merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
-        return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
-                              base.get("opening", self.opening_mm), self.cap, merged,
-                              self.notch_depth_mm, self.notch_spacing_mm,
-                              source or self.source)
+        return dataclasses.replace(self, seam_mm=base.get("seam", self.seam_mm),
+                                   hem_mm=base.get("hem", self.hem_mm),
+                                   opening_mm=base.get("opening", self.opening_mm),
+                                   overrides=merged, source=source or self.source)
 
     def to_dict(self) -> dict:
         return {"seam_mm": self.seam_mm, "hem_mm": self.hem_mm,
                 "opening_mm": self.opening_mm, "cap": self.cap,
                 "overrides": {str(k): float(v) for k, v in self.overrides.items()},
                 "notch_depth_mm": self.notch_depth_mm,
-                "notch_spacing_mm": self.notch_spacing_mm}
+                "notch_spacing_mm": self.notch_spacing_mm,
+                "notch_on_print": self.notch_on_print}
 
 
 def _check_mm(key, value) -> float:

@@ -59,7 +59,7 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     grains = getattr(garment, "grainlines", None) or {}
     pieces = []
     for i, cut in enumerate(cuts):
-        slits = [(q.at, q.direction, q.depth) for q in notches[i]]
+        slits = [slit for q in notches[i] for slit in q.slits()]
         for at in garment.notches.get(i, []):  # the file's notches sit on the sew line
             at = np.asarray(at, float)
             ring = cut.cut.exterior
