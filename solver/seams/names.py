@@ -48,10 +48,16 @@ def _tokens(name: str) -> list[str]:
     return out
 
 
+def _raw_kinds(name: str) -> set[str]:
+    """Every kind a word of the name says, a sleeve's front or back half included."""
+    toks = _tokens(name)
+    return {k for k, words in _KINDS.items() for t in toks if t in words}
+
+
 def name_parts(name: str) -> tuple[set[str], str | None]:
     """(kinds, side) the name says: kinds from :data:`_KINDS`, side "left"/"right"/None."""
     toks = _tokens(name)
-    kinds = {k for k, words in _KINDS.items() for t in toks if t in words}
+    kinds = _raw_kinds(name)
     if "sleeve" in kinds:  # "sleeve_f": the front half of a sleeve, still a sleeve
         kinds -= {"front", "back"}
     sides = {s for s, words in _SIDES.items() for t in toks if t in words}
@@ -66,7 +72,8 @@ def name_affinity(a: str, b: str) -> float:
     if sa and sb and sa == sb:
         score += 0.25
     elif sa and sb:  # left to right: only the centre seam between two halves of one kind
-        score += 0.0 if ka and ka == kb else -1.0
+        # (a right sleeve's back half never meets a left sleeve's front half)
+        score += 0.0 if ka and _raw_kinds(a) == _raw_kinds(b) else -1.0
     if ka and kb:
         usual = any(frozenset((x, y)) in _USUAL for x in ka for y in kb)
         score += 0.25 if usual else -0.25
