@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.names import name_affinity
+from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
 from solver.seams.shape import fit_and_overlap
 
@@ -178,10 +178,16 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
         # two halves mirrored in the seam (two copies of one piece surely are): only a
         # centre line, along the grain, joins them
-        s -= 2.0 if copies else 1.0
+        # (unnamed pieces may as well be identical gores, which do meet so)
+        s -= 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
     elif copies:
         s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
     return s
+
+
+def _named(*pieces: SewPiece) -> bool:
+    """Whether any of the pieces' names says what or where the piece is."""
+    return any(any(name_parts(p.name)) for p in pieces)
 
 
 def _along_grain(piece: SewPiece, run: Run) -> bool:

@@ -91,7 +91,7 @@ def _placement_affinity(a: str, b: str) -> float:
 def name_affinity(a: str, b: str) -> float:
     """How much the two names favour a seam between the pieces: about -1.5 (a right piece to
     a left one) to +0.75 (a sleeve's back half to a back on the same side)."""
-    (ka, sa), (kb, sb) = name_parts(a), name_parts(b)
+    (ka, sa), (_, sb) = name_parts(a), name_parts(b)
     score = 0.0
     if sa and sb and sa == sb:
         score += 0.25
