@@ -45,7 +45,7 @@ SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends th
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
-GRAIN_DEG = 20.0  # a centre line lies within this of the grain
+GRAIN_DEG = 30.0  # a centre line lies within this of the grain
 
 
 @dataclass(frozen=True)
