@@ -8,10 +8,13 @@ truth (`solver.seams.score`): the share of the true seam length found between th
 pieces at the right place (recall) and the share of the inferred length that is true.
 
     python -m bench seams            # prints a Markdown table for BENCHMARKS.md
+    SEAMS_HALF=0 python -m bench seams   # every other garment only (0 or 1): tune on one
+                                         # half, check on the other
 """
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 import warnings
@@ -27,7 +30,8 @@ def garments() -> list[tuple[Path, dict]]:
     out += [(p, {}) for p in sorted(ROOT.glob("garment_pattern_generator/*.json"))]
     out += [(p, {"units": "m"}) for p in sorted(ROOT.glob("berkeley_garment_library/**/*.obj"))
             if not p.stem.endswith("-w")]
-    return out
+    half = os.environ.get("SEAMS_HALF", "")
+    return out[int(half)::2] if half in ("0", "1") else out
 
 
 def run_one(path: Path, options: dict, seed: int = 0):

@@ -8,6 +8,7 @@ this machine under load) is imported inside the loaders that need it, not here.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import warnings
@@ -172,6 +173,9 @@ def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--allowance", metavar="A.json",
                         help='allowances per seam line or opening: {"front~back": 15, '
                         '"3": 12, "hem": 30, "opening": 8, "open#2": 25, "PIECE/open": 0}')
+    parser.add_argument("--match-notches", action="store_true",
+                        help="on a print, put the balance notches where its lattice lines "
+                        "cross each seam (the plaid's match points), not every ~200 mm")
 
 
 def allowance_rules(args: argparse.Namespace, config=None):
@@ -181,8 +185,9 @@ def allowance_rules(args: argparse.Namespace, config=None):
     if args.seam_allowance is not None and args.seam_allowance < 0:
         raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
     more = read_name_map(args.allowance, "allowance") if args.allowance else None
-    return rules_for(config or load_config_arg(args), args.seam_allowance, more,
-                     source=args.allowance or "")
+    rules = rules_for(config or load_config_arg(args), args.seam_allowance, more,
+                      source=args.allowance or "")
+    return dataclasses.replace(rules, notch_on_print=bool(getattr(args, "match_notches", False)))
 
 
 def add_symmetrise_argument(parser: argparse.ArgumentParser) -> None:

@@ -141,7 +141,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                           maximum=MAX_ALLOWANCE_MM),
         "notch_depth_mm": Key(float, 3.0, "notch slit depth (mm; never over half the "
                               "allowance)", minimum=0.0, maximum=MAX_ALLOWANCE_MM),
-        "notch_spacing_mm": Key(float, 100.0, "balance notches along a seam at most this "
+        "notch_spacing_mm": Key(float, 200.0, "balance notches along a seam at most this "
                                 "far apart (mm; 0: only at seam ends)", minimum=0.0,
                                 maximum=100_000.0),
     },

@@ -239,7 +239,7 @@ def _draw_outlines(image: np.ndarray, garment, frame: _PatternFrame, cuts, notch
         cv2.polylines(image, [to_px(r) for r in [cut.outline, *cut.holes]], True,
                       (30, 30, 30), 2, cv2.LINE_AA, shift=4)
     for per_piece in notches or []:
-        notch_ticks(image, [(q.at, q.direction, q.depth) for q in per_piece], to_px,
+        notch_ticks(image, [slit for q in per_piece for slit in q.slits()], to_px,
                     4.0 / frame.scale)
     if original is not None:
         for piece in range(original.n_pieces):

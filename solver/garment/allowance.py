@@ -27,12 +27,14 @@ patterns are drawn upright).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
 
+from solver.garment.curves import fine_loop
 from solver.garment.drape import drape_up, limb_end_axes, open_edges
 from solver.garment.mesh import edge_keys, loop_edge_keys
 from solver.garment.model import Garment
@@ -50,7 +52,8 @@ class AllowanceRules:
     ``"hem"``, ``"opening"`` (the class defaults), ``"open#K"`` (one opening, numbered as
     :func:`open_edges` numbers them) or ``"PIECE/open"`` (every open edge of a piece).
     Notches (:mod:`solver.garment.notches`) are ``notch_depth_mm`` deep (at most half the
-    allowance) and at most ``notch_spacing_mm`` apart along a seam.
+    allowance) and at most ``notch_spacing_mm`` apart along a seam; with ``notch_on_print``
+    (``--match-notches``) a placed garment's balance notches go on the print's lattice lines.
     """
 
     seam_mm: float = 10.0
@@ -59,7 +62,8 @@ class AllowanceRules:
     cap: float = 2.0
     overrides: Mapping[int | str, float] = field(default_factory=dict)
     notch_depth_mm: float = 3.0
-    notch_spacing_mm: float = 100.0
+    notch_spacing_mm: float = 200.0
+    notch_on_print: bool = False
     source: str = ""  # the file the overrides came from, named when one names nothing
 
     def __post_init__(self) -> None:
@@ -78,17 +82,18 @@ class AllowanceRules:
         ``seam``/``hem``/``opening`` set defaults."""
         merged = {**self.overrides, **more}
         base = {k: _check_mm(k, merged.pop(k)) for k in ("seam", "hem", "opening") if k in merged}
-        return AllowanceRules(base.get("seam", self.seam_mm), base.get("hem", self.hem_mm),
-                              base.get("opening", self.opening_mm), self.cap, merged,
-                              self.notch_depth_mm, self.notch_spacing_mm,
-                              source or self.source)
+        return dataclasses.replace(self, seam_mm=base.get("seam", self.seam_mm),
+                                   hem_mm=base.get("hem", self.hem_mm),
+                                   opening_mm=base.get("opening", self.opening_mm),
+                                   overrides=merged, source=source or self.source)
 
     def to_dict(self) -> dict:
         return {"seam_mm": self.seam_mm, "hem_mm": self.hem_mm,
                 "opening_mm": self.opening_mm, "cap": self.cap,
                 "overrides": {str(k): float(v) for k, v in self.overrides.items()},
                 "notch_depth_mm": self.notch_depth_mm,
-                "notch_spacing_mm": self.notch_spacing_mm}
+                "notch_spacing_mm": self.notch_spacing_mm,
+                "notch_on_print": self.notch_on_print}
 
 
 def _check_mm(key, value) -> float:
@@ -107,11 +112,25 @@ class CutLine:
     allowance: np.ndarray  # (n,) mm, edge k runs sew[k] -> sew[k+1]
     hole_allowance: list[np.ndarray]
     cut: shapely.Polygon  # exterior CCW
+    sew_curve: np.ndarray | None = None  # (m,2) outer sew line on the pattern's own curves
+    sew_curve_edge: np.ndarray | None = None  # (m,) the sew edge k each of its points is on
 
     @property
     def outline(self) -> np.ndarray:
         """(m,2) cut line, CCW, first point not repeated."""
         return np.asarray(self.cut.exterior.coords)[:-1, :2]
+
+    @property
+    def sew_outline(self) -> np.ndarray:
+        """(m,2) outer sew line as the cutter follows it: on the pattern's curves where
+        the garment has them (:attr:`Garment.edge_curves`), else the mesh outline."""
+        return self.sew if self.sew_curve is None else self.sew_curve
+
+    @property
+    def sew_outline_allowance(self) -> np.ndarray:
+        """(m,) allowance of each edge of :attr:`sew_outline` (that of its sew edge)."""
+        return self.allowance if self.sew_curve_edge is None else self.allowance[
+            self.sew_curve_edge]
 
     @property
     def holes(self) -> list[np.ndarray]:
@@ -335,13 +354,25 @@ def dart_fills(garment: Garment, piece: int, allowance: np.ndarray, cap: float) 
 def cut_lines(garment: Garment, rules: AllowanceRules | None = None,
               pairs: Sequence[MirrorPair] | None = None) -> list[CutLine]:
     """Every piece's sew line, per-edge allowances and cut line (pattern mm); the mirror
-    ``pairs`` (default: found) get mirrored allowances (:func:`pair_allowances`)."""
+    ``pairs`` (default: found) get mirrored allowances (:func:`pair_allowances`).
+
+    The cut line follows the pattern's own curves where the garment has them
+    (:attr:`Garment.edge_curves`: a specification's Beziers and arcs, within
+    :data:`~solver.garment.curves.CHORD_TOL_MM`), each fine segment offset by the
+    allowance of the mesh edge it lies on; the sew line stays the mesh's outline, whose
+    edges the allowances and notches are counted on."""
     rules = rules or AllowanceRules()
     per_piece = edge_allowances(garment, rules, pairs)
     out = []
     for i in range(garment.n_pieces):
-        loops = [garment.uv[lp] for lp in garment.piece_loops(i)]
+        ids = garment.piece_loops(i)
+        loops = [garment.uv[lp] for lp in ids]
         darts = dart_fills(garment, i, per_piece[i][0], rules.cap)
-        cut = offset_outline(loops, per_piece[i], cap=rules.cap, extra=darts)
-        out.append(CutLine(loops[0], loops[1:], per_piece[i][0], per_piece[i][1:], cut))
+        fine = [fine_loop(garment.uv, lp, garment.edge_curves) for lp in ids]
+        cut = offset_outline([pts for pts, _ in fine],
+                             [a[edge] for (_, edge), a in zip(fine, per_piece[i])],
+                             cap=rules.cap, extra=darts)
+        curved = fine[0] if garment.edge_curves else (None, None)
+        out.append(CutLine(loops[0], loops[1:], per_piece[i][0], per_piece[i][1:], cut,
+                           *curved))
     return out

@@ -72,6 +72,10 @@ class Garment:
     panel_frames : dict
         Per piece a (3,3) float array ``F``: a specification places its panel around the
         body, and the pattern point (u, v) sits at ``F @ (u, v, 1)`` (mm, world, +y up).
+    edge_curves : dict
+        Per directed boundary edge (a, b) the pattern's own curve between its two ends, as
+        (m,2) chord coordinates (:mod:`solver.garment.curves`): a specification's Beziers
+        and arcs, for cutting; empty where the outline is the mesh itself.
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -97,6 +101,7 @@ class Garment:
     notches: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     grain: tuple[PieceGrain, ...] = ()
     panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
+    edge_curves: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -178,6 +183,7 @@ class Garment:
             grainlines=dict(self.grainlines),
             notches={k: list(v) for k, v in self.notches.items()},
             panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
+            edge_curves=dict(self.edge_curves),  # arrays never changed in place
             _loops=None,
         )
 
@@ -307,6 +313,7 @@ def build_garment(
     notches: dict | None = None,
     twins: np.ndarray | None = None,
     panel_frames: dict | None = None,
+    edge_curves: dict | None = None,
 ) -> Garment:
     """Derive pieces, orientation, seam edges and seam lines from a welded pattern mesh.
 
@@ -314,7 +321,8 @@ def build_garment(
     ``faces`` (importers emit pieces in order). Degenerate faces are dropped and unused
     vertices removed, each with a warning that says how many. ``twins`` (E,4) gives the seam
     edges explicitly (in input vertex numbering) when the importer knows them (stitches);
-    otherwise they are inferred from shared 3D points.
+    otherwise they are inferred from shared 3D points. ``edge_curves`` (input numbering)
+    are the pattern's own curves between boundary vertices (:attr:`Garment.edge_curves`).
     """
     uv = np.asarray(uv, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
@@ -356,11 +364,22 @@ def build_garment(
         notches=dict(notches or {}),
         # per-panel facts are kept only when the panels are the pieces
         panel_frames=dict(panel_frames or {}) if panels_are_pieces else {},
+        edge_curves=_renumbered_curves(edge_curves or {}, remap),
         units_in_file=units_in_file,
         scale_recovered=scale_recovered,
         source=str(source),
         kind=kind,
     )
+
+
+def _renumbered_curves(curves: dict, remap: np.ndarray) -> dict:
+    """Edge curves keyed by the renumbered vertices; those of dropped vertices go."""
+    out = {}
+    for (a, b), rel in curves.items():
+        a2, b2 = int(remap[a]), int(remap[b])
+        if a2 >= 0 and b2 >= 0:
+            out[(a2, b2)] = rel
+    return out
 
 
 def _seam_edges(source: str | Path, bhe: np.ndarray, point_of_vertex: np.ndarray,

@@ -1,8 +1,10 @@
 """Notches: short slits from the cut line into the seam allowance where sewers match pieces.
 
 A seam line gets a notch near both of its ends and balance notches between them, at most
-``spacing_mm`` apart (10 cm is the cutting-room habit on long seams: a sewer eases the
-seam between two marks and the print meets again at each mark). Stations are placed on
+``spacing_mm`` apart (about 20 cm on long seams: a sewer eases the seam between two marks
+and the print meets again at each mark). As sewers read them, front seams get single
+notches and back seams double ones (:func:`back_seam_lines`), so a back armhole is never
+sewn to a front one. Stations are placed on
 one side of the seam by arc length and carried to the twin side through the seam's own
 edge pairing (edge a->b is sewn to a2->b2, a~a2 and b~b2 the same 3D points): the same
 parameter on twin edges is the same 3D point, so twin notches always match, even where
@@ -33,11 +35,14 @@ from solver.garment.allowance import CutLine, cut_lines, dart_runs
 from solver.garment.mesh import connected_components, loop_edge_keys
 from solver.garment.model import Garment
 from solver.garment.symmetry import MirrorPair, fit_pairs, mirror_pairs, mirrored_edges
+from solver.seams.names import name_parts
 
-__all__ = ["Notch", "cut_ready", "dart_marks", "placement_lattice", "placement_pairs",
-           "print_stations", "seam_notches"]
+__all__ = ["DOUBLE_NOTCH_GAP_MM", "Notch", "back_seam_lines", "cut_ready", "dart_marks",
+           "placement_lattice", "placement_pairs", "print_stations", "seam_notches"]
 
 
+#: the two slits of a double notch lie this far apart along the cut line, mm
+DOUBLE_NOTCH_GAP_MM = 6.0
 LatticeCoords = Callable[[int, np.ndarray], np.ndarray]  # (piece, (k,2) uv) -> (k,2) frac
 
 
@@ -54,6 +59,17 @@ class Notch:
     station: int  # twin notches share (seam_line, station)
     edge: tuple[int, int] = (0, 0)  # the pattern edge (vertices) the sew point lies on
     t: float = 0.0  # ... at this fraction from edge[0] to edge[1]
+    starts: np.ndarray | None = None  # (k,2) on the cut line: k slits (2: a double notch)
+
+    @property
+    def count(self) -> int:
+        """1 for a single notch, 2 for a double one."""
+        return 1 if self.starts is None else len(self.starts)
+
+    def slits(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Each slit to cut: (start on the cut line, inward direction, depth)."""
+        starts = [self.at] if self.starts is None else list(self.starts)
+        return [(p, self.direction, self.depth) for p in starts]
 
 
 def chain_seam_rows(rows: np.ndarray) -> np.ndarray:
@@ -101,7 +117,21 @@ def _outward(uv: np.ndarray, a: np.ndarray, b: np.ndarray, forward: np.ndarray) 
     return np.where(forward[:, None], nrm, -nrm)
 
 
-def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 100.0,
+def back_seam_lines(garment: Garment) -> set[int]:
+    """Seam lines that get double notches: a back piece (by its name, as
+    :func:`solver.seams.names.name_parts` reads it) sewn to no front piece, i.e. centre
+    back, back armhole, back waistband; side and shoulder seams join a front and stay
+    single, like every seam of pieces whose names say neither."""
+    kinds = [name_parts(n)[0] for n in garment.piece_names]
+    out = set()
+    for line, s in enumerate(garment.seam_lines):
+        both = kinds[s.piece_a] | kinds[s.piece_b]
+        if "back" in both and "front" not in both:
+            out.add(line)
+    return out
+
+
+def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 200.0,
                  depth_mm: float = 3.0, lattice_coords: LatticeCoords | None = None,
                  pairs: Sequence[MirrorPair] = ()) -> list[list[Notch]]:
     """Per piece, the notches of every seam line (pattern mm), twins on matching points.
@@ -115,12 +145,13 @@ def seam_notches(garment: Garment, cuts: list[CutLine], *, spacing_mm: float = 1
     A seam line that is the mirror image of an earlier one through the mirror ``pairs``
     takes that line's notches mirrored (:func:`_mirror_sources`): measured on its own,
     a seam's stations depend on which side is measured and how it is meshed (a darted
-    waist is three runs), and a pair's notches would not mirror.
+    waist is three runs), and a pair's notches would not mirror. Back seams
+    (:func:`back_seam_lines`, darts aside) get double notches.
     """
     g = garment
-    notcher = _Notcher(g, cuts, depth_mm)
     darts = {line: (piece, run) for piece in range(g.n_pieces)
              for line, run in dart_runs(g, piece)}
+    notcher = _Notcher(g, cuts, depth_mm, back_seam_lines(g) - set(darts))
     images = _edge_images(g, pairs)
     sources = _mirror_sources(g, images)
     for line in range(len(g.seam_lines)):
@@ -137,9 +168,11 @@ class _Notcher:
     """The notches of one garment's seam lines as :func:`seam_notches` places them, with
     the per-edge allowances of its cut lines to look up."""
 
-    def __init__(self, garment: Garment, cuts: list[CutLine], depth_mm: float) -> None:
+    def __init__(self, garment: Garment, cuts: list[CutLine], depth_mm: float,
+                 double: set[int]) -> None:
         g = self.g = garment
         self.depth_mm = depth_mm
+        self.double = double
         n = g.n_vertices
         loops = [lp for i in range(g.n_pieces) for lp in g.piece_loops(i)]
         keys = loop_edge_keys(loops, n)
@@ -148,7 +181,7 @@ class _Notcher:
         self.keys, self.values = keys[order], values[order]
         self.out: list[list[Notch]] = [[] for _ in range(g.n_pieces)]
         self.boundaries = [c.cut.boundary for c in cuts]
-        self.sews = [shapely.Polygon(c.sew, c.sew_holes) for c in cuts]
+        self.sews = [shapely.Polygon(c.sew_outline, c.sew_holes) for c in cuts]
 
     def lookup(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Allowance of edge u-v and whether u->v runs as in its face."""
@@ -168,10 +201,12 @@ class _Notcher:
         both = made[0][-1] & made[1][-1]
         ids = np.arange(len(both)) if ids is None else ids
         for piece, point, nrm, a, b, f, at, depth, _ in made:
+            starts = (_pair_along(self.boundaries[piece], at) if line in self.double
+                      else [None] * len(at))
             for j in np.flatnonzero(both):
                 self.out[piece].append(Notch(piece, at[j], -nrm[j], float(depth[j]), point[j],
                                              line, int(ids[j]), (int(a[j]), int(b[j])),
-                                             float(f[j])))
+                                             float(f[j]), starts[j]))
         return ids[both]
 
     def twin_sides(self, rows: np.ndarray, k: np.ndarray, f: np.ndarray) -> list:
@@ -301,14 +336,15 @@ def cut_ready(garment: Garment, rules, placement=None,
               pairs: Sequence[MirrorPair] | None = None
               ) -> tuple[list[CutLine], list[list[Notch]]]:
     """Per piece the cut line and the notches with ``rules`` (AllowanceRules); with the
-    placement the balance notches sit on the print's lattice lines. Mirror ``pairs`` get
+    placement and ``rules.notch_on_print`` the balance notches sit on the print's lattice
+    lines. Mirror ``pairs`` get
     mirrored allowances and notches; by default the pairs the placement records, else
     the garment's own (:func:`~solver.garment.symmetry.mirror_pairs`)."""
     if pairs is None:
         pairs = placement_pairs(garment, placement)
     cuts = cut_lines(garment, rules, pairs)
-    lattice = None if placement is None or placement.fabric is None else placement_lattice(
-        placement)
+    on_print = rules.notch_on_print and placement is not None and placement.fabric is not None
+    lattice = placement_lattice(placement) if on_print else None
     return cuts, seam_notches(garment, cuts, spacing_mm=rules.notch_spacing_mm,
                               depth_mm=rules.notch_depth_mm, lattice_coords=lattice,
                               pairs=pairs)
@@ -389,6 +425,16 @@ def _spread(stations: list[float]) -> tuple[int, float]:
     even (smaller sum of squared gaps, to the micrometre)."""
     gaps = np.diff(stations)
     return -len(stations), round(float(np.sum(gaps ** 2)), 3)
+
+
+def _pair_along(boundary, at: np.ndarray) -> np.ndarray:
+    """(k,2,2) the two slit starts of double notches centred on ``at`` (k,2): half
+    :data:`DOUBLE_NOTCH_GAP_MM` either way along the cut line."""
+    s = shapely.line_locate_point(boundary, shapely.points(at))
+    half = DOUBLE_NOTCH_GAP_MM / 2
+    two = np.column_stack([s - half, s + half]) % max(boundary.length, 1e-12)
+    pts = shapely.get_coordinates(shapely.line_interpolate_point(boundary, two.ravel()))
+    return pts.reshape(len(at), 2, 2)
 
 
 def _slits(point: np.ndarray, nrm: np.ndarray, w: np.ndarray, boundary, sew, depth_mm: float

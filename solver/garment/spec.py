@@ -28,12 +28,12 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import triangle
 from scipy.spatial.transform import Rotation
 
+from solver.garment.curves import CHORD_TOL_MM, Curve, adaptive_parameters, edge_curve, to_chord
 from solver.garment.errors import GarmentError
 from solver.garment.mesh import connected_components
 from solver.garment.model import Garment, build_garment
@@ -52,77 +52,10 @@ from solver.units import mm_per_unit, units_from_meter_fraction
 DEFAULT_RESOLUTION_MM = 20.0
 #: gap left between panels when they are laid out side by side in the pattern plane
 PANEL_GAP_MM = 100.0
-_DENSE = 257  # samples used to measure and resample one curved edge
+_DENSE_T = np.linspace(0.0, 1.0, 257)  # parameters to measure and resample a curved edge
 
 
 # ---------------------------------------------------------------------- edge geometry
-
-
-def _rel_to_abs(start: np.ndarray, end: np.ndarray, rel: Any) -> np.ndarray:
-    e = end - start
-    perp = np.array([-e[1], e[0]])
-    rel = np.asarray(rel, dtype=float)
-    return start + rel[0] * e + rel[1] * perp
-
-
-def _bezier(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Points of a Bezier curve with control polygon ``ctrl`` (k,2) at parameters t."""
-    n = len(ctrl) - 1
-    coef = np.array([math.comb(n, i) for i in range(n + 1)], dtype=float)
-    i = np.arange(n + 1)
-    basis = coef * t[:, None] ** i * (1 - t[:, None]) ** (n - i)
-    return basis @ ctrl
-
-
-def _arc(start: np.ndarray, end: np.ndarray, params: Any, t: np.ndarray) -> np.ndarray:
-    """SVG-style circular arc from start to end (radius, large_arc, sweep=right)."""
-    radius, large_arc, right = float(params[0]), bool(params[1]), bool(params[2])
-    chord = end - start
-    d = float(np.hypot(*chord))
-    if d == 0:
-        return np.repeat(start[None], len(t), axis=0)
-    r = max(abs(radius), d / 2)  # SVG scales a too-small radius up to fit
-    h = math.sqrt(max(r * r - d * d / 4, 0.0))
-    left = np.array([-chord[1], chord[0]]) / d
-    side = 1.0 if large_arc != right else -1.0
-    centre = (start + end) / 2 + side * h * left
-    a0 = math.atan2(*(start - centre)[::-1])
-    a1 = math.atan2(*(end - centre)[::-1])
-    if right:  # sweep flag: angle increases
-        while a1 <= a0:
-            a1 += 2 * math.pi
-    else:
-        while a1 >= a0:
-            a1 -= 2 * math.pi
-    ang = a0 + (a1 - a0) * t
-    return centre + r * np.column_stack([np.cos(ang), np.sin(ang)])
-
-
-def edge_polyline(
-    start: np.ndarray, end: np.ndarray, curvature: Any, *, where: str = ""
-) -> np.ndarray:
-    """Dense polyline (m,2) of one specification edge, start and end included."""
-    if curvature is None:
-        return np.array([start, end], dtype=float)
-    t = np.linspace(0.0, 1.0, _DENSE)
-    if isinstance(curvature, list):  # Garment-Pattern-Generator: one quadratic control point
-        ctrl = np.array([start, _rel_to_abs(start, end, curvature), end])
-        return _bezier(ctrl, t)
-    if not isinstance(curvature, dict):
-        raise ValueError(f"{where}: curvature must be a list or an object")
-    kind = curvature.get("type")
-    params = curvature.get("params")
-    if kind in ("quadratic", "cubic"):
-        need = 1 if kind == "quadratic" else 2
-        if not isinstance(params, list) or len(params) != need:
-            raise ValueError(f"{where}: {kind} curvature needs {need} control point(s)")
-        ctrl = np.array([start, *(_rel_to_abs(start, end, p) for p in params), end])
-        return _bezier(ctrl, t)
-    if kind == "circle":
-        if not isinstance(params, list) or len(params) != 3:
-            raise ValueError(f"{where}: circle curvature needs [radius, large_arc, right]")
-        return _arc(start, end, params, t)
-    raise ValueError(f"{where}: unknown curvature type {kind!r}")
 
 
 def _length(poly: np.ndarray) -> float:
@@ -166,7 +99,7 @@ def load_spec(
 
     order = [n for n in pattern.get("panel_order", []) if n in panels]
     order += [n for n in panels if n not in order]
-    dense, meshes = _dense_edges(path, panels, order, k, res)
+    dense, curves, meshes = _dense_edges(path, panels, order, k, res)
     # curves may bulge far beyond their vertices: size the sampled outlines, not the corners
     check_size(path, [np.concatenate(polys) for polys in dense], res)
     counts = [
@@ -179,6 +112,7 @@ def load_spec(
     laid = _lay_out(path, panels, order, dense, meshes, counts, k, res,
                     absolute=props.get("pattern_layout") == "absolute")
     point, twins = _stitch_points(laid, stitches, counts)
+    fine = _edge_curves(laid, dense, curves, counts)
     return build_garment(
         laid.uv,
         laid.faces,
@@ -192,6 +126,7 @@ def load_spec(
         notches=laid.notches,
         twins=twins,
         panel_frames=laid.frames,
+        edge_curves=fine,
     )
 
 
@@ -213,26 +148,59 @@ def _file_units(path: Path, props: dict, units: str | None) -> tuple[str, float]
 
 
 def _dense_edges(path: Path, panels: dict, order: list[str], k: float, res: float
-                 ) -> tuple[list[list[np.ndarray]], list[tuple[np.ndarray, np.ndarray] | None]]:
-    """Per panel the dense polyline of every edge in mm, and the panel's own mesh if any."""
+                 ) -> tuple[list[list[np.ndarray]], list[list[Curve | None]],
+                            list[tuple[np.ndarray, np.ndarray] | None]]:
+    """Per panel the dense polyline and the curve (None: straight) of every edge in mm,
+    and the panel's own mesh if any."""
     dense: list[list[np.ndarray]] = []
+    curves: list[list[Curve | None]] = []
     meshes: list[tuple[np.ndarray, np.ndarray] | None] = []
     for name in order:
         verts, edges = panel_geometry(path, name, panels[name])
         meshes.append(panel_mesh(path, name, panels[name], verts, edges))
         verts = verts * k
         check_size(path, [verts], res)
-        polys = []
+        polys, fns = [], []
         for ei, e in enumerate(edges):
             i, j = (int(x) for x in e["endpoints"])
             try:
-                polys.append(
-                    edge_polyline(verts[i], verts[j], e.get("curvature"), where=f"{name}/{ei}")
-                )
+                fn = edge_curve(verts[i], verts[j], e.get("curvature"), where=f"{name}/{ei}")
             except ValueError as exc:
                 raise GarmentError(path, f"panel {exc}") from None
+            fns.append(fn)
+            polys.append(np.array([verts[i], verts[j]]) if fn is None else fn(_DENSE_T))
         dense.append(polys)
-    return dense, meshes
+        curves.append(fns)
+    return dense, curves, meshes
+
+
+def _edge_curves(laid: _Panels, dense: list, curves: list, counts: list[list[int]],
+                 tol_mm: float = CHORD_TOL_MM / 2) -> dict[tuple[int, int], np.ndarray]:
+    """Each curved edge's samples between its mesh vertices, in chord coordinates
+    (:attr:`Garment.edge_curves`): the mesh vertices sit at equal arc length along the
+    dense polyline, so their curve parameters are read off it, and the curve is sampled
+    adaptively between them to ``tol_mm``. A panel read with its own mesh has none.
+
+    Half the cut line's tolerance: offsetting a polyline by the allowance ``a`` adds up to
+    ``a th^2 / 8`` at each joint (th the turn there), which the other half absorbs."""
+    out: dict[tuple[int, int], np.ndarray] = {}
+    for p, fns in enumerate(curves):
+        for e, fn in enumerate(fns):
+            n = counts[p][e]
+            poly = dense[p][e]
+            if fn is None or _length(poly) == 0 or len(laid.edge_start[p]) != len(fns):
+                continue
+            s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly, axis=0).T))])
+            t_mesh = np.interp(np.linspace(0.0, s[-1], n + 1), s, _DENSE_T)
+            t = adaptive_parameters(fn, t_mesh, tol_mm)
+            ends = resample_polyline(poly, n)  # the mesh vertices, as the loop has them
+            seg = np.searchsorted(t_mesh, t, side="right") - 1
+            ids = _edge_vertices(laid.edge_start, laid.offsets_v, p, e, n)
+            inside = ~np.isin(t, t_mesh)
+            groups = np.split(fn(t[inside]), np.searchsorted(seg[inside], np.arange(1, n)))
+            for j, pts in enumerate(groups):
+                out[(int(ids[j]), int(ids[j + 1]))] = to_chord(ends[j], ends[j + 1], pts)
+    return out
 
 
 def _match_stitch_counts(path: Path, order: list[str], stitches: list, meshes: list,

@@ -81,7 +81,7 @@ def _check_panel_structure(path: Path, where: str, panel: Any) -> None:
 
 def _check_curvature(path: Path, where: str, curvature: Any) -> None:
     """A curvature is a GPG control point or an object whose params are a few numbers or
-    points; its type and counts are checked later, by ``edge_polyline``."""
+    points; its type and counts are checked later, by :func:`solver.garment.curves.edge_curve`."""
     if isinstance(curvature, list):
         untrusted.vector(curvature, path, f"{where} curvature", max_abs=1e6)
     elif isinstance(curvature, dict):

@@ -59,7 +59,7 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
     grains = getattr(garment, "grainlines", None) or {}
     pieces = []
     for i, cut in enumerate(cuts):
-        slits = [(q.at, q.direction, q.depth) for q in notches[i]]
+        slits = [slit for q in notches[i] for slit in q.slits()]
         for at in garment.notches.get(i, []):  # the file's notches sit on the sew line
             at = np.asarray(at, float)
             ring = cut.cut.exterior
@@ -72,8 +72,8 @@ def garment_pieces(garment, rules=None, names: list[str] | None = None,
         grain = grains.get(i)
         pieces.append(Piece(str(names[i]), cut.outline, holes=cut.holes, notches=slits,
                             grainline=None if grain is None else np.asarray(grain, float),
-                            marks=dart_marks(garment, i), sew_line=cut.sew,
-                            allowance=cut.allowance))
+                            marks=dart_marks(garment, i), sew_line=cut.sew_outline,
+                            allowance=cut.sew_outline_allowance))
     return pieces
 
 

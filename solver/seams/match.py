@@ -6,7 +6,8 @@ seam). It is scored by how well the sewn lengths agree, whether the notch groups
 same places with the same counts, how alike the two lines are (straight to straight, and laid
 on each other, :mod:`solver.seams.shape`), whether two mirrored halves would meet off the
 grain, and what the piece names say (:mod:`solver.seams.names`). The chosen set maximises
-the matched length times the score with every edge sewn at most once (scipy's ``milp``,
+the matched length times the score, less a fixed cost per seam, with every edge sewn at
+most once (scipy's ``milp``,
 HiGHS): an edge with no good partner (a hem, a neckline, an opening) stays open because no
 candidate pays for it.
 
@@ -22,7 +23,7 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.names import name_affinity
+from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
 from solver.seams.shape import fit_and_overlap
 
@@ -37,11 +38,14 @@ MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
 MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
+SEAM_COST_MM = 160.0  # each seam chosen costs this much matched length (score x mm): a
+# long seam is preferred to the same line cut into short ones, each with its own partner
+# found by chance (measured on half of the bench's garments, checked on the other half)
 SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
-GRAIN_DEG = 20.0  # a centre line lies within this of the grain
+GRAIN_DEG = 30.0  # a centre line lies within this of the grain
 
 
 @dataclass(frozen=True)
@@ -174,10 +178,16 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
         # two halves mirrored in the seam (two copies of one piece surely are): only a
         # centre line, along the grain, joins them
-        s -= 2.0 if copies else 1.0
+        # (unnamed pieces may as well be identical gores, which do meet so)
+        s -= 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
     elif copies:
         s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
     return s
+
+
+def _named(*pieces: SewPiece) -> bool:
+    """Whether any of the pieces' names says what or where the piece is."""
+    return any(any(name_parts(p.name)) for p in pieces)
 
 
 def _along_grain(piece: SewPiece, run: Run) -> bool:
@@ -281,7 +291,7 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a = np.zeros((int(offset[-1]), len(pairs)))
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
-                                 [runs[j].length for j in pairs[:, 1]])
+                                 [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
     res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
                constraints=LinearConstraint(a, 0, 1), options={"time_limit": 20.0})
     if res.x is None:

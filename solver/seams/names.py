@@ -23,6 +23,7 @@ _KINDS = {
 }
 _SIDES = {"left": ("left", "l", "lft", "links", "gauche", "izquierda", "sinistra"),
           "right": ("right", "r", "rt", "rechts", "droite", "derecha", "destra")}
+_PLACES = frozenset(("front", "back"))
 _LONG = sorted({w for words in _KINDS.values() for w in words if len(w) >= 4}, key=len,
                reverse=True)
 # seams a garment usually has, between kinds of pieces (order does not matter)
@@ -48,26 +49,57 @@ def _tokens(name: str) -> list[str]:
     return out
 
 
+def _raw_kinds(name: str) -> set[str]:
+    """Every kind a word of the name says, a sleeve's front or back half included."""
+    toks = _tokens(name)
+    return {k for k, words in _KINDS.items() for t in toks if t in words}
+
+
 def name_parts(name: str) -> tuple[set[str], str | None]:
     """(kinds, side) the name says: kinds from :data:`_KINDS`, side "left"/"right"/None."""
     toks = _tokens(name)
-    kinds = {k for k, words in _KINDS.items() for t in toks if t in words}
+    kinds = _raw_kinds(name)
     if "sleeve" in kinds:  # "sleeve_f": the front half of a sleeve, still a sleeve
         kinds -= {"front", "back"}
     sides = {s for s, words in _SIDES.items() for t in toks if t in words}
     return kinds, (sides.pop() if len(sides) == 1 else None)
 
 
+def _role(name: str) -> tuple[set[str], str | None]:
+    """(what the piece is, which half it joins): a sleeve, collar, waistband or cuff is what
+    it is, its "front"/"back" only says where it sits ("wb_back": a waistband of the back);
+    a piece with no such kind is a front or a back."""
+    raw = _raw_kinds(name)
+    specific = raw - _PLACES
+    place = raw & _PLACES
+    if specific:
+        return specific, (next(iter(place)) if len(place) == 1 else None)
+    return place, None
+
+
+def _placement_affinity(a: str, b: str) -> float:
+    """+0.25 when a piece that sits on the front (back) meets a front (back) piece, -0.5
+    when it meets the other one (a back waistband to a front bodice)."""
+    (ka, qa), (kb, qb) = _role(a), _role(b)
+    score = 0.0
+    for q, other in ((qa, kb), (qb, ka)):
+        if q and other and other <= _PLACES:
+            score += 0.25 if q in other else -0.5
+    return score
+
+
 def name_affinity(a: str, b: str) -> float:
-    """How much the two names favour a seam between the pieces: about -1 (a right piece to a
-    left one) to +0.5 (a sleeve to a front on the same side)."""
-    (ka, sa), (kb, sb) = name_parts(a), name_parts(b)
+    """How much the two names favour a seam between the pieces: about -1.5 (a right piece to
+    a left one) to +0.75 (a sleeve's back half to a back on the same side)."""
+    (ka, sa), (_, sb) = name_parts(a), name_parts(b)
     score = 0.0
     if sa and sb and sa == sb:
         score += 0.25
     elif sa and sb:  # left to right: only the centre seam between two halves of one kind
-        score += 0.0 if ka and ka == kb else -1.0
-    if ka and kb:
-        usual = any(frozenset((x, y)) in _USUAL for x in ka for y in kb)
+        # (a right sleeve's back half never meets a left sleeve's front half)
+        score += 0.0 if ka and _raw_kinds(a) == _raw_kinds(b) else -1.0
+    (role_a, _), (role_b, _) = _role(a), _role(b)
+    if role_a and role_b:
+        usual = any(frozenset((x, y)) in _USUAL for x in role_a for y in role_b)
         score += 0.25 if usual else -0.25
-    return score
+    return score + _placement_affinity(a, b)

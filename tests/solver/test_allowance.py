@@ -55,13 +55,14 @@ def _edge_strip_inside(cut: shapely.Polygon, ring: np.ndarray, a: np.ndarray) ->
 def test_cut_line_holds_the_allowance_and_stays_within_twice_it(garment):
     rules = AllowanceRules(seam_mm=10, hem_mm=20, opening_mm=8)
     for c in cut_lines(garment, rules):
-        sew = shapely.Polygon(c.sew, c.sew_holes)
+        sew = shapely.Polygon(c.sew_outline, c.sew_holes)  # on the file's curves
         allow = np.concatenate([c.allowance, *c.hole_allowance])
         assert c.cut.is_valid and c.cut.exterior.is_simple  # never crosses itself
         assert shapely.Polygon(c.outline).exterior.is_ccw
         # sew line buffered by the allowance less 0.5 mm lies inside (area slack: rounding)
         assert sew.buffer(allow.min() - 0.5).difference(c.cut).area < 1e-6
-        assert _edge_strip_inside(c.cut, c.sew, c.allowance)  # each edge its own allowance
+        # each edge its own allowance
+        assert _edge_strip_inside(c.cut, c.sew_outline, c.sew_outline_allowance)
         assert sew.buffer(2 * allow.max() + 0.5).contains(c.cut)
         assert len(c.holes) == len(c.sew_holes)
 
@@ -177,7 +178,7 @@ def test_shared_garments_keep_the_cut_line_bounds(shared_data):
     for path in files:
         g = load_garment(path, units="m" if path.suffix == ".obj" else None)
         for c in cut_lines(g):
-            sew = shapely.Polygon(c.sew, c.sew_holes)
+            sew = shapely.Polygon(c.sew_outline, c.sew_holes)  # on the file's curves
             allow = np.concatenate([c.allowance, *c.hole_allowance])
             assert c.cut.is_valid and c.cut.exterior.is_simple, path.name
             assert sew.buffer(allow.min() - 0.5).difference(c.cut).area < 1e-6, path.name

@@ -51,7 +51,7 @@ def _symmetrised(name: str, units: str | None):
 def test_every_symmetrised_pair_cuts_as_mirror_images(name: str, units: str | None) -> None:
     sym = _symmetrised(name, units)
     h = sym.garment
-    cuts, notches = cut_ready(h, AllowanceRules())
+    cuts, notches = cut_ready(h, AllowanceRules(notch_spacing_mm=100.0))
     for p in sym.pairs:
         cut, notch = cut_mismatch(p, cuts, notches)
         assert cut < TOLERANCE_MM and notch < TOLERANCE_MM, (p.first, p.second, cut, notch)
@@ -140,7 +140,8 @@ def test_darted_pants_notches_mirror_after_a_plaid_alignment_and_reshape(
                                 grain_tol_deg=1.0)
     assert {m for *_, m in placement.pairs} == {"mirror"}
     new, _ = reshape(g, placement, pairs=fit_pairs(g, [p[:2] for p in placement.pairs]))
-    cuts, notches = cut_ready(new, AllowanceRules(), placement)
+    cuts, notches = cut_ready(new, AllowanceRules(notch_spacing_mm=100.0, notch_on_print=True),
+                              placement)
     for p in fit_pairs(new, [p[:2] for p in placement.pairs]):
         cut, notch = cut_mismatch(p, cuts, notches)
         if symmetrised:
@@ -158,7 +159,7 @@ def test_shared_jacket_cut_lines_mirror(shared_data) -> None:
     g = load(shared_data / "garments" / "arcsim_meshes" / "jacket.obj")
     sym = symmetrise(g, mirror_pairs(g))
     assert len(sym.pairs) == 3
-    cuts, notches = cut_ready(sym.garment, AllowanceRules())
+    cuts, notches = cut_ready(sym.garment, AllowanceRules(notch_spacing_mm=100.0))
     for p in sym.pairs:
         cut, notch = cut_mismatch(p, cuts, notches)
         assert cut < TOLERANCE_MM and notch < TOLERANCE_MM, (p.first, p.second, cut, notch)
