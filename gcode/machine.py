@@ -19,8 +19,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10 (pyproject pulls in tomli there)
     import tomli as tomllib
 
-__all__ = ["POWER_MODES", "CutParams", "KnifeParams", "Machine", "default_machine",
-           "load_machine"]
+__all__ = ["CONVEYOR_KINDS", "POWER_MODES", "ConveyorParams", "CutParams", "KnifeParams",
+           "Machine", "default_machine", "load_machine"]
 
 
 #: The laser's spindle word for each ``[cut] power_mode``. Under GRBL's laser mode ($32=1)
@@ -61,6 +61,57 @@ class KnifeParams:
     corner_angle: float = 30.0
 
 
+#: how a profile's conveyor advances the roll: "" none (the operator advances it),
+#: "gcode" a command with ``{mm}`` for the length, "axis" a relative move of a rotary or
+#: feed axis, "relay" an output switched on for as long as the roll takes to move
+CONVEYOR_KINDS = ("", "gcode", "axis", "relay")
+
+
+@dataclass(frozen=True)
+class ConveyorParams:
+    """The conveyor that advances the roll between bites (issue 35); ``kind`` "" has none."""
+
+    kind: str = ""
+    command: str = ""  # "gcode": e.g. "M100 L{mm}" ({mm} is the advance, 3 decimals)
+    axis: str = "A"  # "axis": the conveyor's axis letter, moved relative (G91) by the advance
+    feed: float = 3000.0  # "axis": mm/min of the roll
+    relay_on: str = "M8"  # "relay": the output that runs the conveyor, and off again
+    relay_off: str = "M9"
+    mm_per_s: float = 50.0  # "relay": how far the roll moves per second of the relay on
+
+    def lines(self, mm: float) -> list[str]:
+        """The G-code lines that advance the roll by ``mm``; the caller syncs after them
+        (``G4 P0``) so that the photograph sees the roll at rest."""
+        if self.kind == "gcode":
+            return [line.strip() for line in self.command.format(mm=f"{mm:.3f}").split(";")]
+        if self.kind == "axis":
+            return ["G91", f"G1 {self.axis}{mm:.3f} F{self.feed:g}", "G90"]
+        if self.kind == "relay":
+            return [self.relay_on, f"G4 P{mm / self.mm_per_s:.3f}", self.relay_off]
+        raise ValueError("the machine profile has no conveyor: the operator advances the roll")
+
+
+def _check_conveyor(c: ConveyorParams, src: str) -> None:
+    checks = [
+        (c.kind in CONVEYOR_KINDS, f"[conveyor] kind must be one of {CONVEYOR_KINDS[1:]} "
+                                   "(or absent: the operator advances the roll)"),
+        (c.kind != "gcode" or "{mm}" in c.command,
+         "[conveyor] a \"gcode\" conveyor needs command with {mm}, the advance"),
+        (c.kind != "axis" or c.axis in ("A", "B", "C"),
+         f"[conveyor] axis {c.axis!r} must be A, B or C (X, Y and Z move the tool)"),
+        (c.kind != "relay" or (c.relay_on.strip() and c.relay_off.strip()),
+         "[conveyor] a \"relay\" conveyor needs relay_on and relay_off"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise ValueError(f"{src}: {msg}")
+    if c.kind == "gcode":
+        try:
+            c.command.format(mm="0")  # a stray brace fails here, not between two bites
+        except (KeyError, IndexError, ValueError) as exc:
+            raise ValueError(f"{src}: [conveyor] command {c.command!r}: {exc!r}") from None
+
+
 @dataclass(frozen=True)
 class Machine:
     """A GRBL machine profile (millimetres, mm/min)."""
@@ -78,6 +129,7 @@ class Machine:
     min_cut_feed: float = 300.0
     cut: CutParams = field(default_factory=CutParams)
     knife: KnifeParams = field(default_factory=KnifeParams)
+    conveyor: ConveyorParams = field(default_factory=ConveyorParams)
     source: str = "<built-in>"
 
     def with_cut(self, **changes: Any) -> Machine:
@@ -117,6 +169,8 @@ RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("knife", "z_down"): (-500.0, 500.0, True),
     ("knife", "plunge_feed"): (0.0, 60000.0, False),
     ("knife", "corner_angle"): (0.0, 180.0, False),
+    ("conveyor", "feed"): (0.0, 60000.0, False),
+    ("conveyor", "mm_per_s"): (0.0, 10000.0, False),
 }
 
 
@@ -233,24 +287,28 @@ def _check(m: Machine) -> None:
         if not ok:
             raise ValueError(f"{src}: {msg}")
     _check_cut(m.cut, src)
+    _check_conveyor(m.conveyor, src)
 
 
 def machine_from_dict(data: dict, source: str = "<dict>") -> Machine:
     """Build and check a profile from a TOML-shaped dict."""
-    unknown = set(data) - {"machine", "cut", "knife"}
+    unknown = set(data) - {"machine", "cut", "knife", "conveyor"}
     if unknown:
         raise ValueError(f"{source}: unknown section(s) {sorted(unknown)} "
-                         "(known: [machine], [cut], [knife])")
-    for sec in ("machine", "cut", "knife"):
+                         "(known: [machine], [cut], [knife], [conveyor])")
+    for sec in ("machine", "cut", "knife", "conveyor"):
         if sec in data and not isinstance(data[sec], dict):
             raise ValueError(f"{source}: [{sec}] must be a table")
     mtab = dict(data.get("machine", {}))
-    for k in ("cut", "knife", "source"):
+    for k in ("cut", "knife", "conveyor", "source"):
         if k in mtab:
             raise ValueError(f"{source}: unknown key {k!r} in [machine]")
     cut = CutParams(**_coerce(CutParams, data.get("cut", {}), "cut", source))
     knife = KnifeParams(**_coerce(KnifeParams, data.get("knife", {}), "knife", source))
-    m = Machine(**_coerce(Machine, mtab, "machine", source), cut=cut, knife=knife, source=source)
+    conveyor = ConveyorParams(**_coerce(ConveyorParams, data.get("conveyor", {}), "conveyor",
+                                        source))
+    m = Machine(**_coerce(Machine, mtab, "machine", source), cut=cut, knife=knife,
+                conveyor=conveyor, source=source)
     _check(m)
     return m
 

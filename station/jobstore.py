@@ -238,9 +238,16 @@ class JobStore:
 
     def pieces(self, job_id: int) -> list[dict[str, Any]]:
         return self.engine.read(lambda tx: tx.all(
-            "select piece, name, state, cut_at, cut_mm, path_mm from pieces where job_id = ? "
+            "select piece, name, state, cut_at, cut_mm, path_mm, bite from pieces "
+            "where job_id = ? "
             "order by piece",
             job_id))
+
+    def set_piece_bites(self, job_id: int, bites: dict[str, int]) -> None:
+        """Journal the bite each piece (by name) is cut in, before the first bite is cut."""
+        self.engine.write(lambda tx: tx.many(
+            "update pieces set bite = ? where job_id = ? and name = ?",
+            [(int(b), job_id, name) for name, b in bites.items()]))
 
     def set_piece_state(self, job_id: int, piece: int, state: str) -> None:
         """Record a piece's cut state; 'cut' is final and is never undone or repeated."""

@@ -10,25 +10,38 @@ so that a job paused and resumed here cuts from its objects too.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gcode.layout import Layout as MachineLayout
 from gcode.layout import load_layout
+from gcode.machine import Machine
 from gcode.program import Program
+from solver.nest.bites import BitePlan
+from solver.nest.layout import Layout
+from solver.wallpaper import gauss_reduce
 from station.config import Config
 from station.daemon import JobControl
 from station.jobstore import Job, JobStore
 from station.order import is_order_file
+from station.steps.bites import RollTrack, load_bites
 from station.steps.capture import CameraOpener, Captured, capture_fabric, photograph, real_camera
 from station.steps.cut import PortOpener, cut_job, serial_port
+from station.steps.cutbites import Roll, cut_in_bites
 from station.steps.pictures import draw_plan
 from station.steps.plan import plan_job
 from station.steps.plan_order import plan_order
-from station.steps.program import fabric_origin, program_of, station_machine
+from station.steps.program import fabric_origin, machine_layout, program_of, station_machine
 from station.steps.records import Plan
+from station.steps.roll import station_roll
 from station.steps.submission import check_job
 from station.steps.table import table_window
+
+#: makes the station's roll (`station.steps.cutbites.Roll`) from its configuration
+RollOpener = Callable[[Config, Machine, CameraOpener, PortOpener], Roll]
 
 HELD_PLANS = 16  # plans a daemon keeps in memory for jobs paused and resumed in it
 
@@ -39,15 +52,23 @@ class StationPipeline:
     simulated ones come from `station.simstation`)."""
 
     def __init__(self, config: Config, *, open_camera: CameraOpener = real_camera,
-                 open_port: PortOpener = serial_port) -> None:
+                 open_port: PortOpener = serial_port, open_roll: RollOpener = station_roll
+                 ) -> None:
         self.config = config
         self.open_camera = open_camera
         self.open_port = open_port
+        self.open_roll = open_roll
+        self._roll: Roll | None = None  # the roll on the table, made at the first bite
         self.machine = station_machine(config)
         self.window = table_window(config, self.machine)  # refused here, not after planning
         # Plans made here by job id, used only while the store's record is still this
         # one's (another station may have planned the job again since).
         self._planned: dict[int, Plan] = {}
+
+    @property
+    def roll(self) -> Roll | None:
+        """The roll on the table, once a marker has been cut in bites here."""
+        return self._roll
 
     def check(self, garment: str, fabric: str | None, options: dict[str, Any]) -> None:
         """Refuse at submission what could never run (raises ValueError)."""
@@ -80,14 +101,47 @@ class StationPipeline:
         """Cut the pieces left (`station.steps.cut`): from the plan made in this process,
         else from the job's LAYOUT.json."""
         held = plan if isinstance(plan, Plan) else self._planned.get(job.id)
-        if held is not None and held.record() == job.plan:
-            marker = held.marker
+        if held is None or held.record() != job.plan:
+            held = None
+        bites = held.bites if held is not None else self._bites_file(job.plan)
+        if bites is not None:
+            self._cut_in_bites(job, held, bites, store, control, resuming)
         else:
-            marker = self.marker_file(job.plan["layout"])
-        cut_job(job, Path(job.plan["layout"]).parent, marker, store, control,
-                config=self.config, machine=self.machine, open_port=self.open_port,
-                resuming=resuming)
+            marker = held.marker if held is not None else self.marker_file(job.plan["layout"])
+            cut_job(job, Path(job.plan["layout"]).parent, marker, store, control,
+                    config=self.config, machine=self.machine, open_port=self.open_port,
+                    resuming=resuming)
         self._planned.pop(job.id, None)  # every piece cut: nothing left to resume
+
+    def _cut_in_bites(self, job: Job, held: Plan | None, bites: BitePlan, store: JobStore,
+                      control: JobControl, resuming: bool) -> None:
+        """`station.steps.cutbites.cut_in_bites` on this station's roll and machine."""
+        job_dir = Path(job.plan["layout"]).parent
+        fabric = (held.captured if held is not None
+                  else Captured.read(job.plan["fabric"], job_dir)).fabric
+        if self._roll is None:
+            self._roll = self.open_roll(self.config, self.machine, self.open_camera,
+                                        self.open_port)
+
+        def machine_marker(track: RollTrack, bite) -> MachineLayout:
+            return machine_layout(track.bite_layout(bites, bite), fabric_origin(self.config),
+                                  job.plan["layout"])
+
+        def cut_bite(marker: MachineLayout, pieces: set[str]) -> None:
+            cut_job(job, job_dir, marker, store, control, config=self.config,
+                    machine=self.machine, open_port=self.open_port, resuming=resuming,
+                    pieces=pieces)
+
+        cut_in_bites(job, job_dir, bites, store, control, roll=self._roll,
+                     lattice=print_lattice(fabric), machine_marker=machine_marker,
+                     cut_bite=cut_bite)
+
+    @staticmethod
+    def _bites_file(record: dict[str, Any]) -> BitePlan | None:
+        """A job's bites.json on its layout.json (None: the marker is cut whole)."""
+        if not record.get("bites"):
+            return None
+        return load_bites(Layout.load(record["layout"]), Path(record["bites"]))
 
     def marker_file(self, path: str | Path) -> MachineLayout:
         """A job's LAYOUT.json, read as untrusted input, on this station's table."""
@@ -100,3 +154,12 @@ class StationPipeline:
         program, _ = program_of(self.marker_file(layout), self.machine, only,
                                 title=f"station {Path(layout).parent.name}")
         return program
+
+
+def print_lattice(fabric: dict[str, Any]) -> np.ndarray | None:
+    """(2, 2) columns, the reduced repeat of a job's print (FABRIC.json), that an advance
+    is measured modulo; None on plain cloth and stripes (nothing periodic both ways)."""
+    if fabric.get("kind") in ("plain", "stripes") or "w1" not in fabric:
+        return None
+    u1, u2, _ = gauss_reduce(np.asarray(fabric["w1"], float), np.asarray(fabric["w2"], float))
+    return np.column_stack([u1, u2])

@@ -16,25 +16,32 @@ from typing import Any
 import serial
 
 import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
+from gcode.machine import Machine
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.classics import classic_print
+from simulators.roll import Conveyor, RollCamera, RollPrint
 from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
-from station.steps.cut import serial_port
+from station.steps.capture import CameraOpener
+from station.steps.cut import PortOpener, serial_port
 from vision.camera import Camera, open_camera
 
-__all__ = ["copy_job_files", "open_simulated_camera", "open_simulated_port",
-           "read_json_or_empty", "simulated_camera", "simulated_pipeline",
+__all__ = ["SimulatedRoll", "copy_job_files", "open_simulated_camera", "open_simulated_port",
+           "read_json_or_empty", "roll_by_hand", "simulated_camera", "simulated_pipeline",
+           "simulated_roll",
            "start_simulated_station"]
 
+#: the simulated camera's print, and where its lattice's origin lies on the fabric
+PRINT, REPEAT_MM, PRINT_ORIGIN = "plaid", 80.0, (13.0, 21.0)
 
-def simulated_camera(config: Config, print_name: str = "plaid", repeat_mm: float = 80.0,
+
+def simulated_camera(config: Config, print_name: str = PRINT, repeat_mm: float = REPEAT_MM,
                      seed: int = 3) -> SyntheticCamera:
     """The dry run's camera: a plaid sheet covering the usable fabric, seen from above."""
     n = config["nest"]
     ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
-    sheet = Sheet(classic_print(print_name, repeat_mm, origin=(13.0, 21.0)),
+    sheet = Sheet(classic_print(print_name, repeat_mm, origin=PRINT_ORIGIN),
                   size=(n["length_mm"], n["width_mm"]), shift=(ox, oy))
     return SyntheticCamera(sheet, seed=seed)
 
@@ -50,10 +57,57 @@ def open_simulated_port(config: Config) -> serial.SerialBase:
     return serial_port(config)
 
 
-def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline
-                       ) -> StationPipeline:
-    """The station's pipeline (or ``cls``, a subclass) on the simulated camera and GRBL."""
-    return cls(config, open_camera=open_simulated_camera, open_port=open_simulated_port)
+class SimulatedRoll:
+    """The dry run's roll between bites: the camera's print on a roll that bows, skews and
+    stretches along its length (`simulators.roll.RollPrint`), on a conveyor that slips,
+    photographed through the table window only, at 1 mm per pixel. The conveyor's poses
+    are the truth of where every bite was cut on the cloth."""
+
+    mm_per_px = 1.0
+
+    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False) -> None:
+        n = config["nest"]
+        length, width = float(n["length_mm"]), float(n["width_mm"])
+        self.print = RollPrint(classic_print(PRINT, REPEAT_MM, origin=PRINT_ORIGIN), width)
+        self.conveyor = Conveyor(pivot=(length / 2, width / 2), seed=seed)
+        self.camera = RollCamera(self.print, self.conveyor, (0.0, 0.0, length, width),
+                                 self.mm_per_px, seed=seed)
+        # by hand: the job waits for the operator, whose hands slip like the conveyor
+        self.feed = None if by_hand else self.advance
+
+    def advance(self, mm: float) -> None:
+        self.conveyor.advance(mm)
+
+    def photograph(self):
+        return self.camera.photograph()
+
+    def truth(self) -> list[dict[str, float]]:
+        """Each advance as the conveyor really made it (the simulator's truth), to hold
+        the station's measurements against."""
+        poses = self.conveyor.poses
+        return [{"advance_mm": round(b.along - a.along, 3),
+                 "skew_deg": round(b.angle_deg - a.angle_deg, 4)}
+                for a, b in zip(poses, poses[1:])]
+
+
+def simulated_roll(config: Config, _machine: Machine, _open_camera: CameraOpener,
+                   _open_port: PortOpener) -> SimulatedRoll:
+    """The simulated station's roll (`SimulatedRoll`), for `StationPipeline`'s open_roll."""
+    return SimulatedRoll(config)
+
+
+def roll_by_hand(config: Config, _machine: Machine, _open_camera: CameraOpener,
+                 _open_port: PortOpener) -> SimulatedRoll:
+    """`simulated_roll` with no conveyor: the job waits for the operator at each advance."""
+    return SimulatedRoll(config, by_hand=True)
+
+
+def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline, *,
+                       by_hand: bool = False) -> StationPipeline:
+    """The station's pipeline (or ``cls``, a subclass) on the simulated camera, GRBL and
+    roll (``by_hand``: advanced by the operator)."""
+    return cls(config, open_camera=open_simulated_camera, open_port=open_simulated_port,
+               open_roll=roll_by_hand if by_hand else simulated_roll)
 
 
 def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: dict[str, Any],
@@ -70,7 +124,8 @@ def start_simulated_station(args: argparse.Namespace, emulator: str, overrides: 
         "nest": {"seconds": args.nest_seconds},
         **overrides,
     })
-    daemon = Daemon(config, simulated_pipeline(config))
+    daemon = Daemon(config, simulated_pipeline(config,
+                                               by_hand=getattr(args, "by_hand", False)))
     daemon.recover()
     daemon.control.start()
     worker = threading.Thread(target=daemon.run_loop, name=thread, daemon=True)

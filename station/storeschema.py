@@ -80,6 +80,9 @@ create index commands_open on commands(station, answered_at, id)
 alter table pieces add column cut_mm {real};
 alter table pieces add column path_mm {real}
 """),
+    (4, "the bite each piece is cut in (a marker longer than the table)", """
+alter table pieces add column bite integer
+"""),
 ]
 
 SCHEMA_VERSION = MIGRATIONS[-1][0]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
 import sys
 import tempfile
 import time
@@ -27,7 +28,13 @@ from station.daemon import setup_logging
 from station.fleetdemo import run as run_fleet
 from station.order import is_order_file, read_order
 from station.progress import follow
-from station.simstation import copy_job_files, read_json_or_empty, start_simulated_station
+from station.simstation import (
+    SimulatedRoll,
+    copy_job_files,
+    read_json_or_empty,
+    start_simulated_station,
+)
+from station.steps.bites import operator_advance_mm
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -69,6 +76,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "demo always does)")
     p.add_argument("--speed", type=float, default=20.0,
                    help="emulated machine's speed-up (simulated s per wall s)")
+    p.add_argument("--copies", type=int, default=1, metavar="N",
+                   help="an order of N copies of the garment, nested in one marker and cut "
+                   "in bites when it is longer than the table (the simulated roll slips)")
+    p.add_argument("--by-hand", action="store_true",
+                   help="no conveyor: the job waits at 'advance the fabric N mm' and the demo "
+                   "plays the operator (advances the simulated roll, then station resume)")
     p.add_argument("--fleet", type=int, default=0, metavar="N",
                    help="N simulated stations sharing one PostgreSQL job store (started "
                    "here), each with its own emulator and camera")
@@ -87,17 +100,8 @@ def run(args: argparse.Namespace) -> int:
         read_order(garment)
     else:
         load_garment(garment, units=args.units)
-    fleet = args.fleet > 0
-    args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
-    args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
-                         else 3.0 if fleet else 4.0)
-    if fleet:
-        args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
-        if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
-            raise ValueError("--restarts, --nest-seconds and --speed must be positive")
+    if _settle_args(args):
         return run_fleet(args)
-    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0:
-        raise ValueError("--restarts, --nest-seconds and --speed must be positive")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     setup_logging(logging.WARNING)
@@ -108,12 +112,15 @@ def run(args: argparse.Namespace) -> int:
             "control": {"socket": f"{tmp}/station.sock"},
         })
         sock = daemon.control.path
+        submitted = garment.resolve() if args.copies == 1 else copies_order(
+            garment, args.copies, args.units, Path(tmp))
         try:
-            job = request(sock, "submit", garment=str(garment.resolve()), fabric=None,
-                          options={"units": args.units})["job"]["id"]
+            job = request(sock, "submit", garment=str(submitted), fabric=None,
+                          options={"units": args.units} if args.copies == 1 else {}
+                          )["job"]["id"]
             print(f"station demo: job {job} submitted to the simulated station "
                   f"(store and socket in {tmp})", file=sys.stderr)
-            status = follow(sock, job)
+            status = follow_by_hand(sock, job, daemon) if args.by_hand else follow(sock, job)
             events = request(sock, "log", job=job, limit=100000)["events"]
         finally:
             daemon.shutdown()
@@ -124,9 +131,15 @@ def run(args: argparse.Namespace) -> int:
         plan_report = read_json_or_empty(workdir / "report.json")
         camera = read_json_or_empty(workdir / "camera.json")
         fabric = read_json_or_empty(workdir / "fabric.json")
+        pieces = pieces_cut(daemon.store.pieces(job), events)
+        roll = daemon.pipeline.roll
+        truth = roll.truth() if isinstance(roll, SimulatedRoll) else None
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
+    summary["bites"] = plan_report.get("bites")
+    summary["advances_truth"] = truth  # the simulated conveyor's, slips included
+    summary["pieces"] = pieces
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,
@@ -134,6 +147,55 @@ def run(args: argparse.Namespace) -> int:
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     print_summary(summary, out, missing)
     return 0 if status["state"] == "done" else 1
+
+
+def _settle_args(args: argparse.Namespace) -> bool:
+    """Fill the defaults that depend on --fleet and refuse what is not positive; whether
+    this is a fleet demo."""
+    fleet = args.fleet > 0
+    args.restarts = args.restarts if args.restarts is not None else (2 if fleet else 8)
+    args.nest_seconds = (args.nest_seconds if args.nest_seconds is not None
+                         else 3.0 if fleet else 4.0)
+    if fleet:
+        args.no_reshape = True  # eight reshapes would take minutes; the single demo shows it
+    if args.restarts < 1 or args.nest_seconds <= 0 or args.speed <= 0 or args.copies < 1:
+        raise ValueError("--restarts, --nest-seconds, --speed and --copies must be positive")
+    return fleet
+
+
+def follow_by_hand(sock: Path, job: int, daemon) -> dict[str, Any]:
+    """`follow` the job, playing the operator whenever it waits for the roll to be
+    advanced: the simulated roll moved by the mm asked (slipping), then `resume`."""
+    status = follow(sock, job)
+    while status["state"] == "paused" and (
+            mm := operator_advance_mm(status["reason"])) is not None:
+        print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
+              file=sys.stderr)
+        daemon.pipeline.roll.advance(mm)
+        request(sock, "resume", job=job)
+        status = follow(sock, job)
+    return status
+
+
+def copies_order(garment: Path, copies: int, units: str | None, folder: Path) -> Path:
+    """An order of ``copies`` of ``garment``, written in ``folder`` beside a copy of it
+    (an order names its patterns relative to itself)."""
+    shutil.copyfile(garment, folder / garment.name)
+    order = folder / "order.toml"
+    lines = ['name = "demo"', "[[garment]]", f"pattern = {json.dumps(garment.name)}",
+             f"copies = {copies}", *([f'units = "{units}"'] if units else [])]
+    order.write_text("\n".join(lines) + "\n")
+    return order
+
+
+def pieces_cut(pieces: list[dict[str, Any]], events: list[dict[str, Any]]
+               ) -> list[dict[str, Any]]:
+    """The report's ``pieces``: each piece's bite (None: the marker was cut whole) and how
+    many times the job's log says it was cut (exactly once, or something went wrong)."""
+    cut_events = [e["message"] for e in events if e.get("kind") == "piece"]
+    return [{"piece": p["name"], "bite": p.get("bite"),
+             "times_cut": sum(m == f"piece {p['piece']} ({p['name']}) cut" for m in cut_events)}
+            for p in pieces]
 
 
 def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | None:
@@ -223,7 +285,8 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     lines.append(f"  cut-ready     {'; '.join(parts)}")
     lines += [
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
-        f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}",
+        f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}"
+        + (f" in {len(s['bites'])} bites" if s.get("bites") else ""),
         f"  time          {s['seconds']:.1f} s",
         f"  files in      {out}/ (report.json has everything)",
     ]

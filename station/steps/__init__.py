@@ -21,10 +21,14 @@ Read one job from `station submit` to its cut record in this order:
 6. `cut.cut_job`: ask the machine what it did while nobody listened, then stream the
    pieces left; each piece is recorded cut in the job store at its sync point.
 
-A marker longer than the table is cut in bites (issue 35, not yet in the daemon's loop):
-`table.table_window` is the table window, checked when the pipeline is made;
-`bites.plan_job_bites` cuts the marker into bites of it and `bites.find_bite` brings
-each onto the table: advance, photograph, measure the roll's real advance from the print.
+A marker longer than the table is cut in bites (issue 35): `table.table_window` is the
+table window, checked when the pipeline is made; the nest step (`nest.
+nest_in_window_or_bites`) nests a marker that does not fit it on the roll and cuts it
+into bites (`bites.plan_job_bites`; the `Plan` carries them, bites.json beside
+layout.json); the cut step (`cutbites.cut_in_bites`) brings each bite onto the table
+(`bites.find_bite`: advance by the profile's conveyor or the operator, photograph,
+measure the roll's real advance from the print, `roll.CameraRoll`) and cuts its pieces
+where the cloth lies, journalling the bites so that a restart resumes at the right one.
 
 `station.pipeline.StationPipeline` runs these for the daemon (`station.daemon`), whose
 state machine records each step's result in the job store before the next begins.

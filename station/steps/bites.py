@@ -11,16 +11,18 @@ where they now lie. `find_bite` is one turn of the loop: advance (by the conveyo
 the operator at `OPERATOR_ADVANCE`), photograph, measure, follow. `bites_report` is the
 report's per-bite list.
 
-Not yet here (issue 35): the daemon's cut step calling `find_bite` between bites (the
-conveyor in the machine profile, the operator's wait and `station resume`), the
-journal's bite per piece and its recovery, and local maps of the print's own bow and
-stretch under each piece.
+`save_bites` and `load_bites` keep the plan beside the job's layout.json (a job cut by
+another process reads it back); the cut loop itself is `station.steps.cutbites`. Not yet
+here: local maps of the print's own bow and stretch under each piece.
 """
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,10 +52,11 @@ def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | No
 class RollTrack:
     """Where the marker lies on the table window: ``marker_to_window`` maps marker mm to
     window mm (x along the roll from the window's start), composed of every advance. At
-    the first bite the marker lies ``ROLL_MARGIN_MM`` into the window."""
+    the first bite the marker lies where it was planned (the identity): it was aligned on
+    the print photographed there, and a shift would move every piece off its print."""
 
     marker_to_window: np.ndarray = field(default_factory=lambda: np.array(
-        [[1.0, 0.0, ROLL_MARGIN_MM], [0.0, 1.0, 0.0]]))
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
     advances: list[Advance] = field(default_factory=list)
 
     def advance_for(self, bite: Bite) -> float:
@@ -93,6 +96,14 @@ class RollTrack:
 #: what the job waits at when the operator advances the roll by hand (`station resume`
 #: goes on); the conveyor of a machine profile is commanded instead where there is one
 OPERATOR_ADVANCE = "advance the fabric {mm:.1f} mm"
+_ASKED = re.compile(r"^advance the fabric (-?[0-9]+(?:\.[0-9]+)?) mm")
+
+
+def operator_advance_mm(reason: str) -> float | None:
+    """The mm a job paused at `OPERATOR_ADVANCE` asks for (None: it waits for something
+    else)."""
+    asked = _ASKED.match(reason or "")
+    return float(asked.group(1)) if asked else None
 
 
 @dataclass
@@ -128,3 +139,25 @@ def bites_report(bites: list[Bite]) -> list[dict[str, Any]]:
     """The report's ``summary.bites``: per bite the commanded and measured advance, the
     skew and the pieces it cut."""
     return [b.to_dict() for b in bites]
+
+
+def save_bites(plan: BitePlan, path: Path) -> None:
+    """bites.json: the window and each bite as planned (its layout is layout.json)."""
+    path.write_text(json.dumps({"window_mm": plan.window_mm,
+                                "length_unbounded_mm": plan.length_unbounded_mm,
+                                "method": plan.method,
+                                "bites": bites_report(plan.bites)}, indent=1))
+
+
+def load_bites(layout: Layout, path: Path) -> BitePlan:
+    """The plan `save_bites` wrote, on ``layout`` (its layout.json, read by the caller)."""
+    data = json.loads(Path(path).read_text())
+    bites = [Bite(int(b["index"]), float(b["start_mm"]), float(b["end_mm"]),
+                  tuple(str(p) for p in b["pieces"]), float(b["advance_commanded_mm"]))
+             for b in data["bites"]]
+    known = {p.id for p in layout.pieces}
+    strays = sorted({p for b in bites for p in b.pieces} - known)
+    if strays:
+        raise ValueError(f"{path}: bites name pieces not in the layout: {strays[:3]}")
+    return BitePlan(layout, bites, float(data["window_mm"]),
+                    float(data["length_unbounded_mm"]), method=str(data["method"]))

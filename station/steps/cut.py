@@ -62,8 +62,9 @@ def port_name(config: Config) -> str:
 
 def cut_job(job: Job, job_dir: Path, marker: MachineLayout, store: JobStore,
             control: JobControl, *, config: Config, machine: Machine,
-            open_port: PortOpener, resuming: bool) -> None:
-    """Stream the pieces of ``marker`` not yet cut; each becomes cut at its sync point."""
+            open_port: PortOpener, resuming: bool, pieces: set[str] | None = None) -> None:
+    """Stream the pieces of ``marker`` not yet cut (of ``pieces`` only, a bite's, when
+    given); each becomes cut at its sync point."""
     index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
     with open_port(config) as port:
         control.start_step("connecting")
@@ -71,7 +72,8 @@ def cut_job(job: Job, job_dir: Path, marker: MachineLayout, store: JobStore,
         reconcile(job, job_dir, store, rest, bool(alarm), params)
         if alarm:
             _regain_position(streamer, job, store, control, alarm)
-        todo = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
+        left = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
+        todo = left if pieces is None else left & pieces
         if not todo:
             return
         # What the marker said is in the store now: clear it, so that a piece cut again
@@ -89,7 +91,7 @@ def cut_job(job: Job, job_dir: Path, marker: MachineLayout, store: JobStore,
         # order (and so where each contour starts and ends) depends on which pieces
         # are left, so the next start must judge by this program, not a fresh one.
         save_final_moves(job_dir / FINAL_MOVES, job.id, final_moves(program, index))
-        result = _stream(streamer, program, journal, store, job, index, len(todo), params,
+        result = _stream(streamer, program, journal, store, job, index, len(left), params,
                          control, check=config["machine"]["check_mode"] and not resuming)
         if control.stop.is_set():
             journal_safe_stop(journal, result, streamer.status, params, job_dir)

@@ -20,6 +20,7 @@ from typing import Any
 from gcode.machine import Machine
 from solver.fit import FitReport, fit_report
 from solver.garment import Garment, save_obj
+from solver.nest.bites import BitePlan
 from solver.nest.layout import Layout
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
@@ -29,10 +30,10 @@ from station.daemon import JobControl
 from station.jobstore import Job
 from station.steps.capture import Captured
 from station.steps.garment import grained, job_garment
-from station.steps.nest import nest_placement
+from station.steps.nest import placed_marker
 from station.steps.pictures import draw_fits
 from station.steps.place import align_job, plain_placement, reshape_placed
-from station.steps.program import fabric_origin, machine_layout, program_of
+from station.steps.program import planned_program
 from station.steps.records import Plan, Stage
 from station.stripes import stripe_grain, stripe_print
 
@@ -81,7 +82,8 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
         chosen = Pattern(grained(garment, config, job.options), garment_path)
         placement = _on_grain(chosen, captured, config, report)
         control.start_step("nesting", 0.0)
-        layout = _nest(chosen, placement, workdir, config, job.options, None, plain=True)
+        layout, bites = _nest(chosen, placement, workdir, config, job.options, None,
+                              plain=True)
     else:
         wallpaper = print_of(captured, config, report)
         if symmetrised is not None:
@@ -89,23 +91,22 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
         try:
             patterns, placement = _place(job, Pattern(garment, garment_path), wallpaper,
                                          config, control, report, stages)
-            chosen, layout = _nest_printed(job, patterns, placement, workdir, config,
+            chosen, (layout, bites) = _nest_printed(job, patterns, placement, workdir, config,
                                            control, report)
         except BaseException:
             draw_fits(stages, captured, wallpaper)  # a failed job shows what it got to
             raise
     report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
-                           "density": layout.density, "pieces": len(layout.pieces)}
+                           "density": layout.density, "pieces": len(layout.pieces),
+                           **({"bites": bites.summary()} if bites is not None else {})}
     report.step_done("nest")
     control.checkpoint()
     control.start_step("programming")
-    marker = machine_layout(layout, fabric_origin(config), str(workdir / "layout.json"))
-    program, _ = program_of(marker, machine, title=f"station {workdir.name}")
-    program.write(workdir / "job.nc")
+    marker, program = planned_program(layout, bites, config, machine, workdir)
     report.data["program"] = program.summary()
     report.step_done("program")
     return Plan(workdir, captured, chosen.garment, chosen.path, placement, layout, marker,
-                program, report.data, wallpaper, chosen.fit, stages)
+                program, report.data, wallpaper, chosen.fit, stages, bites)
 
 
 def print_of(captured: Captured, config: Config, report: JobReport) -> Wallpaper:
@@ -175,7 +176,7 @@ def _place(job: Job, pattern: Pattern, wallpaper: Wallpaper, config: Config,
 
 def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workdir: Path,
                   config: Config, control: JobControl, report: JobReport
-                  ) -> tuple[Pattern, Layout]:
+                  ) -> tuple[Pattern, tuple[Layout, BitePlan | None]]:
     """(the pattern cut, its marker): the reshaped pattern if the cutter can use it, else,
     saying so, the aligned one (a reshaped outline crossing itself must not stop the job)."""
     seconds = config["nest"]["seconds"]
@@ -201,11 +202,13 @@ def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workd
 
 
 def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
-          options: dict[str, Any], progress, *, plain: bool = False) -> Layout:
-    """The marker of ``pattern``; placement.json and layout.json written beside it."""
+          options: dict[str, Any], progress, *, plain: bool = False
+          ) -> tuple[Layout, BitePlan | None]:
+    """(the marker of ``pattern``, its bites if longer than the table); placement.json
+    and layout.json written beside it."""
     placement.garment = str(pattern.path)
     placement.save(workdir / "placement.json")
-    layout = nest_placement(pattern.garment, placement, config, progress, options,
-                            plain=plain)
+    layout, bites = placed_marker(pattern.garment, placement, config, progress, options,
+                                  plain=plain)
     layout.save(workdir / "layout.json")
-    return layout
+    return layout, bites

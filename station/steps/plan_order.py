@@ -15,6 +15,8 @@ from pathlib import Path
 
 from gcode.machine import Machine
 from solver.garment import Garment
+from solver.nest.bites import BitePlan
+from solver.nest.layout import Layout
 from solver.placement import Placement
 from station.allowance import rules_for_job
 from station.config import Config
@@ -23,11 +25,13 @@ from station.jobstore import Job
 from station.order import OrderGarment, read_order
 from station.steps.capture import Captured
 from station.steps.garment import grained
-from station.steps.order import align_order, nest_order, order_problem, write_aligned
+from station.steps.nest import nest_in_window_or_bites
+from station.steps.order import align_order, order_problem, write_aligned
 from station.steps.place import align_job, plain_placement
 from station.steps.plan import JobReport, print_of
-from station.steps.program import fabric_origin, machine_layout, program_of
+from station.steps.program import planned_program
 from station.steps.records import Plan
+from station.steps.table import config_window
 from station.stripes import stripe_grain
 
 
@@ -64,25 +68,26 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
                                           "aligned"}
     report.step_done("align")
     control.checkpoint()
-    layout = _nest(aligned, config, job, control, plain=wallpaper is None)
+    layout, bites = _nest(aligned, config, job, control, plain=wallpaper is None)
     layout.save(workdir / "layout.json")
     report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
-                           "density": layout.density, "pieces": len(layout.pieces)}
+                           "density": layout.density, "pieces": len(layout.pieces),
+                           **({"bites": bites.summary()} if bites is not None else {})}
     report.step_done("nest")
     control.checkpoint()
     control.start_step("programming")
-    marker = machine_layout(layout, fabric_origin(config), str(workdir / "layout.json"))
-    program, _ = program_of(marker, machine, title=f"station {workdir.name}")
-    program.write(workdir / "job.nc")
+    marker, program = planned_program(layout, bites, config, machine, workdir)
     report.data["program"] = program.summary()
     report.step_done("program")
     first = aligned[0]
     return Plan(workdir, captured, first.garment, Path(job.garment), first.placement, layout,
-                marker, program, report.data, wallpaper)
+                marker, program, report.data, wallpaper, bites=bites)
 
 
-def _nest(aligned, config: Config, job: Job, control: JobControl, *, plain: bool):
-    """The order's verified marker within the station's nesting time."""
+def _nest(aligned, config: Config, job: Job, control: JobControl, *, plain: bool
+          ) -> tuple[Layout, BitePlan | None]:
+    """(the order's verified marker within the station's nesting time, its bites when it
+    is longer than the table window)."""
     n = config["nest"]
     control.start_step("nesting", 0.0)
     t0 = time.monotonic()
@@ -94,4 +99,4 @@ def _nest(aligned, config: Config, job: Job, control: JobControl, *, plain: bool
     problem = order_problem(aligned, width=n["width_mm"], length=n["length_mm"],
                             gap=n["gap_mm"], allowance=rules_for_job(config, job.options),
                             plain=plain)
-    return nest_order(problem, seconds=n["seconds"], progress=on_nest)
+    return nest_in_window_or_bites(problem, config_window(config), n["seconds"], on_nest)

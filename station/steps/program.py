@@ -17,8 +17,10 @@ from gcode.layout import LayoutPiece, Notch
 from gcode.machine import Machine, default_machine, load_machine
 from gcode.program import Program, build_program
 from gcode.toolpath import PieceToolpath, build_toolpaths
+from solver.nest.bites import BitePlan
 from solver.nest.layout import Layout, Placed
 from station.config import Config
+from station.steps.bites import RollTrack, save_bites
 
 #: decimals LAYOUT.json keeps; the marker in memory is rounded alike, so that a job
 #: resumed from the file cuts exactly the outlines of the one planned in memory
@@ -89,3 +91,16 @@ def program_of(layout: MachineLayout, machine: Machine, only: set[str] | None = 
     toolpaths)."""
     toolpaths = build_toolpaths(layout, machine, only=only)
     return build_program(toolpaths, machine, title=title, source=source), toolpaths
+
+
+def planned_program(layout: Layout, bites: BitePlan | None, config: Config, machine: Machine,
+                    workdir) -> tuple[MachineLayout, Program]:
+    """(the marker the plan hands on, its checked program, written to job.nc): the whole
+    marker, or, cut in bites, the first bite where it was planned (bites.json beside)."""
+    if bites is not None:
+        save_bites(bites, workdir / "bites.json")
+        layout = RollTrack().bite_layout(bites, bites.bites[0])
+    marker = machine_layout(layout, fabric_origin(config), str(workdir / "layout.json"))
+    program, _ = program_of(marker, machine, title=f"station {workdir.name}")
+    program.write(workdir / "job.nc")
+    return marker, program

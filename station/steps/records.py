@@ -12,6 +12,7 @@ from gcode.program import Program
 from solver.fit import FitReport
 from solver.garment import Garment
 from solver.garment.allowance import AllowanceRules
+from solver.nest.bites import BitePlan
 from solver.nest.layout import Layout
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
@@ -37,7 +38,9 @@ class Stage:
 class Plan:
     """What planning made: the pattern cut, its placement, the marker (the solver's and
     the machine's) and the checked program; what the pictures need (the print, the
-    stages of the fit); and the report. `record` is what the job store keeps."""
+    stages of the fit); and the report; ``bites`` when the marker is cut in bites (then
+    ``marker`` and ``program`` are the first bite's). `record` is what the job store
+    keeps."""
 
     job_dir: Path
     captured: Captured
@@ -51,6 +54,7 @@ class Plan:
     wallpaper: Wallpaper | None = None
     fit: FitReport | None = None
     stages: list[Stage] = field(default_factory=list)
+    bites: BitePlan | None = None  # a marker longer than the table: cut in these bites
 
     @property
     def pieces(self) -> list[str]:
@@ -63,4 +67,5 @@ class Plan:
                 "placement": str(d / "placement.json"), "layout": str(d / "layout.json"),
                 "program": str(d / "job.nc"), "report": str(d / "report.json"),
                 "pieces": self.pieces,
+                **({"bites": str(d / "bites.json")} if self.bites is not None else {}),
                 **({"garments": garments} if garments else {})}  # an order's: piece -> garment

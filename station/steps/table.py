@@ -37,12 +37,18 @@ class TableWindow:
         return self.y0 + self.width
 
 
+def config_window(config: Config) -> TableWindow:
+    """The window ``config`` asks for, unchecked (`table_window` checks it)."""
+    ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
+    nest = config["nest"]
+    return TableWindow(ox, oy, float(nest["length_mm"]), float(nest["width_mm"]))
+
+
 def table_window(config: Config, machine: Machine) -> TableWindow:
     """The checked window of ``config`` on ``machine``; a ConfigError names the keys and
     both numbers when the window leaves the work area."""
-    ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
-    nest = config["nest"]
-    window = TableWindow(ox, oy, float(nest["length_mm"]), float(nest["width_mm"]))
+    window = config_window(config)
+    ox, oy = window.x0, window.y0
     ax0, ay0, ax1, ay1 = (float(v) for v in machine.work_area)
     where = config.path or "station.toml"
     profile = machine.source

@@ -62,8 +62,8 @@ def test_the_marker_follows_the_cloth_through_every_advance():
         for placed, planned in zip(layout.pieces, (p for p in plan.layout.pieces
                                                    if p.id in bite.pieces)):
             # the cloth under the planned outline at the first bite (the roll's pose then
-            # was the identity, the marker ROLL_MARGIN_MM into the window)
-            cloth = planned.outline + [ROLL_MARGIN_MM, 0.0]
+            # was the identity, and the marker lay where it was planned on the print)
+            cloth = planned.outline
             err = np.hypot(*(placed.outline - _truth_window_points(conv, cloth)).T)
             assert err.max() < 0.3
             xs = placed.outline[:, 0]
@@ -81,7 +81,8 @@ def test_an_operator_is_asked_for_the_advance_in_mm():
     track = RollTrack()
     plan = plan_job_bites(_marker(), WINDOW, None)
     asked = OPERATOR_ADVANCE.format(mm=track.advance_for(plan.bites[1]))
-    assert asked == f"advance the fabric {plan.bites[1].start_mm:.1f} mm"
+    # the next bite begins ROLL_MARGIN_MM into the window, room for a slip backwards
+    assert asked == f"advance the fabric {plan.bites[1].start_mm - ROLL_MARGIN_MM:.1f} mm"
 
 
 def test_the_bites_keep_cloth_in_view_across_each_advance():

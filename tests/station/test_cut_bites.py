@@ -1,0 +1,165 @@
+"""The cut step bite by bite (issue 35): every piece cut once, in bite order, after each
+advance measured on the simulated roll; the operator's wait; a kill between bites."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simulators.fabric import random_print
+from simulators.roll import Conveyor, RollCamera, RollPrint
+from solver.nest import NestProblem, Piece
+from solver.nest.layout import build_layout
+from station.daemon import JobControl, JobInterrupted
+from station.jobstore import JobStore
+from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
+from station.steps.cutbites import BiteJournal, cut_in_bites
+from station.steps.table import TableWindow
+
+WINDOW = TableWindow(0.0, 0.0, 600.0, 400.0)
+
+
+class SimRoll:
+    """A roll on the simulated conveyor, counting the advances it was asked for."""
+
+    mm_per_px = 1.0
+
+    def __init__(self, conveyor: bool = True) -> None:
+        design = random_print("p2", 50.0, seed=4)
+        self.lattice = np.column_stack([design.wallpaper.w1, design.wallpaper.w2])
+        self.conveyor = Conveyor(pivot=(299.5, 199.5), seed=8)
+        self.camera = RollCamera(RollPrint(design, width=WINDOW.width), self.conveyor,
+                                 (WINDOW.x0, WINDOW.y0, WINDOW.x1, WINDOW.y1))
+        self.feeds: list[float] = []
+        self.feed = self._feed if conveyor else None
+
+    def _feed(self, mm: float) -> None:
+        self.feeds.append(mm)
+        self.conveyor.advance(mm)
+
+    def photograph(self) -> np.ndarray:
+        return self.camera.photograph()
+
+
+def _plan():
+    """Twelve 120 x 150 mm pieces in two rows, 0.8 m of marker: two bites of the window."""
+    pieces = [Piece(f"r{i}", [[0, 0], [120, 0], [120, 150], [0, 150]]) for i in range(12)]
+    problem = NestProblem(pieces, width=WINDOW.width, gap=5.0)
+    moves = [np.array([[1.0, 0.0, 5.0 + 130.0 * (i // 2)], [0.0, 1.0, 5.0 + 160.0 * (i % 2)]])
+             for i in range(12)]
+    return plan_job_bites(build_layout(problem, problem.items(), moves), WINDOW, None)
+
+
+def _job(tmp_path, plan):
+    store = JobStore(tmp_path / "jobs.db")
+    job = store.submit("squares.json", None, {})
+    store.set_pieces(job.id, [p.id for p in plan.layout.pieces])
+    return store, job
+
+
+def _cutter(store, job, calls):
+    """A cut that records every piece cut in the store (which refuses a second cut)."""
+    index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
+
+    def cut_bite(marker, pieces):
+        calls.append((marker, set(pieces)))
+        for name in sorted(pieces):
+            store.set_piece_state(job.id, index[name], "cut")
+
+    return cut_bite
+
+
+def _run(tmp_path, store, job, plan, roll, calls):
+    return cut_in_bites(job, tmp_path, plan, store, JobControl(job.id), roll=roll,
+                        lattice=roll.lattice,
+                        machine_marker=lambda track, bite: track.bite_layout(plan, bite),
+                        cut_bite=_cutter(store, job, calls))
+
+
+def test_each_bite_is_cut_once_where_the_roll_really_lies(tmp_path):
+    plan = _plan()
+    assert len(plan.bites) == 2
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(), []
+    measured = _run(tmp_path, store, job, plan, roll, calls)
+    assert [pieces for _, pieces in calls] == [set(b.pieces) for b in plan.bites]
+    assert all(p["state"] == "cut" for p in store.pieces(job.id))
+    assert {p["name"]: p["bite"] for p in store.pieces(job.id)} == plan.bite_of()
+    assert roll.feeds == [measured[1].advance_commanded_mm]
+    poses = roll.conveyor.poses
+    assert measured[1].advance_measured_mm == pytest.approx(poses[1].along - poses[0].along,
+                                                            abs=0.3)
+    assert measured[1].skew_deg == pytest.approx(poses[1].angle_deg, abs=0.05)
+    for marker, _ in calls:  # every piece within the window, margin kept, after the slip
+        xs = np.concatenate([p.outline[:, 0] for p in marker.pieces])
+        assert xs.min() > WINDOW.x0 and xs.max() < WINDOW.x1
+    report = (tmp_path / "report.json").read_text()
+    assert '"advance_measured_mm"' in report
+
+
+def test_without_a_conveyor_the_job_waits_for_the_operator(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(conveyor=False), []
+    with pytest.raises(JobInterrupted) as waiting:
+        _run(tmp_path, store, job, plan, roll, calls)
+    assert waiting.value.state == "paused"
+    mm = operator_advance_mm(waiting.value.reason)
+    assert mm == pytest.approx(plan.bites[1].start_mm - ROLL_MARGIN_MM, abs=0.05)
+    assert [pieces for _, pieces in calls] == [set(plan.bites[0].pieces)]
+    roll.conveyor.advance(mm)  # the operator's hands, slip included
+    measured = _run(tmp_path, store, job, plan, roll, calls)  # `station resume`
+    assert [pieces for _, pieces in calls] == [set(b.pieces) for b in plan.bites]
+    poses = roll.conveyor.poses
+    assert measured[1].advance_measured_mm == pytest.approx(poses[1].along, abs=0.3)
+
+
+def test_a_kill_right_after_the_advance_neither_advances_nor_cuts_twice(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(), []
+
+    def killed(mm: float) -> None:  # the conveyor moves, then the power goes
+        SimRoll._feed(roll, mm)
+        raise KeyboardInterrupt
+
+    roll.feed = killed
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, store, job, plan, roll, calls)
+    assert BiteJournal.load(tmp_path, plan).advancing == 1
+    roll.feed = roll._feed
+    _run(tmp_path, store, job, plan, roll, calls)  # the next daemon, same job folder
+    assert len(roll.feeds) == 1
+    assert [pieces for _, pieces in calls] == [set(b.pieces) for b in plan.bites]
+    assert all(p["state"] == "cut" for p in store.pieces(job.id))
+
+
+def test_a_kill_within_a_bite_resumes_it_on_the_same_marker(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(), []
+    index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
+    first_try = {}
+
+    cut_whole = _cutter(store, job, calls)
+
+    def cut_bite(marker, pieces):  # the second bite: two pieces cut, then the power goes
+        if not pieces <= set(plan.bites[1].pieces):
+            return cut_whole(marker, pieces)
+        first_try.update({p.id: p.outline for p in marker.pieces})
+        for name in sorted(pieces)[:2]:
+            store.set_piece_state(job.id, index[name], "cut")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        cut_in_bites(job, tmp_path, plan, store, JobControl(job.id), roll=roll,
+                     lattice=roll.lattice,
+                     machine_marker=lambda track, bite: track.bite_layout(plan, bite),
+                     cut_bite=cut_bite)
+    _run(tmp_path, store, job, plan, roll, calls)  # the next daemon
+    assert len(roll.feeds) == 1
+    marker, pieces = calls[-1]
+    assert pieces == set(sorted(plan.bites[1].pieces)[2:])  # only what was left
+    for p in marker.pieces:  # the journalled track: the very outlines of the first try
+        np.testing.assert_array_equal(p.outline, first_try[p.id])
+    assert all(p["state"] == "cut" for p in store.pieces(job.id))
