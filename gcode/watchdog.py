@@ -314,6 +314,9 @@ class Watchdog:
             return None
         if not (st.speed or 0.0) > 0:
             self._slow_since = None
+            if not (st.feed or 0.0) > 0:  # at rest, or the segment braking to it: under M4
+                self._dark_since = None  # a healthy beam is off there, a lost one not seen
+                return None
             return self._check_dark(inside, now)
         self._dark_since = None
         return self._judge_beam(st, inside, now, starved)

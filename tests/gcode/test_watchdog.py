@@ -270,3 +270,22 @@ def test_the_travel_before_a_deviation_shows_counts_the_line():
     for speed in (1.0, 50.0):
         interval = poll_interval(6000.0, speed, watch_mm=1.0)
         assert abs(catch_travel_mm(6000.0, interval, None, time_scale=speed) - 1.0) < 1e-9
+
+
+@pytest.mark.parametrize("feed,stops", [(0.0, False), (FEED, True)])
+def test_the_beam_off_mid_cut_stops_the_job_only_while_the_head_moves(feed, stops):
+    """Under M4 GRBL reports S0 whenever the prepared segment's speed is 0: a head braking to
+    rest mid-line (a sender that fell behind, a starved planner) is dark and healthy. A head
+    moving with the beam off is a lost M4, and must stop the job."""
+    wd = watchdog(square_program(), (0.0, 0.0))
+    start = np.array([20.0, 20.0])
+    assert drive(wd, [(np.array([0.0, 0.0]), start, False),
+                      (start, np.array([40.0, 20.0]), True)]) is None
+    xy, breach, t = np.array([40.0, 20.0]), None, 10.0
+    for _ in range(50):  # half a second of machine time, reported every 10 ms
+        t += 0.01
+        st = Status("Run", wpos=(40.0, 20.0, 0.0), feed=feed, speed=0.0, planner_free=5)
+        breach = breach or wd.check(st, xy, t, t)
+    assert (breach is not None) == stops
+    if stops:
+        assert breach.reason == StopReason.POWER and "beam off" in breach.detail
