@@ -175,7 +175,7 @@ def open_camera(source: int | str | None = None, *, simulate: bool = False,
     if simulate:
         if sim_factory is None:
             raise ValueError("a simulated camera needs sim_factory (e.g. "
-                             "station.pipeline.simulated_camera)")
+                             "station.simstation.simulated_camera)")
         return SimulatedCamera(sim_factory(), average=average)
     if source is None:
         raise ValueError("no camera source given (device index, video file or GStreamer "
