@@ -96,6 +96,15 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
         except BaseException:
             draw_fits(stages, captured, wallpaper)  # a failed job shows what it got to
             raise
+    marker, program = program_step(layout, bites, config, machine, workdir, control, report)
+    return Plan(workdir, captured, chosen.garment, chosen.path, placement, layout, marker,
+                program, report.data, wallpaper, chosen.fit, stages, bites)
+
+
+def program_step(layout: Layout, bites: BitePlan | None, config: Config, machine: Machine,
+                 workdir: Path, control: JobControl, report: JobReport):
+    """The nest's figures into the report, then the machine's program from the marker (one
+    garment's or a whole order's): the step after nesting, written once."""
     report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                            "density": layout.density, "pieces": len(layout.pieces),
                            **({"bites": bites.summary()} if bites is not None else {})}
@@ -105,8 +114,7 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
     marker, program = planned_program(layout, bites, config, machine, workdir)
     report.data["program"] = program.summary()
     report.step_done("program")
-    return Plan(workdir, captured, chosen.garment, chosen.path, placement, layout, marker,
-                program, report.data, wallpaper, chosen.fit, stages, bites)
+    return marker, program
 
 
 def print_of(captured: Captured, config: Config, report: JobReport) -> Wallpaper:

@@ -28,8 +28,7 @@ from station.steps.garment import grained
 from station.steps.nest import nest_in_window_or_bites
 from station.steps.order import align_order, order_problem, write_aligned
 from station.steps.place import align_job, plain_placement
-from station.steps.plan import JobReport, print_of
-from station.steps.program import planned_program
+from station.steps.plan import JobReport, print_of, program_step
 from station.steps.records import Plan
 from station.steps.table import config_window
 from station.stripes import stripe_grain
@@ -70,15 +69,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
     control.checkpoint()
     layout, bites = _nest(aligned, config, job, control, plain=wallpaper is None)
     layout.save(workdir / "layout.json")
-    report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
-                           "density": layout.density, "pieces": len(layout.pieces),
-                           **({"bites": bites.summary()} if bites is not None else {})}
-    report.step_done("nest")
-    control.checkpoint()
-    control.start_step("programming")
-    marker, program = planned_program(layout, bites, config, machine, workdir)
-    report.data["program"] = program.summary()
-    report.step_done("program")
+    marker, program = program_step(layout, bites, config, machine, workdir, control, report)
     first = aligned[0]
     return Plan(workdir, captured, first.garment, Path(job.garment), first.placement, layout,
                 marker, program, report.data, wallpaper, bites=bites)
