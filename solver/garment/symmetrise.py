@@ -14,7 +14,9 @@ by hand, relaxed by a simulator) into one piece cut once as drawn and once flipp
   another symmetrised piece (or across the centre line) is the exact mirror of the first
   piece's seam, and a seam to an unpaired piece is re-sewn edge for edge;
 * the second piece's drape is read off its old drape at the same places, and twin
-  vertices share one 3D point.
+  vertices share one 3D point;
+* the pattern's own curves (a specification's Beziers and arcs) go with the first piece's
+  edges and, mirrored, to the second's, so both are still cut on the curves.
 
 A pair whose seams do not correspond edge for edge (different sampling along a seam) is
 left as it is and reported, never forced.
@@ -274,8 +276,24 @@ def _rebuilt(g: Garment, pairs: Sequence[MirrorPair], averaged: dict[int, np.nda
     out = build_garment(uv, faces, point, xyz=xyz, source=g.source, kind=g.kind,
                         units_in_file=g.units_in_file, scale_recovered=g.scale_recovered,
                         piece_names=list(g.piece_names), grainlines=grainlines,
-                        notches=notches, twins=twins, panel_frames=g.panel_frames)
+                        notches=notches, twins=twins, panel_frames=g.panel_frames,
+                        edge_curves=_carried_curves(g, new_index, mirror_index))
     _keep_seam_lines(g, out)
+    return out
+
+
+def _carried_curves(g: Garment, new_index: np.ndarray, mirror_index: np.ndarray
+                    ) -> dict[tuple[int, int], np.ndarray]:
+    """The pattern's own curves (:attr:`Garment.edge_curves`) on the new mesh, so the cut
+    line still follows them: a kept or first piece keeps its own (chord coordinates bend
+    with its averaged chords), a second piece takes its first's, mirrored. A reflection
+    keeps each point's share ``s`` along the chord and flips its side ``h``."""
+    out = {}
+    for (a, b), rel in g.edge_curves.items():
+        if new_index[a] >= 0 and new_index[b] >= 0:
+            out[(int(new_index[a]), int(new_index[b]))] = rel
+        if mirror_index[a] >= 0 and mirror_index[b] >= 0:
+            out[(int(mirror_index[a]), int(mirror_index[b]))] = rel * np.array([1.0, -1.0])
     return out
 
 
