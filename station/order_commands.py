@@ -174,7 +174,8 @@ def run_nest(args: argparse.Namespace, config) -> int:
         order, aligned = read_aligned(path)
     problem = order_problem(aligned, width=args.width or config["nest"]["width_mm"],
                             length=args.length, gap=args.gap,
-                            allowance=allowance_rules(args, config), fabric=fabric,
+                            allowance=order.rules(allowance_rules(args, config)),
+                            fabric=fabric,
                             plain=args.plain,
                             keepouts=load_keepouts(args.keepout) if args.keepout else None)
     try:

@@ -49,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-stripe-matching", action="store_true",
                    help="on a stripe print, nest on the stripes' grain without matching the "
                    "stripes across the seams (default: matched, as a 1-D print)")
+    p.add_argument("--match-notches", action="store_true",
+                   help="on a print, put the balance notches where its lattice lines cross "
+                   "each seam (the plaid's match points), not every ~200 mm")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -131,6 +134,8 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
         options["match_stripes"] = False
     if args.symmetrise:
         options["symmetrise"] = True
+    if args.match_notches:
+        options["match_notches"] = True
     if args.pairs:
         options["pairs"] = read_json(args.pairs)
     return options

@@ -11,6 +11,7 @@ with the order and its size ratio) and the toolpath.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from gcode.machine import Machine
@@ -38,6 +39,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
                control: JobControl) -> Plan:
     """Align every garment of the order, nest them in one marker, program it."""
     order = read_order(job.garment)
+    job = replace(job, options=order.job_options(job.options))  # the order's match_notches
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment,
                                                  "order": order.to_dict()})
     kind = captured.fabric.get("kind")

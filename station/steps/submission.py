@@ -18,7 +18,9 @@ from station.steps.garment import grained
 
 JOB_OPTIONS = frozenset({"units", "size", "reshape", "method", "restarts", "seed", "grain_lines",
                          "bias", "seam_allowance", "allowance", "symmetry", "pairs",
-                         "symmetrise"})
+                         "symmetrise", "match_notches", "match_stripes"})
+#: job options that are true or false, and their default
+FLAGS = {"symmetry": True, "symmetrise": False, "match_notches": False, "match_stripes": True}
 
 
 def check_job(garment: str, fabric: str | None, options: dict[str, Any],
@@ -45,8 +47,8 @@ def check_job(garment: str, fabric: str | None, options: dict[str, Any],
         warnings.simplefilter("ignore")
         grained(loaded, config, options)  # names every piece that does not exist
     edge_allowances(loaded, rules_for_job(config, options), ())  # names must exist
-    for key in ("symmetry", "symmetrise"):
-        if not isinstance(options.get(key, key == "symmetry"), bool):
+    for key, default in FLAGS.items():
+        if not isinstance(options.get(key, default), bool):
             raise ValueError(f"job option {key} must be true or false")
     if "pairs" in options:
         pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
