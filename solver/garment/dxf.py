@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -323,6 +323,15 @@ def _decisions(pieces: list[DxfPiece], sample: str | None) -> list[str]:
                     f"{', '.join(sorted(set(got)))}" for what, got in groups.items()]
 
 
+def _line_notes(pieces: list[DxfPiece]) -> list[str]:
+    """Where the lines the station cuts and sews on come from, one line per source."""
+    sources = Counter(p.sew_source or "none: the piece is sewn on its cut line"
+                      for p in pieces)
+    return ["cut line: the file's layer 1, as the pattern maker drew it (the allowance "
+            "it carries is the file's)",
+            *(f"sew line of {n} piece(s): {src}" for src, n in sources.items())]
+
+
 def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
                      units: str | None = None, allowance_mm: float | None = None,
                      allowance_from: str = "--seam-allowance",
@@ -357,5 +366,5 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
         p = unfold(p) if unfold_folds else p
         p = replace(p, quantity=1) if p.quantity < 0 else p
         pieces.append(_with_sew(p, allowance_mm, allowance_from, str(path)))
-    notes = [f"units: {unit_note}", *_decisions(pieces, sample)]
+    notes = [f"units: {unit_note}", *_decisions(pieces, sample), *_line_notes(pieces)]
     return DxfPattern(pieces, sizes, sample, unit_note.split()[0], str(path), notes)
