@@ -52,6 +52,8 @@ def load_garment_arg(args: argparse.Namespace, **options):
     path = Path(args.garment)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such garment file")
+    if path.suffix.lower() == ".dxf":  # a sew line the file lacks: inset by this
+        options["seam_allowance_mm"], options["allowance_from"] = dxf_allowance(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         garment = load_garment(path, units=args.units, size=getattr(args, "size", None),
@@ -64,6 +66,17 @@ def load_garment_arg(args: argparse.Namespace, **options):
               f"whole pattern spans only {extent:.3g} mm; if the file is in metres pass "
               "--units m", file=sys.stderr)
     return garment
+
+
+def dxf_allowance(args: argparse.Namespace) -> tuple[float, str]:
+    """(mm, where from) a DXF's cut line is inset by where the file gives no sew line nor
+    allowance: the command's --seam-allowance, else station.toml's allowance.seam_mm."""
+    given = getattr(args, "seam_allowance", None)
+    if given is not None and not given >= 0:
+        raise ValueError(f"--seam-allowance must be >= 0, got {given:g}")
+    if given is not None:
+        return float(given), "--seam-allowance"
+    return float(load_config_arg(args)["allowance"]["seam_mm"]), "station.toml allowance.seam_mm"
 
 
 def load_fabric(path: str | Path) -> Wallpaper:

@@ -18,16 +18,16 @@ import cv2
 import numpy as np
 
 from solver.garment.dxf import DxfPattern, read_dxf_pattern
-from solver.garment.dxf_garment import garment_of_pattern
+from solver.garment.dxf_garment import DEFAULT_ALLOWANCE_MM, garment_of_pattern
 from solver.garment.model import Garment
 from solver.seams import Seam, SewPiece
 from solver.seams.outline import point_at, sub_loop
+from station.cliargs import dxf_allowance
 
 __all__ = ["DxfInspection", "add_dxf_arguments", "draw_seams", "inspect_dxf"]
 
 PIECE_GAP_MM = 60.0
 UNSURE = 0.5  # a seam less confident than this is marked "?" (station.toml seams.confirm_below)
-DEFAULT_ALLOWANCE_MM = 10.0  # a sew line the file lacks: its cut line inset by this
 
 
 @dataclass
@@ -104,14 +104,16 @@ def read_dxf(path: str | Path, *, size: str | None = None, units: str | None = N
     return DxfInspection(pattern, *garment_of_pattern(pattern, seams))
 
 
-def inspect_dxf(args: argparse.Namespace, allowance_mm: float = DEFAULT_ALLOWANCE_MM
-                ) -> DxfInspection:
-    """Read ``args.garment`` (a DXF) at ``args.size``, infer its seams with ``args.seams``;
-    the reader's warnings go to stderr, one line each, so ``--json`` stays clean."""
+def inspect_dxf(args: argparse.Namespace) -> DxfInspection:
+    """Read ``args.garment`` (a DXF) at ``args.size``, infer its seams with ``args.seams``
+    (a sew line the file lacks: inset by `station.cliargs.dxf_allowance`); the reader's
+    warnings go to stderr, one line each, so ``--json`` stays clean."""
+    allowance_mm, allowance_from = dxf_allowance(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         found = read_dxf(args.garment, size=getattr(args, "size", None), units=args.units,
-                         allowance_mm=allowance_mm, seams=getattr(args, "seams", None))
+                         allowance_mm=allowance_mm, allowance_from=allowance_from,
+                         seams=getattr(args, "seams", None))
     for w in caught:
         print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
     return found

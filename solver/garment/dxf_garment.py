@@ -28,6 +28,7 @@ from solver.seams.outline import point_at
 __all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
 
 RESOLUTION_MM = 20.0  # boundary sample spacing of the mesh
+DEFAULT_ALLOWANCE_MM = 10.0  # a sew line the file lacks: its cut line inset by this
 SEW_INSIDE_MM = 0.5  # a sew line may touch its cut line (no allowance), not cross it
 GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
 
@@ -143,7 +144,13 @@ def _file_cut_lines(cut: list[DxfPiece], pieces: list[SewPiece], shifts: list[np
 
 
 def load_dxf(path: str | Path, *, units: str | None = None, size: str | None = None,
-             allowance_mm: float = 10.0) -> Garment:
-    """A DXF-AAMA/ASTM file as a garment (sample size unless ``size``), seams inferred."""
-    pattern = read_dxf_pattern(path, size=size, units=units, allowance_mm=allowance_mm)
+             allowance_mm: float | None = None, allowance_from: str = "--seam-allowance"
+             ) -> Garment:
+    """A DXF-AAMA/ASTM file as a garment (sample size unless ``size``), seams inferred; a
+    sew line the file lacks is its cut line inset by ``allowance_mm`` (default
+    :data:`DEFAULT_ALLOWANCE_MM`), whose origin ``allowance_from`` names."""
+    if allowance_mm is None:
+        allowance_mm, allowance_from = DEFAULT_ALLOWANCE_MM, "the default seam allowance"
+    pattern = read_dxf_pattern(path, size=size, units=units, allowance_mm=allowance_mm,
+                               allowance_from=allowance_from)
     return garment_of_pattern(pattern)[0]
