@@ -45,6 +45,7 @@ from solver.garment.symmetry import (
 from solver.geometry import closest_on_polygon, signed_areas
 
 _KEPT, _FIRST, _SECOND = 0, 1, 2
+CUT_KEPT_MM = 0.5  # a file's cut line still holds its sew line moved this little
 
 
 @dataclass(frozen=True)
@@ -110,8 +111,10 @@ def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
         exact = [MirrorPair(q.first, q.second, 0.0, q.size_mm, q.rotation, q.translation,
                             declared=True)
                  for q in (given[frozenset((p.first, p.second))] for p in todo)]
-        return Symmetrised(out, sorted(done + exact, key=lambda p: p.first),
-                           _moves(garment, out, todo), _sorted(skipped))
+        moves = _moves(garment, out, todo)
+        out.cut_outlines = _carried_cut_lines(garment, todo, moves)
+        return Symmetrised(out, sorted(done + exact, key=lambda p: p.first), moves,
+                           _sorted(skipped))
     return Symmetrised(garment.copy(), done, [], _sorted(skipped))
 
 
@@ -294,6 +297,22 @@ def _carried_curves(g: Garment, new_index: np.ndarray, mirror_index: np.ndarray
             out[(int(new_index[a]), int(new_index[b]))] = rel
         if mirror_index[a] >= 0 and mirror_index[b] >= 0:
             out[(int(mirror_index[a]), int(mirror_index[b]))] = rel * np.array([1.0, -1.0])
+    return out
+
+
+def _carried_cut_lines(g: Garment, pairs: Sequence[MirrorPair], moves: list[PieceMove]
+                       ) -> dict[int, np.ndarray]:
+    """The cut lines a file drew (:attr:`Garment.cut_outlines`) where symmetrising left
+    the sew lines in place, as it does a CAD's left and right (mirror copies already): a
+    piece not symmetrised keeps its own, a pair's second takes its first's, mirrored. A
+    pair moved farther than :data:`CUT_KEPT_MM` is cut on the station's allowance."""
+    moved = {m.piece: m.max_mm for m in moves}
+    out = {i: ring for i, ring in g.cut_outlines.items() if i not in moved}
+    for p in pairs:
+        if p.first in g.cut_outlines and max(moved.get(p.first, 0.0),
+                                             moved.get(p.second, 0.0)) <= CUT_KEPT_MM:
+            out[p.first] = g.cut_outlines[p.first]
+            out[p.second] = p.map_first_to_second(g.cut_outlines[p.first])[::-1]
     return out
 
 

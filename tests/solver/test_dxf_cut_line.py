@@ -19,6 +19,8 @@ import shapely
 from solver.garment import load_garment
 from solver.garment.allowance import AllowanceRules, cut_lines
 from solver.garment.dxf import read_dxf_pattern
+from solver.garment.symmetrise import symmetrise
+from solver.garment.symmetry import mirror_pairs
 from solver.nest.sources import placement_problem
 from solver.placement import Placement
 from solver.seams.export import export_cad_dxf
@@ -108,3 +110,18 @@ def test_inspect_says_where_the_lines_come_from(shared_data, tmp_path, monkeypat
            "carries is the file's)" in notes
     assert "sew line of 7 piece(s): the cut line inset by 12 mm (station.toml " \
            "allowance.seam_mm)" in notes
+
+
+def test_symmetrised_pairs_keep_the_files_cut_lines(tee_dxf) -> None:
+    """A CAD's left and right are mirror copies: ``--symmetrise`` hardly moves them, so
+    both are still cut on the file's line (the second on its first's, mirrored)."""
+    g = read_dxf(tee_dxf, allowance_mm=10.0).garment
+    sym = symmetrise(g, mirror_pairs(g))
+    h = sym.garment
+    assert len(sym.pairs) == 2 and sym.moves and sorted(h.cut_outlines) == sorted(g.cut_outlines)
+    worst = max(m.max_mm for m in sym.moves)
+    for p in sym.pairs:
+        was = shapely.LinearRing(g.cut_outlines[p.second])
+        now = shapely.LinearRing(h.cut_outlines[p.second])
+        assert shapely.hausdorff_distance(was, now) <= 2 * worst + 0.05
+    assert all(np.median(c.allowance) == pytest.approx(10.0, abs=0.1) for c in cut_lines(h))
