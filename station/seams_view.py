@@ -16,6 +16,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import shapely
 
 from solver.garment.dxf import DxfPattern, read_dxf_pattern
 from solver.garment.dxf_garment import DEFAULT_ALLOWANCE_MM, garment_of_pattern
@@ -38,6 +39,22 @@ class DxfInspection:
     garment: Garment
     seams: list[Seam]
     pieces: list[SewPiece]
+
+    def folds(self) -> list[tuple[int, np.ndarray]]:
+        """(piece, (2,2) line) of each piece cut on the fold: its mirror line (layer 6)
+        across its sew line, the piece's centre seam with itself."""
+        out = []
+        for i, (p, sew) in enumerate(zip(self.pattern.cut_list(), self.pieces, strict=True)):
+            if p.fold is None or not np.ptp(p.fold, axis=0).any():
+                continue
+            d = (p.fold[1] - p.fold[0]) / np.linalg.norm(p.fold[1] - p.fold[0])
+            reach = float(np.ptp(sew.loop, axis=0).sum())  # the line, long enough to cross
+            across = shapely.LineString([p.fold[0] - reach * d, p.fold[0] + reach * d])
+            inside = shapely.Polygon(sew.loop).intersection(across)
+            if not inside.is_empty and inside.length > 0:
+                ends = np.asarray(shapely.get_coordinates(inside))[[0, -1]]
+                out.append((i, ends))
+        return out
 
     def unsure(self, below: float) -> list[int]:
         """The numbers (1..) of the seams less confident than ``below``."""
@@ -74,6 +91,11 @@ class DxfInspection:
                        "piece_b": self.pieces[s.piece_b].name,
                        "length_mm": round(s.length_mm, 1), "confidence": s.confidence,
                        "source": s.source} for k, s in enumerate(self.seams)],
+            "centre_seams": [{"piece": self.pieces[i].name,
+                              "line": np.round(line, 3).tolist(),
+                              "length_mm": round(float(np.linalg.norm(line[1] - line[0])), 1),
+                              "source": "fold (layer 6): the piece mirrored onto itself"}
+                             for i, line in self.folds()],
         }
 
 
@@ -137,16 +159,28 @@ def seams_document(found: DxfInspection) -> dict:
             "not_seams": []}
 
 
+def _dashed(image: np.ndarray, ends: np.ndarray, colour: tuple[int, int, int],
+            dash_px: float = 8.0) -> None:
+    """A dashed straight line between the two pixel points ``ends``."""
+    n = max(int(np.linalg.norm(ends[1] - ends[0]) / dash_px), 1)
+    pts = ends[0] + np.linspace(0.0, 1.0, n + 1)[:, None] * (ends[1] - ends[0])
+    for a, b in zip(pts[:-1:2], pts[1::2], strict=False):
+        cv2.line(image, tuple(int(v) for v in a), tuple(int(v) for v in b), colour, 2,
+                 cv2.LINE_AA)
+
+
 def _colour(k: int) -> tuple[int, int, int]:
     r, g, b = colorsys.hsv_to_rgb((k * 0.618034) % 1.0, 0.85, 0.85)
     return int(255 * b), int(255 * g), int(255 * r)
 
 
 def draw_seams(pieces: list[SewPiece], seams: list[Seam], path: str | Path, *,
-               width_px: int = 1800, unsure_below: float = UNSURE) -> None:
+               width_px: int = 1800, unsure_below: float = UNSURE,
+               folds: list[tuple[int, np.ndarray]] = ()) -> None:
     """Every piece in a row (sew line in grey) and every seam in its own colour on both of
     its pieces, numbered at its middle on each, as the ``seams`` list numbers them (1..);
-    the number of a seam less confident than ``unsure_below`` carries a "?"."""
+    the number of a seam less confident than ``unsure_below`` carries a "?". A piece cut on
+    the fold shows its centre line (``folds``: `DxfInspection.folds`) dashed."""
     shifts, x = [], 0.0
     for p in pieces:
         lo = p.loop.min(0)
@@ -166,6 +200,11 @@ def draw_seams(pieces: list[SewPiece], seams: list[Seam], path: str | Path, *,
         at = px(p.loop.mean(0, keepdims=True), i)[0]
         cv2.putText(image, p.name[:24], (int(at[0]) - 40, int(at[1])),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
+    for i, line in folds:
+        _dashed(image, px(line, i), (160, 90, 0))
+        at = px(line.mean(0, keepdims=True), i)[0]
+        cv2.putText(image, "fold", (int(at[0]) + 4, int(at[1])), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.45, (160, 90, 0), 1, cv2.LINE_AA)
     for k, s in enumerate(seams):
         for i, span in ((s.piece_a, (s.a_start, s.a_end)), (s.piece_b, (s.b_start, s.b_end))):
             line = px(sub_loop(pieces[i], *span), i)

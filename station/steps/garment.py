@@ -106,7 +106,8 @@ def dxf_job_garment(job: Job, workdir: Path, config: Config) -> Garment:
         confirmed.unlink()  # the operator's file does not fit the pattern: ask again
         raise JobInterrupted("paused", f"{CONFIRM_SEAMS}: the seams sent were refused "
                              f"({exc}); {again}") from None
-    draw_seams(found.pieces, found.seams, workdir / SEAMS_PICTURE, unsure_below=below)
+    draw_seams(found.pieces, found.seams, workdir / SEAMS_PICTURE, unsure_below=below,
+               folds=found.folds())
     (workdir / SEAMS_FOUND).write_text(json.dumps(seams_document(found), indent=2))
     unsure = found.unsure(below)
     if unsure and not confirmed.is_file():

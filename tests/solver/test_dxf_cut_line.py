@@ -125,3 +125,25 @@ def test_symmetrised_pairs_keep_the_files_cut_lines(tee_dxf) -> None:
         now = shapely.LinearRing(h.cut_outlines[p.second])
         assert shapely.hausdorff_distance(was, now) <= 2 * worst + 0.05
     assert all(np.median(c.allowance) == pytest.approx(10.0, abs=0.1) for c in cut_lines(h))
+
+
+def test_a_fold_is_listed_as_the_pieces_centre_seam(shared_data) -> None:
+    """The tee's front and back are cut on the fold: each mirror line is listed as the
+    piece's centre seam with itself, across its whole sew line, and it is the axis the
+    unfolded piece is symmetric about."""
+    found = read_dxf(shared_data / "garments" / "astm_aama_dxf" / "MEN_CLASSIC_TEE.DXF")
+    folds = found.folds()
+    assert [found.pieces[i].name for i, _ in folds] == ["REGULAR_TEEFR", "REGULAR_TEEBK"]
+    listed = found._facts()["centre_seams"]
+    assert [c["piece"] for c in listed] == ["REGULAR_TEEFR", "REGULAR_TEEBK"]
+    for (i, line), item in zip(folds, listed, strict=True):
+        sew = found.pieces[i].loop
+        a, b = line
+        d = (b - a) / np.linalg.norm(b - a)
+        mirrored = a + (sew - a) @ (2 * np.outer(d, d) - np.eye(2))
+        assert shapely.hausdorff_distance(shapely.Polygon(sew), shapely.Polygon(mirrored)) < 0.5
+        # it runs from edge to edge of the sew line: both ends on it
+        ring = shapely.LinearRing(sew)
+        assert max(shapely.distance(shapely.points(line), ring)) < 1e-6
+        assert item["length_mm"] == pytest.approx(np.linalg.norm(b - a), abs=0.1)
+        assert item["length_mm"] > 500
