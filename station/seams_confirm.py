@@ -5,8 +5,10 @@ one is unsure, the job waits with the seams drawn numbered in ``seams.png`` and 
 ``seams.json`` (a ``--seams`` file: pieces by name, edge ends as points). The operator
 accepts them as they are, or sends a corrected file; either becomes the job's
 ``seams-confirmed.json``, which planning then reads as the operator's word (declared
-seams, vetoes) and does not ask again. The file's shape and piece names are checked here,
-before the job goes on; its points are checked against the pattern when planning reads it.
+seams, vetoes) and does not ask again. Seams sent with the job (``station submit P.dxf
+--seams S.json``, job option ``seams``) are the operator's word from the start. The
+file's shape and piece names are checked here, before the job goes on; its points are
+checked against the pattern when planning reads it.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import Any
 
 import untrusted
 
-__all__ = ["SEAMS_CONFIRMED", "SEAMS_FOUND", "SEAMS_PICTURE", "confirm_seams"]
+__all__ = ["SEAMS_CONFIRMED", "SEAMS_FOUND", "SEAMS_PICTURE", "checked_seams", "confirm_seams"]
 
 SEAMS_FOUND = "seams.json"  # the seams as inferred, in the --seams form
 SEAMS_CONFIRMED = "seams-confirmed.json"  # the operator's word: planning reads it
@@ -35,16 +37,16 @@ def confirm_seams(folder: Path, correction: Any = None) -> str:
     if correction is None:
         doc, message = found, f"seams confirmed as found ({len(found.get('seams', []))})"
     else:
-        doc = _checked(correction, pieces)
+        doc = checked_seams(correction, pieces, "the seams sent")
         message = (f"seams corrected by the operator ({len(doc.get('seams', []))} declared, "
                    f"{len(doc.get('not_seams', []))} vetoed)")
     (folder / SEAMS_CONFIRMED).write_text(json.dumps(doc, indent=2))
     return message
 
 
-def _checked(doc: Any, pieces: set[str]) -> dict[str, Any]:
-    """A ``--seams`` document whose every piece the job has (the rest when planning)."""
-    src = "the seams sent"
+def checked_seams(doc: Any, pieces: set[str], src: str) -> dict[str, Any]:
+    """A ``--seams`` document (sent by value, called ``src`` in errors) whose every piece
+    the job has; its points are checked against the pattern when planning reads it."""
     doc = untrusted.mapping(doc, src)
     unknown = sorted(set(doc) - {"seams", "not_seams", "pieces"})
     if unknown:

@@ -42,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
     p.add_argument("--pairs", metavar="P.json",
                    help="declare or veto left/right pairs for this job (sent by value)")
+    p.add_argument("--seams", metavar="S.json",
+                   help="a DXF pattern's seams, declared or vetoed as `station inspect "
+                   "--seams` takes them (sent by value): the job does not ask to confirm them")
     p.add_argument("--symmetrise", action="store_true",
                    help="cut each near left/right pair as one pattern, the average of the two")
     p.add_argument("--no-symmetry", action="store_true",
@@ -138,4 +141,6 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
         options["match_notches"] = True
     if args.pairs:
         options["pairs"] = read_json(args.pairs)
+    if args.seams:
+        options["seams"] = read_json(args.seams)
     return options

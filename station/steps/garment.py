@@ -91,10 +91,12 @@ def job_garment(job: Job, workdir: Path, config: Config
 def dxf_job_garment(job: Job, workdir: Path, config: Config) -> Garment:
     """A job's DXF pattern with its seams as the operator confirmed them, else inferred;
     every seam drawn numbered (seams.png) and listed as a ``--seams`` file (seams.json).
-    Unsure seams (under ``seams.confirm_below``) not yet confirmed hold the job at
-    "confirm seams"; a sew line the file lacks is its cut line inset by the job's seam
-    allowance (station.toml's unless the job gives one)."""
+    Unsure seams (under ``seams.confirm_below``) not yet confirmed (nor sent with the
+    job: option ``seams``) hold the job at "confirm seams"; a sew line the file lacks is
+    its cut line inset by the job's seam allowance (station.toml's unless it gives one)."""
     confirmed = workdir / SEAMS_CONFIRMED
+    if job.options.get("seams") is not None and not confirmed.is_file():
+        confirmed.write_text(json.dumps(job.options["seams"]))  # sent with the job
     below = float(config["seams"]["confirm_below"])
     again = f"see {SEAMS_PICTURE} and {SEAMS_FOUND}, then `station confirm {job.id}` " \
             "[--seams S.json]"

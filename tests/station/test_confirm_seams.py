@@ -22,6 +22,7 @@ from station.control import ControlError, request
 from station.daemon import CONFIRM_SEAMS, Daemon, JobControl, wait_until
 from station.jobstore import Job
 from station.steps.garment import dxf_job_garment
+from station.steps.submission import check_job
 from station.web.feed import Feed
 from station.web.jobview import JobFiles
 
@@ -142,3 +143,22 @@ def test_a_correction_is_checked_then_planned_with(station, tmp_path, capsys):
     pairs = _pairs(pipeline.planned[-1])
     assert frozenset((sleeves["a"], sleeves["b"])) not in pairs
     assert frozenset(("front", "back")) in pairs
+
+
+def test_seams_sent_with_the_job_are_not_asked_again(station, tee_dxf, data_dir) -> None:
+    _, pipeline, sock, first, folder = station
+    found = json.loads((folder / "seams.json").read_text())
+    sleeves = next(s for s in found["seams"] if s["confidence"] < BELOW)
+    veto = {"not_seams": [[sleeves["a"], sleeves["b"]]]}
+    config = load_config(None)
+    with pytest.raises(ValueError, match="no piece 'collar'"):
+        check_job(str(tee_dxf), None, {"seams": {"not_seams": [["front", "collar"]]}}, config)
+    obj = str(data_dir / "garments" / "berkeley" / "pants-coarse.obj")
+    with pytest.raises(ValueError, match="job option seams is for a DXF pattern"):
+        check_job(obj, None, {"seams": veto, "units": "m"}, config)
+    # while the first job waits, one sent with its seams is planned and cut without asking
+    job = request(sock, "submit", garment=str(tee_dxf), fabric=None,
+                  options={"seams": veto})["job"]["id"]
+    assert wait_until(lambda: _state(sock, job)["state"] == "done", 10)
+    assert frozenset((sleeves["a"], sleeves["b"])) not in _pairs(pipeline.planned[-1])
+    assert _state(sock, first)["state"] == "paused"
