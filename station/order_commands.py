@@ -21,7 +21,8 @@ from solver.garment import Garment
 from solver.nest.regions import load_keepouts
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
-from station.cliargs import allowance_rules, fabric_grain_deg, grain_tolerance
+from station.cliargs import fabric_grain_deg, grain_tolerance
+from station.cliload import allowance_rules
 from station.errors import UserError
 from station.order import Order, OrderGarment, is_order_file, read_order
 from station.render import draw_fit, draw_marker, fabric_picture

@@ -19,10 +19,10 @@ from station import order_commands as order_command
 from station.cliargs import (
     add_allowance_arguments,
     add_config_argument,
-    allowance_rules,
     load_config_arg,
     picture_path,
 )
+from station.cliload import allowance_rules
 from station.errors import UserError
 from station.render import draw_marker
 
