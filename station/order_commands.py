@@ -185,7 +185,7 @@ def run_nest(args: argparse.Namespace, config) -> int:
     layout.save(args.output)
     counts = pieces_per_garment(layout.pieces)
     if args.png:
-        draw_marker(layout.to_dict(), args.png,
+        draw_marker(layout, args.png,
                     title=f"order {order.name}, sizes {order.ratio_text()}")
     summary = {"order": order.name, "ratio": order.ratio(), "length": round(layout.length, 6),
                "width": layout.width, "density": round(layout.density, 6),

@@ -128,7 +128,7 @@ def run(args) -> int:
               f"window is {config['nest']['width_mm']:g} mm across (station.toml [nest] "
               "width_mm): station gcode will refuse it", file=sys.stderr)
     if args.png:
-        draw_marker(layout.to_dict(), args.png)
+        draw_marker(layout, args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),
                "seconds": round(seconds, 3), "startup_seconds": round(startup, 3),
