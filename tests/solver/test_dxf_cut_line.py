@@ -26,7 +26,7 @@ from solver.placement import Placement
 from solver.seams.export import export_cad_dxf
 from solver.wallpaper import Wallpaper
 from station.cli import main
-from station.cliargs import load_garment_arg
+from station.cliload import load_garment_arg
 from station.config import load_config
 from station.seams_view import read_dxf
 from station.steps.garment import dxf_job_garment
