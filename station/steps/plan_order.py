@@ -61,7 +61,8 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
         return align_job(garment, wallpaper, config, job.options,
                          fabric_grain_deg=report.data["fabric"].get("grain_deg"))
 
-    aligned = align_order(order, align_one)
+    inset = (rules_for_job(config, job.options).seam_mm, "the station's seam allowance")
+    aligned = align_order(order, align_one, inset)
     write_aligned(order, aligned, workdir / "placement.json")
     report.data["garments"] = [a.report() for a in aligned]
     if config["reshape"]["enabled"]:  # said in the job's report, never silently skipped

@@ -28,8 +28,10 @@ from solver.wallpaper import Wallpaper
 from station.cli import main
 from station.cliload import load_garment_arg
 from station.config import load_config
+from station.order import OrderGarment
 from station.seams_view import read_dxf
 from station.steps.garment import dxf_job_garment
+from station.steps.order import load_order_garment
 
 GPG_TEE = Path(__file__).resolve().parents[1] / "data" / "garments" / \
     "garment_pattern_generator" / "tee.json"  # MIT, bundled
@@ -97,6 +99,9 @@ def test_the_sew_line_inset_comes_from_the_job_or_the_station(tee_dxf, tmp_path)
                               seam_allowance=8.0)
     g = load_garment_arg(args)
     assert np.median(cut_lines(g)[0].allowance) == pytest.approx(8.0, abs=0.05)
+    # an order's garment: the inset the daemon's plan and the order commands hand it
+    g = load_order_garment(OrderGarment(tee_dxf, None, 1), (9.0, "the station's"))
+    assert np.median(cut_lines(g)[0].allowance) == pytest.approx(9.0, abs=0.05)
 
 
 def test_inspect_says_where_the_lines_come_from(shared_data, tmp_path, monkeypatch,
