@@ -28,6 +28,7 @@ from station.daemon import setup_logging
 from station.fleetdemo import run as run_fleet
 from station.order import is_order_file, read_order
 from station.progress import follow
+from station.simseams import measure_seams
 from station.simstation import (
     SimulatedRoll,
     copy_job_files,
@@ -133,13 +134,16 @@ def run(args: argparse.Namespace) -> int:
         fabric = read_json_or_empty(workdir / "fabric.json")
         pieces = pieces_cut(daemon.store.pieces(job), events)
         roll = daemon.pipeline.roll
-        truth = roll.truth() if isinstance(roll, SimulatedRoll) else None
+        simulated = isinstance(roll, SimulatedRoll)
+        truth = roll.truth() if simulated else None
+        seams = measure_seams(workdir, roll.print, roll.conveyor.poses) if simulated else {}
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
     summary["bites"] = plan_report.get("bites")
     summary["advances_truth"] = truth  # the simulated conveyor's, slips included
     summary["pieces"] = pieces
+    summary.update(seams)  # the print across the seams as cut on the simulated cloth
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,

@@ -1,0 +1,187 @@
+"""The print's mismatch across the seams as really cut on the simulated roll (issue 35).
+
+Simulation side only (`station demo`): it reads the simulator's truth, which production
+never has. For every seam edge of every garment of an order, the midpoint seen on both
+sides (as E_fit takes them, `solver.fit.seam_midpoints`) is carried pattern -> window by
+the map each piece was cut with (``bite-K-pieces.json``, written by the bite loop from
+the markers it handed to the cut), window -> cloth by the simulated conveyor's real pose
+at that bite, and cloth -> the print's design by `simulators.roll.RollPrint`; the two
+sides' design points are compared by the print's own symmetry (`Wallpaper.mismatch`).
+
+Per seam edge, the print's mismatch across the seam as cut on the cloth (under the
+print's true symmetry), and as planned (the marker on the print as detected, under the
+detected symmetry: the alignment's own residual, since a tee's seams cannot all match a
+plaid whatever the cut). The figures are given over every seam edge and over the edges
+the plan matched (within `MATCHED_MM`), where all that is left is what the cut did.
+
+"Uncompensated" is the same cut as if each bite had been cut where it was planned: the
+marker moved by the commanded advances only, no re-registration, no local maps, on the
+same real poses of the roll.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simulators.roll import Pose, RollPrint
+from solver.fit import seam_midpoints
+from solver.garment import Garment, load_garment
+from solver.nest.instance import compose
+from solver.nest.layout import Layout
+from solver.placement import Placement
+from solver.wallpaper import Wallpaper
+from station.steps.cutbites import BITE_PIECES_FILE
+
+#: a seam edge the plan matched: its print mismatch as planned is within this (mm)
+MATCHED_MM = 1.0
+
+
+@dataclass(frozen=True)
+class SeamSides:
+    """Both sides of every seam edge of an order: pattern midpoints (E, 2) and the id of
+    the marker piece each lies on (E,)."""
+
+    points_a: np.ndarray
+    pieces_a: np.ndarray
+    points_b: np.ndarray
+    pieces_b: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.points_a)
+
+
+def garment_seams(garment: Garment, piece_ids: list[str]) -> SeamSides:
+    """The seam edges of ``garment``, each side named by the marker piece ``piece_ids[i]``
+    cut for the garment's piece ``i``."""
+    edges = garment.seam_edges
+    a, b = seam_midpoints(garment.uv, edges)
+    ids = np.asarray(piece_ids, dtype=object)
+    return SeamSides(a, ids[garment.piece_of_vertex[edges[:, 0]]],
+                     b, ids[garment.piece_of_vertex[edges[:, 2]]])
+
+
+def joined(parts: list[SeamSides]) -> SeamSides:
+    """The seams of several garments as one set."""
+    cat = lambda name: np.concatenate([getattr(s, name) for s in parts])  # noqa: E731
+    return SeamSides(cat("points_a"), cat("pieces_a"), cat("points_b"), cat("pieces_b"))
+
+
+def mapped(points: np.ndarray, pieces: np.ndarray, maps: dict[str, np.ndarray]) -> np.ndarray:
+    """(E, 2) ``points`` carried each by the (2, 3) map of its piece."""
+    m = np.stack([maps[p] for p in pieces])
+    return np.einsum("nij,nj->ni", m[:, :, :2], points) + m[:, :, 2]
+
+
+def on_cloth(window: np.ndarray, poses: list[Pose], pose_of: np.ndarray) -> np.ndarray:
+    """(E, 2) cloth points of (E, 2) window points, point ``i`` under ``poses[pose_of[i]]``
+    (`simulators.roll.Pose.cloth_point`, vectorised over the points' poses)."""
+    angle = np.radians([poses[k].angle_deg for k in pose_of])
+    shift = np.array([(poses[k].along, poses[k].across) for k in pose_of]).reshape(-1, 2)
+    pivot = np.array([poses[k].pivot for k in pose_of], float).reshape(-1, 2)
+    c, s = np.cos(angle), np.sin(angle)
+    d = window - pivot
+    return np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) \
+        + pivot + shift
+
+
+def seam_mismatch(wallpaper: Wallpaper, side_a: np.ndarray, side_b: np.ndarray
+                  ) -> np.ndarray:
+    """(E,) mm: the print's mismatch across each seam edge whose sides show the print's
+    points ``side_a`` and ``side_b`` (E, 2): `Wallpaper.mismatch`, as E_fit takes it."""
+    return np.hypot(*wallpaper.mismatch(side_a, side_b).T)
+
+
+def percentiles(d: np.ndarray) -> dict[str, float | int | None]:
+    """p50, p90 and max of the distances ``d`` (mm), and how many."""
+    d = np.asarray(d, float).ravel()
+    if not len(d):
+        return {"p50": None, "p90": None, "max": None, "seams": 0}
+    p50, p90 = np.percentile(d, [50, 90])
+    return {"p50": round(float(p50), 3), "p90": round(float(p90), 3),
+            "max": round(float(d.max()), 3), "seams": int(len(d))}
+
+
+def order_seams(workdir: Path, layout: Layout) -> SeamSides:
+    """Every seam edge of the order planned in ``workdir`` (its placement.json names each
+    garment's pattern and placement), on the pieces of ``layout``."""
+    data = json.loads((workdir / "placement.json").read_text())
+    by_name = {p.name: p.id for p in layout.pieces}
+    parts = []
+    for g in data["garments"]:
+        placement = Placement.from_dict(g["placement"])
+        garment = load_garment(placement.garment, units=placement.garment_units)
+        names = placement.piece_names or list(garment.piece_names)
+        parts.append(garment_seams(garment, [by_name[f"{g['garment']}.{n}"] for n in names]))
+    return joined(parts)
+
+
+def cut_maps(workdir: Path, n_bites: int) -> dict[str, np.ndarray]:
+    """Each piece's pattern -> window map as its bite was cut (``bite-K-pieces.json``)."""
+    maps: dict[str, np.ndarray] = {}
+    for k in range(n_bites):
+        path = workdir / BITE_PIECES_FILE.format(index=k)
+        if path.is_file():
+            maps.update({i: np.asarray(m, float).reshape(2, 3)
+                         for i, m in json.loads(path.read_text()).items()})
+    return maps
+
+
+def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    """Each piece's pattern -> window map had its bite been cut where it was planned: the
+    marker moved back by the commanded advances so far, nothing measured."""
+    maps, moved = {}, 0.0
+    placed = {p.id: p for p in layout.pieces}
+    for bite in bites:
+        moved += float(bite.get("advance_commanded_mm") or 0.0)
+        back = np.array([[1.0, 0.0, -moved], [0.0, 1.0, 0.0]])
+        maps.update({i: compose(back, placed[i].transform) for i in bite["pieces"]})
+    return maps
+
+
+def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> dict[str, Any]:
+    """The report's seam figures of an order cut in bites on the simulated roll:
+    ``seam_mismatch_mm`` (as cut), ``seam_mismatch_uncompensated_mm`` and
+    ``seam_mismatch_planned_mm`` over every seam edge, and ``seam_matched`` the same
+    over the edges the plan matched (see the module's docstring); ``{}`` when the job
+    was not cut in bites."""
+    report = json.loads((workdir / "report.json").read_text())
+    bites = report.get("bites") or []
+    if not bites or not (workdir / "placement.json").is_file():
+        return {}
+    layout = Layout.load(workdir / "layout.json")
+    seams = order_seams(workdir, layout)
+    bite_of = {i: b["index"] for b in bites for i in b["pieces"]}
+    cut = cut_maps(workdir, len(bites))
+    uncut = sorted(set(bite_of) - set(cut))
+    if uncut:  # a job stopped early: no seam of the order is whole on the cloth
+        return {"seam_mismatch_mm": None, "seam_mismatch_note": f"{len(uncut)} pieces not "
+                f"cut ({', '.join(uncut[:3])}...): nothing measured"}
+    placed = {p.id: p.transform for p in layout.pieces}
+    planned = seam_mismatch(Wallpaper.from_dict(layout.fabric),
+                            mapped(seams.points_a, seams.pieces_a, placed),
+                            mapped(seams.points_b, seams.pieces_b, placed))
+    matched = planned <= MATCHED_MM
+    out: dict[str, Any] = {"seam_mismatch_planned_mm": percentiles(planned)}
+    figures = {}
+    for label, maps in (("", cut), ("_uncompensated", planned_maps(layout, bites))):
+        design = []
+        for pts, ids in ((seams.points_a, seams.pieces_a), (seams.points_b, seams.pieces_b)):
+            cloth = on_cloth(mapped(pts, ids, maps), poses, [bite_of[i] for i in ids])
+            design.append(np.column_stack(roll_print.design_point(*cloth.T)))
+        figures[label] = seam_mismatch(roll_print.design.wallpaper, *design)
+        out[f"seam_mismatch{label}_mm"] = percentiles(figures[label])
+    out["seam_matched"] = {
+        "planned_within_mm": MATCHED_MM,
+        "seam_mismatch_mm": percentiles(figures[""][matched]),
+        "seam_mismatch_uncompensated_mm": percentiles(figures["_uncompensated"][matched])}
+    return out
+
+
+__all__ = ["SeamSides", "cut_maps", "garment_seams",
+           "measure_seams", "order_seams", "percentiles", "planned_maps", "seam_mismatch"]
