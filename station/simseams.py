@@ -121,15 +121,22 @@ def order_seams(workdir: Path, layout: Layout) -> SeamSides:
     return joined(parts)
 
 
-def cut_maps(workdir: Path, n_bites: int) -> dict[str, np.ndarray]:
-    """Each piece's pattern -> window map as its bite was cut (``bite-K-pieces.json``)."""
-    maps: dict[str, np.ndarray] = {}
+def cut_maps(workdir: Path, layout: Layout, n_bites: int
+             ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Each piece's pattern -> window map as its bite was cut (``bite-K-pieces.json``),
+    and the same without its local map (the bite's track alone)."""
+    cut: dict[str, np.ndarray] = {}
+    tracked: dict[str, np.ndarray] = {}
+    placed = {p.id: p.transform for p in layout.pieces}
     for k in range(n_bites):
         path = workdir / BITE_PIECES_FILE.format(index=k)
         if path.is_file():
-            maps.update({i: np.asarray(m, float).reshape(2, 3)
-                         for i, m in json.loads(path.read_text()).items()})
-    return maps
+            data = json.loads(path.read_text())
+            track = np.asarray(data["track"], float).reshape(2, 3)
+            for i, m in data["pieces"].items():
+                cut[i] = np.asarray(m, float).reshape(2, 3)
+                tracked[i] = compose(track, placed[i])
+    return cut, tracked
 
 
 def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.ndarray]:
@@ -147,8 +154,10 @@ def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.nd
 def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> dict[str, Any]:
     """The report's seam figures of an order cut in bites on the simulated roll:
     ``seam_mismatch_mm`` (as cut), ``seam_mismatch_uncompensated_mm`` and
-    ``seam_mismatch_planned_mm`` over every seam edge, and ``seam_matched`` the same
-    over the edges the plan matched (see the module's docstring); ``{}`` when the job
+    ``seam_mismatch_planned_mm`` over every seam edge (and
+    ``seam_mismatch_without_local_maps_mm``: the bites re-registered, the pieces not
+    placed on the print under them), and ``seam_matched`` the same over the edges the
+    plan matched (see the module's docstring); ``{}`` when the job
     was not cut in bites."""
     report = json.loads((workdir / "report.json").read_text())
     bites = report.get("bites") or []
@@ -157,7 +166,7 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> di
     layout = Layout.load(workdir / "layout.json")
     seams = order_seams(workdir, layout)
     bite_of = {i: b["index"] for b in bites for i in b["pieces"]}
-    cut = cut_maps(workdir, len(bites))
+    cut, tracked = cut_maps(workdir, layout, len(bites))
     uncut = sorted(set(bite_of) - set(cut))
     if uncut:  # a job stopped early: no seam of the order is whole on the cloth
         return {"seam_mismatch_mm": None, "seam_mismatch_note": f"{len(uncut)} pieces not "
@@ -169,7 +178,8 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> di
     matched = planned <= MATCHED_MM
     out: dict[str, Any] = {"seam_mismatch_planned_mm": percentiles(planned)}
     figures = {}
-    for label, maps in (("", cut), ("_uncompensated", planned_maps(layout, bites))):
+    for label, maps in (("", cut), ("_without_local_maps", tracked),
+                        ("_uncompensated", planned_maps(layout, bites))):
         design = []
         for pts, ids in ((seams.points_a, seams.pieces_a), (seams.points_b, seams.pieces_b)):
             cloth = on_cloth(mapped(pts, ids, maps), poses, [bite_of[i] for i in ids])
@@ -178,8 +188,7 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> di
         out[f"seam_mismatch{label}_mm"] = percentiles(figures[label])
     out["seam_matched"] = {
         "planned_within_mm": MATCHED_MM,
-        "seam_mismatch_mm": percentiles(figures[""][matched]),
-        "seam_mismatch_uncompensated_mm": percentiles(figures["_uncompensated"][matched])}
+        **{f"seam_mismatch{label}_mm": percentiles(d[matched]) for label, d in figures.items()}}
     return out
 
 

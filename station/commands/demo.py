@@ -144,6 +144,10 @@ def run(args: argparse.Namespace) -> int:
     summary["advances_truth"] = truth  # the simulated conveyor's, slips included
     summary["pieces"] = pieces
     summary.update(seams)  # the print across the seams as cut on the simulated cloth
+    # pieces whose print departs from one affine map: the seam error expected of each
+    summary["pieces_distorted"] = [
+        {"piece": r["piece"], "seam_error_expected_mm": r["beyond_affine_mm"]}
+        for r in plan_report.get("local_maps") or [] if r.get("distorted")]
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,
@@ -261,6 +265,20 @@ def cut_ready_parts(s: dict[str, Any]) -> list[str]:
     return parts
 
 
+def seam_lines(s: dict[str, Any]) -> list[str]:
+    """The summary's seam line: the print's mismatch across the seams on the simulated
+    cloth at the 90th percentile, as cut, uncompensated and planned (none: no bites)."""
+    cut, matched = s.get("seam_mismatch_mm"), s.get("seam_matched")
+    if not cut or not matched:
+        return []
+    p90 = lambda d: f"{d['p90']:.2f}" if d and d.get("p90") is not None else "n/a"  # noqa: E731
+    return [f"  seams p90     {p90(cut)} mm as cut on the cloth, "
+            f"{p90(s.get('seam_mismatch_uncompensated_mm'))} uncompensated, "
+            f"{p90(s.get('seam_mismatch_planned_mm'))} as planned; where the plan matched "
+            f"({matched['seam_mismatch_mm']['seams']} edges) {p90(matched['seam_mismatch_mm'])}"
+            f" mm, {p90(matched.get('seam_mismatch_uncompensated_mm'))} uncompensated"]
+
+
 def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     def num(v, fmt: str) -> str:
         return "n/a" if v is None else format(v, fmt)
@@ -291,6 +309,7 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
         f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}"
         + (f" in {len(s['bites'])} bites" if s.get("bites") else ""),
+        *seam_lines(s),
         f"  time          {s['seconds']:.1f} s",
         f"  files in      {out}/ (report.json has everything)",
     ]

@@ -29,7 +29,8 @@ from station.steps.bites import OPERATOR_ADVANCE, BiteStep, RollTrack, bites_rep
 
 STATE_FILE = "bites-state.json"
 PHOTO_FILE = "bite-photo.npy"
-#: each bite's pieces as handed to the cut: ``{piece id: (2, 3) pattern -> window mm}``
+#: each bite as handed to the cut: ``{"track": (2, 3) marker -> window mm, "pieces":
+#: {piece id: (2, 3) pattern -> window mm}}`` (local maps included)
 BITE_PIECES_FILE = "bite-{index}-pieces.json"
 
 
@@ -117,7 +118,7 @@ def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
             if local_maps is not None:
                 track = local_maps(track, bite, journal.step.photograph)
             marker = machine_marker(track, bite)
-            _record_pieces(job_dir, bite, marker, track.local)
+            _record_pieces(job_dir, bite, marker, track)
             cut_bite(marker, todo)
     return journal.measured
 
@@ -145,18 +146,19 @@ def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | N
     return journal
 
 
-def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout,
-                   local: list[dict]) -> None:
+def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout, track: RollTrack
+                   ) -> None:
     """``bite-K-pieces.json``: where each piece of the bite was cut, as its map from the
     pattern to the window (what a report or an inspection holds against the cloth), and
     report.json's ``local_maps``: what each piece's local map did."""
-    (job_dir / BITE_PIECES_FILE.format(index=bite.index)).write_text(json.dumps(
-        {p.id: np.asarray(p.transform, float).tolist() for p in marker.pieces}))
+    (job_dir / BITE_PIECES_FILE.format(index=bite.index)).write_text(json.dumps({
+        "track": track.marker_to_window.tolist(),
+        "pieces": {p.id: np.asarray(p.transform, float).tolist() for p in marker.pieces}}))
     path = job_dir / "report.json"
     report = json.loads(path.read_text()) if path.is_file() else {}
-    done = {row["piece"] for row in local}
+    done = {row["piece"] for row in track.local}
     report["local_maps"] = [r for r in report.get("local_maps", []) if r["piece"] not in done
-                            ] + local
+                            ] + track.local
     path.write_text(json.dumps(report, indent=2, default=float))
 
 
