@@ -27,11 +27,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 
 from simulators.roll import Pose, RollPrint
 from solver.fit import seam_midpoints
 from solver.garment import Garment, load_garment
-from solver.nest.instance import compose
+from solver.nest.instance import affine, compose, invert
 from solver.nest.layout import Layout
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
@@ -39,6 +40,8 @@ from station.steps.cutbites import BITE_PIECES_FILE
 
 #: a seam edge the plan matched: its print mismatch as planned is within this (mm)
 MATCHED_MM = 1.0
+#: a traced cut further than this from the pieces of its bite belongs to the next bite
+TRACE_TOLERANCE_MM = 0.5
 
 
 @dataclass(frozen=True)
@@ -139,6 +142,43 @@ def cut_maps(workdir: Path, layout: Layout, n_bites: int
     return cut, tracked
 
 
+def bite_shapes(workdir: Path, layout: Layout, n_bites: int) -> list[shapely.MultiPolygon]:
+    """Each bite's pieces as cut, in window mm: the pattern outlines carried by the maps of
+    ``bite-K-pieces.json``."""
+    shapes = []
+    pattern = {p.id: affine(invert(p.transform), p.outline) for p in layout.pieces}
+    for k in range(n_bites):
+        path = workdir / BITE_PIECES_FILE.format(index=k)
+        pieces = json.loads(path.read_text())["pieces"] if path.is_file() else {}
+        shapes.append(shapely.MultiPolygon([
+            shapely.Polygon(affine(np.asarray(m, float).reshape(2, 3), pattern[i]))
+            for i, m in pieces.items()]))
+    return shapes
+
+
+def trace_check(trace: np.ndarray, origin: tuple[float, float],
+                shapes: list[shapely.MultiPolygon]) -> dict[str, Any]:
+    """How far what the emulator really cut lies from the bites' pieces the seam figures
+    take as cut: ``trace`` (n, 7) `simulators.grbl.trace.trace_rows` (work mm), the
+    fabric at ``origin``. The trace is in cutting order, so each burning segment's end
+    belongs to the bite being cut, or to the next one when it leaves this one's pieces;
+    a notch or mark lies inside its piece (distance 0)."""
+    burning = trace[(trace[:, 5] > 0) & (trace[:, 6] == 0)]
+    points = shapely.points(burning[:, 2:4] - np.asarray(origin, float))
+    off = np.array([shapely.distance(shape, points) for shape in shapes]).reshape(
+        len(shapes), -1)
+    bite, seen = 0, np.zeros(len(shapes), int)
+    where = np.empty(off.shape[1])
+    for i in range(off.shape[1]):  # in cutting order: the bite moves on, never back
+        while off[bite, i] > TRACE_TOLERANCE_MM and bite + 1 < len(shapes) \
+                and off[bite + 1, i] <= TRACE_TOLERANCE_MM:
+            bite += 1
+        where[i] = off[bite, i]
+        seen[bite] += 1
+    return {"segments_burning": int(off.shape[1]), "per_bite": seen.tolist(),
+            "off_max_mm": round(float(where.max()), 4) if len(where) else None}
+
+
 def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.ndarray]:
     """Each piece's pattern -> window map had its bite been cut where it was planned: the
     marker moved back by the commanded advances so far, nothing measured."""
@@ -151,14 +191,17 @@ def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.nd
     return maps
 
 
-def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> dict[str, Any]:
+def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose], *,
+                  trace: np.ndarray | None = None, origin: tuple[float, float] = (0.0, 0.0)
+                  ) -> dict[str, Any]:
     """The report's seam figures of an order cut in bites on the simulated roll:
     ``seam_mismatch_mm`` (as cut), ``seam_mismatch_uncompensated_mm`` and
     ``seam_mismatch_planned_mm`` over every seam edge (and
     ``seam_mismatch_without_local_maps_mm``: the bites re-registered, the pieces not
     placed on the print under them), and ``seam_matched`` the same over the edges the
-    plan matched (see the module's docstring); ``{}`` when the job
-    was not cut in bites."""
+    plan matched (see the module's docstring); with the emulator's ``trace``,
+    ``seam_cut_traced``: how far the real cut lies from the pieces measured
+    (`trace_check`); ``{}`` when the job was not cut in bites."""
     report = json.loads((workdir / "report.json").read_text())
     bites = report.get("bites") or []
     if not bites or not (workdir / "placement.json").is_file():
@@ -189,8 +232,11 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose]) -> di
     out["seam_matched"] = {
         "planned_within_mm": MATCHED_MM,
         **{f"seam_mismatch{label}_mm": percentiles(d[matched]) for label, d in figures.items()}}
+    if trace is not None:
+        out["seam_cut_traced"] = trace_check(trace, origin, bite_shapes(workdir, layout,
+                                                                        len(bites)))
     return out
 
 
-__all__ = ["SeamSides", "cut_maps", "garment_seams",
+__all__ = ["SeamSides", "bite_shapes", "cut_maps", "garment_seams", "trace_check",
            "measure_seams", "order_seams", "percentiles", "planned_maps", "seam_mismatch"]

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from simulators.grbl import lookup
+from simulators.grbl.trace import trace_rows
 from solver.garment import load_garment
 from solver.wallpaper import Wallpaper
 from station.control import request
@@ -36,6 +38,7 @@ from station.simstation import (
     start_simulated_station,
 )
 from station.steps.bites import operator_advance_mm
+from station.steps.program import fabric_origin
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -136,7 +139,11 @@ def run(args: argparse.Namespace) -> int:
         roll = daemon.pipeline.roll
         simulated = isinstance(roll, SimulatedRoll)
         truth = roll.truth() if simulated else None
-        seams = measure_seams(workdir, roll.print, roll.conveyor.poses) if simulated else {}
+        emulator = lookup(f"demo-{id(args)}")
+        seams = measure_seams(workdir, roll.print, roll.conveyor.poses,
+                              trace=None if emulator is None else trace_rows(emulator),
+                              origin=fabric_origin(daemon.pipeline.config)
+                              ) if simulated else {}
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)

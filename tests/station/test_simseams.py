@@ -5,10 +5,18 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import shapely
 
 from simulators.roll import Pose
 from solver.wallpaper import Wallpaper
-from station.simseams import mapped, on_cloth, percentiles, planned_maps, seam_mismatch
+from station.simseams import (
+    mapped,
+    on_cloth,
+    percentiles,
+    planned_maps,
+    seam_mismatch,
+    trace_check,
+)
 
 SQUARE = Wallpaper("p1", (50.0, 0.0), (0.0, 50.0))
 SHIFT = lambda dx, dy: np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])  # noqa: E731
@@ -51,3 +59,18 @@ def test_uncompensated_bites_are_moved_by_the_commanded_advances_only():
              {"pieces": [], "advance_commanded_mm": 1370.0},
              {"pieces": ["x"], "advance_commanded_mm": 600.5}]
     assert np.allclose(planned_maps(layout, bites)["x"], SHIFT(29.5, 10.0))
+
+
+def test_the_trace_is_held_against_the_pieces_of_the_bite_being_cut():
+    shapes = [shapely.MultiPolygon([shapely.box(x0, 0, x0 + 100, 100)]) for x0 in (0, 50)]
+
+    def rows(points, power=1000.0, rapid=0.0):
+        p = np.asarray(points, float) + [5.0, 7.0]  # work mm: the fabric at (5, 7)
+        return np.column_stack([p, p, np.full(len(p), 600.0), np.full(len(p), power),
+                                np.full(len(p), rapid)])
+
+    trace = np.vstack([rows([[0, 0], [100, 0], [100, 100.3]]),  # bite 0, one 0.3 mm off
+                       rows([[400, 400]], power=0.0, rapid=1.0),  # a rapid: not a cut
+                       rows([[150, 0], [150, 100], [60, 100]])])  # bite 1 (60: inside 0 too)
+    got = trace_check(trace, (5.0, 7.0), shapes)
+    assert got == {"segments_burning": 6, "per_bite": [3, 3], "off_max_mm": 0.3}
