@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from solver.nest.bites import Bite, BitePlan, moved_piece, plan_bites
-from solver.nest.instance import IDENTITY, affine, compose
+from solver.nest.instance import IDENTITY, affine, compose, invert
 from solver.nest.layout import Layout
 from station.steps.table import TableWindow
 from vision.advance import MIN_OVERLAP_MM, Advance, measure_advance
@@ -38,6 +38,11 @@ from vision.localmap import PrintReference, fit_local_map, local_shifts, tile_ce
 #: a piece whose print departs from one affine map by more than this (mm) is named in
 #: the report with that figure, the seam error expected of it
 LOCAL_MAP_TOLERANCE_MM = 1.0
+#: a local map stretching or shearing a piece by more than this (a fraction) is no bow or
+#: skew of a print but tiles matched the wrong way: the piece keeps the track alone
+MAX_LOCAL_STRAIN = 0.03
+#: nor is a print whose tiles disagree with one affine map by a quarter of its repeat
+MAX_BEYOND_REPEAT = 0.25
 
 #: room kept at each end of the window (mm) for what one advance may do that was not
 #: commanded: a slip of up to 3 mm, and a skew of 0.2 degrees turning the far side
@@ -123,21 +128,23 @@ def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: Bite
         centres.append(c)
         owner.append(np.full(len(c), k))
     centres_px, owner = np.concatenate(centres), np.concatenate(owner)
-    back = np.column_stack([np.linalg.inv(track.marker_to_window[:, :2]),
-                            -np.linalg.solve(track.marker_to_window[:, :2],
-                                             track.marker_to_window[:, 2])])
-    shifts = local_shifts(photograph, reference, back, centres_px, mm_per_px=mm_per_px)
+    shifts = local_shifts(photograph, reference, invert(track.marker_to_window), centres_px,
+                          mm_per_px=mm_per_px)
     maps, notes = {}, []
+    repeat = float(np.hypot(*reference.basis).min())
     for k, p in enumerate(pieces):
         local = fit_local_map(centres_px[owner == k] * mm_per_px, shifts[owner == k])
-        maps[p.id] = local.correction
+        kept = (local.tiles >= 3 and local.strain <= MAX_LOCAL_STRAIN
+                and local.beyond_mm <= MAX_BEYOND_REPEAT * repeat)
+        if kept:  # else the print was not found under the piece: cut where the track says
+            maps[p.id] = local.correction
         centre = affine(track.marker_to_window, p.outline).mean(axis=0)
         moved = affine(local.correction, centre)[0] - centre
         notes.append({"piece": p.id, "bite": bite.index, "tiles": local.tiles,
-                      "moved_mm": round(float(np.hypot(*moved)), 3),
+                      "moved_mm": round(float(np.hypot(*moved)), 3) if kept else 0.0,
                       "strain": round(local.strain, 5),
-                      "beyond_affine_mm": round(local.beyond_mm, 3),
-                      "distorted": local.beyond_mm > LOCAL_MAP_TOLERANCE_MM})
+                      "beyond_affine_mm": round(local.beyond_mm, 3), "mapped": kept,
+                      "distorted": not kept or local.beyond_mm > LOCAL_MAP_TOLERANCE_MM})
     return replace(track, piece_maps=maps, local=notes)
 
 

@@ -47,3 +47,17 @@ def test_a_piece_follows_the_print_it_lies_on():
     moved = track.follow(Advance(700.0, 0.0, 0.0, 700.0, (380.0, 250.0), 0.0, 9))
     assert moved.piece_maps == {} and moved.local == []
     assert affine(moved.marker_to_window, OUTLINE) == pytest.approx(OUTLINE - [700.0, 0.0])
+
+
+def test_a_piece_over_no_print_is_named_and_kept_where_the_track_says():
+    reference = PrintReference.from_photo(window_photo(lambda x, y: (x, y)),
+                                          PLAID.truth.basis, PLAID.truth.origin)
+    noise = np.random.default_rng(5).integers(0, 255, (500, 760, 3), dtype=np.uint8)
+    piece = Placed("a#1", "a", IDENTITY.copy(), False, OUTLINE.copy())
+    plan = BitePlan(Layout(500.0, 760.0, 0.0, [piece]), [Bite(0, 0.0, 760.0, ("a#1",), 0.0)],
+                    760.0, 760.0)
+    track = localise(RollTrack(), plan.bites[0], noise, plan=plan, reference=reference)
+    (note,) = track.local
+    assert note["distorted"] and not note["mapped"] and note["moved_mm"] == 0.0
+    assert track.piece_maps == {}
+    assert track.bite_layout(plan, plan.bites[0]).pieces[0].outline == pytest.approx(OUTLINE)
