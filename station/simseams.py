@@ -16,12 +16,15 @@ the plan matched (within `MATCHED_MM`), where all that is left is what the cut d
 
 "Uncompensated" is the same cut as if each bite had been cut where it was planned: the
 marker moved by the commanded advances only, no re-registration, no local maps, on the
-same real poses of the roll.
+same real poses of the roll; "without local maps" is each bite's measured track alone.
+The pieces as recorded are held against the GRBL emulator's trace (`trace_check`), so
+the figures are known to be about what the machine really cut.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,10 +57,6 @@ class SeamSides:
     points_b: np.ndarray
     pieces_b: np.ndarray
 
-    @property
-    def n(self) -> int:
-        return len(self.points_a)
-
 
 def garment_seams(garment: Garment, piece_ids: list[str]) -> SeamSides:
     """The seam edges of ``garment``, each side named by the marker piece ``piece_ids[i]``
@@ -71,8 +70,8 @@ def garment_seams(garment: Garment, piece_ids: list[str]) -> SeamSides:
 
 def joined(parts: list[SeamSides]) -> SeamSides:
     """The seams of several garments as one set."""
-    cat = lambda name: np.concatenate([getattr(s, name) for s in parts])  # noqa: E731
-    return SeamSides(cat("points_a"), cat("pieces_a"), cat("points_b"), cat("pieces_b"))
+    return SeamSides(*(np.concatenate([getattr(s, name) for s in parts])
+                       for name in ("points_a", "pieces_a", "points_b", "pieces_b")))
 
 
 def mapped(points: np.ndarray, pieces: np.ndarray, maps: dict[str, np.ndarray]) -> np.ndarray:
@@ -81,12 +80,12 @@ def mapped(points: np.ndarray, pieces: np.ndarray, maps: dict[str, np.ndarray]) 
     return np.einsum("nij,nj->ni", m[:, :, :2], points) + m[:, :, 2]
 
 
-def on_cloth(window: np.ndarray, poses: list[Pose], pose_of: np.ndarray) -> np.ndarray:
+def on_cloth(window: np.ndarray, poses: list[Pose], pose_of) -> np.ndarray:
     """(E, 2) cloth points of (E, 2) window points, point ``i`` under ``poses[pose_of[i]]``
     (`simulators.roll.Pose.cloth_point`, vectorised over the points' poses)."""
-    angle = np.radians([poses[k].angle_deg for k in pose_of])
-    shift = np.array([(poses[k].along, poses[k].across) for k in pose_of]).reshape(-1, 2)
-    pivot = np.array([poses[k].pivot for k in pose_of], float).reshape(-1, 2)
+    table = np.array([(math.radians(q.angle_deg), q.along, q.across, *q.pivot)
+                      for q in poses]).reshape(-1, 5)[np.asarray(pose_of, int)]
+    angle, shift, pivot = table[:, 0], table[:, 1:3], table[:, 3:5]
     c, s = np.cos(angle), np.sin(angle)
     d = window - pivot
     return np.column_stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]]) \

@@ -278,7 +278,10 @@ def seam_lines(s: dict[str, Any]) -> list[str]:
     cut, matched = s.get("seam_mismatch_mm"), s.get("seam_matched")
     if not cut or not matched:
         return []
-    p90 = lambda d: f"{d['p90']:.2f}" if d and d.get("p90") is not None else "n/a"  # noqa: E731
+
+    def p90(d: dict[str, Any] | None) -> str:
+        return f"{d['p90']:.2f}" if d and d.get("p90") is not None else "n/a"
+
     return [f"  seams p90     {p90(cut)} mm as cut on the cloth, "
             f"{p90(s.get('seam_mismatch_uncompensated_mm'))} uncompensated, "
             f"{p90(s.get('seam_mismatch_planned_mm'))} as planned; where the plan matched "
