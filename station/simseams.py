@@ -17,8 +17,8 @@ the plan matched (within `MATCHED_MM`), where all that is left is what the cut d
 "Uncompensated" is the same cut as if each bite had been cut where it was planned: the
 marker moved by the commanded advances only, no re-registration, no local maps, on the
 same real poses of the roll; "without local maps" is each bite's measured track alone.
-The pieces as recorded are held against the GRBL emulator's trace (`trace_check`), so
-the figures are known to be about what the machine really cut.
+Where the GRBL emulator's trace is at hand, each piece's map is refitted to what the
+machine really burnt (`traced_maps`), so the figures are about the real cut.
 """
 
 from __future__ import annotations
@@ -141,41 +141,96 @@ def cut_maps(workdir: Path, layout: Layout, n_bites: int
     return cut, tracked
 
 
-def bite_shapes(workdir: Path, layout: Layout, n_bites: int) -> list[shapely.MultiPolygon]:
-    """Each bite's pieces as cut, in window mm: the pattern outlines carried by the maps of
-    ``bite-K-pieces.json``."""
-    shapes = []
+def cut_outlines(workdir: Path, layout: Layout, n_bites: int) -> list[dict[str, np.ndarray]]:
+    """Each bite's pieces as cut, in window mm: ``{piece id: (k, 2) cut line}``, the
+    pattern's cut lines carried by the maps of ``bite-K-pieces.json``."""
     pattern = {p.id: affine(invert(p.transform), p.outline) for p in layout.pieces}
+    bites = []
     for k in range(n_bites):
         path = workdir / BITE_PIECES_FILE.format(index=k)
         pieces = json.loads(path.read_text())["pieces"] if path.is_file() else {}
-        shapes.append(shapely.MultiPolygon([
-            shapely.Polygon(affine(np.asarray(m, float).reshape(2, 3), pattern[i]))
-            for i, m in pieces.items()]))
-    return shapes
+        bites.append({i: affine(np.asarray(m, float).reshape(2, 3), pattern[i])
+                      for i, m in pieces.items()})
+    return bites
 
 
-def trace_check(trace: np.ndarray, origin: tuple[float, float],
-                shapes: list[shapely.MultiPolygon]) -> dict[str, Any]:
-    """How far what the emulator really cut lies from the bites' pieces the seam figures
-    take as cut: ``trace`` (n, 7) `simulators.grbl.trace.trace_rows` (work mm), the
-    fabric at ``origin``. The trace is in cutting order, so each burning segment's end
-    belongs to the bite being cut, or to the next one when it leaves this one's pieces;
-    a notch or mark lies inside its piece (distance 0)."""
+def traced_points(trace: np.ndarray, origin: tuple[float, float],
+                  bites: list[dict[str, np.ndarray]]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points (n, 2) window mm, bite (n,), distance (n,) mm) of the ends of what the
+    emulator burnt (``trace``: `simulators.grbl.trace.trace_rows`, work mm; the fabric at
+    ``origin``). The trace is in cutting order, so each point belongs to the bite being
+    cut, or to the next one once it leaves this one's pieces; a notch or mark lies inside
+    its piece (distance 0)."""
     burning = trace[(trace[:, 5] > 0) & (trace[:, 6] == 0)]
-    points = shapely.points(burning[:, 2:4] - np.asarray(origin, float))
-    off = np.array([shapely.distance(shape, points) for shape in shapes]).reshape(
-        len(shapes), -1)
-    bite, seen = 0, np.zeros(len(shapes), int)
-    where = np.empty(off.shape[1])
-    for i in range(off.shape[1]):  # in cutting order: the bite moves on, never back
-        while off[bite, i] > TRACE_TOLERANCE_MM and bite + 1 < len(shapes) \
-                and off[bite + 1, i] <= TRACE_TOLERANCE_MM:
-            bite += 1
-        where[i] = off[bite, i]
-        seen[bite] += 1
-    return {"segments_burning": int(off.shape[1]), "per_bite": seen.tolist(),
-            "off_max_mm": round(float(where.max()), 4) if len(where) else None}
+    xy = burning[:, 2:4] - np.asarray(origin, float)
+    shapes = [shapely.MultiPolygon([shapely.Polygon(o) for o in b.values()]) for b in bites]
+    off = np.array([shapely.distance(shape, shapely.points(xy)) for shape in shapes]
+                   ).reshape(len(shapes), -1)
+    bite = np.zeros(len(xy), int)
+    k = 0
+    for i in range(len(xy)):  # in cutting order: the bite moves on, never back
+        while off[k, i] > TRACE_TOLERANCE_MM and k + 1 < len(shapes) \
+                and off[k + 1, i] <= TRACE_TOLERANCE_MM:
+            k += 1
+        bite[i] = k
+    return xy, bite, off[bite, np.arange(len(xy))]
+
+
+def fit_to_trace(outline: np.ndarray, points: np.ndarray, *, rounds: int = 3) -> np.ndarray:
+    """(2, 3) the small rigid motion carrying the closed ``outline`` (k, 2) onto the traced
+    ``points`` (n, 2) that lie along it: Gauss-Newton on the points' distances to the
+    nearest side (point-to-line, so a side may slide along itself)."""
+    ring = np.vstack([outline, outline[:1]])
+    centre = outline.mean(axis=0)
+    motion = np.zeros(3)  # tx, ty, theta about the centre
+    for _ in range(rounds):
+        moved = _rigid(motion, centre)
+        a, b = affine(moved, ring[:-1]), affine(moved, ring[1:])
+        ab = b - a
+        t = np.clip(np.einsum("nmj,mj->nm", points[:, None] - a[None], ab)
+                    / np.maximum(np.einsum("mj,mj->m", ab, ab), 1e-12), 0.0, 1.0)
+        near = a[None] + t[..., None] * ab[None]
+        side = np.argmin(np.hypot(*(points[:, None] - near).transpose(2, 0, 1)), axis=1)
+        n = np.column_stack([-ab[side, 1], ab[side, 0]])
+        n /= np.maximum(np.hypot(*n.T), 1e-12)[:, None]
+        q = near[np.arange(len(points)), side]
+        arm = q - centre - motion[:2]
+        rows = np.column_stack([n, n[:, 1] * arm[:, 0] - n[:, 0] * arm[:, 1]])
+        step, *_ = np.linalg.lstsq(rows, np.einsum("nj,nj->n", n, points - q), rcond=None)
+        motion += step
+    return _rigid(motion, centre)
+
+
+def _rigid(motion: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(2, 3): turn by ``motion[2]`` about ``centre``, then shift by ``motion[:2]``."""
+    c, s = math.cos(motion[2]), math.sin(motion[2])
+    rot = np.array([[c, -s], [s, c]])
+    return np.column_stack([rot, centre - rot @ centre + motion[:2]])
+
+
+def traced_maps(cut: dict[str, np.ndarray], bites: list[dict[str, np.ndarray]],
+                xy: np.ndarray, bite: np.ndarray) -> tuple[dict[str, np.ndarray], float]:
+    """Each piece's pattern -> window map as the emulator really cut it: its recorded map
+    corrected by `fit_to_trace` on the burnt points of its bite nearest its cut line; and
+    the largest move that correction made to any cut line (mm)."""
+    out, largest = dict(cut), 0.0
+    for k, pieces in enumerate(bites):
+        ids = list(pieces)
+        pts = xy[bite == k]
+        if not ids or not len(pts):
+            continue
+        rings = [shapely.LinearRing(pieces[i]) for i in ids]
+        near = np.array([shapely.distance(r, shapely.points(pts)) for r in rings])
+        owner = near.argmin(axis=0)
+        for j, i in enumerate(ids):
+            mine = pts[(owner == j) & (near[j] <= TRACE_TOLERANCE_MM)]
+            if len(mine) < 6:
+                continue  # too little of it traced to fit: the recorded map stands
+            fix = fit_to_trace(pieces[i], mine)
+            out[i] = compose(fix, cut[i])
+            largest = max(largest, float(np.abs(affine(fix, pieces[i]) - pieces[i]).max()))
+    return out, largest
 
 
 def planned_maps(layout: Layout, bites: list[dict[str, Any]]) -> dict[str, np.ndarray]:
@@ -198,9 +253,10 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose], *,
     ``seam_mismatch_planned_mm`` over every seam edge (and
     ``seam_mismatch_without_local_maps_mm``: the bites re-registered, the pieces not
     placed on the print under them), and ``seam_matched`` the same over the edges the
-    plan matched (see the module's docstring); with the emulator's ``trace``,
-    ``seam_cut_traced``: how far the real cut lies from the pieces measured
-    (`trace_check`); ``{}`` when the job was not cut in bites."""
+    plan matched (see the module's docstring). ``seam_cut`` says where the cut was taken
+    from: the emulator's ``trace`` when given (`traced_maps`: how far it lay from the
+    markers, and how far fitting moved them), else the markers handed to the cut. ``{}``
+    when the job was not cut in bites."""
     report = json.loads((workdir / "report.json").read_text())
     bites = report.get("bites") or []
     if not bites or not (workdir / "placement.json").is_file():
@@ -213,6 +269,15 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose], *,
     if uncut:  # a job stopped early: no seam of the order is whole on the cloth
         return {"seam_mismatch_mm": None, "seam_mismatch_note": f"{len(uncut)} pieces not "
                 f"cut ({', '.join(uncut[:3])}...): nothing measured"}
+    traced = None
+    if trace is not None:  # the cut as the emulator really traced it
+        outlines = cut_outlines(workdir, layout, len(bites))
+        xy, bite, off = traced_points(trace, origin, outlines)
+        cut, moved = traced_maps(cut, outlines, xy, bite)
+        traced = {"source": "emulator trace", "points": int(len(xy)),
+                  "per_bite": np.bincount(bite, minlength=len(bites)).tolist(),
+                  "off_max_mm": round(float(off.max()), 4) if len(off) else None,
+                  "fit_moved_max_mm": round(moved, 4)}
     placed = {p.id: p.transform for p in layout.pieces}
     planned = seam_mismatch(Wallpaper.from_dict(layout.fabric),
                             mapped(seams.points_a, seams.pieces_a, placed),
@@ -231,11 +296,10 @@ def measure_seams(workdir: Path, roll_print: RollPrint, poses: list[Pose], *,
     out["seam_matched"] = {
         "planned_within_mm": MATCHED_MM,
         **{f"seam_mismatch{label}_mm": percentiles(d[matched]) for label, d in figures.items()}}
-    if trace is not None:
-        out["seam_cut_traced"] = trace_check(trace, origin, bite_shapes(workdir, layout,
-                                                                        len(bites)))
+    out["seam_cut"] = traced or {"source": "markers handed to the cut"}
     return out
 
 
-__all__ = ["SeamSides", "bite_shapes", "cut_maps", "garment_seams", "trace_check",
-           "measure_seams", "order_seams", "percentiles", "planned_maps", "seam_mismatch"]
+__all__ = ["SeamSides", "cut_maps", "cut_outlines", "fit_to_trace", "garment_seams",
+           "measure_seams", "order_seams", "percentiles", "planned_maps", "seam_mismatch",
+           "traced_maps", "traced_points"]

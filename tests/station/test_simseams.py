@@ -5,17 +5,17 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import shapely
 
 from simulators.roll import Pose
 from solver.wallpaper import Wallpaper
 from station.simseams import (
+    fit_to_trace,
     mapped,
     on_cloth,
     percentiles,
     planned_maps,
     seam_mismatch,
-    trace_check,
+    traced_points,
 )
 
 SQUARE = Wallpaper("p1", (50.0, 0.0), (0.0, 50.0))
@@ -62,7 +62,8 @@ def test_uncompensated_bites_are_moved_by_the_commanded_advances_only():
 
 
 def test_the_trace_is_held_against_the_pieces_of_the_bite_being_cut():
-    shapes = [shapely.MultiPolygon([shapely.box(x0, 0, x0 + 100, 100)]) for x0 in (0, 50)]
+    square = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
+    bites = [{"a": square}, {"b": square + [50.0, 0.0]}]
 
     def rows(points, power=1000.0, rapid=0.0):
         p = np.asarray(points, float) + [5.0, 7.0]  # work mm: the fabric at (5, 7)
@@ -72,5 +73,21 @@ def test_the_trace_is_held_against_the_pieces_of_the_bite_being_cut():
     trace = np.vstack([rows([[0, 0], [100, 0], [100, 100.3]]),  # bite 0, one 0.3 mm off
                        rows([[400, 400]], power=0.0, rapid=1.0),  # a rapid: not a cut
                        rows([[150, 0], [150, 100], [60, 100]])])  # bite 1 (60: inside 0 too)
-    got = trace_check(trace, (5.0, 7.0), shapes)
-    assert got == {"segments_burning": 6, "per_bite": [3, 3], "off_max_mm": 0.3}
+    xy, bite, off = traced_points(trace, (5.0, 7.0), bites)
+    assert bite.tolist() == [0, 0, 0, 1, 1, 1]
+    assert xy[2] == pytest.approx([100.0, 100.3])
+    assert off == pytest.approx([0, 0, 0.3, 0, 0, 0])
+
+
+def test_a_piece_is_refitted_to_where_the_machine_really_cut_it():
+    outline = np.array([[0.0, 0.0], [300.0, 0.0], [300.0, 120.0], [150.0, 200.0],
+                        [0.0, 120.0]])
+    truly = np.array([[np.cos(0.002), -np.sin(0.002), 0.4],
+                      [np.sin(0.002), np.cos(0.002), -0.25]])  # 0.11 deg, (0.4, -0.25) mm
+    ring = np.vstack([outline, outline[:1]])
+    along = np.concatenate([a + np.linspace(0, 1, 20, endpoint=False)[:, None] * (b - a)
+                            for a, b in zip(ring[:-1], ring[1:])])
+    burnt = along @ truly[:, :2].T + truly[:, 2]
+    fix = fit_to_trace(outline, burnt)
+    moved = outline @ fix[:, :2].T + fix[:, 2]
+    assert moved == pytest.approx(outline @ truly[:, :2].T + truly[:, 2], abs=1e-3)
