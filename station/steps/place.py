@@ -36,7 +36,7 @@ def align_garment(garment: Garment, wallpaper: Wallpaper, pairs: list[MirrorPair
     ``options`` are `solver.align.align`'s (method, restarts, seed, grain_tol_deg,
     reflect, progress, ...); ``grain_deg`` is the fabric's grain in fabric space.
     """
-    if pairs:
+    if pairs or garment.folds:
         return align_symmetric(garment, wallpaper, pairs, grain_deg=grain_deg, nap=nap,
                                **options)
     return align(garment, wallpaper, nap=nap, fabric_grain_deg=grain_deg, **options)
