@@ -22,7 +22,7 @@ A piece cut on the fold (`solver.garment.symmetry.fold_pairs`) is the same idea 
 the fold as a pair's prints mirror about their centre seam, i.e. the fold lies on a mirror
 axis of the print. It keeps its own unknowns; `PairTie` projects them onto the constraint
 (angle fixed, translation free along the fold only). With a glide and no mirror along the
-grain the fold lies on the glide axis, the print shifted by the glide across it.
+grain the fold lies on the glide axis: the print mirrored across it, shifted along it.
 
 Where the group has no such operation (p1, p2, p3, p4, p6, or mirrors off grain) the pair
 is kept "same": ``G`` is the reflection along the grain and ``tau = 0``, so the print's
