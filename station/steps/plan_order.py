@@ -50,6 +50,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
                control: JobControl) -> Plan:
     """Align every garment of the order, nest them in one marker, program it."""
     order = read_order(job.garment)
+    job = replace(job, options=order.job_options(job.options))  # the order's match_notches
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment,
                                                  "order": order.to_dict()})
     kind = captured.fabric.get("kind")
@@ -71,7 +72,8 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
         return align_job(garment, wallpaper, config, job.options,
                          fabric_grain_deg=report.data["fabric"].get("grain_deg"))
 
-    aligned = align_order(order, align_one)
+    inset = (rules_for_job(config, job.options).seam_mm, "the station's seam allowance")
+    aligned = align_order(order, align_one, inset)
     report.data["garments"] = [a.report() for a in aligned]
     report.step_done("align")
     control.checkpoint()
