@@ -156,13 +156,14 @@ def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: Bite
                 and local.beyond_mm <= MAX_BEYOND_REPEAT * repeat)
         points, weights = sew_points(p, track.marker_to_window)
         rigid, residual = nearest_rigid(local.correction, points, weights)
+        left_mm = float(residual.max())  # what the rigid map leaves of the affine one
         chosen = rigid if follow == "rigid" else local.correction
         if kept:  # else the print was not found under the piece: cut where the track says
             maps[p.id] = chosen
         notes.append({"piece": p.id, "bite": bite.index, "follow": follow,
                       **_map_note(local, chosen if kept else None, points, weights,
-                                  float(residual.max()) if follow == "rigid" else 0.0),
-                      "rigid_residual_mm": round(float(residual.max()), 3)})
+                                  left_mm if follow == "rigid" else 0.0),
+                      "rigid_residual_mm": round(left_mm, 3)})
     return replace(track, piece_maps=maps, local=notes)
 
 
