@@ -5,9 +5,10 @@ the ends of every seam), balance notches on both sides of each seam (layer 4: at
 share of the seam on both pieces; a double notch where the seam is on the back, a single one
 elsewhere, as sewers expect), a grain line (layer 7) and the piece's name, and no seam data
 at all. A dart is not cut out: the cut line runs across its mouth with the take-up's peak, a
-notch marks each leg and a drill hole (layer 13) its tip (:mod:`solver.seams.darts`). Each piece is turned by a random angle. The true seams come back as point
-correspondences in the exported pieces' coordinates, so :mod:`solver.seams.score` can
-compare an inference made from the file alone.
+notch marks each leg and a drill hole (layer 13) its tip (:mod:`solver.seams.darts`). Each
+piece is turned by a random angle. The true seams come back as point correspondences in the
+exported pieces' coordinates, so :mod:`solver.seams.score` can compare an inference made
+from the file alone.
 """
 
 from __future__ import annotations
