@@ -68,15 +68,38 @@ def _closed(g: Garment, i: int, darts: list[tuple[int, int, int]]) -> np.ndarray
     return np.array(out)
 
 
-def _at_share(uv: np.ndarray, chain: np.ndarray, twin: np.ndarray, share: np.ndarray
+def _stretches(edges: np.ndarray) -> list[np.ndarray]:
+    """Vertex chains of the (k,2) directed edges, one per contiguous stretch."""
+    nxt = {int(a): int(b) for a, b in edges}
+    out = []
+    for a in sorted(set(nxt) - set(nxt.values())):
+        chain = [a]
+        while chain[-1] in nxt and len(chain) <= len(edges):
+            chain.append(nxt[chain[-1]])
+        out.append(np.array(chain))
+    return out
+
+
+def _one_chain(rows: np.ndarray) -> np.ndarray | None:
+    """The twin rows ordered along a side that is one chain (the other side may jump a
+    dart), that side first; None when neither is."""
+    for r in (rows, rows[:, [2, 3, 0, 1]]):
+        o = chain_seam_rows(r)
+        if np.array_equal(o[1:, 0], o[:-1, 1]):
+            return o
+    return None
+
+
+def _at_share(uv: np.ndarray, rows: np.ndarray, share: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Points at ``share`` of side A's length and their sewn partners on side B."""
-    a, b = uv[chain], uv[twin]
-    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(a, axis=0), axis=1))])
+    """Points at ``share`` of side A's length and their sewn partners on side B, twin edge
+    by twin edge (side B may jump a dart that side A runs past)."""
+    a0, a1, b0, b1 = (uv[rows[:, k]] for k in range(4))
+    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(a1 - a0, axis=1))])
     s = np.clip(share, 0, 1) * cum[-1]
-    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(a) - 2)
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(rows) - 1)
     t = ((s - cum[k]) / np.maximum(cum[k + 1] - cum[k], 1e-300))[:, None]
-    return a[k] + t * (a[k + 1] - a[k]), b[k] + t * (b[k + 1] - b[k])
+    return a0[k] + t * (a1[k] - a0[k]), b0[k] + t * (b1[k] - b0[k])
 
 
 def _face_down(g: Garment) -> np.ndarray:
@@ -173,19 +196,23 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
         a, b, w = _sampled_twins(g.uv, rows)
         truth.append(Correspondence(np.tile([pa, pb], (len(w), 1)), _apply(frames[pa], a),
                                     _apply(frames[pb], b), w))
-        a_len = float(np.linalg.norm(np.diff(g.uv[chain], axis=0), axis=1).sum())
         if dart is not None:
             continue
-        for p, v in ((pa, chain), (pb, twin)):
-            turns[p] += [g.uv[v[0]], g.uv[v[-1]]]
-        if a_len < 80.0 or abs(a_len - w.sum()) > 1e-6 * a_len:
-            continue  # short, or not one chain (a branching seam line): no notches
+        for side in (0, 2):  # the ends of every stretch of each side (it may jump a dart)
+            for v in _stretches(rows[:, side:side + 2]):
+                turns[int(piece[v[0]])] += [g.uv[v[0]], g.uv[v[-1]]]
+        ordered = _one_chain(rows)
+        if ordered is None:
+            continue  # a branching seam line, or both sides jump darts: no notches
+        a_len = float(np.linalg.norm(g.uv[ordered[:, 1]] - g.uv[ordered[:, 0]], axis=1).sum())
+        if a_len < 80.0:
+            continue
         back = "back" in name_parts(g.piece_names[pa])[0] | name_parts(g.piece_names[pb])[0]
         share = 0.25 + 0.5 * ((line * 0.618034) % 1.0)
         shares = [share] + ([share + DOUBLE_GAP_MM / a_len] if back else [])
-        na, nb = _at_share(g.uv, chain, twin, np.array(shares))
-        notches[pa] += list(na)
-        notches[pb] += list(nb)
+        na, nb = _at_share(g.uv, ordered, np.array(shares))
+        notches[int(piece[ordered[0, 0]])] += list(na)
+        notches[int(piece[ordered[0, 2]])] += list(nb)
     outlines = [_closed(g, i, darts[i]) for i in range(g.n_pieces)]
     _write(g, path, frames, outlines, (turns, notches, drills), allowance_mm)
     return Correspondence.join(truth)

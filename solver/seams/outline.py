@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-__all__ = ["SewPiece", "arc_position", "point_at", "sub_loop"]
+__all__ = ["SewPiece", "arc_position", "point_at", "sewn_line", "sub_loop"]
 
 CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a corner there
 MERGE_MM = 3.0  # breakpoints closer than this are one
@@ -22,6 +22,9 @@ NOTCH_GROUP_MM = 12.0
 TURN_DEG = 8.0
 DENSE_TURNS = 3  # turn points per corner (plus two) beyond which a CAD marks every vertex
 TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
+DART_TIP_DEG = 120.0  # a reflex corner turning more than this is a dart's tip ...
+DART_LEGS = 0.15  # ... when its two legs agree in length within this share
+MIN_LEG_MM = 20.0
 
 
 @dataclass
@@ -87,6 +90,24 @@ class SewPiece:
             groups[0] = groups.pop() + groups[0]
         return [(float(g[len(g) // 2]), len(g)) for g in groups]
 
+    def darts(self) -> list[tuple[float, float]]:
+        """Arc spans (mouth, mouth) of the line's darts: a tip (a reflex corner sharper than
+        :data:`DART_TIP_DEG`) between two legs of one length, each leg running from the tip
+        to the next breakpoint. The span's end may pass the loop's length (it wraps)."""
+        pos, turn = self.corners(DART_TIP_DEG)
+        cuts = self.breakpoints()
+        out = []
+        for tip in pos[turn < 0].tolist():
+            k = int(np.argmin(np.abs(np.mod(cuts - tip + self.length / 2, self.length)
+                                     - self.length / 2)))
+            legs = ((cuts[k] - cuts[k - 1]) % self.length,
+                    (cuts[(k + 1) % len(cuts)] - cuts[k]) % self.length)
+            if len(cuts) >= 3 and min(legs) >= MIN_LEG_MM and \
+                    abs(legs[0] - legs[1]) <= DART_LEGS * max(legs):
+                start = float(cuts[k - 1])
+                out.append((start, start + legs[0] + legs[1]))
+        return out
+
     def breakpoints(self) -> np.ndarray:
         """Sorted arc positions where the line is split: corners, turn points, notches."""
         notch = [s for s, _ in self.notch_groups()]
@@ -135,3 +156,22 @@ def sub_loop(piece: SewPiece, start: float, end: float) -> np.ndarray:
         inner.append(c[(c > start) & (c < end)])
     s = np.concatenate([[start], *inner, [end]])
     return point_at(piece, s)
+
+
+def sewn_line(piece: SewPiece, start: float, end: float,
+              skips: tuple[tuple[float, float], ...] = ()) -> np.ndarray:
+    """The loop's polyline from ``start`` to ``end`` as sewn with the darts ``skips`` (arc
+    spans inside the interval, sorted) closed: the line after each dart turned about its tip
+    so that the dart's far mouth lands on its near one."""
+    bounds = [start, *[v for span in skips for v in span], end]
+    parts = [sub_loop(piece, bounds[k], bounds[k + 1]) for k in range(0, len(bounds), 2)]
+    rot, shift = np.eye(2), np.zeros(2)  # the motion of what follows the darts closed so far
+    out = [parts[0]]
+    for (d0, d1), part in zip(skips, parts[1:], strict=True):
+        near, tip, far = point_at(piece, np.array([d0, 0.5 * (d0 + d1), d1])) @ rot.T + shift
+        u, v = near - tip, far - tip
+        ang = np.arctan2(v[0] * u[1] - v[1] * u[0], float(u @ v))
+        turn = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+        rot, shift = turn @ rot, turn @ (shift - far) + near
+        out.append((part @ rot.T + shift)[1:])
+    return np.vstack(out)
