@@ -23,6 +23,7 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
+from solver.seams.junctions import junction_conflicts
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import SHARP_DEG, Run, candidate_runs, run_line
@@ -229,8 +230,12 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
                                  [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
+    conflicts = junction_conflicts(pieces, runs, pairs)
+    c = np.zeros((len(conflicts), len(pairs)))
+    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
     res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
-               constraints=LinearConstraint(a, 0, 1), options={"time_limit": 20.0})
+               constraints=LinearConstraint(np.vstack([a, c]), 0, 1),
+               options={"time_limit": 20.0})
     if res.x is None:
         return []
     chosen = np.flatnonzero(res.x > 0.5)
