@@ -45,6 +45,8 @@ STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 30.0  # a centre line lies within this of the grain
+GATHER_MAX = 2.0  # a seam gathered more than this (longer side / shorter) is not proposed
+GATHER_PENALTY = 0.3  # a gathered seam's length term is minus this (an equal length scores 1)
 DART_BONUS = 0.6  # two equal legs at a sharp reflex tip: a dart, as sure as matching notches
 
 
@@ -89,17 +91,22 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     rel = abs(a.length - b.length) / max(a.length, b.length)
     curved = min(a.straightness, b.straightness) < CURVED
     tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
-    if rel > tol:
+    gathered = rel > tol
+    if gathered and not (a.notches and b.notches and a.piece != b.piece
+                         and max(a.length, b.length) <= GATHER_MAX * min(a.length, b.length)):
         return -1.0
-    s = 1.0 - (rel / tol) ** 2
+    s = -GATHER_PENALTY if gathered else 1.0 - (rel / tol) ** 2
     notch = 0.0 if a.piece == b.piece else _notch_score(a, b)  # a dart's notches: its legs
+    if gathered and notch <= 0:
+        return -1.0  # a gathered seam is known by its notches alone
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
     s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     if s < MIN_SCORE:
         return s
     rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
-                                           run_line(pieces[b.piece], b), polys[b.piece])
+                                           run_line(pieces[b.piece], b), polys[b.piece],
+                                           gathered=gathered)
     dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
     s -= RMS_W * rms + (-DART_BONUS if dart else 3.0 * overlap)
     pa, pb = pieces[a.piece], pieces[b.piece]
@@ -149,18 +156,21 @@ def _dart(a: Run, b: Run, length: float, tips: np.ndarray) -> bool:
 
 
 def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.ndarray:
-    """(k,2) indices of run pairs whose lengths agree within tolerance: on two pieces, or
-    the two legs of a dart on one piece."""
+    """(k,2) indices of run pairs whose lengths agree within tolerance, or within
+    :data:`GATHER_MAX` when both have notches (a gathered seam): on two pieces, or the two
+    legs of a dart on one piece."""
     length = np.array([r.length for r in runs])
     piece = np.array([r.piece for r in runs])
+    notched = np.array([bool(r.notches) for r in runs])
     order = np.argsort(length)
     ls = length[order]
     out = []
     for k, i in enumerate(order.tolist()):
-        hi = np.searchsorted(ls, ls[k] / (1 - max(LENGTH_TOL, EASE_TOL)), side="right")
+        eased = ls[k] / (1 - max(LENGTH_TOL, EASE_TOL))
+        hi = np.searchsorted(ls, ls[k] * GATHER_MAX if notched[i] else eased, side="right")
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
-        ok = ~same
+        ok = ~same & ((length[j] <= eased) | notched[j])  # longer: gathered, notched both
         ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]], tips[piece[i]])
                     for m in j[same].tolist()]
         j = j[ok]

@@ -30,15 +30,26 @@ def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return r, cd - r @ cs
 
 
+def _length(line: np.ndarray) -> float:
+    return max(float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum()), 1e-9)
+
+
 def fit_and_overlap(line_a: np.ndarray, poly_a: shapely.Polygon, line_b: np.ndarray,
-                    poly_b: shapely.Polygon) -> tuple[float, float, float]:
+                    poly_b: shapely.Polygon, *, gathered: bool = False
+                    ) -> tuple[float, float, float]:
     """(RMS distance / length, overlapping share of the smaller piece, how much the moved
     piece b is piece a mirrored in the seam (intersection over union)) with ``line_b`` of
-    b (read backwards) laid onto ``line_a`` of a."""
+    b (read backwards) laid onto ``line_a`` of a; a ``gathered`` b is first scaled to a's
+    length (gathers shorten it evenly)."""
     la = resample_polyline(line_a, SAMPLES - 1)
     lb = resample_polyline(line_b, SAMPLES - 1)[::-1]
+    length = _length(line_a)
+    if gathered:
+        k = length / _length(line_b)
+        c = lb.mean(0)
+        lb = c + k * (lb - c)
+        poly_b = affinity.scale(poly_b, k, k, origin=tuple(c))
     r, t = _kabsch(lb, la)
-    length = max(float(np.linalg.norm(np.diff(line_a, axis=0), axis=1).sum()), 1e-9)
     rms = float(np.sqrt(((lb @ r.T + t - la) ** 2).sum(1).mean())) / length
     moved = affinity.affine_transform(poly_b, [r[0, 0], r[0, 1], r[1, 0], r[1, 1], t[0], t[1]])
     d = la[-1] - la[0]
