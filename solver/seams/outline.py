@@ -19,6 +19,7 @@ __all__ = ["SewPiece", "arc_position", "point_at", "sewn_line", "sub_loop"]
 CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a corner there
 MERGE_MM = 3.0  # breakpoints closer than this are one
 NOTCH_GROUP_MM = 12.0
+SAME_NOTCH_MM = 0.5  # notches closer than this are one
 TURN_DEG = 8.0
 DENSE_TURNS = 3  # turn points per corner (plus two) beyond which a CAD marks every vertex
 TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
@@ -80,6 +81,8 @@ class SewPiece:
     def notch_groups(self) -> list[tuple[float, int]]:
         """(arc position, notch count) of each notch group along the line."""
         s = np.sort(arc_position(self, self.notches))
+        s = s[np.diff(s, prepend=-np.inf) > SAME_NOTCH_MM]  # a notch on a fold, unfolded,
+        # is there twice
         groups: list[list[float]] = []
         for v in s.tolist():
             if groups and v - groups[-1][-1] <= NOTCH_GROUP_MM:
