@@ -25,8 +25,8 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 
 from solver.seams.junctions import junction_conflicts
 from solver.seams.names import name_affinity, name_parts
-from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
-from solver.seams.runs import SHARP_DEG, Run, candidate_runs, run_line
+from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
+from solver.seams.runs import Run, candidate_runs, run_line
 from solver.seams.shape import fit_and_overlap
 
 __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
@@ -47,6 +47,10 @@ MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two ha
 GRAIN_DEG = 30.0  # a centre line lies within this of the grain
 GATHER_MAX = 2.0  # a seam gathered more than this (longer side / shorter) is not proposed
 GATHER_PENALTY = 0.3  # a gathered seam's length term is minus this (an equal length scores 1)
+WHOLE_BONUS = 0.3  # both sides run corner to corner between pieces whose names say they
+# meet (a shoulder): a seam ends where the lines turn, a chance pairing rarely does on both
+SHOULDER_MM = 150.0  # a front and a back (named so) are mirror images across their
+# shoulders: a seam this short between pieces of other kinds is no centre line
 DART_BONUS = 0.6  # two equal legs at a sharp reflex tip: a dart, as sure as matching notches
 
 
@@ -101,7 +105,10 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
         return -1.0  # a gathered seam is known by its notches alone
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
-    s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    s += names
+    if a.whole and b.whole and names > 0:
+        s += WHOLE_BONUS
     if s < MIN_SCORE:
         return s
     rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
@@ -111,7 +118,8 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     s -= RMS_W * rms + (-DART_BONUS if dart else 3.0 * overlap)
     pa, pb = pieces[a.piece], pieces[b.piece]
     copies = a.piece != b.piece and pa.family and pa.family == pb.family
-    if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
+    shoulder = _other_kinds(pa, pb) and a.length <= SHOULDER_MM
+    if (copies or (mirror > MIRROR_IOU and not shoulder)) and not _along_grain(pa, a):
         # two halves mirrored in the seam (two copies of one piece surely are): only a
         # centre line, along the grain, joins them
         # (unnamed pieces may as well be identical gores, which do meet so)
@@ -119,6 +127,12 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     elif copies:
         s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
     return s
+
+
+def _other_kinds(a: SewPiece, b: SewPiece) -> bool:
+    """Whether the names say the two pieces are different kinds (a front and a back)."""
+    ka, kb = name_parts(a.name)[0], name_parts(b.name)[0]
+    return bool(ka and kb and not ka & kb)
 
 
 def _named(*pieces: SewPiece) -> bool:
@@ -209,7 +223,8 @@ def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
     ``fixed`` seams (declared by the operator) are kept and their edges taken, no seam is
     made between a ``vetoed`` pair of pieces."""
     runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
-    tips = [pos[turn < -SHARP_DEG] for pos, turn in (p.corners(SHARP_DEG) for p in pieces)]
+    tips = [pos[turn < -DART_TIP_DEG] for pos, turn in (p.corners(DART_TIP_DEG)
+                                                         for p in pieces)]
     pairs = _pairs(runs, [p.length for p in pieces], tips)
     if vetoed:
         pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)

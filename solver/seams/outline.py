@@ -112,18 +112,18 @@ class SewPiece:
         return out
 
     def breakpoints(self) -> np.ndarray:
-        """Sorted arc positions where the line is split: corners, turn points, notches."""
+        """Sorted arc positions where the line is split: corners, notches, turn points; of
+        several within :data:`MERGE_MM`, the first of that order (a seam ends at the corner
+        itself, not at a turn point a millimetre or two beside it)."""
         notch = [s for s, _ in self.notch_groups()]
-        raw = np.concatenate([self.corners()[0], self.turning_points(), notch, [0.0]
-                              if not len(self.turns) and not len(notch) else []])
-        raw = np.sort(np.mod(raw, self.length))
-        keep: list[float] = []
-        for v in raw.tolist():
-            if not keep or v - keep[-1] > MERGE_MM:
-                keep.append(v)
-        if len(keep) > 1 and keep[0] + self.length - keep[-1] <= MERGE_MM:
-            keep.pop()
-        return np.array(keep)
+        raw = [self.corners()[0], notch, self.turning_points(),
+               [0.0] if not len(self.turns) and not len(notch) else []]
+        keep = np.zeros(0)
+        for v in np.mod(np.concatenate(raw), self.length).tolist():
+            d = np.abs(keep - v)
+            if not len(keep) or np.minimum(d, self.length - d).min() > MERGE_MM:
+                keep = np.append(keep, v)
+        return np.sort(keep)
 
 
 def arc_position(piece: SewPiece, points: np.ndarray) -> np.ndarray:

@@ -36,6 +36,7 @@ class Run:
     notches: tuple[tuple[float, int], ...]  # (share of the sewn run from its start, count)
     end_notches: tuple[int, int] = (0, 0)  # notch count at the run's start and end
     skips: tuple[tuple[float, float], ...] = ()  # darts inside: arc spans in (start, end)
+    whole: bool = False  # the run goes from a corner of the line to a corner
 
     def arc_at(self, u: float, *, after: bool) -> float:
         """Arc position of sewn length ``u`` from the start; at a skipped dart, its far side
@@ -112,6 +113,7 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
         if n == 0:
             continue
         sharp = p.corners(SHARP_DEG)[0]
+        corner = p.corners()[0]
         darts = p.darts()
         groups = _balance_notches(p, darts)
         for first in range(n):
@@ -129,9 +131,11 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
                     continue
                 line = sewn_line(p, start, end, skips)
                 chord = float(np.linalg.norm(line[-1] - line[0]))
+                whole = all(np.any(np.abs(np.mod(corner - v + p.length / 2, p.length)
+                                          - p.length / 2) <= MERGE_MM) for v in (start, end))
                 runs.append(Run(i, first, count, float(start), float(end), float(length),
                                 chord / length, *_run_notches(groups, start, end, p.length,
-                                                              skips), skips))
+                                                              skips), skips, whole))
     return runs, cuts
 
 
