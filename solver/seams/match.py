@@ -88,45 +88,53 @@ def _notch_score(a: Run, b: Run) -> float:
     return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
 
 
+def _length_score(a: Run, b: Run) -> tuple[float, bool]:
+    """(the length term: 1 for equal sewn lengths, 0 at the tolerance, -1 beyond; whether
+    the longer side is gathered onto the shorter, which only notches on both can tell)."""
+    rel = abs(a.length - b.length) / max(a.length, b.length)
+    curved = min(a.straightness, b.straightness) < CURVED
+    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
+    if rel <= tol:
+        return 1.0 - (rel / tol) ** 2, False
+    gather = (a.notches and b.notches and a.piece != b.piece
+              and max(a.length, b.length) <= GATHER_MAX * min(a.length, b.length))
+    return (-GATHER_PENALTY, True) if gather else (-1.0, False)
+
+
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
     """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
     seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
     on each other only for a candidate that could still pass."""
-    rel = abs(a.length - b.length) / max(a.length, b.length)
-    curved = min(a.straightness, b.straightness) < CURVED
-    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
-    gathered = rel > tol
-    if gathered and not (a.notches and b.notches and a.piece != b.piece
-                         and max(a.length, b.length) <= GATHER_MAX * min(a.length, b.length)):
+    s, gathered = _length_score(a, b)
+    if s <= -1.0:
         return -1.0
-    s = -GATHER_PENALTY if gathered else 1.0 - (rel / tol) ** 2
     notch = 0.0 if a.piece == b.piece else _notch_score(a, b)  # a dart's notches: its legs
     if gathered and notch <= 0:
         return -1.0  # a gathered seam is known by its notches alone
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
     names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
-    s += names
-    if a.whole and b.whole and names > 0:
-        s += WHOLE_BONUS
+    s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
     if s < MIN_SCORE:
         return s
     rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
                                            run_line(pieces[b.piece], b), polys[b.piece],
                                            gathered=gathered)
-    dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
-    s -= RMS_W * rms + (-DART_BONUS if dart else 3.0 * overlap)
+    if a.piece == b.piece:  # a dart folds its piece onto itself: overlap says nothing
+        return s - RMS_W * rms + DART_BONUS
+    return s - RMS_W * rms - 3.0 * overlap - _halves_penalty(pieces, a, b, mirror)
+
+
+def _halves_penalty(pieces: list[SewPiece], a: Run, b: Run, mirror: float) -> float:
+    """What sewing two pieces that are halves of one (copies, or mirror images in the seam)
+    costs: only a centre line, along the grain, joins them."""
     pa, pb = pieces[a.piece], pieces[b.piece]
-    copies = a.piece != b.piece and pa.family and pa.family == pb.family
+    copies = bool(pa.family) and pa.family == pb.family
     shoulder = _other_kinds(pa, pb) and a.length <= SHOULDER_MM
     if (copies or (mirror > MIRROR_IOU and not shoulder)) and not _along_grain(pa, a):
-        # two halves mirrored in the seam (two copies of one piece surely are): only a
-        # centre line, along the grain, joins them
         # (unnamed pieces may as well be identical gores, which do meet so)
-        s -= 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
-    elif copies:
-        s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
-    return s
+        return 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
+    return 0.5 if copies else 0.0  # a left and a right are rarely sewn to each other
 
 
 def _other_kinds(a: SewPiece, b: SewPiece) -> bool:
