@@ -12,13 +12,8 @@ import numpy as np
 from solver.garment.allowance import open_edges
 from solver.garment.grain import paired_grains
 from solver.garment.symmetry import centre_seams, mirror_pairs
-from station.cliargs import (
-    add_garment_arguments,
-    add_grain_arguments,
-    cli_pairs,
-    garment_with_grain,
-    load_garment_arg,
-)
+from station.cliargs import add_garment_arguments, add_grain_arguments
+from station.cliload import cli_pairs, garment_with_grain, load_garment_arg
 from station.seams_view import add_dxf_arguments, draw_seams, inspect_dxf
 from station.steps.garment import symmetrised
 
