@@ -26,7 +26,7 @@ from simulators.grbl.trace import trace_rows
 from solver.garment import load_garment
 from solver.wallpaper import Wallpaper
 from station.control import request
-from station.daemon import setup_logging
+from station.daemon import CONFIRM_SEAMS, setup_logging
 from station.fleetdemo import run as run_fleet
 from station.order import is_order_file, read_order
 from station.progress import follow
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
                           )["job"]["id"]
             print(f"station demo: job {job} submitted to the simulated station "
                   f"(store and socket in {tmp})", file=sys.stderr)
-            status = follow_by_hand(sock, job, daemon) if args.by_hand else follow(sock, job)
+            status = follow_by_hand(sock, job, daemon)  # the operator answers what it asks
             events = request(sock, "log", job=job, limit=100000)["events"]
         finally:
             daemon.shutdown()
@@ -179,15 +179,22 @@ def _settle_args(args: argparse.Namespace) -> bool:
 
 
 def follow_by_hand(sock: Path, job: int, daemon) -> dict[str, Any]:
-    """`follow` the job, playing the operator whenever it waits for the roll to be
-    advanced: the simulated roll moved by the mm asked (slipping), then `resume`."""
+    """`follow` the job, playing the operator whenever it waits: for the roll to be
+    advanced (the simulated roll moved by the mm asked, slipping, then `resume`), or at
+    "confirm seams" (a CAD pattern's seams confirmed as found, as seams.png shows them)."""
     status = follow(sock, job)
-    while status["state"] == "paused" and (
-            mm := operator_advance_mm(status["reason"])) is not None:
-        print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
-              file=sys.stderr)
-        daemon.pipeline.roll.advance(mm)
-        request(sock, "resume", job=job)
+    while status["state"] == "paused":
+        if status["reason"].startswith(CONFIRM_SEAMS):
+            print("station demo: the operator looks at seams.png and confirms the seams",
+                  file=sys.stderr)
+            request(sock, "confirm", job=job)
+        elif (mm := operator_advance_mm(status["reason"])) is not None:
+            print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
+                  file=sys.stderr)
+            daemon.pipeline.roll.advance(mm)
+            request(sock, "resume", job=job)
+        else:
+            break
         status = follow(sock, job)
     return status
 
