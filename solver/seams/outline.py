@@ -25,7 +25,7 @@ DENSE_TURNS = 3  # turn points per corner (plus two) beyond which a CAD marks ev
 TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
 DART_TIP_DEG = 120.0  # a reflex corner turning more than this is a dart's tip ...
 DART_LEGS = 0.15  # ... when its two legs agree in length within this share
-MIN_LEG_MM = 20.0
+MIN_LEG_MM = 20.0  # and each leg is at least this long
 
 
 @dataclass
