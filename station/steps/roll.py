@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcode.machine import Machine
+from gcode.recovery import wait_at_rest
 from gcode.stream import Streamer
 from station.config import Config
 from station.steps.capture import CameraOpener, photograph
@@ -37,11 +38,18 @@ class CameraRoll:
         self.mm_per_px = float(mm_per_px)
         return rectified
 
+    def settle(self) -> None:
+        """Wait until the controller rests: a conveyor move that a daemon sent before it
+        died runs on from the controller's buffers, and a photograph now would blur."""
+        if self.feed is not None:
+            with self.open_port(self.config) as port:
+                wait_at_rest(port)
+
     def _conveyor(self, mm: float) -> None:
         """Advance the roll by ``mm`` with the profile's conveyor, and wait until it has
         stopped (a ``G4 P0`` after it answers only once the planner is empty)."""
         conveyor, m = self.machine.conveyor, self.machine
-        seconds = mm / (conveyor.feed / 60.0 if conveyor.kind == "axis" else conveyor.mm_per_s)
+        seconds = mm / conveyor_mm_per_s(m)
         with self.open_port(self.config) as port:
             streamer = Streamer(port, on_piece=None, name=port_name(self.config),
                                 rx_buffer=m.rx_buffer, acceleration=m.acceleration,
@@ -52,6 +60,14 @@ class CameraRoll:
                 if answer.kind != "ok":
                     raise RuntimeError(f"the controller refused the conveyor's {line!r}: "
                                        f"{answer.raw}")
+
+
+def conveyor_mm_per_s(machine: Machine) -> float:
+    """How fast the profile's conveyor moves the roll (0: it has none)."""
+    conveyor = machine.conveyor
+    if not conveyor.kind:
+        return 0.0
+    return conveyor.feed / 60.0 if conveyor.kind == "axis" else conveyor.mm_per_s
 
 
 def station_roll(config: Config, machine: Machine, open_camera: CameraOpener,

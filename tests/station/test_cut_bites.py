@@ -40,6 +40,9 @@ class SimRoll:
     def photograph(self) -> np.ndarray:
         return self.camera.photograph()
 
+    def settle(self) -> None:
+        """The simulated conveyor's moves are over when `advance` returns."""
+
 
 def _plan():
     """Twelve 120 x 150 mm pieces in two rows, 0.8 m of marker: two bites of the window."""
@@ -61,7 +64,7 @@ def _cutter(store, job, calls):
     """A cut that records every piece cut in the store (which refuses a second cut)."""
     index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
 
-    def cut_bite(marker, pieces):
+    def cut_bite(marker, pieces, _control=None):
         calls.append((marker, set(pieces)))
         for name in sorted(pieces):
             store.set_piece_state(job.id, index[name], "cut")
@@ -143,7 +146,7 @@ def test_a_kill_within_a_bite_resumes_it_on_the_same_marker(tmp_path):
 
     cut_whole = _cutter(store, job, calls)
 
-    def cut_bite(marker, pieces):  # the second bite: two pieces cut, then the power goes
+    def cut_bite(marker, pieces, _control):  # the second bite: two cut, then the power goes
         if not pieces <= set(plan.bites[1].pieces):
             return cut_whole(marker, pieces)
         first_try.update({p.id: p.outline for p in marker.pieces})
