@@ -3,6 +3,8 @@ advance measured on the simulated roll; the operator's wait; a kill between bite
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
 from station.daemon import JobControl, JobInterrupted
 from station.jobstore import JobStore
+from station.progress import follow
 from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
 from station.steps.cutbites import BiteJournal, cut_in_bites, roll_moved
 from station.steps.table import TableWindow
@@ -240,3 +243,11 @@ def test_the_status_names_the_bite_being_cut(tmp_path):
                  cut_bite=cut_bite)
     assert seen == [{"step": "cutting", "fraction": 0.0, "bite": "1 of 2"},
                     {"step": "cutting", "fraction": 0.0, "bite": "2 of 2"}]
+    # `station watch`: a bar per bite
+    statuses = iter([{"state": "cutting", "reason": "", "pieces": {"cut": 0, "pending": 12},
+                      "progress": progress} for progress in seen]
+                    + [{"state": "done", "reason": "", "pieces": {"cut": 12}}])
+    shown = io.StringIO()
+    follow(lambda _job: next(statuses), job.id, stream=shown, interval=0.0)
+    assert shown.getvalue().splitlines() == ["  cutting (bite 1 of 2) ...",
+                                             "  cutting (bite 2 of 2) ...", "  done"]
