@@ -21,7 +21,8 @@ from solver.garment import Garment
 from solver.nest.regions import load_keepouts
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
-from station.cliargs import allowance_rules, fabric_grain_deg, grain_tolerance
+from station.cliargs import fabric_grain_deg, grain_tolerance
+from station.cliload import allowance_rules
 from station.errors import UserError
 from station.order import Order, OrderGarment, is_order_file, read_order
 from station.render import draw_fit, draw_marker, fabric_picture
@@ -184,7 +185,7 @@ def run_nest(args: argparse.Namespace, config) -> int:
     layout.save(args.output)
     counts = pieces_per_garment(layout.pieces)
     if args.png:
-        draw_marker(layout.to_dict(), args.png,
+        draw_marker(layout, args.png,
                     title=f"order {order.name}, sizes {order.ratio_text()}")
     summary = {"order": order.name, "ratio": order.ratio(), "length": round(layout.length, 6),
                "width": layout.width, "density": round(layout.density, 6),

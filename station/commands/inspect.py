@@ -14,13 +14,8 @@ from gcode.layout import load_layout
 from solver.garment.allowance import open_edges
 from solver.garment.grain import paired_grains
 from solver.garment.symmetry import centre_seams, mirror_pairs
-from station.cliargs import (
-    add_garment_arguments,
-    add_grain_arguments,
-    cli_pairs,
-    garment_with_grain,
-    load_garment_arg,
-)
+from station.cliargs import add_garment_arguments, add_grain_arguments
+from station.cliload import cli_pairs, garment_with_grain, load_garment_arg
 from station.commands.gcode import bites_beside
 from station.errors import UserError
 from station.seams_view import add_dxf_arguments, draw_seams, inspect_dxf

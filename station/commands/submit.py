@@ -14,7 +14,8 @@ from typing import Any
 
 from solver.garment.grain import parse_grain_lines
 from solver.jsonfile import read_json
-from station.cliargs import load_config_arg, read_name_map
+from station.cliargs import load_config_arg
+from station.cliload import read_name_map
 from station.commands.console import add_console_arguments, ask
 from station.errors import UserError
 from station.steps.submission import check_job

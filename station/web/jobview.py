@@ -17,6 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from solver.nest.layout import Layout
 from station.render import cloth_image
 
 #: the pictures a job's folder may hold, in the order the page offers them
@@ -85,7 +86,8 @@ class JobFiles:
         photo_path = self.file(job_id, "rectified.png")
         photo = None if photo_path is None else cv2.imread(str(photo_path))
         mm_per_px = float((self._json(job_id, "camera.json") or {}).get("mm_per_px", 1.0))
-        image = cloth_image(layout, CLOTH_WIDTH_PX, photo=photo, photo_mm_per_px=mm_per_px)
+        image = cloth_image(Layout.from_dict(layout), CLOTH_WIDTH_PX, photo=photo,
+                            photo_mm_per_px=mm_per_px)
         ok, png = cv2.imencode(".png", image)
         if not ok:
             return None
