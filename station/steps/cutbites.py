@@ -188,10 +188,11 @@ def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | N
             photo = roll.photograph()
         step = find_bite(previous, bite, advance=_already_advanced,
                          photograph=lambda: photo, lattice=lattice, mm_per_px=roll.mm_per_px)
-        log(f"advance {commanded:.3f} mm commanded, {step.bite.advance_measured_mm:.3f} mm "
-            f"measured, skew {step.bite.skew_deg:.4f} deg")
     journal = BiteJournal(step, [*journal.measured, step.bite], None)
     journal.save(job_dir)
+    if previous is not None:  # logged once journalled: a restart now does not measure again
+        log(f"advance {step.bite.advance_commanded_mm:.3f} mm commanded, "
+            f"{step.bite.advance_measured_mm:.3f} mm measured, skew {step.bite.skew_deg:.4f} deg")
     return journal
 
 

@@ -94,6 +94,7 @@ class RollStation(Station):
         self.fabric.write_text(json.dumps(FABRIC))
         self.garment = tmp / "tube.obj"
         self.garment.write_text(tube_obj())
+        self._store: JobStore | None = None
 
     def poses(self) -> list:
         """The simulated roll's poses as its file keeps them (the first: where it lay)."""
@@ -102,6 +103,22 @@ class RollStation(Station):
     def journal(self, job: int) -> dict:
         path = self.tmp / "work" / f"job-{job}" / STATE_FILE
         return json.loads(path.read_text()) if path.is_file() else {}
+
+    @property
+    def store(self) -> JobStore:
+        """The job store the daemons share, opened once it exists (closed with the
+        station)."""
+        if self._store is None:
+            self._store = JobStore(self.tmp / "jobs.db")
+        return self._store
+
+    def bite_events(self, job: int) -> list[str]:
+        return [e["message"] for e in self.store.events(job) if e["kind"] == "bite"]
+
+    def close(self) -> None:
+        if self._store is not None:
+            self._store.close()
+        super().close()
 
     def kill_when(self, ready, what: str) -> None:
         assert wait_until(ready, 120, 0.005), (what, self.daemon_log())
@@ -128,8 +145,10 @@ def test_kills_between_and_within_bites_advance_the_roll_once_and_cut_each_piece
     s.start()
     job = request(s.socket, "submit", garment=str(s.garment), fabric=str(s.fabric),
                   options={})["job"]["id"]
-    # 1. The advance to the second bite journalled, the conveyor still moving: killed.
-    s.kill_when(lambda: s.journal(job).get("advancing") == 1, "the advance journalled")
+    # 1. The advance to the second bite journalled and sent, the conveyor still moving:
+    #    killed.
+    s.kill_when(lambda: s.journal(job).get("advancing") == 1 and s.bite_events(job),
+                "the advance journalled and sent")
     assert len(s.poses()) <= 1, "the roll moved: the kill came too late"
     s.restart_and_resume(job)
     # 2. The next daemon finds the roll where it was, and advances it: killed once the
@@ -138,15 +157,14 @@ def test_kills_between_and_within_bites_advance_the_roll_once_and_cut_each_piece
     assert s.journal(job)["advancing"] == 1 and len(s.journal(job)["measured"]) == 1
     s.restart_and_resume(job)
     # 3. The advance measured, the second bite's first piece cut: killed within the bite.
-    store = JobStore(s.tmp / "jobs.db")
-    record = store.job(job).plan
+    record = s.store.job(job).plan
     plan = load_bites(Layout.load(record["layout"]), Path(record["bites"]))
     second = set(plan.bites[1].pieces)
     assert len(plan.bites) == 2 and len(second) >= 2, plan.summary()
 
     def one_of_the_second_bite_cut() -> bool:
         return sum(p["state"] == "cut" and p["name"] in second
-                   for p in store.pieces(job)) == 1
+                   for p in s.store.pieces(job)) == 1
 
     s.kill_when(one_of_the_second_bite_cut, "a piece of the second bite cut")
     s.restart_and_resume(job)
@@ -161,13 +179,12 @@ def test_kills_between_and_within_bites_advance_the_roll_once_and_cut_each_piece
     assert measured["advance_measured_mm"] == pytest.approx(poses[1].along - poses[0].along,
                                                             abs=0.3)
     assert measured["skew_deg"] == pytest.approx(poses[1].angle_deg, abs=0.05)
-    events = [e["message"] for e in store.events(job) if e["kind"] == "bite"]
+    events = s.bite_events(job)
     asked = ["advancing the roll", "the roll had not moved", "advancing the roll",
              "advance "]  # sent, never run; found unmoved; sent again; measured once
     assert len(events) == len(asked), events
     assert all(m.startswith(f"bite 2 of 2: {a}") for m, a in zip(events, asked)), events
-    pieces = store.pieces(job)
-    store.close()
+    pieces = s.store.pieces(job)
     assert {p["name"]: p["bite"] for p in pieces} == plan.bite_of()
 
     # Each piece cut exactly once, by the machine's own trace, where its bite lay.
