@@ -12,6 +12,7 @@ import numpy as np
 
 from gcode.machine import Machine
 from gcode.recovery import wait_at_rest
+from gcode.session import ResponseReader
 from gcode.stream import Streamer
 from station.config import Config
 from station.steps.capture import CameraOpener, photograph
@@ -39,10 +40,22 @@ class CameraRoll:
         return rectified
 
     def settle(self) -> None:
-        """Wait until the controller rests: a conveyor move that a daemon sent before it
-        died runs on from the controller's buffers, and a photograph now would blur."""
-        if self.feed is not None:
-            with self.open_port(self.config) as port:
+        """Wait until the controller has run what a daemon that died sent it: a conveyor's
+        move runs on from the controller's buffers, and a photograph now would blur. GRBL
+        reports Idle all through a dwell (a relay conveyor's), so first ``$G``, answered
+        only once every line before it has run, then the motion's end
+        (`gcode.recovery.wait_at_rest`). A controller that does not answer is left to
+        the cut's own connection to report."""
+        if self.feed is None:
+            return
+        x0, _, x1, _ = self.machine.work_area
+        longest = (x1 - x0) / conveyor_mm_per_s(self.machine) + CONVEYOR_SLACK_S
+        parsed: list[bool] = []
+        with self.open_port(self.config) as port:
+            reader = ResponseReader(port)
+            reader.register_response("feedback", lambda r: parsed.append(r.kind == "gc"))
+            port.write(b"$G\n")
+            if reader.wait(lambda: any(parsed), longest):
                 wait_at_rest(port)
 
     def _conveyor(self, mm: float) -> None:

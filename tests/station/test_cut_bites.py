@@ -4,19 +4,27 @@ advance measured on the simulated roll; the operator's wait; a kill between bite
 from __future__ import annotations
 
 import io
+import os
 
 import numpy as np
 import pytest
+import serial
 
+import simulators.grbl  # noqa: F401  (the emulator's grblsim:// URLs)
+from gcode.machine import machine_from_dict
 from simulators.fabric import random_print
+from simulators.grbl.registry import forget, lookup
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
-from station.daemon import JobControl, JobInterrupted
+from station.config import load_config
+from station.daemon import JobControl, JobInterrupted, wait_until
 from station.jobstore import JobStore
 from station.progress import follow
 from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
+from station.steps.capture import real_camera
 from station.steps.cutbites import BiteJournal, cut_in_bites, roll_moved
+from station.steps.roll import CameraRoll
 from station.steps.table import TableWindow
 
 WINDOW = TableWindow(0.0, 0.0, 600.0, 400.0)
@@ -251,3 +259,25 @@ def test_the_status_names_the_bite_being_cut(tmp_path):
     follow(lambda _job: next(statuses), job.id, stream=shown, interval=0.0)
     assert shown.getvalue().splitlines() == ["  cutting (bite 1 of 2) ...",
                                              "  cutting (bite 2 of 2) ...", "  done"]
+
+
+def test_a_restarted_station_waits_for_the_relay_conveyor_a_dead_daemon_left_running(
+        tmp_path):
+    """GRBL reports Idle through a dwell: the relay's run (M8, G4, M9) is waited for by
+    the line queued after it, not by the status."""
+    name = f"relay-{os.getpid()}"
+    url = f"grblsim://?name={name}&speed=10&force_origin=1"
+    dead = serial.serial_for_url(url, timeout=0.05)  # the daemon that died
+    try:
+        dead.write(b"M8\nG4 P4.000\nM9\nG4 P0\n")
+        emulator = lookup(name)
+        assert wait_until(lambda: emulator.parser_state.flood, 5, 0.01)
+        assert emulator.state == "Idle"  # the relay runs the roll, and the status says Idle
+        machine = machine_from_dict({"conveyor": {"kind": "relay", "mm_per_s": 100.0}})
+        roll = CameraRoll(load_config(None), machine, real_camera,
+                          lambda _config: serial.serial_for_url(url, timeout=0.05))
+        roll.settle()
+        assert not emulator.parser_state.flood  # the relay's M9 has run
+    finally:
+        dead.close()
+        forget(name)
