@@ -41,10 +41,10 @@ def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
 
 
 def step_label(progress: dict[str, Any]) -> str:
-    """The running step as the operator reads it: ``cutting (bite 2 of 3)`` while a
+    """The running step as the operator reads it: ``cutting, bite 2 of 3`` while a
     marker longer than the table is cut bite by bite (each bite its own bar)."""
     step = progress.get("step") or ""
-    return f"{step} (bite {progress['bite']})" if step and progress.get("bite") else step
+    return f"{step}, bite {progress['bite']}" if step and progress.get("bite") else step
 
 
 def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:

@@ -119,7 +119,7 @@ class BiteJournal:
 class BiteControl(JobControl):
     """The job's control while it cuts a bite: the same flags and progress, and every
     step the cut announces ("connecting", "cutting", ...) names the bite, so that the
-    status and `station watch` say "cutting (bite 2 of 3)"."""
+    status and `station watch` say "cutting, bite 2 of 3"."""
 
     bite: str = field(default="", kw_only=True)
 

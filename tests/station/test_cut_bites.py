@@ -257,8 +257,8 @@ def test_the_status_names_the_bite_being_cut(tmp_path):
                     + [{"state": "done", "reason": "", "pieces": {"cut": 12}}])
     shown = io.StringIO()
     follow(lambda _job: next(statuses), job.id, stream=shown, interval=0.0)
-    assert shown.getvalue().splitlines() == ["  cutting (bite 1 of 2) ...",
-                                             "  cutting (bite 2 of 2) ...", "  done"]
+    assert shown.getvalue().splitlines() == ["  cutting, bite 1 of 2 ...",
+                                             "  cutting, bite 2 of 2 ...", "  done"]
 
 
 def test_a_restarted_station_waits_for_the_relay_conveyor_a_dead_daemon_left_running(
