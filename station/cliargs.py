@@ -33,6 +33,17 @@ def add_fabric_argument(parser: argparse.ArgumentParser) -> None:
                         help='the print: {"group", "w1", "w2", "origin", "units"}')
 
 
+def dxf_allowance(args: argparse.Namespace) -> tuple[float, str]:
+    """(mm, where from) a DXF's cut line is inset by where the file gives no sew line nor
+    allowance: the command's --seam-allowance, else station.toml's allowance.seam_mm."""
+    given = getattr(args, "seam_allowance", None)
+    if given is not None and not given >= 0:
+        raise ValueError(f"--seam-allowance must be >= 0, got {given:g}")
+    if given is not None:
+        return float(given), "--seam-allowance"
+    return float(load_config_arg(args)["allowance"]["seam_mm"]), "station.toml allowance.seam_mm"
+
+
 def load_fabric(path: str | Path) -> Wallpaper:
     """The print of a FABRIC.json; a stripe print (``kind: stripes``, as `station detect`
     writes it) as the 1-D lattice that matches stripes across the seams."""

@@ -21,7 +21,7 @@ from solver.garment.grain import parse_grain_lines
 from solver.garment.symmetrise import symmetrise_as_recorded
 from solver.garment.symmetry import read_pairs_file
 from station.allowance import name_key, rules_for
-from station.cliargs import load_config_arg
+from station.cliargs import dxf_allowance, load_config_arg
 from station.steps.garment import found_pairs, symmetrised
 
 
@@ -36,6 +36,8 @@ def load_garment_arg(args: argparse.Namespace, **options):
     path = Path(args.garment)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such garment file")
+    if path.suffix.lower() == ".dxf":  # a sew line the file lacks: inset by this
+        options["seam_allowance_mm"], options["allowance_from"] = dxf_allowance(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         garment = load_garment(path, units=args.units, size=getattr(args, "size", None),

@@ -206,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     if dxf:  # issue 34: the inferred seams' confidences, the file's facts, the picture
         dxf.annotate(summary)
         if args.png:
-            draw_seams(dxf.pieces, dxf.seams, args.png)
+            draw_seams(dxf.pieces, dxf.seams, args.png, folds=dxf.folds())
     if args.symmetrise:
         summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)

@@ -46,6 +46,9 @@ from vision.advance import Advance, measure_advance
 
 STATE_FILE = "bites-state.json"
 PHOTO_FILE = "bite-photo.npy"
+#: each bite as handed to the cut: ``{"track": (2, 3) marker -> window mm, "pieces":
+#: {piece id: (2, 3) pattern -> window mm}}`` (local maps included)
+BITE_PIECES_FILE = "bite-{index}-pieces.json"
 
 
 #: the photographs show the same cloth under one explanation (advanced, or not moved)
@@ -73,6 +76,14 @@ class Roll(Protocol):
     def photograph(self) -> np.ndarray: ...
 
     def settle(self) -> None: ...
+
+
+#: cuts ``pieces`` (names) of a bite from the machine marker where the bite now lies,
+#: under the control it is given (the bite's, `BiteControl`)
+CutBite = Callable[[MachineLayout, set[str], JobControl], None]
+#: the track with a local map of the print under each piece of the bite, measured on the
+#: bite's photograph (`station.steps.bites.localise`)
+LocalMaps = Callable[[RollTrack, Bite, np.ndarray], RollTrack]
 
 
 @dataclass
@@ -136,11 +147,12 @@ class BiteControl(JobControl):
 def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
                  control: JobControl, *, roll: Roll, lattice: np.ndarray | None,
                  machine_marker: Callable[[RollTrack, Bite], MachineLayout],
-                 cut_bite: Callable[[MachineLayout, set[str], JobControl], None]
-                 ) -> list[Bite]:
+                 cut_bite: CutBite, local_maps: LocalMaps | None = None) -> list[Bite]:
     """Cut ``plan`` bite by bite (see the module's docstring); the bites as measured.
     ``machine_marker`` makes a bite's machine marker from the track, ``cut_bite`` cuts
-    pieces of it under the control it is given (the bite's)."""
+    pieces of it under the control it is given (the bite's); ``local_maps`` (None: none)
+    places each piece on the print under it, measured again from the journalled
+    photograph on a resume, so identically."""
     store.set_piece_bites(job.id, plan.bite_of())
     journal = BiteJournal.load(job_dir, plan)
     for bite in plan.bites:
@@ -157,7 +169,12 @@ def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
         left = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
         todo = left & set(bite.pieces)
         if todo:
-            cut_bite(machine_marker(journal.step.track, bite), todo, named)
+            track = journal.step.track
+            if local_maps is not None:
+                track = local_maps(track, bite, journal.step.photograph)
+            marker = machine_marker(track, bite)
+            _record_pieces(job_dir, bite, marker, track)
+            cut_bite(marker, todo, named)
     return journal.measured
 
 
@@ -253,6 +270,22 @@ def _explained(before: np.ndarray, after: np.ndarray, commanded_mm: float,
                                lattice=lattice)
     except ValueError:
         return None
+
+
+def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout, track: RollTrack
+                   ) -> None:
+    """``bite-K-pieces.json``: where each piece of the bite was cut, as its map from the
+    pattern to the window (what a report or an inspection holds against the cloth), and
+    report.json's ``local_maps``: what each piece's local map did."""
+    (job_dir / BITE_PIECES_FILE.format(index=bite.index)).write_text(json.dumps({
+        "track": track.marker_to_window.tolist(),
+        "pieces": {p.id: np.asarray(p.transform, float).tolist() for p in marker.pieces}}))
+    path = job_dir / "report.json"
+    report = json.loads(path.read_text()) if path.is_file() else {}
+    done = {row["piece"] for row in track.local}
+    report["local_maps"] = [r for r in report.get("local_maps", []) if r["piece"] not in done
+                            ] + track.local
+    path.write_text(json.dumps(report, indent=2, default=float))
 
 
 def _already_advanced(_mm: float) -> None:

@@ -4,7 +4,7 @@ Only files of the job's own folder under the work folder are ever read or served
 names from a fixed list: a request cannot name a path. The page draws the marker itself
 (an SVG over :func:`station.render.cloth_image`, the photographed fabric) so that each
 piece can change colour as the machine cuts it; the pictures the pipeline drew
-(detection, seam fit, toolpath) are served as they are.
+(detection, a CAD pattern's seams, seam fit, toolpath) are served as they are.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from solver.nest.layout import Layout
 from station.render import cloth_image
 
 #: the pictures a job's folder may hold, in the order the page offers them
-PICTURES = ("rectified.png", "detection.png", "frame.png", "marker.png", "fit-reshaped.png",
-            "fit-aligned.png", "fit-before.png", "toolpath.png")
+PICTURES = ("rectified.png", "detection.png", "seams.png", "frame.png", "marker.png",
+            "fit-reshaped.png", "fit-aligned.png", "fit-before.png", "toolpath.png")
 CLOTH_WIDTH_PX = 1400  # the marker's background, drawn once per job and kept
 FABRIC_KEYS = ("group", "confidence", "w1", "w2", "origin", "source", "kind", "units")
 

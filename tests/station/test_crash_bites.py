@@ -28,7 +28,7 @@ from station.daemon import wait_until
 from station.jobstore import JobStore
 from station.simroll import ROLL_STATE_FILE, load_poses
 from station.steps.bites import RollTrack, load_bites
-from station.steps.cutbites import STATE_FILE
+from station.steps.cutbites import BITE_PIECES_FILE, STATE_FILE
 from station.steps.program import fabric_origin, machine_layout, program_of, station_machine
 
 from .test_crash import Station, check_cut_exactly_once
@@ -191,6 +191,10 @@ def test_kills_between_and_within_bites_advance_the_roll_once_and_cut_each_piece
     config = load_config(s.config_path)
     machine = station_machine(config)
     tracks = [RollTrack(), RollTrack(np.asarray(journal["track"], float))]
+    for bite, track in zip(plan.bites, tracks, strict=True):  # what each cut was handed
+        cut = json.loads((s.tmp / "work" / f"job-{job}" / BITE_PIECES_FILE.format(
+            index=bite.index)).read_text())  # (no photograph, so no local maps)
+        np.testing.assert_allclose(cut["track"], track.marker_to_window, atol=1e-9)
 
     def program_of_piece(name: str):
         bite = plan.bites[plan.bite_of()[name]]
