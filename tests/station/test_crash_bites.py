@@ -26,7 +26,7 @@ from station.config import load_config
 from station.control import request
 from station.daemon import wait_until
 from station.jobstore import JobStore
-from station.simroll import ROLL_STATE_FILE, load_poses
+from station.simroll import ROLL_STATE_FILE, kept_conveyor, load_poses, roll_state_path
 from station.steps.bites import RollTrack, load_bites
 from station.steps.cutbites import BITE_PIECES_FILE, STATE_FILE
 from station.steps.program import fabric_origin, machine_layout, program_of, station_machine
@@ -203,3 +203,16 @@ def test_kills_between_and_within_bites_advance_the_roll_once_and_cut_each_piece
         return program_of(marker, machine, {name}, title="bite")[0]
 
     check_cut_exactly_once(s, job, program_of_piece)
+
+
+def test_the_simulated_roll_lies_where_the_last_process_left_it(tmp_path):
+    config = load_config(None, {"store": {"work_dir": str(tmp_path / "work")}})
+    first = kept_conveyor(config, None, (200.0, 160.0))
+    first.advance(300.0)
+    again = kept_conveyor(config, None, (200.0, 160.0))  # a restarted station
+    assert again.poses == first.poses
+    second = again.advance(300.0).along - first.poses[1].along - 300.0
+    first_slip = first.poses[1].along - 300.0
+    assert abs(second) <= 3.0 and second != first_slip  # not the first advance replayed
+    assert len(load_poses(roll_state_path(config))) == 3
+    assert kept_conveyor(config, None, (100.0, 160.0)).poses[1:] == []  # another table
