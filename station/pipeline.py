@@ -129,8 +129,8 @@ class StationPipeline:
             return machine_layout(track.bite_layout(bites, bite), fabric_origin(self.config),
                                   job.plan["layout"])
 
-        def cut_bite(marker: MachineLayout, pieces: set[str]) -> None:
-            cut_job(job, job_dir, marker, store, control, config=self.config,
+        def cut_bite(marker: MachineLayout, pieces: set[str], bite: JobControl) -> None:
+            cut_job(job, job_dir, marker, store, bite, config=self.config,
                     machine=self.machine, open_port=self.open_port, resuming=resuming,
                     pieces=pieces)
 

@@ -64,10 +64,16 @@ def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | No
                    ) -> BitePlan:
     """The bites of ``layout`` on this table; ``lattice`` (2, 2 columns, mm) of the print
     the pieces were placed on (None: plain cloth). Each bite keeps ``ROLL_MARGIN_MM`` of
-    the window free at both ends, so that one advance's error cannot push a piece off."""
+    the window free at both ends, so that one advance's error cannot push a piece off.
+    The first bite is cut where the marker was planned (`RollTrack`), and a marker on a
+    print may begin up to a repeat into the window: every bite is shorter by that lead,
+    so that the first still ends ``ROLL_MARGIN_MM`` before the window does and the first
+    advance, from there, leaves ``MIN_OVERLAP_MM`` of cloth in view."""
     usable = window.length - 2 * ROLL_MARGIN_MM
-    return plan_bites(layout, usable, lattice=lattice,
-                      max_advance_mm=usable - MIN_OVERLAP_MM)
+    first = min(float(p.outline[:, 0].min()) for p in layout.pieces) - float(layout.gap)
+    bite_mm = usable - max(0.0, first - ROLL_MARGIN_MM)
+    return plan_bites(layout, bite_mm, lattice=lattice,
+                      max_advance_mm=bite_mm - MIN_OVERLAP_MM)
 
 
 @dataclass
