@@ -141,10 +141,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1, maximum=3600.0),
     },
     "roll": {  # a marker cut in bites (station.steps.bites)
-        "follow_print": Key(str, "rigid", "how each piece is placed on the print found under "
-                            "it: rigid (turned and moved, keeping its shape; what the print's "
-                            "stretch and shear leave is named per piece) or affine (stretched "
-                            "and sheared with the print, up to 3 %)", choices=FOLLOW_PRINT),
+        "follow_print": Key(str, "affine", "how each piece is placed on the print found "
+                            "under it: affine (with the print's bow, skew and stretch, up to "
+                            "3 %: they are the cloth's own, weft bow and tension, so the piece "
+                            "follows the yarns and is true when the cloth lies relaxed) or "
+                            "rigid (turned and moved only: a print misregistered on straight "
+                            "cloth; what it leaves is named per piece)", choices=FOLLOW_PRINT),
     },
     "allowance": {
         "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0,

@@ -129,15 +129,16 @@ class RollTrack:
 
 def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: BitePlan,
              reference: PrintReference, mm_per_px: float = 1.0,
-             follow: str = "rigid") -> RollTrack:
+             follow: str = "affine") -> RollTrack:
     """``track`` with a local map of the print under each piece of ``bite``, measured on
     ``photograph`` (the window with the bite on it) against ``reference`` (the print as
-    planned). ``follow`` (`[roll] follow_print`): "rigid" turns and moves each piece onto
-    the print as it lies, keeping its shape (a garment its size, both sides of a seam
-    their lengths), and names what that leaves of the print's stretch and shear; "affine"
-    cuts the piece stretched and sheared with the print (up to `MAX_LOCAL_STRAIN`), its
-    print matching further but its seams no longer as long as their twins. All tiles of
-    all pieces are measured at once."""
+    planned). ``follow`` (`[roll] follow_print`): "affine" cuts the piece stretched and
+    sheared with the print (up to `MAX_LOCAL_STRAIN`): a roll's bow, skew and stretch are
+    the cloth's own (weft bow, tension on the table), so the piece follows the yarns and
+    is true, its seams as long as their twins, once the cloth lies relaxed. "rigid" only
+    turns and moves each piece onto the print, for a print misregistered on straight
+    cloth, and names what that leaves of the print's stretch and shear. All tiles of all
+    pieces are measured at once."""
     if follow not in FOLLOW_PRINT:
         raise ValueError(f"follow must be one of {', '.join(FOLLOW_PRINT)}, not {follow!r}")
     wanted = set(bite.pieces)

@@ -38,7 +38,7 @@ def test_a_piece_follows_the_print_it_lies_on():
     plan = BitePlan(Layout(500.0, 760.0, 0.0, [piece]), [Bite(0, 0.0, 760.0, ("a#1",), 0.0)],
                     760.0, 760.0)
     track = localise(RollTrack(), plan.bites[0], window_photo(design_of), plan=plan,
-                     reference=reference, follow="affine")
+                     reference=reference)  # the default follows the print
     cut = track.bite_layout(plan, plan.bites[0]).pieces[0].outline
     want = OUTLINE + shift + np.column_stack([shear * OUTLINE[:, 1], 0 * OUTLINE[:, 1]])
     assert np.abs(cut - want).max() < 0.3  # mm, at the piece's corners
