@@ -129,8 +129,8 @@ class StationPipeline:
             return machine_layout(track.bite_layout(bites, bite), fabric_origin(self.config),
                                   job.plan["layout"])
 
-        def cut_bite(marker: MachineLayout, pieces: set[str]) -> None:
-            cut_job(job, job_dir, marker, store, control, config=self.config,
+        def cut_bite(marker: MachineLayout, pieces: set[str], bite: JobControl) -> None:
+            cut_job(job, job_dir, marker, store, bite, config=self.config,
                     machine=self.machine, open_port=self.open_port, resuming=resuming,
                     pieces=pieces)
 
@@ -139,7 +139,8 @@ class StationPipeline:
 
         def local_maps(track: RollTrack, bite, photo: np.ndarray) -> RollTrack:
             return localise(track, bite, photo, plan=bites, reference=reference,
-                            mm_per_px=roll.mm_per_px)
+                            mm_per_px=roll.mm_per_px,
+                            follow=self.config["roll"]["follow_print"])
 
         cut_in_bites(job, job_dir, bites, store, control, roll=self._roll,
                      lattice=print_lattice(fabric), machine_marker=machine_marker,

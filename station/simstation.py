@@ -19,10 +19,11 @@ import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
 from gcode.machine import Machine
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.classics import classic_print
-from simulators.roll import Conveyor, LaidPrint, RollCamera, RollPrint
+from simulators.roll import LaidPrint, RollCamera, RollPrint
 from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
+from station.simroll import kept_conveyor
 from station.steps.capture import CameraOpener
 from station.steps.cut import PortOpener, serial_port
 from vision.camera import Camera, open_camera
@@ -74,11 +75,13 @@ class SimulatedRoll:
 
     mm_per_px = 1.0
 
-    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False) -> None:
+    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False,
+                 machine: Machine | None = None) -> None:
         n = config["nest"]
         length, width = float(n["length_mm"]), float(n["width_mm"])
         self.print = roll_print(config)
-        self.conveyor = Conveyor(pivot=(length / 2, width / 2), seed=seed)
+        # kept in the work folder: a restarted station finds the cloth where it was
+        self.conveyor = kept_conveyor(config, machine, (length / 2, width / 2), seed)
         self.camera = RollCamera(self.print, self.conveyor, (0.0, 0.0, length, width),
                                  self.mm_per_px, seed=seed)
         # by hand: the job waits for the operator, whose hands slip like the conveyor
@@ -90,6 +93,10 @@ class SimulatedRoll:
     def photograph(self):
         return self.camera.photograph()
 
+    def settle(self) -> None:
+        """Nothing to wait for: a move the simulated conveyor had not finished died with
+        the process that commanded it (`station.simroll`)."""
+
     def truth(self) -> list[dict[str, float]]:
         """Each advance as the conveyor really made it (the simulator's truth), to hold
         the station's measurements against."""
@@ -99,16 +106,16 @@ class SimulatedRoll:
                 for a, b in zip(poses, poses[1:])]
 
 
-def simulated_roll(config: Config, _machine: Machine, _open_camera: CameraOpener,
+def simulated_roll(config: Config, machine: Machine, _open_camera: CameraOpener,
                    _open_port: PortOpener) -> SimulatedRoll:
     """The simulated station's roll (`SimulatedRoll`), for `StationPipeline`'s open_roll."""
-    return SimulatedRoll(config)
+    return SimulatedRoll(config, machine=machine)
 
 
-def roll_by_hand(config: Config, _machine: Machine, _open_camera: CameraOpener,
+def roll_by_hand(config: Config, machine: Machine, _open_camera: CameraOpener,
                  _open_port: PortOpener) -> SimulatedRoll:
     """`simulated_roll` with no conveyor: the job waits for the operator at each advance."""
-    return SimulatedRoll(config, by_hand=True)
+    return SimulatedRoll(config, by_hand=True, machine=machine)
 
 
 def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline, *,

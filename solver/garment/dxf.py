@@ -26,6 +26,7 @@ import shapely
 
 import untrusted
 from solver.garment.dxf_file import chain_rings, read_blocks, reflect, texts, units_scale
+from solver.seams.darts import open_darts
 
 __all__ = ["DxfPattern", "DxfPiece", "read_dxf_pattern"]
 
@@ -307,8 +308,10 @@ def _with_sew(p: DxfPiece, allowance_mm: float | None, allowance_from: str,
     if inner.geom_type != "Polygon":
         inner = max(inner.geoms, key=lambda q: q.area)
     ring = np.asarray(shapely.geometry.polygon.orient(inner, 1.0).exterior.coords)[:-1]
+    # a CAD's cut line runs across a dart's mouth: the notches and drill hole open it again
+    ring, darts = open_darts(ring, np.array([a for a, _ in p.notches]), p.drills)
     return replace(p, sew=ring, sew_source=f"the cut line inset by {allowance_mm:g} mm "
-                   f"({allowance_from})")
+                   f"({allowance_from})" + (f", {darts} dart(s) opened" if darts else ""))
 
 
 def _file_allowance(doc, scale: float) -> float | None:
