@@ -55,6 +55,7 @@ from solver.wallpaper import Wallpaper
 
 MODES = ("mirror", "same")
 GLIDE_MM = 0.1  # a fold's print mismatch above this: its operation is a glide
+_NEIGHBOURS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], float)
 
 
 @dataclass(frozen=True)
@@ -134,8 +135,9 @@ class PairTie:
     angle becomes the fixed point of ``theta -> const - theta`` nearest the piece's (the
     fold onto the operation's axis); the translation moves across the fold by half the gap
     between the placement and its mirror image, that gap first reduced by the print's
-    lattice (``fabric``), so the fold lands on the nearest line of that mirror, and stays
-    free along it. Rules run in order: a fold before a pair that copies its piece."""
+    lattice (``fabric``), so the fold lands on the nearest mirror line of that direction
+    (not a glide line of a centred lattice), and stays free along it. Rules run in order:
+    a fold before a pair that copies its piece."""
 
     rules: tuple[PairRule, ...]
     keep: np.ndarray  # (P,) each piece's index in the quotient
@@ -156,10 +158,23 @@ class PairTie:
             t_j = rule.pair.translation + trans[..., i, :] @ mirror.T - r_j @ rule.op[:2, 2]
             if i == j:
                 gap = np.einsum("...ji,...j->...i", r_j, trans[..., i, :] - t_j)
-                gap = np.einsum("...ij,...j->...i", r_j, self.fabric.lattice_residual(gap))
+                gap = np.einsum("...ij,...j->...i", r_j, self._least_glide(rule, gap))
                 t_j = trans[..., i, :] - 0.25 * gap @ (np.eye(2) - mirror).T
             angles[..., j], trans[..., j, :] = a_j, t_j
         return angles, trans
+
+    def _least_glide(self, rule: PairRule, gap: np.ndarray) -> np.ndarray:
+        """The representative of each ``gap`` (..., 2) (wallpaper mm, a fold's placement
+        minus its mirror image) modulo the print's lattice with the least residue along
+        the operation's axis (a mirror line rather than a glide line of a centred
+        lattice), then the least across it (the nearest such line)."""
+        half = 0.5 * np.arctan2(rule.op[1, 0], rule.op[0, 0])
+        axis = np.array([np.cos(half), np.sin(half)])
+        cand = (self.fabric.lattice_residual(gap)[..., None, :]
+                + _NEIGHBOURS @ self.fabric.basis.T)
+        along, across = np.abs(cand @ axis), np.abs(cand @ np.array([-axis[1], axis[0]]))
+        best = np.argmin(np.round(along, 6) * 1e6 + across, axis=-1)
+        return np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
 
     def pull_back(self, angles: np.ndarray, g_angles: np.ndarray, g_trans: np.ndarray):
         """Gradient in the garment's angles (P,) and translations (P,2), at the garment's

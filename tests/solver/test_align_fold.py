@@ -107,3 +107,19 @@ def test_the_fold_tie_is_a_projection_with_its_chain_rule() -> None:
         assert (f(q_a, q_t + step) - f(q_a, q_t - step)) / (2 * h) == pytest.approx(
             g_t[0, k], abs=1e-6)
     assert (f(q_a + h, q_t) - f(q_a - h, q_t)) / (2 * h) == pytest.approx(g_a[0], abs=1e-6)
+
+
+def test_a_fold_lands_on_a_mirror_line_not_a_glide_line() -> None:
+    """cmm with a cell three times longer across the fold than along it: mirror lines
+    every 60 mm, glide lines between them; the nearest line is often a glide's."""
+    cmm = Wallpaper("cmm", (20.0, -60.0), (20.0, 60.0))
+    fold = MirrorPair(0, 0, 0.0, 100.0, np.diag([1.0, -1.0]) @ FLIP, np.zeros(2))  # along x
+    tie = PairTie((pair_rule(fold, cmm, nap=True),), np.array([0]), cmm)
+    inside = np.random.default_rng(1).uniform(0.0, 100.0, (40, 2))
+    zero = np.zeros(len(inside), int)
+    for across in np.linspace(0.0, 120.0, 13):  # 30-42 mm and 90-102 mm: nearer a glide
+        angles, trans = tie.expand(np.array([0.0]), np.array([[3.0, across]]))
+        placement = Placement(angles, trans, cmm)
+        mirrored = cmm.mismatch(placement.to_wallpaper(fold.map_first_to_second(inside), zero),
+                                placement.to_wallpaper(inside, zero))
+        assert np.abs(mirrored).max() < 1e-9, across
