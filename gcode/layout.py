@@ -6,7 +6,7 @@ Outlines in LAYOUT.json are already in fabric millimetres (x along the roll, y a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +14,7 @@ import shapely
 
 import untrusted
 
-__all__ = ["Layout", "LayoutPiece", "Notch", "load_layout", "layout_from_dict"]
+__all__ = ["Layout", "LayoutPiece", "Notch", "load_layout", "layout_from_dict", "on_table"]
 
 
 @dataclass
@@ -163,6 +163,18 @@ def layout_from_dict(data: dict, source: str = "<layout>") -> Layout:
             _check_on_fabric(piece.outline - off, size["width"], source, f"pieces[{i}].outline")
     return Layout(pieces=pieces, width=size["width"], length=size["length"], gap=size["gap"],
                   origin=(float(off[0]), float(off[1])), source=source)
+
+
+def on_table(layout: Layout, origin: tuple[float, float]) -> Layout:
+    """``layout`` with its fabric laid at ``origin`` on the table: every machine coordinate
+    moves with the fabric (machine = fabric + origin); ``transform`` stays pattern ->
+    fabric. The one way a marker is put where the station's fabric lies."""
+    d = np.asarray(origin, float) - np.asarray(layout.origin, float)
+    pieces = [replace(p, outline=p.outline + d, holes=[h + d for h in p.holes],
+                      notches=[replace(n, at=n.at + d) for n in p.notches], marks=p.marks + d,
+                      grainline=None if p.grainline is None else p.grainline + d)
+              for p in layout.pieces]
+    return replace(layout, pieces=pieces, origin=(float(origin[0]), float(origin[1])))
 
 
 def load_layout(path: str | Path) -> Layout:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from gcode.layout import Layout as MachineLayout
-from gcode.layout import load_layout
+from gcode.layout import load_layout, on_table
 from gcode.machine import Machine
 from gcode.program import Program
 from solver.nest.bites import BitePlan
@@ -155,9 +155,7 @@ class StationPipeline:
 
     def marker_file(self, path: str | Path) -> MachineLayout:
         """A job's LAYOUT.json, read as untrusted input, on this station's table."""
-        marker = load_layout(path)
-        marker.origin = fabric_origin(self.config)
-        return marker
+        return on_table(load_layout(path), fabric_origin(self.config))
 
     def program_for(self, layout: str | Path, only: set[str] | None) -> Program:
         """The checked program for the pieces ``only`` (None: all) of a LAYOUT.json."""

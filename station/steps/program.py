@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcode.layout import Layout as MachineLayout
-from gcode.layout import LayoutPiece, Notch
+from gcode.layout import LayoutPiece, Notch, on_table
 from gcode.machine import Machine, default_machine, load_machine
 from gcode.program import Program, build_program
 from gcode.toolpath import PieceToolpath, build_toolpaths
@@ -53,9 +53,10 @@ def fabric_origin(config: Config) -> tuple[float, float]:
 def machine_layout(layout: Layout, origin: tuple[float, float], source: str) -> MachineLayout:
     """The nested marker as the machine cuts it: the same pieces, the fabric at
     ``origin`` on the table. ``source`` names the marker in the program's refusals."""
-    return MachineLayout(pieces=[_machine_piece(p) for p in layout.pieces],
-                         width=float(layout.width), length=float(layout.length),
-                         gap=float(layout.gap), origin=origin, source=source)
+    fabric = MachineLayout(pieces=[_machine_piece(p) for p in layout.pieces],
+                           width=float(layout.width), length=float(layout.length),
+                           gap=float(layout.gap), source=source)
+    return on_table(fabric, origin)
 
 
 def _machine_piece(piece: Placed) -> LayoutPiece:

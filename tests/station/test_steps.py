@@ -8,9 +8,11 @@ import sys
 
 import numpy as np
 import pytest
+import shapely
 
-from gcode.layout import load_layout
+from gcode.layout import load_layout, on_table
 from gcode.machine import default_machine
+from gcode.program import program_moves
 from solver.nest.layout import Layout, Placed
 from station.config import load_config
 from station.steps.capture import real_camera
@@ -42,8 +44,7 @@ def test_the_marker_in_memory_cuts_what_its_layout_file_cuts(tmp_path):
     layout, origin, machine = _marker(), (5.0, 7.0), default_machine()
     in_memory = machine_layout(layout, origin, str(tmp_path / "layout.json"))
     layout.save(tmp_path / "layout.json")
-    from_file = load_layout(tmp_path / "layout.json")
-    from_file.origin = origin
+    from_file = on_table(load_layout(tmp_path / "layout.json"), origin)
     for a, b in zip(in_memory.pieces, from_file.pieces, strict=True):
         assert (a.id, a.name) == (b.id, b.name)
         np.testing.assert_array_equal(a.outline, b.outline)
@@ -58,6 +59,19 @@ def test_the_marker_in_memory_cuts_what_its_layout_file_cuts(tmp_path):
     assert memory_program.summary()["pieces"] == 2
     only_b, toolpaths = program_of(in_memory, machine, {"b"}, title="t")
     assert [tp.id for tp in toolpaths] == ["b"] and only_b.summary()["pieces"] == 1
+
+
+def test_a_fabric_laid_off_the_table_corner_is_cut_where_it_lies():
+    """machine = fabric + origin: every cutting move of the daemon's program lies on a
+    piece moved by ``[machine] fabric_origin``, not where the piece would lie with the
+    fabric at the table's corner (where the fabric box would also clip the cut)."""
+    layout, origin, machine = _marker(), np.array([40.0, 25.0]), default_machine()
+    program, _ = program_of(machine_layout(layout, tuple(origin), "marker"), machine, title="t")
+    burnt = np.concatenate([pts for _, on, _, pts in program_moves(program) if on])
+    laid = shapely.union_all([shapely.Polygon(p.outline + origin) for p in layout.pieces])
+    unlaid = shapely.union_all([shapely.Polygon(p.outline) for p in layout.pieces])
+    assert shapely.distance(laid, shapely.points(burnt)).max() < 0.5  # kerf, sharp corners
+    assert shapely.distance(unlaid, shapely.points(burnt)).max() > 20.0
 
 
 def test_the_daemon_path_imports_no_simulator():
