@@ -38,7 +38,7 @@ SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fil
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
 # free to start at any phase, only the dotted model chooses it: it gets twice its share
 # (the t-shirt's p1 marker under 5 s: 1.3 s left it no time to solve, and no gain)
-PHASE_SHARES = SHARES | {"dotted": 1.6}
+PHASE_SHARES = SHARES | {"dotted": 1.6, "fill": 0.2}
 # s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
 # that before CP-SAT reads the hint; with less the model only costs time
 DOTTED_MIN = 1.0
@@ -90,10 +90,10 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     deadline = deadline_of(time_limit)
-    if strategies is None:
-        strategies = _default_strategies(problem, items, deadline)
     run = _Run(problem, items, seed, progress,
                any_phase=any_phase and phase_period(problem.lattice) is not None)
+    if strategies is None:
+        strategies = _default_strategies(problem, items, deadline, run.any_phase)
     for i, strategy in enumerate(strategies):
         if strategy not in _STRATEGIES:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
@@ -119,13 +119,16 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     return layout
 
 
-def _default_strategies(problem: NestProblem, items: list, deadline: Deadline
-                        ) -> tuple[str, ...]:
+def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
+                        any_phase: bool = False) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
-    even a whole fill fits the time."""
+    even a whole fill fits the time. Free of phase the dotted model, which alone
+    chooses it, comes straight after the joint snap."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
+    if any_phase and small <= MAX_OPTIONS:
+        strategies = ("joint", "dotted", "fill", "coset")
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill
@@ -173,6 +176,8 @@ def _naive(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
 
 
 def _fill(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    if run.proven:  # (free of phase the dotted model runs first)
+        return None
     return fill_search(run.problem, run.items, time_limit=share, seed=run.seed,
                        progress=run.progress, interruptible=late)
 
