@@ -36,9 +36,9 @@ from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
-# free to start at any phase, only the dotted model chooses it: it gets twice its share
-# (the t-shirt's p1 marker under 5 s: 1.3 s left it no time to solve, and no gain)
-PHASE_SHARES = SHARES | {"dotted": 1.6, "fill": 0.2}
+# free to start at any phase, only the dotted model chooses it: it runs before the fill,
+# with more time (the t-shirt's p1 marker under 5 s: 1.3 s left it no time to solve)
+PHASE_SHARES = SHARES | {"dotted": 1.4}
 # s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
 # that before CP-SAT reads the hint; with less the model only costs time
 DOTTED_MIN = 1.0
@@ -122,13 +122,12 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
 def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
                         any_phase: bool = False) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
-    even a whole fill fits the time. Free of phase the dotted model, which alone
-    chooses it, comes straight after the joint snap."""
+    even a whole fill fits the time."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
-    if any_phase and small <= MAX_OPTIONS:
-        strategies = ("joint", "dotted", "fill", "coset")
+    if any_phase and small <= MAX_OPTIONS:  # the dotted model, which alone chooses the
+        strategies = ("joint", "dotted", "fill", "coset")  # phase, from the joint snap on
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill
@@ -176,7 +175,7 @@ def _naive(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
 
 
 def _fill(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
-    if run.proven:  # (free of phase the dotted model runs first)
+    if run.proven:  # the dotted model ran first (free of phase) and proved its marker
         return None
     return fill_search(run.problem, run.items, time_limit=share, seed=run.seed,
                        progress=run.progress, interruptible=late)
