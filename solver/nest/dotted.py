@@ -450,8 +450,8 @@ class _Board:
         g, model = self.problem.gap, self.model
         starts = [np.floor(o.left * SCALE) for o in self.opts]
         # the marker starts where one piece does: its left edge is one of the options'
-        # within the first period (a finite domain: the t-shirt's p1 marker from a
-        # 919 mm hint reached 830 mm in 5 s with it, 919 mm with an interval)
+        # within the first period (a finite domain; in one trial from a 919 mm t-shirt
+        # p1 hint: 830 mm in 5 s, none better with an interval)
         first = np.unique(np.concatenate(starts))
         first = first[first <= (g + period) * SCALE].astype(np.int64)
         left = model.new_int_var_from_domain(
@@ -486,7 +486,7 @@ class _Board:
         if status in (cp.OPTIMAL, cp.INFEASIBLE) or rest <= 0:
             return first, status
         self.model.proto.search_strategy.clear()
-        if status == cp.FEASIBLE:  # the better start: the hint is never shorter
+        if status == cp.FEASIBLE:  # its marker: never longer than the hint (the limit)
             hinted = {v.index: first.value(v) for v in [*self.x, self.right, self.left]}
         for index, value in hinted.items():
             self.model.proto.solution_hint.vars.append(index)

@@ -36,8 +36,9 @@ from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
-# free to start at any phase, only the dotted model chooses it: it runs before the fill,
-# with more time (the t-shirt's p1 marker under 5 s: 1.3 s left it no time to solve)
+# free to start at any phase, only the dotted model chooses it, from the best of the
+# others as its hint (so never longer): it gets more of the time (the t-shirt's p1 under
+# 5 s: 1.3 s left it no time to solve); run first, it gained no more, and lost the hint
 PHASE_SHARES = SHARES | {"dotted": 1.4}
 # s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
 # that before CP-SAT reads the hint; with less the model only costs time
@@ -93,7 +94,7 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     run = _Run(problem, items, seed, progress,
                any_phase=any_phase and phase_period(problem.lattice) is not None)
     if strategies is None:
-        strategies = _default_strategies(problem, items, deadline, run.any_phase)
+        strategies = _default_strategies(problem, items, deadline)
     for i, strategy in enumerate(strategies):
         if strategy not in _STRATEGIES:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
@@ -119,15 +120,13 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     return layout
 
 
-def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
-                        any_phase: bool = False) -> tuple[str, ...]:
+def _default_strategies(problem: NestProblem, items: list, deadline: Deadline
+                        ) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
     even a whole fill fits the time."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
-    if any_phase and small <= MAX_OPTIONS:  # the dotted model, which alone chooses the
-        strategies = ("joint", "dotted", "fill", "coset")  # phase, from the joint snap on
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill
@@ -175,8 +174,6 @@ def _naive(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
 
 
 def _fill(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
-    if run.proven:  # the dotted model ran first (free of phase) and proved its marker
-        return None
     return fill_search(run.problem, run.items, time_limit=share, seed=run.seed,
                        progress=run.progress, interruptible=late)
 
@@ -197,9 +194,8 @@ def _joint(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
     # for few, a quarter of the covering radius leaves the joint snap room (half
     # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
     extra = 0.0 if len(run.items) >= MANY else 0.25 * covering_radius(run.problem.lattice)
-    period = phase_period(run.problem.lattice) if run.any_phase else None
     return joint_search(run.problem, run.items, time_limit=share, seed=run.seed,
-                        progress=run.progress, extra=extra, interruptible=late, period=period)
+                        progress=run.progress, extra=extra, interruptible=late)
 
 
 def _dotted(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:

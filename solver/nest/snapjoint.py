@@ -20,7 +20,7 @@ import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.fill import first_fill_estimate
-from solver.nest.instance import Item, NestProblem, affine, marker_span
+from solver.nest.instance import Item, NestProblem, affine
 from solver.nest.plain import plain_moves
 from solver.nest.regions import repair, snap_to_lattice
 
@@ -95,13 +95,12 @@ def _clash_table(a: np.ndarray, b: np.ndarray, gap: float, deadline: float,
 
 
 def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray], *,
-               reach: float, push: float, deadline: float = math.inf, span: bool = False,
+               reach: float, push: float, deadline: float = math.inf,
                ) -> tuple[list[np.ndarray], float] | None:
     """The shortest collision-free choice of allowed positions near the free ``moves``.
 
     Returns (moves, length) or None when no choice within reach is free (or
     none was found before ``deadline``; the best found so far is returned otherwise).
-    ``span``: the length is the marker's from its leftmost piece (free of phase).
     """
     n = len(items)
     opts = [snap_options(problem, it, m, reach, push) for it, m in zip(items, moves)]
@@ -124,8 +123,7 @@ def joint_snap(problem: NestProblem, items: list[Item], moves: list[np.ndarray],
     if choice.pick is None:
         return None
     out = [opts[k][0][o] for k, o in enumerate(choice.pick)]
-    start = min(shapely.bounds(opts[k][1][o])[0] for k, o in enumerate(choice.pick))
-    return out, choice.length + problem.gap - (start - problem.gap if span else 0.0)
+    return out, choice.length + problem.gap
 
 
 def _clash_tables(problem: NestProblem, opts: list, deadline: float
@@ -211,7 +209,6 @@ SNAP_SHARE = 0.5  # of the time after it, for the final nest's joint snaps; the 
 LOOSER = 1.1  # earlier nests up to this times the final length are snapped
 SPACINGS = (1.0, 0.5, 0.25, 0.125)  # lattice steps between the earlier nests, coarse first
 SNAP_MAX = 0.3  # s, at most, for one earlier nest's snap
-PHASES = 4  # free of phase: shifts of a free nest along the roll snapped, per period
 
 
 def earlier_nests(others: list, final: float, step: float) -> list:
@@ -240,41 +237,30 @@ def earlier_nests(others: list, final: float, step: float) -> list:
 
 def snap_nests(problem: NestProblem, items: list[Item], free: list[np.ndarray],
                free_len: float, others: list, *, final: float, deadline: float,
-               progress: Progress | None = None, period: float | None = None,
-               ) -> tuple[list[np.ndarray], float] | None:
+               progress: Progress | None = None) -> tuple[list[np.ndarray], float] | None:
     """The shortest joint snap of sparrow's final nest ``free`` (every setting of
     ``REACHES``, until ``final``) and of its earlier nests ``others`` ((moves, length)
-    pairs, see :func:`earlier_nests`) until ``deadline`` (both monotonic s).
-
-    ``period``: the marker may start at any phase of the print, whose period along the
-    roll this is: a free nest is snapped at ``PHASES`` shifts along the roll within it
-    (the earlier nests each at the next), and markers are compared by their span.
-    """
+    pairs, see :func:`earlier_nests`) until ``deadline`` (both monotonic s)."""
     t0 = time.monotonic()
     step = float(np.abs(problem.lattice).max())
-    shifts = [0.0] if period is None else [period * k / PHASES for k in range(PHASES)]
-    span = period is not None
     best = None
     for reach, push in REACHES:
-        for shift in shifts:
-            if time.monotonic() > final:
-                break
-            r = joint_snap(problem, items, _shifted(free, shift), reach=reach * step,
-                           push=push * step, deadline=final, span=span)
-            if r is not None and (best is None or r[1] < best[1]):
-                best = r
-                if progress:
-                    progress(f"joint snap: {time.monotonic() - t0:5.1f} s  length {r[1]:.4g}"
-                             f"{f' (shifted {shift:g} mm)' if shift else ''}")
+        if time.monotonic() > final:
+            break
+        r = joint_snap(problem, items, free, reach=reach * step, push=push * step,
+                       deadline=final)
+        if r is not None and (best is None or r[1] < best[1]):
+            best = r
+            if progress:
+                progress(f"joint snap: {time.monotonic() - t0:5.1f} s  length {r[1]:.4g}")
     reach, push = REACHES[0]
     tried = 0
     for moves, length in earlier_nests(others, free_len, step):
         if time.monotonic() > deadline:
             break
         tried += 1
-        r = joint_snap(problem, items, _shifted(moves, shifts[tried % len(shifts)]),
-                       reach=reach * step, push=push * step,
-                       deadline=min(deadline, time.monotonic() + SNAP_MAX), span=span)
+        r = joint_snap(problem, items, moves, reach=reach * step, push=push * step,
+                       deadline=min(deadline, time.monotonic() + SNAP_MAX))
         if r is not None and (best is None or r[1] < best[1]):
             best = r
             if progress:
@@ -285,20 +271,9 @@ def snap_nests(problem: NestProblem, items: list[Item], free: list[np.ndarray],
     return best
 
 
-def _shifted(moves: list[np.ndarray], shift: float) -> list[np.ndarray]:
-    """A free nest moved ``shift`` mm along the roll (it is free: any shift is one)."""
-    if not shift:
-        return moves
-    out = [m.copy() for m in moves]
-    for m in out:
-        m[0, 2] += shift
-    return out
-
-
 def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float | Deadline,
                  seed: int | None, progress: Progress | None = None, extra: float = 0.0,
-                 interruptible: bool = False, period: float | None = None,
-                 ) -> tuple[list[np.ndarray], float] | None:
+                 interruptible: bool = False) -> tuple[list[np.ndarray], float] | None:
     """One sparrow run (``extra`` mm of margin around every piece): its final free nest
     snapped jointly with each setting of ``REACHES`` and by the nearest-first sweep of
     :func:`solver.nest.regions.repair` (what ``resnap`` does), and its earlier feasible
@@ -322,13 +297,10 @@ def joint_search(problem: NestProblem, items: list[Item], *, time_limit: float |
         return None
     final = time.monotonic() + budget.before(sweep).share(SNAP_SHARE).left()
     best = snap_nests(problem, items, free, free_len, others, final=final,
-                      deadline=time.monotonic() + budget.before(sweep).left(), progress=progress,
-                      period=period)
+                      deadline=time.monotonic() + budget.before(sweep).left(), progress=progress)
     r = repair(problem, items, snap_to_lattice(problem, items, free), time_limit=budget,
                seed=seed, progress=progress, everything=True,
                interruptible=interruptible or best is not None)
-    if r is not None and period is not None:
-        r = r[0], marker_span(items, r[0], problem.gap)
     if r is not None and (best is None or r[1] < best[1]):
         best = r
     return best
