@@ -207,8 +207,10 @@ def density(t: float, seed: int, wanted: list[str], method: str, any_phase: bool
 
     print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
           f"square prints, {t:g} s each\n")
-    print("Cells: density (printed / plain, wall s). before = strategies "
-          f"{'+'.join(BEFORE)}; now = method {method}.\n")
+    before = (f"method {method} at the print's phase at the roll's start" if any_phase else
+              f"strategies {'+'.join(BEFORE)}")
+    now = f"method {method}{', free to start at any phase' if any_phase else ''}"
+    print(f"Cells: density (printed / plain, wall s). before = {before}; now = {now}.\n")
     heads = " | ".join(f"{g} {a:g} mm {when}" for g, a in DENSITY_PRINTS
                        for when in ("before", "now"))
     print(f"| garment | pieces | plain | {heads} |")

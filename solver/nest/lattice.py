@@ -36,10 +36,12 @@ from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
-# free to start at any phase, only the dotted model chooses it, from the best of the
-# others as its hint (so never longer): it gets more of the time (the t-shirt's p1 under
-# 5 s: 1.3 s left it no time to solve); run first, it gained no more, and lost the hint
-PHASE_SHARES = SHARES | {"dotted": 1.4}
+# free to start at any phase, only the dotted model chooses it, and its depth-first pass
+# needs no good hint, only a marker to bound the length: a quick fill gives one, the
+# model gets most of the time, and the joint snap (sparrow) what it leaves. The t-shirt's
+# p1 under 5 s at load 7: after the joint snap and the fill, 1.2-2.7 s were left to it,
+# too little to solve after a 0.6-0.8 s build
+PHASE_SHARES = SHARES | {"dotted": 2.0, "fill": 0.2}
 # s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
 # that before CP-SAT reads the hint; with less the model only costs time
 DOTTED_MIN = 1.0
@@ -94,7 +96,7 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     run = _Run(problem, items, seed, progress,
                any_phase=any_phase and phase_period(problem.lattice) is not None)
     if strategies is None:
-        strategies = _default_strategies(problem, items, deadline)
+        strategies = _default_strategies(problem, items, deadline, run.any_phase)
     for i, strategy in enumerate(strategies):
         if strategy not in _STRATEGIES:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
@@ -120,13 +122,15 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     return layout
 
 
-def _default_strategies(problem: NestProblem, items: list, deadline: Deadline
-                        ) -> tuple[str, ...]:
+def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
+                        any_phase: bool = False) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
-    even a whole fill fits the time."""
+    even a whole fill fits the time. Free of phase: fill, dotted, joint, coset."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
+    if any_phase and small <= MAX_OPTIONS:  # see PHASE_SHARES
+        strategies = ("fill", "dotted", "joint", "coset")
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill
@@ -190,6 +194,8 @@ def _resnap(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
 
 
 def _joint(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    if run.proven:  # free of phase the dotted model ran first and proved its marker
+        return None
     # many small pieces lose more to a margin than to collisions after snapping;
     # for few, a quarter of the covering radius leaves the joint snap room (half
     # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
