@@ -279,7 +279,8 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
         return None
     reporter = _reporter(cp_model, progress, 2 * problem.gap if any_phase else problem.gap, t0)
     if any_phase:
-        solver, status = board.solve_left_to_right_first(left, workers, reporter)
+        solver, status = board.solve_left_to_right_first(left, workers, reporter,
+                                                         SOLVE_MIN * build)
     else:
         solver = _solver(cp_model, left, workers)
         status = solver.solve(board.model, reporter)
@@ -464,10 +465,11 @@ class _Board:
             self.area / (self.problem.width - 2 * g) * SCALE)))
         model.minimize(self.right - left)
 
-    def solve_left_to_right_first(self, seconds: float, workers: int, reporter):
+    def solve_left_to_right_first(self, seconds: float, workers: int, reporter,
+                                  least: float):
         """(solver, status): ``FIXED_SHARE`` of ``seconds`` of depth-first search (the
         largest pieces first, each tried left to right, bottom to top), then the default
-        search from its best marker; the better of the two."""
+        search from its best marker if ``least`` s (its presolve) are left; the better."""
         cp = self.cp_model
         literals = []
         for i in sorted(range(len(self.items)), key=lambda i: -self.area_of[i]):
@@ -483,7 +485,7 @@ class _Board:
         first.parameters.search_branching = cp.FIXED_SEARCH
         status = first.solve(self.model, reporter)
         rest = seconds - (time.monotonic() - t0)
-        if status in (cp.OPTIMAL, cp.INFEASIBLE) or rest <= 0:
+        if status in (cp.OPTIMAL, cp.INFEASIBLE) or rest < least:
             return first, status
         self.model.proto.search_strategy.clear()
         if status == cp.FEASIBLE:  # its marker: never longer than the hint (the limit)
