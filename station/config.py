@@ -117,6 +117,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "up": Key(str, "auto", "the drapes' up axis", choices=("auto", "x", "y", "z", "-x",
                                                                "-y", "-z")),
     },
+    "seams": {  # a CAD pattern's seams, inferred (solver.seams)
+        "confirm_below": Key(float, 0.5, "a DXF pattern's inferred seam less confident than "
+                             "this holds the job at 'confirm seams' for `station confirm` "
+                             "(0: never)", minimum=0.0, maximum=1.0),
+    },
     "reshape": {
         "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
         "max_move_mm": Key(float, 10.0, "largest move of any pattern vertex when reshaping",

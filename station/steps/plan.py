@@ -73,7 +73,7 @@ class Pattern:
 def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
              control: JobControl) -> Plan:
     """Align, optionally reshape, nest and program one job (see the module's docstring)."""
-    garment, garment_path, symmetrised = job_garment(job, workdir)
+    garment, garment_path, symmetrised = job_garment(job, workdir, config)
     kind = captured.fabric.get("kind")
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment})
     stages: list[Stage] = []  # the states of the fit, for the pictures

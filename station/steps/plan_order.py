@@ -11,6 +11,7 @@ with the order and its size ratio) and the toolpath.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from gcode.machine import Machine
@@ -38,6 +39,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
                control: JobControl) -> Plan:
     """Align every garment of the order, nest them in one marker, program it."""
     order = read_order(job.garment)
+    job = replace(job, options=order.job_options(job.options))  # the order's match_notches
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment,
                                                  "order": order.to_dict()})
     kind = captured.fabric.get("kind")
@@ -59,7 +61,8 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
         return align_job(garment, wallpaper, config, job.options,
                          fabric_grain_deg=report.data["fabric"].get("grain_deg"))
 
-    aligned = align_order(order, align_one)
+    inset = (rules_for_job(config, job.options).seam_mm, "the station's seam allowance")
+    aligned = align_order(order, align_one, inset)
     write_aligned(order, aligned, workdir / "placement.json")
     report.data["garments"] = [a.report() for a in aligned]
     if config["reshape"]["enabled"]:  # said in the job's report, never silently skipped
