@@ -31,12 +31,12 @@ GARMENTS = ("tshirt/isotropic/tshirt-iso.obj", "pants/isotropic/pants-iso.obj",
             "skirt/isotropic/skirt-iso.obj")
 
 
-def _run(problem, method: str, t: float, seed: int):
+def _run(problem, method: str, t: float, seed: int, any_phase: bool = False):
     from solver.nest import verify_layout
     from solver.nest.solve import nest
 
     t0 = time.monotonic()
-    layout = nest(problem, time_limit=t, seed=seed, method=method)
+    layout = nest(problem, time_limit=t, seed=seed, method=method, any_phase=any_phase)
     sec = time.monotonic() - t0
     faults = verify_layout(layout, problem)
     if faults:
@@ -189,13 +189,16 @@ DENSITY_PRINTS = (("p1", 50.0), ("p2", 50.0))
 BEFORE = ("joint", "fill", "coset")  # nest_lattice's default before the dotted-board model
 
 
-def density(t: float, seed: int, wanted: list[str], method: str) -> None:
+def density(t: float, seed: int, wanted: list[str], method: str, any_phase: bool = False
+            ) -> None:
     """Issue 18 part 3: printed / plain marker density of every Berkeley garment's cut lines.
 
     The plain marker (sparrow, 0 and 180 degrees), and per print the default strategies
     before the dotted-board model (``BEFORE``) and ``method`` (aligned position = pattern
     coordinates, moves = lattice vectors and the print's grain-keeping operations) get the
-    same time, in one process.
+    same time, in one process. ``any_phase`` (issue 35): before = ``method`` at the
+    print's phase at the roll's start, now = ``method`` free to start at any phase
+    (density of the marker, from its start; the cell adds where it starts, ``phase_mm``).
     """
     from bench.reshape import GARMENTS as LIBRARY
     from bench.reshape import berkeley_garments
@@ -204,8 +207,10 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
 
     print(f"\n### Printed / plain density, Berkeley garments' cut lines, 1500 mm roll, gap 2 mm, "
           f"square prints, {t:g} s each\n")
-    print("Cells: density (printed / plain, wall s). before = strategies "
-          f"{'+'.join(BEFORE)}; now = method {method}.\n")
+    before = (f"method {method} at the print's phase at the roll's start" if any_phase else
+              f"strategies {'+'.join(BEFORE)}")
+    now = f"method {method}{', free to start at any phase' if any_phase else ''}"
+    print(f"Cells: density (printed / plain, wall s). before = {before}; now = {now}.\n")
     heads = " | ".join(f"{g} {a:g} mm {when}" for g, a in DENSITY_PRINTS
                        for when in ("before", "now"))
     print(f"| garment | pieces | plain | {heads} |")
@@ -222,14 +227,18 @@ def density(t: float, seed: int, wanted: list[str], method: str) -> None:
         cells = [f"{plain.density:.1%}"]
         for problem in printed:
             t0 = time.monotonic()
-            old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
-            sec = time.monotonic() - t0
+            if any_phase:
+                old, sec = _run(problem, method, t, seed)
+            else:
+                old = nest_lattice(problem, time_limit=t, seed=seed, strategies=BEFORE)
+                sec = time.monotonic() - t0
             if verify_layout(old, problem):
                 raise RuntimeError(f"invalid layout (before): {verify_layout(old, problem)[0]}")
             for when, (layout, s) in (("before", (old, sec)),
-                                      ("now", _run(problem, method, t, seed))):
+                                      ("now", _run(problem, method, t, seed, any_phase))):
                 ratios[when].append(layout.density / plain.density)
-                cells.append(f"{layout.density:.1%} ({ratios[when][-1]:.3f}, {s:.1f} s)")
+                phase = f", from {layout.phase_mm:.0f} mm" if when == "now" and any_phase else ""
+                cells.append(f"{layout.density:.1%} ({ratios[when][-1]:.3f}, {s:.1f} s{phase})")
         print(f"| {name} | {len(pieces)} | {' | '.join(cells)} |", flush=True)
     for when, r in ratios.items():
         if r:
@@ -330,7 +339,7 @@ def main(argv: list[str] | None = None) -> None:
                     help="optimum: CP-SAT seconds, and as many for the bound's probes")
     ap.add_argument("--probe", type=float, default=20.0, help="optimum: seconds per probe")
     ap.add_argument("--any-phase", action="store_true",
-                    help="optimum: the marker may start at any phase of the print")
+                    help="optimum, density: the marker may start at any phase of the print")
     args = ap.parse_args([] if argv is None else argv)
     if not SHARED.is_dir():
         print(f"bench/nest.py: {SHARED} is absent (fresh clone): skipped")
@@ -347,7 +356,7 @@ def main(argv: list[str] | None = None) -> None:
                     args.solve, args.probe, args.any_phase)
         elif part == "density":
             density(args.time, args.seed, [w for w in args.garments.split(",") if w],
-                    args.method)
+                    args.method, args.any_phase)
         else:
             {"esicup": esicup, "shirts": shirts, "garments": garments}[part](args.time,
                                                                              args.seed)

@@ -18,11 +18,12 @@ minimise the marker length. Here:
 - the model: exactly one option per piece; per option ``a`` of piece A and each other
   piece B, ``x_a + sum(x_b: b clashes with a) <= 1`` (B takes exactly one option, so
   this is exact, and far smaller than one constraint per clashing pair); the right edge
-  ``R >= sum(right_a x_a)`` per piece; minimise ``R``. The marker starts at the roll's
-  start as every other strategy's (the print's phase there is the camera's, so a
-  marker starting later wastes the fabric before it); translations along the roll are
-  thereby fixed, and those across it (a lattice vector along y) by asking one piece to
-  start within a period of the bottom edge.
+  ``R >= sum(right_a x_a)`` per piece; minimise ``R``: the marker starts at the roll's
+  start, at the print's phase there. With ``any_phase`` it may start at any phase (a
+  roll is cut wherever its print lies): minimise ``R - L``, ``L`` the left edge of
+  the leftmost piece, one of the options' left edges within the first period.
+  Translations across the roll (a lattice vector along y) are fixed by asking one piece
+  to start within a period of the bottom edge.
 
 CP-SAT (OR-tools) proves a lower bound as it goes, so the answer says how far the
 marker is from the best possible on this print, not only how long it is;
@@ -40,7 +41,7 @@ import numpy as np
 import shapely
 
 from solver.nest.budget import Deadline, Progress, deadline_of
-from solver.nest.instance import Item, NestProblem, affine
+from solver.nest.instance import Item, NestProblem, affine, marker_span
 from solver.nest.snapjoint import collide
 
 SCALE = 100  # objective units per mm (0.01 mm)
@@ -62,6 +63,11 @@ SOLVE_MIN = 2.0
 # solved from 1-2 s on; the shirt's p2 (14 pieces, 11167, 12 M literals) took 4.2 s to
 # build and more than 4 s to presolve
 MAX_OPTIONS = 4000
+# any phase: share of the solver's time for a depth-first search, largest pieces first,
+# each bottom to top, then left to right (CP-SAT's fixed search), before the default search
+# from its marker. T-shirt p1: 822.5 mm proven in 1 s (the default search: 865 mm after
+# 10 s); p2: 814 mm in 5.4 s (left to right first: 853 mm after 8 s)
+FIXED_SHARE = 0.75
 
 
 @dataclass
@@ -231,12 +237,11 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     when the pieces have more than ``max_options`` allowed positions in all (a stripe
     print's 1 mm steps, many pieces: the model would not be built in time).
 
-    ``any_phase``: the marker may start at any phase of the print along the roll (the
-    fabric laid out to suit it), so its length is its span plus the gap at both ends,
-    minimised with the leftmost piece within the first period (needs a lattice vector
-    along the roll); the moves stay on the print as given, starting up to a period in.
-    The station's layouts start at the roll's start (the default); this answers how
-    dense a printed marker can be at all.
+    ``any_phase``: the marker may start at any phase of the print along the roll (a roll
+    is cut wherever its print lies), so its length is its span plus the gap at both
+    ends, minimised with the leftmost piece within the first period (needs a lattice
+    vector along the roll); the moves stay on the print as given, starting up to a
+    period in (the table length and keep-outs, if any, still bound them there).
     """
     deadline = deadline_of(time_limit)
     t0 = time.monotonic()
@@ -244,7 +249,9 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     # every `station nest`, plain fabric and large inputs included, would otherwise pay
     from ortools.sat.python import cp_model
 
-    period = _phase_period(problem, items) if any_phase else 0.0
+    period = phase_period(items[0].lattice) if any_phase else 0.0
+    if period is None:
+        raise ValueError("any_phase needs a lattice vector along the roll")
     limit = _length_limit(problem, items, hint, limit, any_phase)
     reach = limit + period  # any phase: a marker starting up to a period in
     if max_options is not None and (n := positions(problem, items, reach)) > max_options:
@@ -255,7 +262,7 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
     opts = [item_options(problem, it, reach) for it in items]
     if any(len(o.cand) == 0 for o in opts):  # a piece alone does not fit
         return DottedResult(None, math.inf, limit, True, 0, time.monotonic() - t0, 0.0)
-    board = _Board(problem, items, opts, cp_model.CpModel())
+    board = _Board(problem, items, opts, cp_model)
     if not board.build(deadline, reach, limit, period if any_phase else None):
         return None
     if hint is not None:
@@ -270,9 +277,13 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
         if progress:
             progress(f"dotted: {left:.2f} s left, less than its presolve takes: skipped")
         return None
-    solver = _solver(cp_model, left, workers)
-    gap = 2 * problem.gap if any_phase else problem.gap
-    status = solver.solve(board.model, _reporter(cp_model, progress, gap, t0))
+    reporter = _reporter(cp_model, progress, 2 * problem.gap if any_phase else problem.gap, t0)
+    if any_phase:
+        solver, status = board.solve_left_to_right_first(left, workers, reporter,
+                                                         SOLVE_MIN * build)
+    else:
+        solver = _solver(cp_model, left, workers)
+        status = solver.solve(board.model, reporter)
     if progress:
         progress(f"dotted: {solver.status_name(status)} after {time.monotonic() - t0:.1f} s")
     build_and_solve = (board.n_options, build, time.monotonic() - t0 - build)
@@ -288,23 +299,23 @@ def dotted_nest(problem: NestProblem, items: list[Item], *, time_limit: float | 
                         *build_and_solve)
 
 
-def _phase_period(problem: NestProblem, items: list[Item]) -> float:
-    """The print's period along the roll (mm), for a marker that may start at any phase."""
-    along = [abs(v[0]) for v in items[0].lattice.T if abs(v[1]) < 1e-9]
-    if not along or problem.keepouts or problem.length is not None:
-        raise ValueError("any_phase needs a lattice vector along the roll, and a roll "
-                         "without keep-outs or a table length (they fix the phase)")
-    return along[0]
+def phase_period(lattice: np.ndarray | None) -> float | None:
+    """The print's period along the roll (mm): a marker free to start at any phase starts
+    within one of the roll's start. None without a lattice vector along the roll (an
+    oblique print: its phases are not a period of the roll, and the marker keeps the one
+    found)."""
+    if lattice is None:
+        return None
+    along = [abs(v[0]) for v in lattice.T if abs(v[1]) < 1e-9]
+    return along[0] if along else None
 
 
 def _length_limit(problem: NestProblem, items: list[Item], hint: list[np.ndarray] | None,
                   limit: float | None, any_phase: bool) -> float:
     """The longest marker the model allows: the hint's length, else ``limit``."""
     if hint is not None:
-        g = problem.gap
-        rings = [affine(m, it.ref)[:, 0] for it, m in zip(items, hint)]
-        start = min(float(r.min()) for r in rings) - g if any_phase else 0.0
-        limit = max(float(r.max()) for r in rings) - start + g
+        limit = marker_span(items, hint, problem.gap) if any_phase else problem.gap + max(
+            float(affine(m, it.ref)[:, 0].max()) for it, m in zip(items, hint))
     if limit is None:
         raise ValueError("the dotted-board model needs a hint or a length limit")
     return limit
@@ -329,14 +340,20 @@ class _Board:
     """The dotted-board CP-SAT model of one nest: a boolean per (item, option)."""
 
     def __init__(self, problem: NestProblem, items: list[Item], opts: list[Options],
-                 model) -> None:
-        self.problem, self.items, self.opts, self.model = problem, items, opts, model
+                 cp_model) -> None:
+        self.problem, self.items, self.opts = problem, items, opts
+        self.cp_model, self.model = cp_model, cp_model.CpModel()
+        model = self.model
         starts = np.cumsum([0] + [len(o.cand) for o in opts])
         self.n_options = int(starts[-1])
         self.ids = [np.arange(starts[i], starts[i + 1]) for i in range(len(items))]
         self.x = [model.new_bool_var(f"x{j}") for j in range(self.n_options)]
         self.right = None  # the right edge's variable, once built
-        self.area = sum(shapely.Polygon(it.ref).area for it in items)
+        self.right_floor = 0  # its lower bound from the pieces' area
+        self.left = None  # any phase: the marker's start (a variable), and its values
+        self.first = np.zeros(0, np.int64)
+        self.area_of = [shapely.Polygon(it.ref).area for it in items]
+        self.area = sum(self.area_of)
 
     def build(self, deadline: Deadline, reach: float, limit: float,
               period: float | None) -> bool:
@@ -358,7 +375,7 @@ class _Board:
         """Per option of one item and each later item: at most one of it and the later
         item's options it clashes with. Colliding offsets are computed once per pair of
         (item key, map): copies share them."""
-        items, opts, ids, x = self.items, self.opts, self.ids, self.x
+        items, opts, ids = self.items, self.opts, self.ids
         rings = {}
         for it in items:
             for c in range(len(it.candidates)):
@@ -373,8 +390,11 @@ class _Board:
                         opts[i], opts[j], table, ids[j]))):
                     if n % 256 == 255 and deadline.expired():
                         return False
-                    if len(clashing):
-                        self.model.add_at_most_one([x[row], *(x[c] for c in clashing)])
+                    if len(clashing):  # straight into the model's proto: the booleans
+                        # are its first variables (x[j] is variable j), and building one
+                        # expression per literal took 1.4 s of a t-shirt p2 model's 2.3
+                        self.model.proto.constraints.add().at_most_one.literals.extend(
+                            [int(row), *clashing.tolist()])
         return True
 
     def _offset_table(self, a: Item, b: Item, rings: dict, offsets: dict) -> dict:
@@ -393,24 +413,27 @@ class _Board:
         """The marker's right edge: beyond every piece, and beyond the area bound."""
         g = self.problem.gap
         self.right = self.model.new_int_var(0, int(math.ceil(reach * SCALE)) + 1, "right")
-        self.model.add(self.right >= int(math.floor(
-            (g + self.area / (self.problem.width - 2 * g)) * SCALE)))
+        self.right_floor = int(math.floor((g + self.area / (self.problem.width - 2 * g)) * SCALE))
+        self.model.add(self.right >= self.right_floor)
         for i in range(len(self.items)):
             if deadline.expired():
                 return False
-            ends = np.ceil(self.opts[i].right * SCALE).astype(np.int64)
-            self.model.add(self.right >= sum(int(e) * self.x[j]
-                                             for e, j in zip(ends, self.ids[i])))
+            self.model.add(self.right >= self._weighted(i, np.ceil(self.opts[i].right * SCALE)))
         return True
+
+    def _weighted(self, i: int, values: np.ndarray):
+        """The linear expression sum(values[n] * x_n) over item ``i``'s options."""
+        return self.cp_model.LinearExpr.weighted_sum(
+            [self.x[j] for j in self.ids[i]], values.astype(np.int64).tolist())
 
     def _order_copies(self) -> None:
         """Interchangeable copies (same options, adjacent in ``items``) in the order of
         their options, so the solver does not explore their permutations."""
-        x, ids = self.x, self.ids
+        ids = self.ids
         for i in range(len(self.items) - 1):
             if self.items[i].key == self.items[i + 1].key:
-                self.model.add(sum(n * x[j] for n, j in enumerate(ids[i]))
-                               < sum(n * x[j] for n, j in enumerate(ids[i + 1])))
+                self.model.add(self._weighted(i, np.arange(len(ids[i])))
+                               < self._weighted(i + 1, np.arange(len(ids[i + 1]))))
 
     def _start_near_the_bottom(self) -> None:
         """A shift across the roll by a period keeps everything: one piece starts within
@@ -426,14 +449,56 @@ class _Board:
         """Any phase: minimise the span from the leftmost piece (within the first period)
         to the right edge."""
         g, model = self.problem.gap, self.model
-        left = model.new_int_var(0, int(math.floor((g + period) * SCALE)), "left")
+        starts = [np.floor(o.left * SCALE) for o in self.opts]
+        # the marker starts where one piece does: its left edge is one of the options'
+        # within the first period (a finite domain; in one trial from a 919 mm t-shirt
+        # p1 hint: 830 mm in 5 s, none better with an interval)
+        first = np.unique(np.concatenate(starts))
+        first = first[first <= (g + period) * SCALE].astype(np.int64)
+        left = model.new_int_var_from_domain(
+            self.cp_model.Domain.from_values(first.tolist()), "left")
+        self.left, self.first = left, first
         for i in range(len(self.items)):
-            starts_i = np.floor(self.opts[i].left * SCALE).astype(np.int64)
-            model.add(left <= sum(int(e) * self.x[j] for e, j in zip(starts_i, self.ids[i])))
+            model.add(left <= self._weighted(i, starts[i]))
         model.add(self.right - left <= int(math.ceil((limit - 2 * g) * SCALE)) + 2)
         model.add(self.right - left >= int(math.floor(
             self.area / (self.problem.width - 2 * g) * SCALE)))
         model.minimize(self.right - left)
+
+    def solve_left_to_right_first(self, seconds: float, workers: int, reporter,
+                                  least: float):
+        """(solver, status): ``FIXED_SHARE`` of ``seconds`` of depth-first search (the
+        largest pieces first, each tried bottom to top, left to right), then the default
+        search from its best marker if ``least`` s (its presolve) are left; the better."""
+        cp = self.cp_model
+        literals = []
+        for i in sorted(range(len(self.items)), key=lambda i: -self.area_of[i]):
+            o = self.opts[i]
+            literals += [self.x[self.ids[i][j]] for j in np.lexsort((o.left, o.bottom))]
+        self.model.add_decision_strategy(literals, cp.CHOOSE_FIRST, cp.SELECT_MAX_VALUE)
+        # without the hint, which held the search near it (t-shirt p1: 865 mm for 2.5 s)
+        hint = self.model.proto.solution_hint
+        hinted = dict(zip(list(hint.vars), list(hint.values)))
+        self.model.clear_hints()
+        t0 = time.monotonic()
+        first = _solver(cp, FIXED_SHARE * seconds, workers)
+        first.parameters.search_branching = cp.FIXED_SEARCH
+        status = first.solve(self.model, reporter)
+        rest = seconds - (time.monotonic() - t0)
+        if status in (cp.OPTIMAL, cp.INFEASIBLE) or rest < least:
+            return first, status
+        self.model.proto.search_strategy.clear()
+        if status == cp.FEASIBLE:  # its marker: never longer than the hint (the limit)
+            hinted = {v.index: first.value(v) for v in [*self.x, self.right, self.left]}
+        for index, value in hinted.items():
+            self.model.proto.solution_hint.vars.append(index)
+            self.model.proto.solution_hint.values.append(value)
+        second = _solver(cp, rest, workers)
+        then = second.solve(self.model, reporter)
+        if then == cp.OPTIMAL or (then == cp.FEASIBLE and (
+                status != cp.FEASIBLE or second.objective_value <= first.objective_value)):
+            return second, then
+        return first, status
 
     def add_hint(self, hint: list[np.ndarray]) -> None:
         """Start from the ``hint`` marker, complete (every boolean): CP-SAT then starts
@@ -449,6 +514,17 @@ class _Board:
         chosen = {int(self.ids[i][j]) for i, j in enumerate(local) if j is not None}
         for j, v in enumerate(self.x):
             self.model.add_hint(v, j in chosen)
+        if any(j is None for j in local):
+            return
+        # the edges too: without them the single worker did not complete the any-phase
+        # hint of a t-shirt p2 marker within 4 s, and found nothing
+        right = max(math.ceil(o.right[j] * SCALE) for o, j in zip(self.opts, local))
+        self.model.add_hint(self.right, max(right, self.right_floor))
+        if self.left is not None:
+            start = min(math.floor(o.left[j] * SCALE) for o, j in zip(self.opts, local))
+            below = self.first[self.first <= start]
+            if len(below):
+                self.model.add_hint(self.left, int(below[-1]))
 
     def solution(self, solver, any_phase: bool) -> tuple[list[np.ndarray], float]:
         """The solver's marker: every item's move, and the marker's length (mm)."""
@@ -458,9 +534,10 @@ class _Board:
             j = next(j for j in range(len(ids)) if solver.boolean_value(self.x[ids[j]]))
             moves.append(_move(it, self.opts[i], j))
         g = self.problem.gap
-        xs = [affine(m, it.ref)[:, 0] for it, m in zip(self.items, moves)]
-        start = min(float(r.min()) for r in xs) - g if any_phase else 0.0
-        return moves, max(float(r.max()) for r in xs) - start + g
+        if any_phase:
+            return moves, marker_span(self.items, moves, g)
+        return moves, g + max(float(affine(m, it.ref)[:, 0].max())
+                              for it, m in zip(self.items, moves))
 
 
 def _move(item: Item, opts: Options, j: int) -> np.ndarray:

@@ -175,6 +175,13 @@ class NestProblem:
         return sum(p.area * p.quantity * (2 if p.mirrored_pair else 1) for p in self.pieces)
 
 
+def marker_span(items: list[Item], moves: list[np.ndarray], gap: float) -> float:
+    """A marker free of phase: its length from its leftmost piece to its rightmost, plus
+    the gap at both ends."""
+    xs = [affine(m, it.ref)[:, 0] for it, m in zip(items, moves)]
+    return max(float(x.max()) for x in xs) - min(float(x.min()) for x in xs) + 2 * gap
+
+
 @dataclass
 class Item:
     id: str

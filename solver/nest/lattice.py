@@ -25,9 +25,9 @@ import numpy as np
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
-from solver.nest.dotted import MAX_OPTIONS, dotted_nest, positions
+from solver.nest.dotted import MAX_OPTIONS, dotted_nest, phase_period, positions
 from solver.nest.fill import fill_search, first_fill_estimate, problem_density
-from solver.nest.instance import NestProblem
+from solver.nest.instance import NestProblem, marker_span
 from solver.nest.layout import Layout, build_layout
 from solver.nest.naive import naive_moves
 from solver.nest.regions import repair_snapped
@@ -36,6 +36,12 @@ from solver.wallpaper import covering_radius
 
 SHARES = {"naive": 0.2, "resnap": 0.6, "resnap-margin": 0.6, "repair": 0.6, "fill": 0.4,
           "coset": 0.3, "joint": 0.6, "dotted": 0.8}
+# free to start at any phase, only the dotted model chooses it, and its depth-first pass
+# needs no good hint, only a marker to bound the length: a quick fill gives one, the
+# model gets most of the time, and the joint snap (sparrow) what it leaves. The t-shirt's
+# p1 under 5 s at load 7: after the joint snap and the fill, 1.2-2.7 s were left to it,
+# too little to solve after a 0.6-0.8 s build
+PHASE_SHARES = SHARES | {"dotted": 2.0, "fill": 0.2}
 # s: importing OR-tools (0.4-0.6 s the first time), the build and the presolve take about
 # that before CP-SAT reads the hint; with less the model only costs time
 DOTTED_MIN = 1.0
@@ -45,8 +51,15 @@ MANY = 30  # pieces from which a free nest is resnapped without margin
 
 def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
                  progress: Progress | None = None,
-                 strategies: tuple[str, ...] | None = None) -> Layout:
+                 strategies: tuple[str, ...] | None = None, any_phase: bool = False) -> Layout:
     """Nest on a printed fabric; every strategy runs and the shortest marker wins.
+
+    ``any_phase``: the marker may start at any phase of the print along the roll (a roll
+    is cut wherever its print lies): markers are compared by their span, the dotted
+    model chooses the phase, and the layout's ``phase_mm`` says where the marker starts
+    on the print as found (its pieces lie where they are cut). Only with a lattice
+    vector along the roll (:func:`solver.nest.dotted.phase_period`); else the found
+    phase is kept.
 
     - ``resnap``: sparrow nests freely, then every piece is swept left to right onto the
       allowed position nearest to its free one (pushed right where it collides), then
@@ -80,18 +93,21 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
         raise ValueError("print-aware nesting needs a fabric (FABRIC.json)")
     items = problem.items()
     deadline = deadline_of(time_limit)
+    run = _Run(problem, items, seed, progress,
+               any_phase=any_phase and phase_period(problem.lattice) is not None)
     if strategies is None:
-        strategies = _default_strategies(problem, items, deadline)
-    run = _Run(problem, items, seed, progress)
+        strategies = _default_strategies(problem, items, deadline, run.any_phase)
     for i, strategy in enumerate(strategies):
         if strategy not in _STRATEGIES:
             raise ValueError(f"unknown nesting strategy {strategy!r}")
         # a share of what is left, so an overrun shrinks the later strategies; once one
         # marker exists the others may be cut short by the deadline
-        rest = sum(SHARES.get(s, 0.0) for s in strategies[i:]) or 1.0
-        share = deadline.share(SHARES.get(strategy, 0.0) / rest)
+        shares = PHASE_SHARES if run.any_phase else SHARES
+        rest = sum(shares.get(s, 0.0) for s in strategies[i:]) or 1.0
+        share = deadline.share(shares.get(strategy, 0.0) / rest)
         r = _STRATEGIES[strategy](run, strategy, share, bool(run.results))
         if r is not None:
+            r = run.measured(r)
             if progress:
                 progress(f"{strategy}: length {r[1]:.4g}  "
                          f"density {problem_density(items, problem, r[1]):.1%}")
@@ -99,16 +115,22 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
     if not run.results:
         raise ValueError(f"the pieces do not fit on the fabric ({problem.width:g} x "
                          f"{problem.length:g} mm)" if problem.length else "nesting failed")
-    return build_layout(problem, items, run.best()[0])
+    layout = build_layout(problem, items, run.best()[0])
+    if run.any_phase:
+        start = min(float(p.outline[:, 0].min()) for p in layout.pieces) - problem.gap
+        layout.phase_mm = max(0.0, start)
+    return layout
 
 
-def _default_strategies(problem: NestProblem, items: list, deadline: Deadline
-                        ) -> tuple[str, ...]:
+def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
+                        any_phase: bool = False) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
-    even a whole fill fits the time."""
+    even a whole fill fits the time. Free of phase: fill, dotted, joint, coset."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
+    if any_phase and small <= MAX_OPTIONS:  # see PHASE_SHARES
+        strategies = ("fill", "dotted", "joint", "coset")
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill
@@ -130,9 +152,16 @@ class _Run:
     progress: Progress | None
     results: list[Moves] = field(default_factory=list)
     proven: bool = False  # the dotted model proved the best marker shortest
+    any_phase: bool = False  # markers compared by their span (free to start at any phase)
 
     def best(self) -> Moves:
         return min(self.results, key=lambda r: r[1])
+
+    def measured(self, marker: Moves) -> Moves:
+        """``marker`` with the length this run compares: any phase, its span."""
+        if not self.any_phase:
+            return marker
+        return marker[0], marker_span(self.items, marker[0], self.problem.gap)
 
     def say(self, line: str) -> None:
         if self.progress:
@@ -165,6 +194,8 @@ def _resnap(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
 
 
 def _joint(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
+    if run.proven:  # free of phase the dotted model ran first and proved its marker
+        return None
     # many small pieces lose more to a margin than to collisions after snapping;
     # for few, a quarter of the covering radius leaves the joint snap room (half
     # wastes more than it saves: Berkeley dress, t-shirt, skirt 1-5 points denser)
@@ -177,7 +208,7 @@ def _dotted(run: _Run, name: str, share: Deadline, late: bool) -> Moves | None:
     if not run.results or share.left() < DOTTED_MIN:
         return None
     d = dotted_nest(run.problem, run.items, time_limit=share, progress=run.progress,
-                    hint=run.best()[0], max_options=MAX_OPTIONS)
+                    hint=run.best()[0], max_options=MAX_OPTIONS, any_phase=run.any_phase)
     if d is None or d.moves is None:
         return None
     run.proven = d.optimal

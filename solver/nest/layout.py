@@ -104,11 +104,23 @@ class Layout:
     # left/right pairs as PLACEMENT.json has them, [i, j, "mirror" | "same"], i and j
     # indices into ``pieces`` (copy k of a pair's first piece with copy k of its second)
     pairs: list[list] = field(default_factory=list)
+    # where the marker starts along the roll (mm), on the print as found: a marker free
+    # to start at any phase of the print begins where its first piece does, and the
+    # cloth before it (less than a repeat) is not the marker's. The pieces lie where
+    # they are cut, each on its aligned print position; 0: the marker starts at x = 0.
+    phase_mm: float = 0.0
+
+    @property
+    def marker_length(self) -> float:
+        """The marker's own length: from its start (``phase_mm``) to its end."""
+        return self.length - self.phase_mm
 
     @property
     def density(self) -> float:
+        """The pieces' share of the marker's area (the cloth before its start not counted)."""
         area = sum(p.polygon().area for p in self.pieces)
-        return float(area / (self.width * self.length)) if self.length > 0 else 0.0
+        span = self.marker_length
+        return float(area / (self.width * span)) if span > 0 else 0.0
 
     def to_dict(self) -> dict:
         d = {"version": 1, "units": "mm", "width": self.width, "length": self.length,
@@ -120,6 +132,8 @@ class Layout:
             d["pairs"] = [[int(i), int(j), str(m)] for i, j, m in self.pairs]
         if self.keepouts:
             d["keepouts"] = [np.asarray(k, float).tolist() for k in self.keepouts]
+        if self.phase_mm:
+            d["phase_mm"] = round(float(self.phase_mm), 9)
         return d
 
     @classmethod
@@ -133,7 +147,7 @@ class Layout:
             raise ValueError('"pairs" name pieces the layout does not have')
         return cls(float(d["width"]), float(d["length"]), float(d.get("gap", 0.0)), pieces,
                    d.get("fabric"), [np.asarray(k, float) for k in d.get("keepouts", [])],
-                   d.get("allowance"), pairs)
+                   d.get("allowance"), pairs, float(d.get("phase_mm", 0.0)))
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=1) + "\n")
@@ -197,18 +211,22 @@ def verify_layout(layout: Layout, problem: NestProblem | None = None, *,
     faults: list[str] = []
     g = layout.gap
     polys = np.array([p.polygon() for p in layout.pieces], dtype=object)
+    if not 0.0 <= layout.phase_mm < layout.length:
+        faults.append(f"the marker's start phase_mm {layout.phase_mm:g} is not within its "
+                      f"length {layout.length:g}")
     for p, poly in zip(layout.pieces, polys):
         if not poly.is_valid:
             faults.append(f"{p.id}: outline is not a valid polygon")
         elif p.sew_line is not None and not shapely.Polygon(p.outline).buffer(1e-6).contains(
                 shapely.Polygon(p.sew_line)):
             faults.append(f"{p.id}: the sew line leaves the cut line")
-    inner = shapely.box(g - EDGE_TOL, g - EDGE_TOL, layout.length - g + EDGE_TOL,
-                        layout.width - g + EDGE_TOL)
+    inner = shapely.box(layout.phase_mm + g - EDGE_TOL, g - EDGE_TOL,
+                        layout.length - g + EDGE_TOL, layout.width - g + EDGE_TOL)
     for p, poly in zip(layout.pieces, polys):
         if not inner.contains(poly):
-            faults.append(f"{p.id}: leaves the fabric ({layout.length:g} x {layout.width:g} mm) "
-                          f"minus the gap {g:g}")
+            start = f" from {layout.phase_mm:g}" if layout.phase_mm else ""
+            faults.append(f"{p.id}: leaves the fabric ({layout.length:g} x {layout.width:g} mm"
+                          f"{start}) minus the gap {g:g}")
     tree = shapely.STRtree(polys)
     areas = shapely.area(polys)
     for k, poly in enumerate(polys):

@@ -16,8 +16,13 @@ METHODS = ("auto", "resnap", "resnap-margin", "fill", "repair", "coset", "joint"
 
 
 def nest(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int | None = 0,
-         progress: Progress | None = None, method: str = "auto") -> Layout:
+         progress: Progress | None = None, method: str = "auto",
+         any_phase: bool = False) -> Layout:
     """Nest ``problem``; on a print ``method`` picks the search (auto: best of all).
+
+    ``any_phase``: on a print, the marker may start at any phase of it (a roll is cut
+    wherever its print lies; the station's every job): the layout's ``phase_mm`` says
+    where it starts on the print as found (:func:`solver.nest.lattice.nest_lattice`).
 
     Plain fabric goes to sparrow; when the operator marked keep-outs or the table is
     shorter than sparrow's marker, the offending pieces are re-inserted around the rest.
@@ -36,7 +41,7 @@ def nest(problem: NestProblem, *, time_limit: float | Deadline = 30.0, seed: int
         else:
             strategies = None if method == "auto" else (method,)
             layout = nest_lattice(problem, time_limit=deadline, seed=seed, progress=progress,
-                                  strategies=strategies)
+                                  strategies=strategies, any_phase=any_phase)
     else:
         regions = bool(problem.keepouts) or problem.length is not None
         share = 0.7 if regions else 1.0

@@ -65,8 +65,10 @@ def problem_size(config: Config) -> dict[str, float]:
 
 def nest_verified(problem: NestProblem, deadline: Deadline,
                   progress: Callable[[str], None] | None = None) -> Layout:
-    """``problem`` nested and verified; a fault is a ValueError."""
-    layout = nest(problem, time_limit=deadline, seed=0, progress=progress)
+    """``problem`` nested and verified; a fault is a ValueError. On a print the marker
+    may start at any phase of it (the roll is cut wherever its print lies): its pieces
+    lie on the print as found, and ``Layout.phase_mm`` says where it starts."""
+    layout = nest(problem, time_limit=deadline, seed=0, progress=progress, any_phase=True)
     faults = verify_layout(layout, problem)
     if faults:
         raise ValueError(f"the marker failed verification: {faults[0]}")
