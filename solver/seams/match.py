@@ -34,7 +34,9 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
 EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
 CURVED = 0.95  # a run whose chord is less than this share of its length is curved
-NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
+NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch
+EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread evenly, so
+# its notches sit further off their share of the run than on a straight seam
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
@@ -80,11 +82,12 @@ def _notch_score(a: Run, b: Run) -> float:
     mirrored = sorted((1.0 - s, c) for s, c in b.notches)
     if len(mirrored) != len(a.notches):
         return -1.0
+    tol = EASED_NOTCH_TOL if min(a.straightness, b.straightness) < CURVED else NOTCH_TOL
     worst = 0.0
     for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
-        if abs(sa - sb) > NOTCH_TOL or ca != cb:
+        if abs(sa - sb) > tol or ca != cb:
             return -1.0
-        worst = max(worst, abs(sa - sb) / NOTCH_TOL)
+        worst = max(worst, abs(sa - sb) / tol)
     return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
 
 
