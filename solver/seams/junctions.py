@@ -7,6 +7,13 @@ sharp corner, would sew the pieces into a bag's corner (a front's hem to the bac
 beside the side seam): a seam does not turn a sharp corner (:mod:`solver.seams.runs`), and
 neither do two seams with the same two partners. Each such pair is one linear constraint
 (at most one of the two) in the integer program.
+
+And where a piece's line runs on smoothly from one seam into another with two other pieces
+(a sleeve cap sewn to the back armhole, then on to the front armhole), those two pieces meet
+there too: the back and the front are sewn together (their shoulder seam) from the two points
+the cap's break is sewn to. Such a triple of seams is rewarded in the integer program: a cap
+half given to the other side's armhole, or to a piece that does not meet the first, has no
+seam closing the triple.
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ import numpy as np
 from solver.seams.outline import MERGE_MM, SewPiece
 from solver.seams.runs import SHARP_DEG, Run
 
-__all__ = ["junction_conflicts"]
+__all__ = ["junction_conflicts", "meeting_triples"]
 
 
 def _near(x: np.ndarray, length: float) -> np.ndarray:
@@ -63,3 +70,54 @@ def junction_conflicts(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarra
     if not out:
         return np.zeros((0, 2), dtype=int)
     return np.unique(np.sort(np.vstack(out), axis=1), axis=0)
+
+
+def _ends(runs: list[Run], pairs: np.ndarray, lengths: list[float]
+          ) -> list[tuple[int, int, float, bool, int, float]]:
+    """Each candidate's two ends from either side: (candidate, piece, arc position, whether
+    the run starts there, the other piece, the point of it sewn there)."""
+    out = []
+    for k, (i, j) in enumerate(pairs.tolist()):
+        a, b = runs[i], runs[j]
+        if a.piece == b.piece:
+            continue
+        la, lb = lengths[a.piece], lengths[b.piece]
+        for x, y, lx, ly in ((a, b, la, lb), (b, a, lb, la)):
+            out += [(k, x.piece, x.start % lx, True, y.piece, y.end % ly),
+                    (k, x.piece, x.end % lx, False, y.piece, y.start % ly)]
+    return out
+
+
+def _close(x: float, y: float, length: float) -> bool:
+    d = abs(x - y) % length
+    return min(d, length - d) <= MERGE_MM
+
+
+def meeting_triples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray
+                    ) -> np.ndarray:
+    """(m,3) indices into ``pairs``: two candidates that follow each other along one piece's
+    line where it turns no sharp corner, sewn there to a corner of each of two other pieces
+    (an armhole turns into the shoulder), and a candidate between those two that ends at
+    those two corners."""
+    lengths = [p.length for p in pieces]
+    sharp = [p.corners(SHARP_DEG)[0] for p in pieces]
+    corner = [p.corners()[0] for p in pieces]
+    ends = _ends(runs, pairs, lengths)
+    by_pieces: dict[tuple[int, int], list[tuple[int, float, float]]] = defaultdict(list)
+    by_piece: dict[int, list[tuple[int, float, bool, int, float]]] = defaultdict(list)
+    for k, p, s, starts, q, t in ends:
+        by_pieces[(p, q)].append((k, s, t))
+        if not _sharp(sharp[p], np.array([s]), lengths[p])[0] and \
+                _sharp(corner[q], np.array([t]), lengths[q])[0]:
+            by_piece[p].append((k, s, starts, q, t))
+    out = set()
+    for p, here in by_piece.items():
+        for kx, s, starts, f, pf in here:
+            if starts:
+                continue  # x ends at the break, y starts there
+            for ky, s2, starts2, b, pb in here:
+                if not starts2 or len({p, f, b}) < 3 or not _close(s, s2, lengths[p]):
+                    continue
+                out |= {(kx, ky, kz) for kz, u, v in by_pieces[(f, b)]
+                        if _close(u, pf, lengths[f]) and _close(v, pb, lengths[b])}
+    return np.array(sorted(out), dtype=int).reshape(-1, 3)

@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.junctions import junction_conflicts
+from solver.seams.junctions import junction_conflicts, meeting_triples
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import Run, candidate_runs, run_line
@@ -37,7 +37,11 @@ CURVED = 0.95  # a run whose chord is less than this share of its length is curv
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch
 EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread evenly, so
 # its notches sit further off their share of the run than on a straight seam
+NOTCH_MIN_MM = 10.0  # but never less than this along the run (a short seam's share is tight)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
+MEETING_MM = 160.0  # three seams that close where three pieces meet (a cap's break, the
+# shoulder) earn this much matched length: one seam's cost
+CLOSING_SCORE = 0.0  # a weaker candidate is a seam only where it closes such a triple
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
 SEAM_COST_MM = 160.0  # each seam chosen costs this much matched length (score x mm): a
@@ -83,6 +87,7 @@ def _notch_score(a: Run, b: Run) -> float:
     if len(mirrored) != len(a.notches):
         return -1.0
     tol = EASED_NOTCH_TOL if min(a.straightness, b.straightness) < CURVED else NOTCH_TOL
+    tol = max(tol, NOTCH_MIN_MM / min(a.length, b.length))
     worst = 0.0
     for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
         if abs(sa - sb) > tol or ca != cb:
@@ -251,8 +256,8 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
-    keep = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
-    pairs, scores = pairs[keep], scores[keep]
+    strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
+    pairs, scores, triples = _with_closing(pieces, runs, pairs, scores, strong)
     if not len(pairs):
         return []
     offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
@@ -266,17 +271,50 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
                                  [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
-    conflicts = junction_conflicts(pieces, runs, pairs)
-    c = np.zeros((len(conflicts), len(pairs)))
-    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
-    res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
-               constraints=LinearConstraint(np.vstack([a, c]), 0, 1),
-               options={"time_limit": 20.0})
-    if res.x is None:
+    x = _program(a, weight, junction_conflicts(pieces, runs, pairs), triples)
+    if x is None:
         return []
-    chosen = np.flatnonzero(res.x > 0.5)
+    chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
     return [s for k in chosen for s in _seams(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
                                               _rival(k, pairs, scores, a))]
+
+
+def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
+                  scores: np.ndarray, strong: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The strong candidates, and the weak ones (scoring at least :data:`CLOSING_SCORE`)
+    that close a meeting triple of two strong ones (a shoulder between a front and a back
+    that mirror each other across it, unnamed), with the triples (indices into the kept)."""
+    maybe = strong | ((scores >= CLOSING_SCORE) & ~strong)
+    idx = np.flatnonzero(maybe)
+    triples = meeting_triples(pieces, runs, pairs[idx])
+    ok = strong[idx]
+    triples = triples[ok[triples[:, 0]] & ok[triples[:, 1]]] if len(triples) else triples
+    keep = ok.copy()
+    keep[triples[:, 2]] = True
+    new = np.cumsum(keep) - 1
+    return pairs[idx[keep]], scores[idx[keep]], new[triples]
+
+
+def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray, triples: np.ndarray
+             ) -> np.ndarray | None:
+    """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per triple all
+    chosen (one variable per triple, at most each of its three), each edge sewn at most once
+    (``a``: edges x candidates), at most one of each conflicting pair."""
+    n, m = len(weight), len(triples)
+    c = np.zeros((len(conflicts), n + m))
+    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
+    t = np.zeros((3 * m, n + m))  # triple - member <= 0
+    rows = np.arange(3 * m)
+    t[rows, triples.reshape(-1)] = -1.0
+    t[rows, n + np.repeat(np.arange(m), 3)] = 1.0
+    edges = np.hstack([a, np.zeros((len(a), m))])
+    res = milp(-np.concatenate([weight, np.full(m, MEETING_MM)]),
+               integrality=np.ones(n + m), bounds=Bounds(0, 1),
+               constraints=[LinearConstraint(np.vstack([edges, c]), 0, 1),
+                            LinearConstraint(t, -1, 0)],
+               options={"time_limit": 20.0})
+    return res.x
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
