@@ -39,8 +39,8 @@ EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread
 # its notches sit further off their share of the run than on a straight seam
 NOTCH_MIN_MM = 10.0  # but never less than this along the run (a short seam's share is tight)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
-MEETING_MM = 160.0  # three seams that close where three pieces meet (a cap's break, the
-# shoulder) earn this much matched length: one seam's cost
+MEETING_MM = 240.0  # three seams that close where three pieces meet (a cap's break, the
+# shoulder) earn this much matched length, 1.5 seams' cost (from {160, 240, 320} on half 0)
 CLOSING_SCORE = 0.0  # a weaker candidate is a seam only where it closes such a triple
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
