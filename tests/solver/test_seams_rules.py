@@ -16,7 +16,7 @@ from solver.garment.dxf import read_dxf_pattern
 from solver.garment.dxf_garment import sew_pieces
 from solver.seams import SewPiece, infer_seams
 from solver.seams.darts import DRILL_SETBACK_MM, dart_cap
-from solver.seams.junctions import junction_conflicts
+from solver.seams.junctions import junction_conflicts, meeting_triples
 from solver.seams.match import _pairs
 from solver.seams.outline import point_at
 from solver.seams.runs import candidate_runs
@@ -105,3 +105,40 @@ def test_two_seams_never_sew_one_point_to_two_or_close_a_corner():
         assert ((x, y) in conflicts) == bool(corner_of_a or corner_of_b)
     chosen = infer_seams(pieces)
     assert 1 <= len(chosen) <= 2  # two squares: at most two opposite sides sewn
+
+
+def _cap_front_back() -> list[SewPiece]:
+    """A sleeve whose cap is one smooth arc (two 300 mm halves, a notch at the top only), a
+    front and a back whose 300 mm armholes turn a corner into their 250 mm shoulders, a
+    notch there."""
+    theta = np.linspace(0.5, -0.5, 41)  # the cap: R * 1 rad = 600 mm, apex in the middle
+    cap = np.column_stack([600 * np.sin(theta), 600 * np.cos(theta) - 400])
+    sleeve = np.vstack([cap, [[cap[-1, 0], -100], [cap[0, 0], -100]]])
+    front = np.array([[0, 0], [250, 0], [250, 300], [0, 300]], float)
+    back = np.array([[0, 0], [250, 0], [250, 300], [0, 300]], float)[::-1] * [-1, 1]
+    return [SewPiece("sleeve", sleeve + [0, 800], notches=cap[[20]] + [0, 800]),
+            SewPiece("front", front, notches=front[[2]]),
+            SewPiece("back", back + [700, 0], notches=back[[1]] + [700, 0])]
+
+
+def test_a_cap_to_two_armholes_meets_at_the_shoulder():
+    pieces = _cap_front_back()
+    runs, _ = candidate_runs(pieces)
+    pairs = _pairs(runs, [p.length for p in pieces], [np.zeros(0)] * 3)
+
+    def sides(k):
+        return {runs[i].piece: runs[i] for i in pairs[k]}
+
+    shoulders = set()
+    for x, y, z in meeting_triples(pieces, runs, pairs).tolist():
+        sx, sy = sides(x), sides(y)
+        assert set(sx) & set(sy) == {0}  # two halves of the cap, to two other pieces
+        assert {*sx, *sy} == {0, 1, 2}
+        assert set(sides(z)) == {1, 2}  # closed by the front and the back
+        shoulders.add((round(sides(z)[1].length), round(sides(z)[2].length)))
+    assert (250, 250) in shoulders
+    seams = infer_seams(pieces)
+    sewn = {frozenset((s.piece_a, s.piece_b)): s.length_mm for s in seams}
+    # the cap's halves to the two armholes, and the shoulder that closes them
+    assert set(sewn) == {frozenset((0, 1)), frozenset((0, 2)), frozenset((1, 2))}
+    assert np.allclose([sewn[frozenset((0, 1))], sewn[frozenset((0, 2))]], 300, atol=3)
