@@ -1,7 +1,8 @@
 """The seam inference's rules on small cases made by hand: a dart marked as a CAD marks it
 (notches at its legs, a drill hole short of its tip) found as a seam of the piece with
 itself; a gathered seam found by its notches alone; seams that would sew one point to two
-or close a corner like a bag's excluded."""
+or close a corner like a bag's excluded; a sleeve cap's halves sewn to the two armholes
+that meet at a shoulder."""
 
 from __future__ import annotations
 
@@ -137,8 +138,11 @@ def test_a_cap_to_two_armholes_meets_at_the_shoulder():
         assert set(sides(z)) == {1, 2}  # closed by the front and the back
         shoulders.add((round(sides(z)[1].length), round(sides(z)[2].length)))
     assert (250, 250) in shoulders
-    seams = infer_seams(pieces)
-    sewn = {frozenset((s.piece_a, s.piece_b)): s.length_mm for s in seams}
-    # the cap's halves to the two armholes, and the shoulder that closes them
-    assert set(sewn) == {frozenset((0, 1)), frozenset((0, 2)), frozenset((1, 2))}
-    assert np.allclose([sewn[frozenset((0, 1))], sewn[frozenset((0, 2))]], 300, atol=3)
+    # unnamed, with a fourth piece whose 300 mm side is another armhole but whose top meets
+    # nothing: the cap's halves go to the two pieces that meet at a shoulder
+    wide = np.array([[0, 0], [400, 0], [400, 300], [0, 300]], float) - [0, 600]
+    unnamed = [SewPiece(f"p{i}", p.loop, notches=p.notches) for i, p in enumerate(pieces)]
+    unnamed.append(SewPiece("p3", wide, notches=wide[[2]]))
+    caps = [s for s in infer_seams(unnamed) if 0 in (s.piece_a, s.piece_b)]
+    assert sorted(s.piece_a + s.piece_b for s in caps) == [1, 2]
+    assert np.allclose([s.length_mm for s in caps], 300, atol=3)
