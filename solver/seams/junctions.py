@@ -13,11 +13,14 @@ And where a piece's line runs on smoothly from one seam into another with two ot
 there too: the back and the front are sewn together (their shoulder seam) from the two points
 the cap's break is sewn to. Such a triple of seams is rewarded in the integer program: a cap
 half given to the other side's armhole, or to a piece that does not meet the first, has no
-seam closing the triple.
+seam closing the triple. Likewise a tube sleeve: its cap's two ends meet the top of the
+side seam, so its underarm (the sleeve sewn to itself) joins the two points of the sleeve
+that the side seam's top is sewn to; the four seams are rewarded together.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 
 import numpy as np
@@ -25,7 +28,7 @@ import numpy as np
 from solver.seams.outline import MERGE_MM, SewPiece
 from solver.seams.runs import SHARP_DEG, Run
 
-__all__ = ["junction_conflicts", "meeting_triples"]
+__all__ = ["junction_conflicts", "meeting_triples", "tube_meetings"]
 
 
 def _near(x: np.ndarray, length: float) -> np.ndarray:
@@ -121,3 +124,57 @@ def meeting_triples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray
                 out |= {(kx, ky, kz) for kz, u, v in by_pieces[(f, b)]
                         if _close(u, pf, lengths[f]) and _close(v, pb, lengths[b])}
     return np.array(sorted(out), dtype=int).reshape(-1, 3)
+
+
+def _cap_halves(x: Run, y: Run, underarm: float, length: float, sharp: np.ndarray) -> bool:
+    """Whether runs ``x`` then ``y`` of one piece are a short sleeve's cap halves: meeting
+    where the line turns no sharp corner, each longer than the ``underarm``."""
+    return (_close(x.end, y.start, length) and min(x.length, y.length) > underarm
+            and not _sharp(sharp, np.array([x.end]), length)[0])
+
+
+def _run_on(runs: list[Run], pair: np.ndarray, piece: int) -> Run:
+    """The side of candidate ``pair`` on ``piece``."""
+    return next(runs[i] for i in pair if runs[i].piece == piece)
+
+
+def tube_meetings(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
+                  tubes: np.ndarray) -> np.ndarray:
+    """(m,4) indices into ``pairs``: x starting at one point of a piece and y ending at
+    another, x and y a cap's two halves (:func:`_cap_halves`; a skirt's sides sewn into a
+    tube under a waist split in two would look the same, but its sides are longer), sewn at
+    those two points to corners of two other pieces, a candidate z between those two that
+    ends at those corners, and a candidate u among ``tubes`` (indices of candidates of one
+    piece with itself) that joins the first two points."""
+    lengths = [p.length for p in pieces]
+    sharp = [p.corners(SHARP_DEG)[0] for p in pieces]
+    by_pieces, by_piece = _ends_at_corners(pieces, runs, pairs)
+    out = set()
+    for ku in tubes.tolist():
+        a, b = runs[pairs[ku, 0]], runs[pairs[ku, 1]]
+        p, length = a.piece, lengths[a.piece]
+        for u1, u2 in ((a.end, b.start), (b.end, a.start)):
+            xs = [e for e in by_piece[p] if e[2] and _close(e[1], u1, length)]
+            ys = [e for e in by_piece[p] if not e[2] and _close(e[1], u2, length)]
+            for (kx, _, _, f, pf), (ky, _, _, g, pg) in itertools.product(xs, ys):
+                if len({p, f, g}) == 3 and _cap_halves(
+                        _run_on(runs, pairs[kx], p), _run_on(runs, pairs[ky], p),
+                        max(a.length, b.length), length, sharp[p]):
+                    out |= {(kx, ky, kz, ku) for kz, v, w in by_pieces[(f, g)]
+                            if _close(v, pf, lengths[f]) and _close(w, pg, lengths[g])}
+    return np.array(sorted(out), dtype=int).reshape(-1, 4)
+
+
+def _ends_at_corners(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray):
+    """Candidates' ends by (piece, other piece): (candidate, position, other's position);
+    and by piece where the other piece has a corner: (candidate, position, whether the run
+    starts there, other piece, other's position)."""
+    lengths = [p.length for p in pieces]
+    corner = [p.corners()[0] for p in pieces]
+    by_pieces: dict[tuple[int, int], list[tuple[int, float, float]]] = defaultdict(list)
+    by_piece: dict[int, list[tuple[int, float, bool, int, float]]] = defaultdict(list)
+    for k, p, s, starts, q, t in _ends(runs, pairs, lengths):
+        by_pieces[(p, q)].append((k, s, t))
+        if _sharp(corner[q], np.array([t]), lengths[q])[0]:
+            by_piece[p].append((k, s, starts, q, t))
+    return by_pieces, by_piece

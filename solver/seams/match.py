@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.junctions import junction_conflicts, meeting_triples
+from solver.seams.junctions import junction_conflicts, meeting_triples, tube_meetings
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import Run, candidate_runs, run_line
@@ -257,7 +257,11 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
     strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
-    pairs, scores, triples = _with_closing(pieces, runs, pairs, scores, strong)
+    tubes = _tube_pairs(runs, [p.length for p in pieces])
+    pairs, scores, triples = _with_closing(
+        pieces, runs, np.vstack([pairs, tubes]),
+        np.concatenate([scores, [_tube_score(runs[i], runs[j]) for i, j in tubes.tolist()]]),
+        np.concatenate([strong, np.zeros(len(tubes), bool)]), len(pairs))
     if not len(pairs):
         return []
     offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
@@ -280,34 +284,42 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
 
 
 def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
-                  scores: np.ndarray, strong: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  scores: np.ndarray, strong: np.ndarray, n_tube: int
+                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """The strong candidates, and the weak ones (scoring at least :data:`CLOSING_SCORE`)
-    that close a meeting triple of two strong ones (a shoulder between a front and a back
-    that mirror each other across it, unnamed), with the triples (indices into the kept)."""
-    maybe = strong | ((scores >= CLOSING_SCORE) & ~strong)
-    idx = np.flatnonzero(maybe)
-    triples = meeting_triples(pieces, runs, pairs[idx])
+    that close a meeting of two strong ones (a shoulder between a front and a back that
+    mirror each other across it, unnamed; a tube sleeve's underarm: ``pairs`` from
+    ``n_tube`` on), with the meetings (index arrays into the kept)."""
+    idx = np.flatnonzero(strong | (scores >= CLOSING_SCORE))
     ok = strong[idx]
-    triples = triples[ok[triples[:, 0]] & ok[triples[:, 1]]] if len(triples) else triples
+    tubes = np.flatnonzero(idx >= n_tube)
+    groups = [g for g in (meeting_triples(pieces, runs, pairs[idx]),
+                          tube_meetings(pieces, runs, pairs[idx], tubes)) if len(g)]
+    groups = [g[ok[g[:, 0]] & ok[g[:, 1]]] for g in groups]
     keep = ok.copy()
-    keep[triples[:, 2]] = True
+    for g in groups:
+        keep[g[:, 2:].reshape(-1)] = True
     new = np.cumsum(keep) - 1
-    return pairs[idx[keep]], scores[idx[keep]], new[triples]
+    return pairs[idx[keep]], scores[idx[keep]], [new[g] for g in groups]
 
 
-def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray, triples: np.ndarray
-             ) -> np.ndarray | None:
-    """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per triple all
-    chosen (one variable per triple, at most each of its three), each edge sewn at most once
-    (``a``: edges x candidates), at most one of each conflicting pair."""
-    n, m = len(weight), len(triples)
+def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray,
+             groups: list[np.ndarray]) -> np.ndarray | None:
+    """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per meeting
+    all chosen (one variable per meeting, at most each of its members; ``groups``: (m,k)
+    arrays of members), each edge sewn at most once (``a``: edges x candidates), at most
+    one of each conflicting pair."""
+    n = len(weight)
+    member = np.concatenate([g.reshape(-1) for g in groups]) if groups else np.zeros(0, int)
+    meeting = np.concatenate([np.repeat(np.arange(len(g)), g.shape[1]) + sum(
+        len(h) for h in groups[:i]) for i, g in enumerate(groups)]) if groups else member
+    m = sum(len(g) for g in groups)
     c = np.zeros((len(conflicts), n + m))
     c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
-    t = np.zeros((3 * m, n + m))  # triple - member <= 0
-    rows = np.arange(3 * m)
-    t[rows, triples.reshape(-1)] = -1.0
-    t[rows, n + np.repeat(np.arange(m), 3)] = 1.0
+    t = np.zeros((len(member), n + m))  # meeting - member <= 0
+    rows = np.arange(len(member))
+    t[rows, member] = -1.0
+    t[rows, n + meeting] = 1.0
     edges = np.hstack([a, np.zeros((len(a), m))])
     res = milp(-np.concatenate([weight, np.full(m, MEETING_MM)]),
                integrality=np.ones(n + m), bounds=Bounds(0, 1),
@@ -315,6 +327,25 @@ def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray, triples: 
                             LinearConstraint(t, -1, 0)],
                options={"time_limit": 20.0})
     return res.x
+
+
+def _tube_pairs(runs: list[Run], lengths: list[float]) -> np.ndarray:
+    """(k,2) runs of one piece that could be its two sides sewn into a tube (a sleeve's
+    underarm): corner to corner each, apart, of one length and straightness."""
+    whole = [k for k, r in enumerate(runs) if r.whole]
+    out = [(i, j) for x, i in enumerate(whole) for j in whole[x + 1:]
+           if runs[i].piece == runs[j].piece
+           and _disjoint(runs[i], runs[j], lengths[runs[i].piece])
+           and abs(runs[i].length - runs[j].length) <= LENGTH_TOL * runs[i].length
+           and min(runs[i].straightness, runs[j].straightness) >= 0.98]
+    return np.array(out, dtype=int).reshape(-1, 2)
+
+
+def _tube_score(a: Run, b: Run) -> float:
+    """A tube's two sides scored by their lengths and notches alone (the piece folds onto
+    itself: overlap says nothing)."""
+    notch = _notch_score(a, b)
+    return _length_score(a, b)[0] + (0.6 * notch if notch >= 0 else 1.5 * notch)
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:

@@ -2,7 +2,7 @@
 (notches at its legs, a drill hole short of its tip) found as a seam of the piece with
 itself; a gathered seam found by its notches alone; seams that would sew one point to two
 or close a corner like a bag's excluded; a sleeve cap's halves sewn to the two armholes
-that meet at a shoulder."""
+that meet at a shoulder, its underarm to itself."""
 
 from __future__ import annotations
 
@@ -122,7 +122,7 @@ def _cap_front_back() -> list[SewPiece]:
             SewPiece("back", back + [700, 0], notches=back[[1]] + [700, 0])]
 
 
-def test_a_cap_to_two_armholes_meets_at_the_shoulder():
+def test_a_cap_to_two_armholes_meets_at_the_shoulder_and_the_underarm_closes():
     pieces = _cap_front_back()
     runs, _ = candidate_runs(pieces)
     pairs = _pairs(runs, [p.length for p in pieces], [np.zeros(0)] * 3)
@@ -138,11 +138,16 @@ def test_a_cap_to_two_armholes_meets_at_the_shoulder():
         assert set(sides(z)) == {1, 2}  # closed by the front and the back
         shoulders.add((round(sides(z)[1].length), round(sides(z)[2].length)))
     assert (250, 250) in shoulders
+    # the cap's ends go to the armholes' other corners, which the bottoms join there (the
+    # side seam): the sleeve's 227 mm sides are its underarm, sewn to each other
+    tube = [s for s in infer_seams(pieces) if s.piece_a == s.piece_b]
+    assert len(tube) == 1 and tube[0].piece_a == 0 and abs(tube[0].length_mm - 226.5) < 3
     # unnamed, with a fourth piece whose 300 mm side is another armhole but whose top meets
     # nothing: the cap's halves go to the two pieces that meet at a shoulder
     wide = np.array([[0, 0], [400, 0], [400, 300], [0, 300]], float) - [0, 600]
     unnamed = [SewPiece(f"p{i}", p.loop, notches=p.notches) for i, p in enumerate(pieces)]
     unnamed.append(SewPiece("p3", wide, notches=wide[[2]]))
-    caps = [s for s in infer_seams(unnamed) if 0 in (s.piece_a, s.piece_b)]
+    caps = [s for s in infer_seams(unnamed)
+            if s.piece_a != s.piece_b and 0 in (s.piece_a, s.piece_b)]
     assert sorted(s.piece_a + s.piece_b for s in caps) == [1, 2]
     assert np.allclose([s.length_mm for s in caps], 300, atol=3)
