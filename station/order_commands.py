@@ -67,7 +67,7 @@ def aligner(command: str, fabric: Wallpaper, grain_deg: float, *, grain_tol: flo
               file=sys.stderr, flush=True)
         pairs = found_pairs(garment) if symmetry else []
         return align_garment(garment, fabric, pairs, grain_deg=grain_deg, nap=nap,
-                             method=method, restarts=restarts, seed=seed,
+                             folds=symmetry, method=method, restarts=restarts, seed=seed,
                              grain_tol_deg=grain_tol)
     return align_one
 

@@ -139,7 +139,8 @@ class StationPipeline:
 
         def local_maps(track: RollTrack, bite, photo: np.ndarray) -> RollTrack:
             return localise(track, bite, photo, plan=bites, reference=reference,
-                            mm_per_px=roll.mm_per_px)
+                            mm_per_px=roll.mm_per_px,
+                            follow=self.config["roll"]["follow_print"])
 
         cut_in_bites(job, job_dir, bites, store, control, roll=self._roll,
                      lattice=print_lattice(fabric), machine_marker=machine_marker,

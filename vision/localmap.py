@@ -13,6 +13,9 @@ FFT): each tile gives the shift of the real print from the expected one, taken m
 the lattice nearest to zero (the drift is millimetres, a repeat tens of millimetres).
 `fit_local_map` fits an affine map to the shifts over a piece, and says how far the
 print departs from any affine map there (what the piece's seams will be off by).
+`nearest_rigid` is the rotation and translation that best follow such a map over a
+piece's seam points: a piece that must keep its shape (its seams their lengths) is
+placed by it, and the map's residual there is what its seams will be off by.
 
 References
 ----------
@@ -201,3 +204,25 @@ def _affine_fit(p: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     sol, *_ = np.linalg.lstsq(design, s, rcond=None)
     lin = sol[:2].T
     return lin, sol[2] - lin @ centre
+
+
+def nearest_rigid(correction: np.ndarray, points: np.ndarray, weights: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(rigid (2, 3), residual (n,) mm): the rotation and translation nearest the affine
+    ``correction`` (2, 3) over ``points`` (n, 2) weighted by ``weights`` (n,) (least
+    squares, the closed-form weighted Procrustes), and how far the correction moves each
+    point beyond it. The rotation is proper: a mirrored piece stays mirrored."""
+    a = np.asarray(correction, float)
+    p = np.asarray(points, float).reshape(-1, 2)
+    w = np.asarray(weights, float).reshape(-1)
+    if len(p) != len(w) or not len(p) or not (w >= 0).all() or not w.sum() > 0:
+        raise ValueError(f"{len(p)} points need as many weights, not negative and not all "
+                         f"zero (got {len(w)})")
+    centre = w @ p / w.sum()
+    x = p - centre
+    y = x @ a[:, :2].T  # where the correction takes each point, about the centre's image
+    theta = np.arctan2(w @ (x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0]), w @ np.sum(x * y, axis=1))
+    c, s = np.cos(theta), np.sin(theta)
+    rot = np.array([[c, -s], [s, c]])
+    shift = a[:, :2] @ centre + a[:, 2] - rot @ centre
+    return np.column_stack([rot, shift]), np.hypot(*(y - x @ rot.T).T)

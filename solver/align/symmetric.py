@@ -17,6 +17,13 @@ the search has fewer of them, and every method of `solver.align` runs on it unch
 The grain rule asks for ``G`` to keep the fabric's grain (a mirror or glide along it, or
 across it where the print has no nap).
 
+A piece cut on the fold (`solver.garment.symmetry.fold_pairs`) is the same idea with
+``j = i``: its mirror across the fold takes it onto itself, and its print must mirror about
+the fold as a pair's prints mirror about their centre seam, i.e. the fold lies on a mirror
+axis of the print. It keeps its own unknowns; `PairTie` projects them onto the constraint
+(angle fixed, translation free along the fold only). With a glide and no mirror along the
+grain the fold lies on the glide axis: the print mirrored across it, shifted along it.
+
 Where the group has no such operation (p1, p2, p3, p4, p6, or mirrors off grain) the pair
 is kept "same": ``G`` is the reflection along the grain and ``tau = 0``, so the print's
 lattice sits at the same place relative to the flipped outline, but the motif is not
@@ -41,12 +48,14 @@ from solver.align.refine import _energy_grad, bfgs_refine
 from solver.fit import fit_report
 from solver.garment.grain import paired_grains
 from solver.garment.model import Garment
-from solver.garment.symmetry import MirrorPair
+from solver.garment.symmetry import MirrorPair, fold_pairs
 from solver.geometry import FLIP, rotation_matrices
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 
 MODES = ("mirror", "same")
+GLIDE_MM = 0.1  # a fold's print mismatch above this: its operation is a glide
+_NEIGHBOURS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], float)
 
 
 @dataclass(frozen=True)
@@ -112,17 +121,27 @@ def expand(quotient: Placement, rules: Sequence[PairRule], keep: np.ndarray,
     ``keep`` (P,) gives each piece's index in the quotient (the second piece of a pair
     maps to its first piece's index).
     """
-    return PairTie(tuple(rules), keep).expand(quotient.angles, quotient.translations)
+    return PairTie(tuple(rules), keep, quotient.fabric).expand(quotient.angles,
+                                                              quotient.translations)
 
 
 @dataclass(frozen=True)
 class PairTie:
     """The whole garment's placement as a function of the quotient's unknowns: the
     second piece of a pair follows its first (``R_j = R_m FLIP R_i G^T``,
-    ``t_j = t_m + R_m FLIP t_i - R_j tau``), batched, with the chain rule back."""
+    ``t_j = t_m + R_m FLIP t_i - R_j tau``), batched, with the chain rule back.
+
+    A fold is a pair of a piece with itself (``i == j``): the same map, met halfway. The
+    angle becomes the fixed point of ``theta -> const - theta`` nearest the piece's (the
+    fold onto the operation's axis); the translation moves across the fold by half the gap
+    between the placement and its mirror image, that gap first reduced by the print's
+    lattice (``fabric``), so the fold lands on the nearest mirror line of that direction
+    (not a glide line of a centred lattice), and stays free along it. Rules run in order:
+    a fold before a pair that copies its piece."""
 
     rules: tuple[PairRule, ...]
     keep: np.ndarray  # (P,) each piece's index in the quotient
+    fabric: Wallpaper | None = None  # needed for folds only
 
     def expand(self, q_angles: np.ndarray, q_trans: np.ndarray):
         """(..., Q) angles, (..., Q, 2) translations -> (..., P), (..., P, 2)."""
@@ -132,27 +151,53 @@ class PairTie:
             i, j = rule.first, rule.second
             mirror = rule.pair.rotation @ FLIP
             r_j = mirror @ rotation_matrices(angles[..., i]) @ rule.op[:2, :2].T
-            angles[..., j] = np.arctan2(r_j[..., 1, 0], r_j[..., 0, 0])
-            trans[..., j, :] = (rule.pair.translation + trans[..., i, :] @ mirror.T
-                                - r_j @ rule.op[:2, 2])
+            a_j = np.arctan2(r_j[..., 1, 0], r_j[..., 0, 0])
+            if i == j:
+                a_j = angles[..., i] + 0.5 * ((a_j - angles[..., i] + np.pi) % (2 * np.pi) - np.pi)
+                r_j = rotation_matrices(a_j)
+            t_j = rule.pair.translation + trans[..., i, :] @ mirror.T - r_j @ rule.op[:2, 2]
+            if i == j:
+                gap = np.einsum("...ji,...j->...i", r_j, trans[..., i, :] - t_j)
+                gap = np.einsum("...ij,...j->...i", r_j, self._least_glide(rule, gap))
+                t_j = trans[..., i, :] - 0.25 * gap @ (np.eye(2) - mirror).T
+            angles[..., j], trans[..., j, :] = a_j, t_j
         return angles, trans
+
+    def _least_glide(self, rule: PairRule, gap: np.ndarray) -> np.ndarray:
+        """The representative of each ``gap`` (..., 2) (wallpaper mm, a fold's placement
+        minus its mirror image) modulo the print's lattice with the least residue along
+        the operation's axis (a mirror line rather than a glide line of a centred
+        lattice), then the least across it (the nearest such line)."""
+        half = 0.5 * np.arctan2(rule.op[1, 0], rule.op[0, 0])
+        axis = np.array([np.cos(half), np.sin(half)])
+        cand = (self.fabric.lattice_residual(gap)[..., None, :]
+                + _NEIGHBOURS @ self.fabric.basis.T)
+        along, across = np.abs(cand @ axis), np.abs(cand @ np.array([-axis[1], axis[0]]))
+        best = np.argmin(np.round(along, 6) * 1e6 + across, axis=-1)
+        return np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
 
     def pull_back(self, angles: np.ndarray, g_angles: np.ndarray, g_trans: np.ndarray):
         """Gradient in the garment's angles (P,) and translations (P,2), at the garment's
         ``angles``, -> gradient in the quotient's unknowns (Q,), (Q,2)."""
-        q = int(self.keep.max()) + 1
-        lead = np.ones(len(self.keep), bool)
-        lead[[r.second for r in self.rules]] = False
-        gq_a, gq_t = np.zeros(q), np.zeros((q, 2))
-        np.add.at(gq_a, self.keep[lead], g_angles[lead])
-        np.add.at(gq_t, self.keep[lead], g_trans[lead])
+        g_a, g_t = np.array(g_angles, float), np.array(g_trans, float)
         turn = np.array([[0.0, -1.0], [1.0, 0.0]])  # dR/dtheta = R turn
-        for rule in self.rules:
-            j, qi = rule.second, self.keep[rule.first]
+        for rule in reversed(self.rules):
+            i, j = rule.first, rule.second
+            mirror = rule.pair.rotation @ FLIP
+            if i == j:  # a fold: the angle is fixed, t -> (I + mirror) t / 2 + const
+                g_a[i] = 0.0
+                g_t[i] = 0.5 * (g_t[i] + mirror.T @ g_t[i])
+                continue
             r_j = rotation_matrices(angles[j:j + 1])[0]
             # theta_j = const - theta_i; t_j depends on theta_i through -R_j tau
-            gq_a[qi] += -g_angles[j] + g_trans[j] @ (r_j @ turn @ rule.op[:2, 2])
-            gq_t[qi] += (rule.pair.rotation @ FLIP).T @ g_trans[j]
+            g_a[i] += -g_a[j] + g_t[j] @ (r_j @ turn @ rule.op[:2, 2])
+            g_t[i] += mirror.T @ g_t[j]
+        lead = np.ones(len(self.keep), bool)
+        lead[[r.second for r in self.rules if r.first != r.second]] = False
+        q = int(self.keep.max()) + 1
+        gq_a, gq_t = np.zeros(q), np.zeros((q, 2))
+        np.add.at(gq_a, self.keep[lead], g_a[lead])
+        np.add.at(gq_t, self.keep[lead], g_t[lead])
         return gq_a, gq_t
 
 
@@ -166,6 +211,8 @@ def quotient_garment(garment: Garment, rules: Sequence[PairRule]) -> tuple[Garme
     face_piece = garment.piece_of_face()
     for rule in rules:
         i, j = rule.first, rule.second
+        if i == j:
+            continue  # a fold: the piece stays whole, its tie is PairTie's
         owner[j] = i
         on = garment.piece_of_vertex == j
         uv[on] = (garment.uv[on] - rule.pair.translation) @ rule.pair.rotation @ FLIP
@@ -185,6 +232,7 @@ def quotient_garment(garment: Garment, rules: Sequence[PairRule]) -> tuple[Garme
     q.grainlines = {int(keep[k]): v for k, v in garment.grainlines.items() if k in kept}
     q.grain = tuple(garment.grains()[k] for k in kept)  # a pair takes its first's grain
     q.notches = {int(keep[k]): v for k, v in garment.notches.items() if k in kept}
+    q.folds = {int(keep[k]): v for k, v in garment.folds.items() if k in kept}
     q._loops = None
     return q, keep
 
@@ -215,9 +263,15 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     """
     start = time.perf_counter()
     garment = garment.copy()  # the pairs' two pieces take mirrored grains
-    garment.grain = paired_grains(garment.grains(), pairs)
-    rules = [pair_rule(p, fabric, grain_deg=grain_deg, nap=nap,
-                       grain_tol_deg=options.get("grain_tol_deg", 1.0)) for p in pairs]
+    copied = {p.second for p in pairs}  # a second piece's fold follows its first's
+    folds = [f for f in fold_pairs(garment) if f.first not in copied]
+    garment.grain = paired_grains(garment.grains(), [*folds, *pairs])
+    # a fold's axis must run along the fold: one across the grain would turn the piece
+    # a quarter off it (``nap`` allows only the axes along)
+    rules = [pair_rule(p, fabric, grain_deg=grain_deg + _fold_to_grain_deg(garment, p),
+                       nap=nap or p.first == p.second,
+                       grain_tol_deg=options.get("grain_tol_deg", 1.0))
+             for p in [*folds, *pairs]]
     quotient, keep = quotient_garment(garment, rules)
     seconds = {"symmetric": 0.0, "unconstrained": 0.0}
     q_init = None
@@ -232,10 +286,10 @@ def align_symmetric(garment: Garment, fabric: Wallpaper, pairs: Sequence[MirrorP
     q_options = _quotient_options(garment, fabric, rules, keep, options)
     t0 = time.perf_counter()
     q_place = align(quotient, fabric, fix=q_fix or None, init=q_init, **q_options)
-    tie = PairTie(tuple(rules), keep)
+    tie = PairTie(tuple(rules), keep, fabric)
     angles, trans = tie.expand(q_place.angles, q_place.translations)
     tied = None
-    if any(r.mode == "same" for r in rules):
+    if any(r.mode == "same" or r.first == r.second for r in rules):
         q_angles, q_trans, tied = search_tied(garment, quotient, fabric, tie, q_place,
                                               fix=q_fix, init=q_init, **q_options)
         angles, trans = tie.expand(q_angles, q_trans)
@@ -294,6 +348,8 @@ def _expanded_report(q_report: dict, garment: Garment, fit, angles: np.ndarray, 
 def _symmetry_section(garment: Garment, quotient: Garment, placement: Placement,
                       rules: Sequence[PairRule], fit, tied: float | None) -> dict:
     """The report's ``symmetry`` entry: the pairs, their mirrors and print mismatch."""
+    folds = [r for r in rules if r.first == r.second]
+    rules = [r for r in rules if r.first != r.second]
     symmetry = {
         "pairs": [[r.first, r.second, r.mode] for r in rules],
         # the pattern mirror each pair was kept by (p_second = M [p_first; 1]): reshaping
@@ -304,9 +360,22 @@ def _symmetry_section(garment: Garment, quotient: Garment, placement: Placement,
         "pair_print_mismatch_mm": [pair_mismatch_mm(garment, placement, r) for r in rules],
         "e_fit_symmetric_mm2": fit.e_fit_mm2,
     }
+    if folds:  # a piece cut on the fold: its print mirrored about the fold
+        symmetry["folds"] = [{"piece": garment.piece_names[r.first], "mode": r.mode,
+                              "outline_rms_mm": r.pair.rms_mm,
+                              "print_mismatch_mm": pair_mismatch_mm(garment, placement, r)}
+                             for r in folds]
     if tied is not None:
         symmetry["e_fit_quotient_search_mm2"] = tied
     same = [f"{r.first}-{r.second}" for r in rules if r.mode == "same"]
+    group = placement.fabric.group
+    if any(r.mode == "same" for r in folds):
+        symmetry["fold_note"] = (f"{group} has no mirror or glide along the fold: the "
+                                 "print's lattice is centred on it, the motif not mirrored")
+    elif any(f["print_mismatch_mm"] > GLIDE_MM for f in symmetry.get("folds", [])):
+        symmetry["fold_note"] = (f"{group} has a glide, not a mirror, along the fold: the "
+                                 "fold lies on the glide's axis, the print mirrored across "
+                                 "it and shifted along it by the glide")
     if same:
         symmetry["note"] = (f"{placement.fabric.group} has no mirror or glide along the "
                             f"grain: pairs {', '.join(same)} keep the same print position "
@@ -360,6 +429,16 @@ def search_tied(garment: Garment, quotient: Garment, fabric: Wallpaper, tie: Pai
             t = cand[int(np.argmin(e))]
         a, t, _ = bfgs_refine(unknowns, a, t, rotations=rotation, objective=objective)
     return a, t, before
+
+
+def _fold_to_grain_deg(garment: Garment, pair: MirrorPair) -> float:
+    """Degrees from a fold piece's grain to its fold line (0 for a pair of two pieces): the
+    print's mirror axis is sought that far from the fabric's grain."""
+    if pair.first != pair.second:
+        return 0.0
+    mirror = pair.rotation @ FLIP  # the reflection across the fold
+    axis = 0.5 * np.degrees(np.arctan2(mirror[1, 0], mirror[0, 0]))
+    return float((axis - garment.grains()[pair.first].deg + 90.0) % 180.0 - 90.0)
 
 
 def _first_of(keep: np.ndarray) -> np.ndarray:

@@ -123,6 +123,8 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
                       piece_names=[p.name for p in pieces],
                       grainlines=grains)
     g.cut_outlines = _file_cut_lines(cut, pieces, shifts)
+    g.folds = {i: p.fold + shifts[i] for i, p in enumerate(cut)
+               if p.fold is not None and np.ptp(p.fold, axis=0).any()}
     return g, seams, pieces
 
 

@@ -81,6 +81,9 @@ class Garment:
         the pattern maker drew it): cut there rather than on an offset of the sew line;
         dropped when the sew line moves (:meth:`with_uv`), since the file's allowance no
         longer holds.
+    folds : dict
+        Per piece cut on the fold, its fold line (2,2) in pattern mm: the piece is its own
+        mirror image across it, and alignment centres the print's mirror on it.
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -108,6 +111,7 @@ class Garment:
     panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     edge_curves: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     cut_outlines: dict[int, np.ndarray] = field(default_factory=dict)
+    folds: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -192,6 +196,7 @@ class Garment:
             panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
             edge_curves=dict(self.edge_curves),  # arrays never changed in place
             cut_outlines=dict(self.cut_outlines),
+            folds=dict(self.folds),
             _loops=None,
         )
 

@@ -113,6 +113,7 @@ def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
                  for q in (given[frozenset((p.first, p.second))] for p in todo)]
         moves = _moves(garment, out, todo)
         out.cut_outlines = _carried_cut_lines(garment, todo, moves)
+        out.folds = dict(garment.folds)  # a fold piece is never in a pair: it stays put
         return Symmetrised(out, sorted(done + exact, key=lambda p: p.first), moves,
                            _sorted(skipped))
     return Symmetrised(garment.copy(), done, [], _sorted(skipped))

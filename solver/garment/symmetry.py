@@ -171,6 +171,23 @@ def centre_seams(garment: Garment, pairs: Sequence[MirrorPair]) -> list[int]:
     return out
 
 
+def fold_pairs(garment: Garment) -> list[MirrorPair]:
+    """Each piece cut on the fold (:attr:`Garment.folds`) as a pair with itself: the mirror
+    across its fold line takes the piece onto itself, as a centre seam takes one half of
+    a pair onto the other, so alignment keeps both with one rule. ``rms_mm`` measures how
+    far the outline is from its own mirror image."""
+    out = []
+    for i, line in sorted(garment.folds.items()):
+        a, b = np.asarray(line, float)
+        d = (b - a) / np.linalg.norm(b - a)
+        reflection = 2.0 * np.outer(d, d) - np.eye(2)
+        outline = resample_closed(garment.piece_outline(i), _SAMPLES)
+        gap, _ = cKDTree(outline).query((outline - a) @ reflection.T + a)
+        out.append(MirrorPair(i, i, float(np.sqrt(np.mean(gap ** 2))), _size(outline),
+                              reflection @ FLIP, a - reflection @ a, declared=True))
+    return out
+
+
 def mirror_correspondence(garment: Garment, pair: MirrorPair) -> np.ndarray | None:
     """For a pair whose second piece is a mirrored copy of the first's mesh (as
     `solver.garment.symmetrise` makes it): the first piece's vertex (global index) whose

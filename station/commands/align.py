@@ -69,8 +69,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "[[k, l]]} (indices or piece names); pairs are found by default")
     p.add_argument("--no-symmetry", action="store_true",
                    help="align every piece on its own (default: left/right pairs mirror the "
-                   "print, or keep the same print position where the print has no mirror "
-                   "along the grain)")
+                   "print, and so does a piece cut on the fold about its fold, or keep the "
+                   "same print position where the print has no mirror along the grain)")
     add_symmetrise_argument(p)
     p.add_argument("-o", "--output", required=True, metavar="PLACEMENT.json",
                    help="where to write the placement (angles in degrees, mm)")
@@ -114,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         use_drape=not args.pattern_frames, progress=progress)
     pairs = [] if args.no_symmetry else cli_pairs(args, garment)
     placement = align_garment(garment, fabric, pairs, grain_deg=grain_deg, nap=args.nap,
+                              folds=not args.no_symmetry,
                               **options)
     if symmetrised is not None:  # later commands rebuild the same pattern from this
         placement.report["symmetrise"] = symmetrised.to_dict()
@@ -150,4 +151,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"  pairs: {kept}{price}")
             if "note" in sym:
                 print(f"  note: {sym['note']}")
+            for f in sym.get("folds", []):
+                print(f"  fold: {f['piece']} {f['mode']}, print across it off by "
+                      f"{f['print_mismatch_mm']:.2f} mm")
+            if "fold_note" in sym:
+                print(f"  note: {sym['fold_note']}")
     return 0

@@ -151,11 +151,13 @@ def run(args: argparse.Namespace) -> int:
     summary["advances_truth"] = truth  # the simulated conveyor's, slips included
     summary["pieces"] = pieces
     summary.update(seams)  # the print across the seams as cut on the simulated cloth
-    # pieces whose print departs from one affine map: the seam error expected of each
+    # pieces whose seams are expected off the print by over the tolerance, and by how much
     summary["pieces_distorted"] = [
-        {"piece": r["piece"], "seam_error_expected_mm": r["beyond_affine_mm"]}
+        {"piece": r["piece"], "seam_error_expected_mm": r["seam_error_expected_mm"]}
         for r in plan_report.get("local_maps") or [] if r.get("distorted")]
-    missing = [name for name in FILES if name not in copied]
+    # an order's garments are drawn on its marker, not each in a fit picture of its own
+    expected = [n for n in FILES if not (plan_report.get("order") and n.startswith("fit-"))]
+    missing = [name for name in expected if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,
               "events": events}
@@ -234,10 +236,27 @@ def lattice_error(detected: dict[str, Any], truth: dict[str, Any]) -> float | No
     return float(max(np.hypot(*(tv - v).T).min() for v in (d.w1, d.w2)))
 
 
+def order_figures(plan: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """An order's report as a single job's ``align`` and ``reshape`` sections: E_fit
+    summed over its garments (each copy counts), the largest reshape move and area change
+    over its styles; a single job's sections as they are."""
+    garments = plan.get("garments")
+    if not garments:
+        return plan.get("align") or {}, plan.get("reshape") or {}
+    align = {"e_fit_random_cm2": sum(g["e_fit_random_mm2"] for g in garments) / 100.0,
+             "e_fit_aligned_cm2": sum(g["e_fit_aligned_mm2"] for g in garments) / 100.0}
+    styles = [s for s in (plan.get("reshape") or {}).get("styles", []) if "e_fit_after_mm2" in s]
+    if not styles:
+        return align, {}
+    return align, {
+        "e_fit_after_mm2": sum(s["e_fit_after_mm2"] * len(s["garments"]) for s in styles),
+        "max_displacement_mm": max(s["max_displacement_mm"] for s in styles),
+        "area_change_max_pct": max(s["area_change_max_pct"] for s in styles)}
+
+
 def summarise(status: dict[str, Any], plan: dict[str, Any], camera: dict[str, Any],
               fabric: dict[str, Any], seconds: float) -> dict[str, Any]:
-    align = plan.get("align") or {}
-    reshape = plan.get("reshape") or {}
+    align, reshape = order_figures(plan)
     truth = camera.get("truth")
     pieces = status.get("pieces", {})
     return {

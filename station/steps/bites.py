@@ -14,7 +14,9 @@ report's per-bite list.
 `save_bites` and `load_bites` keep the plan beside the job's layout.json (a job cut by
 another process reads it back); the cut loop itself is `station.steps.cutbites`.
 `localise` adds the print's own bow, skew and stretch: a local map of the print under
-each piece of a bite (`vision.localmap`), so each piece is cut on the print as it lies.
+each piece of a bite (`vision.localmap`), and each piece placed on the print as it lies,
+rigidly by default (a piece keeps its shape; what the map would have stretched is named
+as the seam error expected), or stretched with it (`[roll] follow_print`).
 """
 
 from __future__ import annotations
@@ -30,13 +32,22 @@ import numpy as np
 
 from solver.nest.bites import Bite, BitePlan, moved_piece, plan_bites
 from solver.nest.instance import IDENTITY, affine, compose, invert
-from solver.nest.layout import Layout
+from solver.nest.layout import Layout, Placed
+from station.config import FOLLOW_PRINT
 from station.steps.table import TableWindow
 from vision.advance import MIN_OVERLAP_MM, Advance, measure_advance
-from vision.localmap import PrintReference, fit_local_map, local_shifts, tile_centres
+from vision.localmap import (
+    LocalMap,
+    PrintReference,
+    fit_local_map,
+    local_shifts,
+    nearest_rigid,
+    tile_centres,
+)
 
-#: a piece whose print departs from one affine map by more than this (mm) is named in
-#: the report with that figure, the seam error expected of it
+#: a piece whose seams are expected off the print by more than this (mm) is named in the
+#: report with that figure: the print's departure from one affine map under it, plus,
+#: placed rigidly, what the rigid placement leaves of that map at its sew line
 LOCAL_MAP_TOLERANCE_MM = 1.0
 #: a local map stretching or shearing a piece by more than this (a fraction) is no bow or
 #: skew of a print but tiles matched the wrong way: the piece keeps the track alone
@@ -117,11 +128,19 @@ class RollTrack:
 
 
 def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: BitePlan,
-             reference: PrintReference, mm_per_px: float = 1.0) -> RollTrack:
+             reference: PrintReference, mm_per_px: float = 1.0,
+             follow: str = "affine") -> RollTrack:
     """``track`` with a local map of the print under each piece of ``bite``, measured on
     ``photograph`` (the window with the bite on it) against ``reference`` (the print as
-    planned): each piece is then cut on the print as it lies, bow, skew and stretch
-    absorbed up to one affine map. All tiles of all pieces are measured at once."""
+    planned). ``follow`` (`[roll] follow_print`): "affine" cuts the piece stretched and
+    sheared with the print (up to `MAX_LOCAL_STRAIN`): a roll's bow, skew and stretch are
+    the cloth's own (weft bow, tension on the table), so the piece follows the yarns and
+    is true, its seams as long as their twins, once the cloth lies relaxed. "rigid" only
+    turns and moves each piece onto the print, for a print misregistered on straight
+    cloth, and names what that leaves of the print's stretch and shear. All tiles of all
+    pieces are measured at once."""
+    if follow not in FOLLOW_PRINT:
+        raise ValueError(f"follow must be one of {', '.join(FOLLOW_PRINT)}, not {follow!r}")
     wanted = set(bite.pieces)
     pieces = [p for p in plan.layout.pieces if p.id in wanted]
     if not pieces:
@@ -142,16 +161,44 @@ def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: Bite
         local = fit_local_map(centres_px[owner == k] * mm_per_px, shifts[owner == k])
         kept = (local.tiles >= 3 and local.strain <= MAX_LOCAL_STRAIN
                 and local.beyond_mm <= MAX_BEYOND_REPEAT * repeat)
+        points, weights = sew_points(p, track.marker_to_window)
+        rigid, residual = nearest_rigid(local.correction, points, weights)
+        left_mm = float(residual.max())  # what the rigid map leaves of the affine one
+        chosen = rigid if follow == "rigid" else local.correction
         if kept:  # else the print was not found under the piece: cut where the track says
-            maps[p.id] = local.correction
-        centre = affine(track.marker_to_window, p.outline).mean(axis=0)
-        moved = affine(local.correction, centre)[0] - centre
-        notes.append({"piece": p.id, "bite": bite.index, "tiles": local.tiles,
-                      "moved_mm": round(float(np.hypot(*moved)), 3) if kept else 0.0,
-                      "strain": round(local.strain, 5),
-                      "beyond_affine_mm": round(local.beyond_mm, 3), "mapped": kept,
-                      "distorted": not kept or local.beyond_mm > LOCAL_MAP_TOLERANCE_MM})
+            maps[p.id] = chosen
+        notes.append({"piece": p.id, "bite": bite.index, "follow": follow,
+                      **_map_note(local, chosen if kept else None, points, weights,
+                                  left_mm if follow == "rigid" else 0.0),
+                      "rigid_residual_mm": round(left_mm, 3)})
     return replace(track, piece_maps=maps, local=notes)
+
+
+def sew_points(piece: Placed, marker_to_window: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((n, 2) window mm, (n,) weights): the vertices of ``piece``'s sew line (where its
+    seams meet; its cut line when it has none), each weighted by the length of sew line
+    it stands for (half of each edge beside it), so that a densely drawn curve does not
+    outweigh a long straight seam."""
+    ring = affine(marker_to_window, piece.outline if piece.sew_line is None
+                  else piece.sew_line)
+    edge = np.hypot(*(np.roll(ring, -1, axis=0) - ring).T)
+    return ring, 0.5 * (edge + np.roll(edge, 1))
+
+
+def _map_note(local: LocalMap, chosen: np.ndarray | None, points: np.ndarray,
+              weights: np.ndarray, rigid_residual_mm: float) -> dict[str, Any]:
+    """The report's figures of one piece's map: how far the map ``chosen`` (None: refused)
+    moves the piece's sew-line centre, the print's strain and departure from one affine
+    map under it, and the seam error expected (at most the departure plus what a rigid
+    placement leaves of the map, ``rigid_residual_mm``, 0 when the piece follows it)."""
+    centre = weights @ points / weights.sum()
+    moved = 0.0 if chosen is None else float(np.hypot(*(affine(chosen, centre)[0] - centre)))
+    expected = None if chosen is None else local.beyond_mm + rigid_residual_mm
+    return {"tiles": local.tiles, "moved_mm": round(moved, 3),
+            "strain": round(local.strain, 5), "beyond_affine_mm": round(local.beyond_mm, 3),
+            "mapped": chosen is not None,
+            "seam_error_expected_mm": None if expected is None else round(expected, 3),
+            "distorted": expected is None or expected > LOCAL_MAP_TOLERANCE_MM}
 
 
 #: what the job waits at when the operator advances the roll by hand (`station resume`

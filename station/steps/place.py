@@ -10,6 +10,7 @@ the grain. `reshape_placed` nudges the aligned outlines (`solver.reshape`) when 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -30,13 +31,16 @@ Progress = Callable[[int, int, float, float], None]  # (k, n, e_random, e_aligne
 
 
 def align_garment(garment: Garment, wallpaper: Wallpaper, pairs: list[MirrorPair], *,
-                  grain_deg: float, nap: bool, **options: Any) -> Placement:
-    """The best placement of the print on every piece; ``pairs`` mirror each other.
+                  grain_deg: float, nap: bool, folds: bool = True, **options: Any) -> Placement:
+    """The best placement of the print on every piece; ``pairs`` mirror each other, and
+    so does a piece cut on the fold about its fold, unless ``folds`` is off (no symmetry).
 
     ``options`` are `solver.align.align`'s (method, restarts, seed, grain_tol_deg,
     reflect, progress, ...); ``grain_deg`` is the fabric's grain in fabric space.
     """
-    if pairs:
+    if not folds and garment.folds:
+        garment = dataclasses.replace(garment, folds={})
+    if pairs or garment.folds:
         return align_symmetric(garment, wallpaper, pairs, grain_deg=grain_deg, nap=nap,
                                **options)
     return align(garment, wallpaper, nap=nap, fabric_grain_deg=grain_deg, **options)
@@ -50,9 +54,10 @@ def align_job(garment: Garment, wallpaper: Wallpaper, config: Config, options: d
     station's. ``progress`` is called as each random restart finishes."""
     a = config["align"]
     grain = a["grain_tolerance_deg"]
-    pairs = job_pairs(garment, options) if options.get("symmetry", a["symmetry"]) else []
+    symmetry = options.get("symmetry", a["symmetry"])
+    pairs = job_pairs(garment, options) if symmetry else []
     return align_garment(
-        garment, wallpaper, pairs,
+        garment, wallpaper, pairs, folds=bool(symmetry),
         grain_deg=a["fabric_grain_deg"] if fabric_grain_deg is None else fabric_grain_deg,
         nap=a["nap"], method=options.get("method", a["method"]),
         restarts=int(options.get("restarts", a["restarts"])),

@@ -66,9 +66,9 @@ def _check_order(path: str, fabric: str | None, options: dict[str, Any], config:
     given = [k for k in ("units", "size") if options.get(k) is not None]
     if given:
         raise ValueError(f"{path}: job option {given[0]} is the order file's to give")
-    if options.get("symmetrise") or options.get("reshape"):  # not yet run per garment
-        raise ValueError(f"{path}: an order is cut as aligned: drop job options symmetrise "
-                         "and reshape")
+    if options.get("symmetrise"):  # not yet run per garment
+        raise ValueError(f"{path}: an order's patterns are not symmetrised: drop job "
+                         "option symmetrise")
     if "seams" in options:
         raise ValueError(f"{path}: job option seams names one pattern's pieces; an order's "
                          "patterns each have their own")

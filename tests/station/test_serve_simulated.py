@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from station.cli import main
+from station.commands.demo import FILES, summarise
 from station.config import EMULATOR_PORT
 from station.control import ControlError, request
 from station.daemon import wait_until
@@ -205,8 +206,6 @@ def demo(tmp_path_factory):
 def test_demo_runs_a_detected_job_end_to_end_and_writes_every_file(demo):
     """The print is detected (not the truth), every file the README lists is written, and
     the summary agrees with the report."""
-    from station.commands.demo import FILES
-
     code, out, printed, _ = demo
     assert code == 0, printed
     report = json.loads((out / "report.json").read_text())
@@ -268,3 +267,15 @@ def test_capture_uses_the_simulators_truth_only_when_vision_is_missing(tmp_path,
     assert fabric["w1"] == camera["truth"]["w1"]
     assert cv2.imread(str(tmp_path / "frame.png")) is not None
     assert not (tmp_path / "detection.png").exists()
+
+
+def test_an_orders_e_fit_is_summed_over_its_garments_and_each_copy_counts():
+    plan = {"order": "PO-1",
+            "garments": [{"e_fit_random_mm2": 400.0, "e_fit_aligned_mm2": 100.0},
+                         {"e_fit_random_mm2": 600.0, "e_fit_aligned_mm2": 300.0}],
+            "reshape": {"styles": [{"garments": ["a-1", "a-2"], "e_fit_after_mm2": 50.0,
+                                    "max_displacement_mm": 4.0, "area_change_max_pct": 0.5},
+                                   {"garments": ["b-1"], "rejected": "no fit"}]}}
+    s = summarise({"pieces": {"cut": 3}}, plan, {}, {}, 1.0)
+    assert (s["e_fit_random_cm2"], s["e_fit_aligned_cm2"]) == (10.0, 4.0)
+    assert s["e_fit_reshaped_cm2"] == 1.0 and s["reshape_max_move_mm"] == 4.0

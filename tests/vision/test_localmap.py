@@ -1,12 +1,19 @@
 """Local maps of a distorted print (vision.localmap): a known affine distortion of a
-synthetic plaid is recovered from the photograph alone."""
+synthetic plaid is recovered from the photograph alone; the rigid placement nearest a
+local map is the weighted least-squares one."""
 
 import numpy as np
 import pytest
 
 from simulators.classics import classic_print
 from simulators.fabric import to_uint8
-from vision.localmap import PrintReference, fit_local_map, local_shifts, tile_centres
+from vision.localmap import (
+    PrintReference,
+    fit_local_map,
+    local_shifts,
+    nearest_rigid,
+    tile_centres,
+)
 
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
@@ -63,3 +70,37 @@ def test_a_bowed_print_is_named_beyond_one_affine_map(plaid_and_reference):
     local = fit_local_map(centres.astype(float), local_shifts(photo, reference, IDENTITY,
                                                               centres))
     assert 1.5 < local.beyond_mm < bow
+
+
+def rotation(deg):
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, -s], [s, c]])
+
+
+def test_the_nearest_rigid_map_is_the_weighted_least_squares_one():
+    rng = np.random.default_rng(3)
+    points, weights = rng.uniform(0, 500, (40, 2)), rng.uniform(0.1, 3.0, 40)
+    rigid_map = np.column_stack([rotation(0.7), [3.0, -2.0]])
+    got, residual = nearest_rigid(rigid_map, points, weights)  # already rigid: itself
+    assert got == pytest.approx(rigid_map, abs=1e-12) and residual.max() < 1e-9
+    stretched = np.column_stack([rotation(0.7) @ [[1.01, 0.004], [0.0, 0.995]], [3.0, -2.0]])
+    got, residual = nearest_rigid(stretched, points, weights)
+    lin = got[:, :2]
+    assert lin.T @ lin == pytest.approx(np.eye(2), abs=1e-12) and np.linalg.det(lin) > 0
+    target = points @ stretched[:, :2].T + stretched[:, 2]
+    assert residual == pytest.approx(np.hypot(*(target - points @ lin.T - got[:, 2]).T))
+
+    def cost(deg, shift):
+        moved = points @ rotation(deg).T + shift
+        return weights @ np.sum((moved - target) ** 2, axis=1)
+
+    angle = np.degrees(np.arctan2(lin[1, 0], lin[0, 0]))
+    best = cost(angle, got[:, 2])
+    for d_deg, d_shift in ((0.01, 0), (-0.01, 0), (0, [0.05, 0]), (0, [0, -0.05])):
+        assert cost(angle + d_deg, got[:, 2] + d_shift) > best
+    # the weights count: a side weighted heavily is followed closely, at the other's cost
+    heavy = np.where(points[:, 0] < 250, 100.0, 0.01)
+    _, leaning = nearest_rigid(stretched, points, heavy)
+    assert leaning[points[:, 0] < 250].max() < residual[points[:, 0] < 250].max()
+    with pytest.raises(ValueError, match="weights"):
+        nearest_rigid(stretched, points, weights[:-1])
