@@ -28,7 +28,7 @@ import numpy as np
 from solver.seams.outline import MERGE_MM, SewPiece
 from solver.seams.runs import SHARP_DEG, Run
 
-__all__ = ["junction_conflicts", "meeting_triples", "tube_meetings"]
+__all__ = ["junction_conflicts", "meeting_triples", "order_conflicts", "tube_meetings"]
 
 
 def _near(x: np.ndarray, length: float) -> np.ndarray:
@@ -178,3 +178,39 @@ def _ends_at_corners(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray)
         if _sharp(corner[q], np.array([t]), lengths[q])[0]:
             by_piece[p].append((k, s, starts, q, t))
     return by_pieces, by_piece
+
+
+def order_conflicts(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray) -> np.ndarray:
+    """(m,3) indices into ``pairs``: three candidates between the same two pieces, apart on
+    both, that run round one piece in the same order as round the other. Two pieces laid
+    face to face meet along their seams in reverse order (a front's side seam, shoulder,
+    shoulder, side seam are the back's side seam, shoulder, shoulder, side seam the other way
+    round); the same order would cross them (a right shoulder sewn to the left one)."""
+    groups: dict[tuple[int, int], list[tuple[int, Run, Run]]] = defaultdict(list)
+    for k, (i, j) in enumerate(pairs.tolist()):
+        a, b = runs[i], runs[j]
+        if a.piece != b.piece:
+            a, b = (a, b) if a.piece < b.piece else (b, a)
+            groups[(a.piece, b.piece)].append((k, a, b))
+    out = []
+    for (pa, pb), cands in groups.items():
+        la, lb = pieces[pa].length, pieces[pb].length
+        for (k1, a1, b1), (k2, a2, b2), (k3, a3, b3) in itertools.combinations(cands, 3):
+            if not all(_apart(x, y, la) for x, y in ((a1, a2), (a1, a3), (a2, a3))) or \
+                    not all(_apart(x, y, lb) for x, y in ((b1, b2), (b1, b3), (b2, b3))):
+                continue
+            if _turn(a1, a2, a3, la) == _turn(b1, b2, b3, lb):
+                out.append((k1, k2, k3))
+    return np.array(out, dtype=int).reshape(-1, 3)
+
+
+def _apart(x: Run, y: Run, length: float) -> bool:
+    """Whether two runs of one piece share no more than a point of its line."""
+    return all(min(x.end, y.end + lap) - max(x.start, y.start + lap) <= MERGE_MM
+               for lap in (-length, 0.0, length))
+
+
+def _turn(x: Run, y: Run, z: Run, length: float) -> bool:
+    """Whether the runs' middles come x, y, z going round the line (else x, z, y)."""
+    mx, my, mz = (0.5 * (r.start + r.end) for r in (x, y, z))
+    return (my - mx) % length < (mz - mx) % length

@@ -23,7 +23,12 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.junctions import junction_conflicts, meeting_triples, tube_meetings
+from solver.seams.junctions import (
+    junction_conflicts,
+    meeting_triples,
+    order_conflicts,
+    tube_meetings,
+)
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import Run, candidate_runs, run_line
@@ -275,7 +280,8 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
                                  [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
-    x = _program(a, weight, junction_conflicts(pieces, runs, pairs), triples)
+    x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
+                             order_conflicts(pieces, runs, pairs)], triples)
     if x is None:
         return []
     chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
@@ -303,19 +309,22 @@ def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
     return pairs[idx[keep]], scores[idx[keep]], [new[g] for g in groups]
 
 
-def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray,
+def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
              groups: list[np.ndarray]) -> np.ndarray | None:
     """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per meeting
     all chosen (one variable per meeting, at most each of its members; ``groups``: (m,k)
-    arrays of members), each edge sewn at most once (``a``: edges x candidates), at most
-    one of each conflicting pair."""
+    arrays of members), each edge sewn at most once (``a``: edges x candidates), never all
+    k of a row of ``conflicts`` ((r,k) arrays)."""
     n = len(weight)
     member = np.concatenate([g.reshape(-1) for g in groups]) if groups else np.zeros(0, int)
     meeting = np.concatenate([np.repeat(np.arange(len(g)), g.shape[1]) + sum(
         len(h) for h in groups[:i]) for i, g in enumerate(groups)]) if groups else member
     m = sum(len(g) for g in groups)
-    c = np.zeros((len(conflicts), n + m))
-    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
+    c = np.zeros((sum(len(x) for x in conflicts), n + m))
+    bound = np.concatenate([np.full(len(x), x.shape[1] - 1.0) for x in conflicts])
+    rows = np.concatenate([np.repeat(np.arange(len(x)), x.shape[1]) + sum(
+        len(y) for y in conflicts[:i]) for i, x in enumerate(conflicts)])
+    c[rows, np.concatenate([x.reshape(-1) for x in conflicts])] = 1.0
     t = np.zeros((len(member), n + m))  # meeting - member <= 0
     rows = np.arange(len(member))
     t[rows, member] = -1.0
@@ -323,7 +332,7 @@ def _program(a: np.ndarray, weight: np.ndarray, conflicts: np.ndarray,
     edges = np.hstack([a, np.zeros((len(a), m))])
     res = milp(-np.concatenate([weight, np.full(m, MEETING_MM)]),
                integrality=np.ones(n + m), bounds=Bounds(0, 1),
-               constraints=[LinearConstraint(np.vstack([edges, c]), 0, 1),
+               constraints=[LinearConstraint(edges, 0, 1), LinearConstraint(c, 0, bound),
                             LinearConstraint(t, -1, 0)],
                options={"time_limit": 20.0})
     return res.x

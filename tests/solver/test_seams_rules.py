@@ -1,7 +1,8 @@
 """The seam inference's rules on small cases made by hand: a dart marked as a CAD marks it
 (notches at its legs, a drill hole short of its tip) found as a seam of the piece with
 itself; a gathered seam found by its notches alone; seams that would sew one point to two
-or close a corner like a bag's excluded; a sleeve cap's halves sewn to the two armholes
+or close a corner like a bag's excluded, and three that run round two pieces in the same
+order; a sleeve cap's halves sewn to the two armholes
 that meet at a shoulder, its underarm to itself."""
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from solver.garment.dxf import read_dxf_pattern
 from solver.garment.dxf_garment import sew_pieces
 from solver.seams import SewPiece, infer_seams
 from solver.seams.darts import DRILL_SETBACK_MM, dart_cap
-from solver.seams.junctions import junction_conflicts, meeting_triples
+from solver.seams.junctions import junction_conflicts, meeting_triples, order_conflicts
 from solver.seams.match import _pairs
 from solver.seams.outline import point_at
 from solver.seams.runs import candidate_runs
@@ -151,3 +152,20 @@ def test_a_cap_to_two_armholes_meets_at_the_shoulder_and_the_underarm_closes():
             if s.piece_a != s.piece_b and 0 in (s.piece_a, s.piece_b)]
     assert sorted(s.piece_a + s.piece_b for s in caps) == [1, 2]
     assert np.allclose([s.length_mm for s in caps], 300, atol=3)
+
+
+def test_seams_between_two_pieces_run_round_them_in_reverse_order():
+    square = np.array([[0, 0], [200, 0], [200, 200], [0, 200]], float)
+    pieces = [SewPiece("A", square), SewPiece("B", square + [300, 0])]
+    runs, _ = candidate_runs(pieces)
+    pairs = _pairs(runs, [p.length for p in pieces], [np.zeros(0), np.zeros(0)])
+    side = {k: tuple(int(runs[i].start // 200) for i in pairs[k]) for k in range(len(pairs))}
+    at = {v: k for k, v in side.items()}  # (side of A, side of B) -> candidate
+    crossed = {tuple(sorted(t)) for t in order_conflicts(pieces, runs, pairs).tolist()}
+    # A's sides 0, 1, 2 to B's 0, 1, 2: the same order round both, crossed
+    assert tuple(sorted(at[(i, i)] for i in range(3))) in crossed
+    # to B's 2, 1, 0: laid face to face, as a front meets a back
+    assert tuple(sorted(at[(i, 2 - i)] for i in range(3))) not in crossed
+    # two candidates on one side of A are no three seams apart
+    assert all(len({side[k][0] for k in t}) == 3 and len({side[k][1] for k in t}) == 3
+               for t in crossed)
