@@ -2,8 +2,8 @@
 (notches at its legs, a drill hole short of its tip) found as a seam of the piece with
 itself; a gathered seam found by its notches alone; seams that would sew one point to two
 or close a corner like a bag's excluded, and three that run round two pieces in the same
-order; a sleeve cap's halves sewn to the two armholes
-that meet at a shoulder, its underarm to itself."""
+order; a sleeve cap's halves sewn to the two armholes that meet at a shoulder, its
+underarm to itself."""
 
 from __future__ import annotations
 
