@@ -23,7 +23,12 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from solver.seams.junctions import junction_conflicts
+from solver.seams.junctions import (
+    junction_conflicts,
+    meeting_triples,
+    order_conflicts,
+    tube_meetings,
+)
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import Run, candidate_runs, run_line
@@ -34,8 +39,14 @@ __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
 EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
 CURVED = 0.95  # a run whose chord is less than this share of its length is curved
-NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch (ease)
+NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch
+EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread evenly, so
+# its notches sit further off their share of the run than on a straight seam
+NOTCH_MIN_MM = 10.0  # but never less than this along the run (a short seam's share is tight)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
+MEETING_MM = 240.0  # three seams that close where three pieces meet (a cap's break, the
+# shoulder) earn this much matched length, 1.5 seams' cost (from {160, 240, 320} on half 0)
+CLOSING_SCORE = 0.0  # a weaker candidate is a seam only where it closes such a triple
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
 SEAM_COST_MM = 160.0  # each seam chosen costs this much matched length (score x mm): a
@@ -80,11 +91,13 @@ def _notch_score(a: Run, b: Run) -> float:
     mirrored = sorted((1.0 - s, c) for s, c in b.notches)
     if len(mirrored) != len(a.notches):
         return -1.0
+    tol = EASED_NOTCH_TOL if min(a.straightness, b.straightness) < CURVED else NOTCH_TOL
+    tol = max(tol, NOTCH_MIN_MM / min(a.length, b.length))
     worst = 0.0
     for (sa, ca), (sb, cb) in zip(a.notches, mirrored, strict=True):
-        if abs(sa - sb) > NOTCH_TOL or ca != cb:
+        if abs(sa - sb) > tol or ca != cb:
             return -1.0
-        worst = max(worst, abs(sa - sb) / NOTCH_TOL)
+        worst = max(worst, abs(sa - sb) / tol)
     return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
 
 
@@ -248,8 +261,12 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
-    keep = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
-    pairs, scores = pairs[keep], scores[keep]
+    strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
+    tubes = _tube_pairs(runs, [p.length for p in pieces])
+    pairs, scores, triples = _with_closing(
+        pieces, runs, np.vstack([pairs, tubes]),
+        np.concatenate([scores, [_tube_score(runs[i], runs[j]) for i, j in tubes.tolist()]]),
+        np.concatenate([strong, np.zeros(len(tubes), bool)]), len(pairs))
     if not len(pairs):
         return []
     offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
@@ -263,17 +280,81 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
                                  [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
-    conflicts = junction_conflicts(pieces, runs, pairs)
-    c = np.zeros((len(conflicts), len(pairs)))
-    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
-    res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
-               constraints=LinearConstraint(np.vstack([a, c]), 0, 1),
-               options={"time_limit": 20.0})
-    if res.x is None:
+    x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
+                             order_conflicts(pieces, runs, pairs)], triples)
+    if x is None:
         return []
-    chosen = np.flatnonzero(res.x > 0.5)
+    chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
     return [s for k in chosen for s in _seams(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
                                               _rival(k, pairs, scores, a))]
+
+
+def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
+                  scores: np.ndarray, strong: np.ndarray, n_tube: int
+                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The strong candidates, and the weak ones (scoring at least :data:`CLOSING_SCORE`)
+    that close a meeting of two strong ones (a shoulder between a front and a back that
+    mirror each other across it, unnamed; a tube sleeve's underarm: ``pairs`` from
+    ``n_tube`` on), with the meetings (index arrays into the kept)."""
+    idx = np.flatnonzero(strong | (scores >= CLOSING_SCORE))
+    ok = strong[idx]
+    tubes = np.flatnonzero(idx >= n_tube)
+    groups = [g for g in (meeting_triples(pieces, runs, pairs[idx]),
+                          tube_meetings(pieces, runs, pairs[idx], tubes)) if len(g)]
+    groups = [g[ok[g[:, 0]] & ok[g[:, 1]]] for g in groups]
+    keep = ok.copy()
+    for g in groups:
+        keep[g[:, 2:].reshape(-1)] = True
+    new = np.cumsum(keep) - 1
+    return pairs[idx[keep]], scores[idx[keep]], [new[g] for g in groups]
+
+
+def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
+             groups: list[np.ndarray]) -> np.ndarray | None:
+    """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per meeting
+    all chosen (one variable per meeting, at most each of its members; ``groups``: (m,k)
+    arrays of members), each edge sewn at most once (``a``: edges x candidates), never all
+    k of a row of ``conflicts`` ((r,k) arrays)."""
+    n = len(weight)
+    member = np.concatenate([g.reshape(-1) for g in groups]) if groups else np.zeros(0, int)
+    meeting = np.concatenate([np.repeat(np.arange(len(g)), g.shape[1]) + sum(
+        len(h) for h in groups[:i]) for i, g in enumerate(groups)]) if groups else member
+    m = sum(len(g) for g in groups)
+    c = np.zeros((sum(len(x) for x in conflicts), n + m))
+    bound = np.concatenate([np.full(len(x), x.shape[1] - 1.0) for x in conflicts])
+    rows = np.concatenate([np.repeat(np.arange(len(x)), x.shape[1]) + sum(
+        len(y) for y in conflicts[:i]) for i, x in enumerate(conflicts)])
+    c[rows, np.concatenate([x.reshape(-1) for x in conflicts])] = 1.0
+    t = np.zeros((len(member), n + m))  # meeting - member <= 0
+    rows = np.arange(len(member))
+    t[rows, member] = -1.0
+    t[rows, n + meeting] = 1.0
+    edges = np.hstack([a, np.zeros((len(a), m))])
+    res = milp(-np.concatenate([weight, np.full(m, MEETING_MM)]),
+               integrality=np.ones(n + m), bounds=Bounds(0, 1),
+               constraints=[LinearConstraint(edges, 0, 1), LinearConstraint(c, 0, bound),
+                            LinearConstraint(t, -1, 0)],
+               options={"time_limit": 20.0})
+    return res.x
+
+
+def _tube_pairs(runs: list[Run], lengths: list[float]) -> np.ndarray:
+    """(k,2) runs of one piece that could be its two sides sewn into a tube (a sleeve's
+    underarm): corner to corner each, apart, of one length and straightness."""
+    whole = [k for k, r in enumerate(runs) if r.whole]
+    out = [(i, j) for x, i in enumerate(whole) for j in whole[x + 1:]
+           if runs[i].piece == runs[j].piece
+           and _disjoint(runs[i], runs[j], lengths[runs[i].piece])
+           and abs(runs[i].length - runs[j].length) <= LENGTH_TOL * runs[i].length
+           and min(runs[i].straightness, runs[j].straightness) >= 0.98]
+    return np.array(out, dtype=int).reshape(-1, 2)
+
+
+def _tube_score(a: Run, b: Run) -> float:
+    """A tube's two sides scored by their lengths and notches alone (the piece folds onto
+    itself: overlap says nothing)."""
+    notch = _notch_score(a, b)
+    return _length_score(a, b)[0] + (0.6 * notch if notch >= 0 else 1.5 * notch)
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:

@@ -1,7 +1,9 @@
 """The seam inference's rules on small cases made by hand: a dart marked as a CAD marks it
 (notches at its legs, a drill hole short of its tip) found as a seam of the piece with
 itself; a gathered seam found by its notches alone; seams that would sew one point to two
-or close a corner like a bag's excluded."""
+or close a corner like a bag's excluded, and three that run round two pieces in the same
+order; a sleeve cap's halves sewn to the two armholes that meet at a shoulder, its
+underarm to itself."""
 
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from solver.garment.dxf import read_dxf_pattern
 from solver.garment.dxf_garment import sew_pieces
 from solver.seams import SewPiece, infer_seams
 from solver.seams.darts import DRILL_SETBACK_MM, dart_cap
-from solver.seams.junctions import junction_conflicts
+from solver.seams.junctions import junction_conflicts, meeting_triples, order_conflicts
 from solver.seams.match import _pairs
 from solver.seams.outline import point_at
 from solver.seams.runs import candidate_runs
@@ -105,3 +107,65 @@ def test_two_seams_never_sew_one_point_to_two_or_close_a_corner():
         assert ((x, y) in conflicts) == bool(corner_of_a or corner_of_b)
     chosen = infer_seams(pieces)
     assert 1 <= len(chosen) <= 2  # two squares: at most two opposite sides sewn
+
+
+def _cap_front_back() -> list[SewPiece]:
+    """A sleeve whose cap is one smooth arc (two 300 mm halves, a notch at the top only), a
+    front and a back whose 300 mm armholes turn a corner into their 250 mm shoulders, a
+    notch there."""
+    theta = np.linspace(0.5, -0.5, 41)  # the cap: R * 1 rad = 600 mm, apex in the middle
+    cap = np.column_stack([600 * np.sin(theta), 600 * np.cos(theta) - 400])
+    sleeve = np.vstack([cap, [[cap[-1, 0], -100], [cap[0, 0], -100]]])
+    front = np.array([[0, 0], [250, 0], [250, 300], [0, 300]], float)
+    back = np.array([[0, 0], [250, 0], [250, 300], [0, 300]], float)[::-1] * [-1, 1]
+    return [SewPiece("sleeve", sleeve + [0, 800], notches=cap[[20]] + [0, 800]),
+            SewPiece("front", front, notches=front[[2]]),
+            SewPiece("back", back + [700, 0], notches=back[[1]] + [700, 0])]
+
+
+def test_a_cap_to_two_armholes_meets_at_the_shoulder_and_the_underarm_closes():
+    pieces = _cap_front_back()
+    runs, _ = candidate_runs(pieces)
+    pairs = _pairs(runs, [p.length for p in pieces], [np.zeros(0)] * 3)
+
+    def sides(k):
+        return {runs[i].piece: runs[i] for i in pairs[k]}
+
+    shoulders = set()
+    for x, y, z in meeting_triples(pieces, runs, pairs).tolist():
+        sx, sy = sides(x), sides(y)
+        assert set(sx) & set(sy) == {0}  # two halves of the cap, to two other pieces
+        assert {*sx, *sy} == {0, 1, 2}
+        assert set(sides(z)) == {1, 2}  # closed by the front and the back
+        shoulders.add((round(sides(z)[1].length), round(sides(z)[2].length)))
+    assert (250, 250) in shoulders
+    # the cap's ends go to the armholes' other corners, which the bottoms join there (the
+    # side seam): the sleeve's 227 mm sides are its underarm, sewn to each other
+    tube = [s for s in infer_seams(pieces) if s.piece_a == s.piece_b]
+    assert len(tube) == 1 and tube[0].piece_a == 0 and abs(tube[0].length_mm - 226.5) < 3
+    # unnamed, with a fourth piece whose 300 mm side is another armhole but whose top meets
+    # nothing: the cap's halves go to the two pieces that meet at a shoulder
+    wide = np.array([[0, 0], [400, 0], [400, 300], [0, 300]], float) - [0, 600]
+    unnamed = [SewPiece(f"p{i}", p.loop, notches=p.notches) for i, p in enumerate(pieces)]
+    unnamed.append(SewPiece("p3", wide, notches=wide[[2]]))
+    caps = [s for s in infer_seams(unnamed)
+            if s.piece_a != s.piece_b and 0 in (s.piece_a, s.piece_b)]
+    assert sorted(s.piece_a + s.piece_b for s in caps) == [1, 2]
+    assert np.allclose([s.length_mm for s in caps], 300, atol=3)
+
+
+def test_seams_between_two_pieces_run_round_them_in_reverse_order():
+    square = np.array([[0, 0], [200, 0], [200, 200], [0, 200]], float)
+    pieces = [SewPiece("A", square), SewPiece("B", square + [300, 0])]
+    runs, _ = candidate_runs(pieces)
+    pairs = _pairs(runs, [p.length for p in pieces], [np.zeros(0), np.zeros(0)])
+    side = {k: tuple(int(runs[i].start // 200) for i in pairs[k]) for k in range(len(pairs))}
+    at = {v: k for k, v in side.items()}  # (side of A, side of B) -> candidate
+    crossed = {tuple(sorted(t)) for t in order_conflicts(pieces, runs, pairs).tolist()}
+    # A's sides 0, 1, 2 to B's 0, 1, 2: the same order round both, crossed
+    assert tuple(sorted(at[(i, i)] for i in range(3))) in crossed
+    # to B's 2, 1, 0: laid face to face, as a front meets a back
+    assert tuple(sorted(at[(i, 2 - i)] for i in range(3))) not in crossed
+    # two candidates on one side of A are no three seams apart
+    assert all(len({side[k][0] for k in t}) == 3 and len({side[k][1] for k in t}) == 3
+               for t in crossed)
