@@ -1,0 +1,49 @@
+"""Seams of a real CAD export: Gerber AccuMark's men's tee (../shared, inches, 7 pieces).
+
+Its sleeves and collar are drawn clockwise, its body counter-clockwise: read as drawn, every
+sleeve laid along an armhole landed on the body (93-95 % overlap) and no cap was sewn.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from solver.garment.dxf import read_dxf_pattern
+from solver.garment.dxf_garment import sew_pieces
+from solver.seams import SewPiece, infer_seams
+
+TEE = Path(__file__).resolve().parents[3] / "shared" / "data" / "garments" / "astm_aama_dxf" \
+    / "MEN_CLASSIC_TEE.DXF"
+
+
+def test_a_clockwise_piece_is_read_counter_clockwise():
+    square = np.array([[0.0, 0.0], [0.0, 100.0], [100.0, 100.0], [100.0, 0.0]])  # clockwise
+    piece = SewPiece("sq", square)
+    assert np.array_equal(piece.loop, square[::-1])
+    assert (piece.corners()[1] > 0).all()  # four convex corners, no reflex one
+
+
+@pytest.mark.skipif(not TEE.exists(), reason=f"needs ../shared (no {TEE})")
+def test_the_gerber_tees_front_sleeve_caps_are_sewn_into_the_front_armholes():
+    pieces = sew_pieces(read_dxf_pattern(TEE).cut_list())
+    names = [p.name for p in pieces]
+    seams = infer_seams(pieces)
+    between = {}
+    for s in seams:
+        between.setdefault(frozenset((names[s.piece_a], names[s.piece_b])), []).append(s)
+    front = names.index("REGULAR_TEEFR")
+    armholes = set()
+    for side in ("L", "R"):
+        caps = between.get(frozenset(("REGULAR_TEEFR", f"REGULAR_TEESL_FR_{side}")), [])
+        assert len(caps) == 1 and caps[0].length_mm > 240  # the whole 246 mm cap
+        cap = caps[0]
+        armholes.add(round(cap.a_start if cap.piece_a == front else cap.b_start))
+    assert len(armholes) == 2  # one cap in each armhole
+    body = between[frozenset(("REGULAR_TEEFR", "REGULAR_TEEBK"))]
+    assert sorted(round(s.length_mm) for s in body) == [132, 132, 476, 476]  # shoulders, sides
+    # the collar is sewn to no sleeve (a meeting closed by two copies of one sleeve piece)
+    assert not any("TEECO" in n and "TEESL" in m or "TEECO" in m and "TEESL" in n
+                   for n, m in (tuple(k) for k in between if len(k) == 2))
