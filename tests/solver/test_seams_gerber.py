@@ -1,7 +1,8 @@
 """Seams of a real CAD export: Gerber AccuMark's men's tee (../shared, inches, 7 pieces).
 
 Its sleeves and collar are drawn clockwise, its body counter-clockwise: read as drawn, every
-sleeve laid along an armhole landed on the body (93-95 % overlap) and no cap was sewn.
+sleeve laid along an armhole landed on the body (93-95 % overlap) and no cap was sewn. Its
+collar is a knit rib 390 mm long for a 519 mm neckline: found by its name and that stretch.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def test_a_clockwise_piece_is_read_counter_clockwise():
 
 
 @pytest.mark.skipif(not TEE.exists(), reason=f"needs ../shared (no {TEE})")
-def test_the_gerber_tees_front_sleeve_caps_are_sewn_into_the_front_armholes():
+def test_the_gerber_tees_front_caps_and_neck_rib_are_sewn_where_they_belong():
     pieces = sew_pieces(read_dxf_pattern(TEE).cut_list())
     names = [p.name for p in pieces]
     seams = infer_seams(pieces)
@@ -44,6 +45,12 @@ def test_the_gerber_tees_front_sleeve_caps_are_sewn_into_the_front_armholes():
     assert len(armholes) == 2  # one cap in each armhole
     body = between[frozenset(("REGULAR_TEEFR", "REGULAR_TEEBK"))]
     assert sorted(round(s.length_mm) for s in body) == [132, 132, 476, 476]  # shoulders, sides
-    # the collar is sewn to no sleeve (a meeting closed by two copies of one sleeve piece)
+    # the 390 mm neck rib stretched onto the 295 mm front and 224 mm back necklines, its two
+    # halves meeting at a shoulder; sewn to no sleeve (a meeting closed by two copies of one
+    # sleeve piece had sewn it to the back sleeves' hems)
+    neck = [between.get(frozenset(("REGULAR_TEECO", f"REGULAR_TEE{p}")), []) for p in ("FR", "BK")]
+    assert [len(n) for n in neck] == [1, 1]
+    assert abs(neck[0][0].length_mm - (223 + 295) / 2) < 5
+    assert abs(neck[1][0].length_mm - (167 + 224) / 2) < 5
     assert not any("TEECO" in n and "TEESL" in m or "TEECO" in m and "TEESL" in n
                    for n, m in (tuple(k) for k in between if len(k) == 2))
