@@ -173,7 +173,10 @@ def _halves_penalty(pieces: list[SewPiece], a: Run, b: Run, mirror: float) -> fl
     if (copies or (mirror > MIRROR_IOU and not shoulder)) and not _along_grain(pa, a):
         # (unnamed pieces may as well be identical gores, which do meet so)
         return 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
-    return 0.5 if copies else 0.0  # a left and a right are rarely sewn to each other
+    if copies:  # a left and a right are rarely sewn to each other, and then only along a
+        # centre line, where they are mirror images (a back cut twice, sewn at the centre)
+        return 0.5 if mirror > MIRROR_IOU else 2.0
+    return 0.0
 
 
 def _other_kinds(a: SewPiece, b: SewPiece) -> bool:

@@ -54,3 +54,8 @@ def test_the_gerber_tees_front_caps_and_neck_rib_are_sewn_where_they_belong():
     assert abs(neck[1][0].length_mm - (167 + 224) / 2) < 5
     assert not any("TEECO" in n and "TEESL" in m or "TEECO" in m and "TEESL" in n
                    for n, m in (tuple(k) for k in between if len(k) == 2))
+    # and no left sleeve piece is sewn to its right copy (they are no mirror images there)
+    family = {p.name: p.family for p in pieces}
+    assert not any(len(k) == 2 and len({family[n] for n in k}) == 1 for k in between)
+    # both sleeves are read alike: the same seams on each
+    assert len(seams) == 10
