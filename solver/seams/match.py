@@ -317,11 +317,12 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     a = np.zeros((int(offset[-1]), len(pairs)))
     a[rows, cols] = 1.0
     la, lb = [runs[i].length for i in pairs[:, 0]], [runs[j].length for j in pairs[:, 1]]
-    covered = np.where([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()],
-                       np.maximum(la, lb), np.minimum(la, lb))  # a band covers its edge
+    band = np.array([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()])
+    covered = np.where(band, np.maximum(la, lb), np.minimum(la, lb))  # a band covers its edge
     weight = scores * covered - SEAM_COST_MM
     x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
-                             order_conflicts(pieces, runs, pairs)], triples)
+                             order_conflicts(pieces, runs, pairs),
+                             _one_band_meeting(runs, pairs, band, triples)], triples)
     if x is None:
         return []
     chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
@@ -350,6 +351,24 @@ def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
         keep[g.reshape(-1)] = True
     new = np.cumsum(keep) - 1
     return pairs[idx[keep]], scores[idx[keep]], [new[g] for g in groups]
+
+
+def _one_band_meeting(runs: list[Run], pairs: np.ndarray, band: np.ndarray,
+                      groups: list[np.ndarray]) -> np.ndarray:
+    """(r,4) rows: the halves of two meetings of stretched bands on one band piece, never
+    all four. A folded rib's two raw edges are sewn together onto one neckline; its second
+    edge would otherwise find the armholes, as long and meeting at the side seam as the
+    neckline's halves do at the shoulder."""
+    rows: list[tuple[int, ...]] = []
+    if not groups:
+        return np.zeros((0, 4), dtype=int)
+    halves = [g[:2] for g in groups[0].tolist() if band[g[0]] and band[g[1]]]
+    piece = [min((runs[i] for i in pairs[h[0]]), key=lambda r: r.length).piece for h in halves]
+    for i, (x1, y1) in enumerate(halves):
+        for j in range(i + 1, len(halves)):
+            if piece[i] == piece[j] and not {x1, y1} & set(halves[j]):
+                rows.append((x1, y1, *halves[j]))
+    return np.array(rows, dtype=int).reshape(-1, 4)
 
 
 def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
