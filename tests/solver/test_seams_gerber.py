@@ -27,14 +27,29 @@ def test_a_clockwise_piece_is_read_counter_clockwise():
     assert (piece.corners()[1] > 0).all()  # four convex corners, no reflex one
 
 
+def _between(pieces: list[SewPiece]) -> dict[frozenset[str], list]:
+    """The inferred seams by the names of the two pieces they join."""
+    between: dict[frozenset[str], list] = {}
+    for s in infer_seams(pieces):
+        between.setdefault(frozenset((pieces[s.piece_a].name, pieces[s.piece_b].name)),
+                           []).append(s)
+    return between
+
+
 @pytest.mark.skipif(not TEE.exists(), reason=f"needs ../shared (no {TEE})")
 def test_the_gerber_tees_front_caps_and_neck_rib_are_sewn_where_they_belong():
+    """Read net (the file has no sew line; its cut line is taken as one): the front cap and
+    armhole agree there, 246 / 246 mm with the notch at one share. Inset by the default
+    10 mm they do not (223 / 244 mm: a convex line shrinks, a concave one grows), so only
+    the rib is asserted then."""
+    inset = sew_pieces(read_dxf_pattern(TEE, allowance_mm=10.0).cut_list())
+    rib = {tuple(k - {"REGULAR_TEECO"}): len(v) for k, v in _between(inset).items()
+           if "REGULAR_TEECO" in k}
+    assert rib == {("REGULAR_TEEFR",): 1, ("REGULAR_TEEBK",): 1}  # its other edge: no
+    # armholes
     pieces = sew_pieces(read_dxf_pattern(TEE).cut_list())
     names = [p.name for p in pieces]
-    seams = infer_seams(pieces)
-    between = {}
-    for s in seams:
-        between.setdefault(frozenset((names[s.piece_a], names[s.piece_b])), []).append(s)
+    between = _between(pieces)
     front = names.index("REGULAR_TEEFR")
     armholes = set()
     for side in ("L", "R"):
@@ -58,4 +73,4 @@ def test_the_gerber_tees_front_caps_and_neck_rib_are_sewn_where_they_belong():
     family = {p.name: p.family for p in pieces}
     assert not any(len(k) == 2 and len({family[n] for n in k}) == 1 for k in between)
     # both sleeves are read alike: the same seams on each
-    assert len(seams) == 10
+    assert sum(len(v) for v in between.values()) == 10
