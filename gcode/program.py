@@ -61,6 +61,10 @@ def sanitize_comment(text: str, limit: int = 60) -> str:
     return _ALLOWED.sub("_", text)[:limit]
 
 
+def _one_word(text: str) -> str:
+    return re.sub(r"\s", "_", text)
+
+
 @dataclass
 class PieceRange:
     """Where one piece lives in the program (0-based block indexes into ``Program.blocks``)."""
@@ -196,7 +200,9 @@ def _piece(w: _Writer, number: int, tp: PieceToolpath, markers: PieceMarkers | N
     """One piece's blocks: its strokes, each followed by its stroke sync, then its sync."""
     m, c = w.m, w.m.cut
     w.piece, w.last_move = number, None
-    first = w.comment(f"piece {number} begin {sanitize_comment(tp.id, 30)} "
+    # the id is one word (the reader takes the first): a DXF piece "REGULAR TEEFR" keeps
+    # its spaces in the name, its id reads back as REGULAR_TEEFR, never as "REGULAR"
+    first = w.comment(f"piece {number} begin {_one_word(sanitize_comment(tp.id, 30))} "
                       f"{sanitize_comment(tp.name, 20)}")
     for contour in tp.contours:
         for stroke in contour.strokes:

@@ -46,6 +46,31 @@ class RollPrint:
         return along, np.asarray(v, float)
 
 
+@dataclass(frozen=True)
+class LaidPrint:
+    """``roll``'s print as it lies on the table before the first advance (cloth point =
+    table point of the window): what the station's camera photographs to plan the
+    marker, bow, skew and stretch included. It stands for a `Print` in a
+    `simulators.camera.Sheet`; its truth is the design's ideal lattice, which the vision
+    should find as the best fit of the distorted print."""
+
+    roll: RollPrint
+
+    @property
+    def name(self) -> str:
+        return self.roll.design.name
+
+    @property
+    def truth(self):
+        return self.roll.design.truth
+
+    def colour_at(self, x: np.ndarray, y: np.ndarray, pixel_mm: float, *,
+                  anti_alias: bool = True) -> np.ndarray:
+        """`Print.colour_at` of the design at the design point each cloth point shows."""
+        u, v = self.roll.design_point(np.asarray(x, float), np.asarray(y, float))
+        return self.roll.design.colour_at(u, v, pixel_mm, anti_alias=anti_alias)
+
+
 @dataclass
 class Pose:
     """Where the roll lies on the table: table point p shows cloth point

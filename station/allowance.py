@@ -7,6 +7,7 @@ and by the daemon (job options ``seam_allowance`` and ``allowance``).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from solver.garment.allowance import AllowanceRules
@@ -36,7 +37,8 @@ def name_key(key: str) -> int | str:
 
 
 def rules_for_job(config: Config, options: Mapping[str, Any]) -> AllowanceRules:
-    """The rules of a submitted job (options ``seam_allowance`` MM, ``allowance`` {name: MM}).
+    """The rules of a submitted job (options ``seam_allowance`` MM, ``allowance`` {name: MM},
+    ``match_notches``: balance notches on the print's lattice lines, as ``--match-notches``).
 
     JSON keys are strings: digit keys become seam-line indices, as in ``--allowance``.
     """
@@ -48,4 +50,5 @@ def rules_for_job(config: Config, options: Mapping[str, Any]) -> AllowanceRules:
     if seam is not None and (isinstance(seam, bool) or not isinstance(seam, (int, float))
                              or seam < 0):
         raise ValueError(f"job option seam_allowance must be a number >= 0, got {seam!r}")
-    return rules_for(config, seam, overrides)
+    rules = rules_for(config, seam, overrides)
+    return replace(rules, notch_on_print=options.get("match_notches") is True)

@@ -1,22 +1,16 @@
-"""Arguments and loaders shared by the `station` commands that read garments and fabrics.
+"""Arguments shared by the `station` commands, and the light loaders (config, fabric).
 
 Every command imports this module, the console's (`station status`, `pause`, ...) too, so
-the garment stack (solver.garment, station.allowance: SciPy and Shapely, about 0.4 s on
-this machine under load) is imported inside the loaders that need it, not here.
+it imports no garment stack (SciPy, Shapely: about 0.4 s on this machine under load); the
+garment loaders are in `station.cliload`.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
-import sys
-import warnings
 from pathlib import Path
 
-import numpy as np
-
-import untrusted
 from solver.jsonfile import read_json
 from solver.units import UNIT_CHOICES
 from solver.wallpaper import Wallpaper
@@ -39,31 +33,15 @@ def add_fabric_argument(parser: argparse.ArgumentParser) -> None:
                         help='the print: {"group", "w1", "w2", "origin", "units"}')
 
 
-def load_garment_arg(args: argparse.Namespace, **options):
-    """The command's GARMENT, with repairs and a units slip told on stderr, one line each.
-
-    Repair warnings (duplicate vertices, slivers) go to stderr so ``--json`` stays clean;
-    a whole garment under a centimetre across was almost surely read in the wrong units
-    (the Berkeley files are in metres and do not say so).
-    """
-
-    from solver.garment import load_garment
-
-    path = Path(args.garment)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such garment file")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        garment = load_garment(path, units=args.units, size=getattr(args, "size", None),
-                               **options)
-    for w in caught:
-        print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
-    extent = float(np.ptp(garment.uv, axis=0).max()) if garment.n_vertices else 0.0
-    if args.units is None and extent < 10:
-        print(f"station {args.command}: warning: {path}: read in {garment.units_in_file}, the "
-              f"whole pattern spans only {extent:.3g} mm; if the file is in metres pass "
-              "--units m", file=sys.stderr)
-    return garment
+def dxf_allowance(args: argparse.Namespace) -> tuple[float, str]:
+    """(mm, where from) a DXF's cut line is inset by where the file gives no sew line nor
+    allowance: the command's --seam-allowance, else station.toml's allowance.seam_mm."""
+    given = getattr(args, "seam_allowance", None)
+    if given is not None and not given >= 0:
+        raise ValueError(f"--seam-allowance must be >= 0, got {given:g}")
+    if given is not None:
+        return float(given), "--seam-allowance"
+    return float(load_config_arg(args)["allowance"]["seam_mm"]), "station.toml allowance.seam_mm"
 
 
 def load_fabric(path: str | Path) -> Wallpaper:
@@ -121,22 +99,6 @@ def grain_tolerance(text: str) -> float | None:
     return tol
 
 
-def garment_with_grain(garment, args: argparse.Namespace):
-    """``garment`` with the grain the command line asks for; a guessed grain is told on
-    stderr (one line) so that ``--json`` stays clean."""
-
-    from solver.garment.grain import parse_grain_lines
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        out = garment.with_grain(lines=parse_grain_lines(getattr(args, "grain_line", None)),
-                                 bias=getattr(args, "bias", None) or (),
-                                 up=getattr(args, "up", None))
-    for w in caught:
-        print(f"station {args.command}: warning: {w.message}", file=sys.stderr)
-    return out
-
-
 def fabric_grain_deg(path: str | Path) -> float:
     """The fabric's grain direction in fabric space: FABRIC.json ``grain_deg``, else 0
     (the roll's length, fabric x)."""
@@ -145,25 +107,6 @@ def fabric_grain_deg(path: str | Path) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
         raise ValueError(f"{path}: grain_deg must be a number of degrees")
     return float(value)
-
-
-def read_name_map(path: str | Path, what: str, *, hi: float = untrusted.limits.MAX_GARMENT_MM
-                  ) -> dict[int | str, float]:
-    """A JSON object {"seam line name or index": number in 0..``hi``} (weights, allowances)
-    from a file; every fault names it.
-
-    Keys that are digits become indices, as ``--weights`` and ``--allowance`` take them.
-    """
-    from station.allowance import name_key
-
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: no such {what} file")
-    data = untrusted.read_json(p, what=f"{what} file")
-    if not isinstance(data, dict):
-        raise ValueError(f'{p}: expected an object {{"seam line": {what}}}')
-    return {name_key(key): untrusted.number(value, p, f"{what} of {key[:40]!r}", lo=0.0, hi=hi)
-            for key, value in data.items()}
 
 
 def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
@@ -178,58 +121,10 @@ def add_allowance_arguments(parser: argparse.ArgumentParser) -> None:
                         "cross each seam (the plaid's match points), not every ~200 mm")
 
 
-def allowance_rules(args: argparse.Namespace, config=None):
-    """The job's allowance rules: station.toml [allowance], then the command line."""
-    from station.allowance import rules_for
-
-    if args.seam_allowance is not None and args.seam_allowance < 0:
-        raise ValueError(f"--seam-allowance must be >= 0, got {args.seam_allowance:g}")
-    more = read_name_map(args.allowance, "allowance") if args.allowance else None
-    rules = rules_for(config or load_config_arg(args), args.seam_allowance, more,
-                      source=args.allowance or "")
-    return dataclasses.replace(rules, notch_on_print=bool(getattr(args, "match_notches", False)))
-
-
 def add_symmetrise_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--symmetrise", action="store_true",
                         help="replace each near left/right pair by one pattern cut twice, "
                         "the average of the two (a placement made so is followed anyway)")
-
-
-def symmetrised_garment(args: argparse.Namespace, garment, placement=None, pairs=None):
-    """``garment`` and its `Symmetrised` record (None when nothing asks for it): as the
-    placement recorded it, else with ``--symmetrise`` on ``pairs`` (default: the pairs
-    found, with the command's ``--pairs`` file). How far each piece moved goes to stderr."""
-
-    from solver.garment.symmetrise import symmetrise_as_recorded
-    from station.steps.garment import symmetrised
-
-    record = placement.report.get("symmetrise") if placement is not None else None
-    if record:
-        try:
-            sym = symmetrise_as_recorded(garment, record)
-        except ValueError as exc:
-            raise ValueError(f"{args.placement}: {exc}") from None
-        why = "as the placement was made"
-    elif getattr(args, "symmetrise", False):
-        _, sym = symmetrised(garment, cli_pairs(args, garment) if pairs is None else pairs)
-        why = "--symmetrise"
-    else:
-        return garment, None
-    kept = ", ".join(f"{p.first}~{p.second}" for p in sym.pairs) or "none"
-    print(f"station {args.command}: symmetrised pairs ({why}): {kept}", file=sys.stderr)
-    for line in sym.lines():
-        print(f"  {line}", file=sys.stderr)
-    return sym.garment, sym
-
-
-def cli_pairs(args: argparse.Namespace, garment) -> list:
-    """The garment's left/right pairs: found, with the command's ``--pairs`` file heard."""
-    from solver.garment.symmetry import read_pairs_file
-    from station.steps.garment import found_pairs
-
-    path = getattr(args, "pairs", None)
-    return found_pairs(garment, read_pairs_file(path, garment) if path else ([], []))
 
 
 #: what the pictures can be written as (OpenCV's writers; anything else failed at the end)

@@ -19,6 +19,10 @@ import untrusted
 from station.storeengine import PASSWORD_ADVICE, holds_password
 from untrusted.limits import MAX_PASSES, MAX_SOCKET_PATH_BYTES
 
+#: how a bite's pieces follow the print under them (`[roll] follow_print`,
+#: `station.steps.bites.localise`)
+FOLLOW_PRINT = ("rigid", "affine")
+
 #: the widest seam allowance any setting may ask for (a hem of a heavy coat is ~80 mm)
 MAX_ALLOWANCE_MM = 1000.0
 
@@ -117,6 +121,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "up": Key(str, "auto", "the drapes' up axis", choices=("auto", "x", "y", "z", "-x",
                                                                "-y", "-z")),
     },
+    "seams": {  # a CAD pattern's seams, inferred (solver.seams)
+        "confirm_below": Key(float, 0.5, "a DXF pattern's inferred seam less confident than "
+                             "this holds the job at 'confirm seams' for `station confirm` "
+                             "(0: never)", minimum=0.0, maximum=1.0),
+    },
     "reshape": {
         "enabled": Key(bool, False, "nudge the pieces' shapes for a perfect fit"),
         "max_move_mm": Key(float, 10.0, "largest move of any pattern vertex when reshaping",
@@ -130,6 +139,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "gap_mm": Key(float, 3.0, "gap between pieces and to the fabric edge", minimum=0.0,
                       maximum=1000.0),
         "seconds": Key(float, 10.0, "time for nesting", minimum=0.1, maximum=3600.0),
+    },
+    "roll": {  # a marker cut in bites (station.steps.bites)
+        "follow_print": Key(str, "affine", "how each piece is placed on the print found "
+                            "under it: affine (with the print's bow, skew and stretch, up to "
+                            "3 %: they are the cloth's own, weft bow and tension, so the piece "
+                            "follows the yarns and is true when the cloth lies relaxed) or "
+                            "rigid (turned and moved only: a print misregistered on straight "
+                            "cloth; what it leaves is named per piece)", choices=FOLLOW_PRINT),
     },
     "allowance": {
         "seam_mm": Key(float, 10.0, "seam allowance on every sewn edge (mm)", minimum=0.0,

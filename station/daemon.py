@@ -54,6 +54,7 @@ from station.jobstore import (
     JobStoreError,
     interrupted_reason,
 )
+from station.seams_confirm import confirm_seams
 from station.storeengine import StoreUnavailable
 from station.web import ConsoleServer
 from vision.pipeline import confirm_fabric
@@ -63,6 +64,8 @@ log = logging.getLogger("station.daemon")
 
 #: Reason of a job paused until the operator confirms the detected print.
 CONFIRM_FABRIC = "confirm fabric"
+#: Reason of a job paused until the operator confirms a CAD pattern's inferred seams.
+CONFIRM_SEAMS = "confirm seams"
 #: how long the console's status, jobs, pause and abort wait for the store before they
 #: answer from memory; how long the other commands wait before saying it is away
 MEMORY_PATIENCE_S = 0.5
@@ -163,7 +166,8 @@ class Daemon(AnswersFromMemory):
     def __init__(self, config: Config, pipeline: Pipeline) -> None:
         self.config = config
         self.pipeline = pipeline
-        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm"})  # refuses unsafe
+        self.console = ConsoleServer(self, {CONFIRM_FABRIC: "confirm",  # refuses unsafe
+                                            CONFIRM_SEAMS: "confirm"})
         # first of all: a second daemon on this store (by any path or name) must leave
         # everything untouched
         self.lock = lock_store(config)
@@ -518,13 +522,22 @@ class Daemon(AnswersFromMemory):
 
     def cmd_confirm(self, req: dict[str, Any]) -> dict[str, Any]:
         """Accept (or, with ``group``, correct) the print of a job waiting at "confirm
-        fabric"; the job goes on to planning with the confirmed FABRIC.json."""
+        fabric", or (with ``seams``, a --seams document) the seams of one waiting at
+        "confirm seams"; the job goes on to planning with what was confirmed."""
         if req.get("job") is None:
             raise ControlError("confirm needs a job number")
         job = self.store.job(int(req["job"]))
-        if job.state != "paused" or not job.reason.startswith(CONFIRM_FABRIC):
+        if job.state != "paused" or not job.reason.startswith((CONFIRM_FABRIC, CONFIRM_SEAMS)):
             raise ControlError(f"job {job.id} is {job.state}, not waiting at "
-                               f"'{CONFIRM_FABRIC}'")
+                               f"'{CONFIRM_FABRIC}' or '{CONFIRM_SEAMS}'")
+        if job.reason.startswith(CONFIRM_SEAMS):
+            try:
+                said = confirm_seams(self.work_dir / f"job-{job.id}", req.get("seams"))
+            except (OSError, ValueError) as exc:
+                raise ControlError(str(exc)) from None
+            self.store.transition(job.id, "planning", said)
+            self._wake.set()
+            return {"job": job.id, "message": f"{said}; planning"}
         path = self.work_dir / f"job-{job.id}" / "fabric.json"
         try:
             doc = confirm_fabric(json.loads(path.read_text()), req.get("group"))

@@ -181,16 +181,36 @@ def _pairs(v: Any) -> bool:
         for ps in v.values())
 
 
+def _point_pair(v: Any) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(
+        isinstance(p, list) and len(p) == 2 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            for x in p) for p in v)
+
+
+def _seams(v: Any) -> bool:
+    """A CAD pattern's seams as `station inspect --seams` takes them (and seams.json)."""
+    if not isinstance(v, dict) or not set(v) <= {"seams", "not_seams", "pieces"}:
+        return False
+    seams = v.get("seams", [])
+    return _names(v.get("pieces", [])) and _pairs({"not_pairs": v.get("not_seams", [])}) \
+        and isinstance(seams, list) and len(seams) <= MAX_NAMED and all(
+            isinstance(s, dict) and _piece(s.get("a")) and _piece(s.get("b"))
+            and _point_pair(s.get("a_ends")) and _point_pair(s.get("b_ends")) for s in seams)
+
+
 #: at most this many named entries in one structured option (pieces, seam lines)
 MAX_NAMED = 1000
 #: the structured job options (what `station submit` sends) and their shapes
 STRUCTURED: dict[str, Callable[[Any], bool]] = {
     "allowance": _numbers_by_name(0.0, 1000.0), "grain_lines": _numbers_by_name(-360.0, 360.0),
-    "bias": _names, "pairs": _pairs}
+    "bias": _names, "pairs": _pairs, "seams": _seams}
 SHAPES = {"allowance": '{"seam line": mm 0 to 1000}',
           "grain_lines": '{"piece": degrees -360 to 360}',
           "bias": '["piece", ...]',
-          "pairs": '{"pairs": [[piece, piece], ...], "not_pairs": [...]}'}
+          "pairs": '{"pairs": [[piece, piece], ...], "not_pairs": [...]}',
+          "seams": '{"seams": [{"a": piece, "a_ends": [[x, y], [x, y]], "b": ..., '
+                   '"b_ends": ...}], "not_seams": [[piece, piece], ...]}'}
 
 
 def _copy_order(order: Path, target: Path, allowed: list[Path]) -> Path:

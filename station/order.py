@@ -9,6 +9,8 @@ file and how many garments of each size to cut::
     sizes = { "48" = 1, "50" = 2, "52" = 1 }
     units = "in"            # optional, when the pattern file does not say
 
+``match_notches = true`` (optional, at the top) puts every garment's balance notches where
+the print's lattice lines cross its seams, as ``--match-notches`` does for one garment.
 A pattern without sizes (OBJ, pattern JSON) gives ``copies = N`` instead of ``sizes``.
 Everything that could make the order fail later (a missing or escaping pattern path, an
 unknown size, a quantity of 0, too many garments) is refused here, with one line naming
@@ -18,11 +20,12 @@ the order file, before any garment is loaded or aligned.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import untrusted
+from solver.garment.allowance import AllowanceRules
 from solver.garment.dxf_file import read_blocks, texts
 from solver.units import mm_per_unit
 from untrusted import limits
@@ -31,7 +34,7 @@ MAX_ORDER_GARMENTS = 60  # garments (style x size x copy) aligned and nested in 
 MAX_STYLES = 20
 MAX_QUANTITY = 60  # garments of one size
 _SIZE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,15}$")  # one word: it names G-code pieces
-_KEYS = {"name", "garment"}
+_KEYS = {"name", "garment", "match_notches"}
 _GARMENT_KEYS = {"pattern", "sizes", "copies", "units"}
 
 
@@ -61,6 +64,16 @@ class Order:
     name: str
     source: Path
     garments: tuple[OrderGarment, ...]
+    match_notches: bool = False
+
+    def job_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        """A job's ``options`` with what the order file asks for the whole marker (its
+        ``match_notches``; the job's own option, when given, wins)."""
+        return {"match_notches": True, **options} if self.match_notches else dict(options)
+
+    def rules(self, rules: AllowanceRules) -> AllowanceRules:
+        """A command line's allowance ``rules`` with the order's ``match_notches``."""
+        return replace(rules, notch_on_print=True) if self.match_notches else rules
 
     def ratio(self) -> dict[str, int]:
         """Garments per size (the marker's size ratio), in the order's order."""
@@ -75,6 +88,7 @@ class Order:
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "source": str(self.source), "ratio": self.ratio(),
+                "match_notches": self.match_notches,
                 "garments": [{"garment": g.label, "pattern": str(g.pattern), "size": g.size,
                               "copy": g.copy, "units": g.units} for g in self.garments]}
 
@@ -114,7 +128,10 @@ def read_order(path: str | Path) -> Order:
         if len(garments) > MAX_ORDER_GARMENTS:
             raise untrusted.InputError(path, f"more than {MAX_ORDER_GARMENTS} garments; cut "
                                        "the order into several markers")
-    return Order(name, path, tuple(garments))
+    match_notches = data.get("match_notches", False)
+    if not isinstance(match_notches, bool):
+        raise untrusted.InputError(path, f"match_notches = {match_notches!r}: true or false")
+    return Order(name, path, tuple(garments), match_notches)
 
 
 def _no_unknown_keys(d: dict, known: set[str], path: Path, where: str) -> None:

@@ -21,7 +21,8 @@ from solver.garment import Garment
 from solver.nest.regions import load_keepouts
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
-from station.cliargs import allowance_rules, fabric_grain_deg, grain_tolerance
+from station.cliargs import dxf_allowance, fabric_grain_deg, grain_tolerance
+from station.cliload import allowance_rules
 from station.errors import UserError
 from station.order import Order, OrderGarment, is_order_file, read_order
 from station.render import draw_fit, draw_marker, fabric_picture
@@ -71,7 +72,8 @@ def aligner(command: str, fabric: Wallpaper, grain_deg: float, *, grain_tol: flo
     return align_one
 
 
-def read_aligned(path: str | Path) -> tuple[Order, list[OrderedGarment]]:
+def read_aligned(path: str | Path, inset: tuple[float, str] | None = None
+                 ) -> tuple[Order, list[OrderedGarment]]:
     """The order and its aligned garments back from `align ORDER`'s file; the order file
     is read again (with all its checks) and every placement must match its garment."""
     data = _aligned_order(path)
@@ -86,7 +88,7 @@ def read_aligned(path: str | Path) -> tuple[Order, list[OrderedGarment]]:
     for item, entry in zip(order.garments, got, strict=True):
         key = (item.pattern, item.size, item.units)
         if key not in loaded:
-            loaded[key] = load_order_garment(item)
+            loaded[key] = load_order_garment(item, inset)
         try:
             placement = Placement.from_dict(entry["placement"])
         except (KeyError, TypeError, ValueError) as exc:
@@ -121,7 +123,7 @@ def run_align(args: argparse.Namespace) -> int:
                         grain_tol=grain_tolerance(args.grain), nap=args.nap,
                         method=args.method, restarts=args.restarts, seed=args.seed,
                         symmetry=not args.no_symmetry)
-    aligned = align_order(order, align_one)
+    aligned = align_order(order, align_one, dxf_allowance(args))
     write_aligned(order, aligned, args.output)
     rep = {"order": order.name, "ratio": order.ratio(), "fabric": fabric.group,
            "garments": [a.report() for a in aligned], "output": str(args.output),
@@ -169,12 +171,13 @@ def run_nest(args: argparse.Namespace, config) -> int:
                              grain_tol=None if args.grain == "off" else 1.0, nap=args.nap,
                              seed=args.seed) if fabric is not None else
                      lambda garment, _: plain_placement(garment, config, 0.0))
-        aligned = align_order(order, align_one)
+        aligned = align_order(order, align_one, dxf_allowance(args))
     else:
-        order, aligned = read_aligned(path)
+        order, aligned = read_aligned(path, dxf_allowance(args))
     problem = order_problem(aligned, width=args.width or config["nest"]["width_mm"],
                             length=args.length, gap=args.gap,
-                            allowance=allowance_rules(args, config), fabric=fabric,
+                            allowance=order.rules(allowance_rules(args, config)),
+                            fabric=fabric,
                             plain=args.plain,
                             keepouts=load_keepouts(args.keepout) if args.keepout else None)
     try:
@@ -184,7 +187,7 @@ def run_nest(args: argparse.Namespace, config) -> int:
     layout.save(args.output)
     counts = pieces_per_garment(layout.pieces)
     if args.png:
-        draw_marker(layout.to_dict(), args.png,
+        draw_marker(layout, args.png,
                     title=f"order {order.name}, sizes {order.ratio_text()}")
     summary = {"order": order.name, "ratio": order.ratio(), "length": round(layout.length, 6),
                "width": layout.width, "density": round(layout.density, 6),

@@ -27,7 +27,7 @@ from station.config import Config
 from station.daemon import JobControl
 from station.jobstore import Job, JobStore
 from station.order import is_order_file
-from station.steps.bites import RollTrack, load_bites
+from station.steps.bites import RollTrack, load_bites, localise
 from station.steps.capture import CameraOpener, Captured, capture_fabric, photograph, real_camera
 from station.steps.cut import PortOpener, cut_job, serial_port
 from station.steps.cutbites import Roll, cut_in_bites
@@ -39,6 +39,7 @@ from station.steps.records import Plan
 from station.steps.roll import station_roll
 from station.steps.submission import check_job
 from station.steps.table import table_window
+from vision.localmap import PrintReference
 
 #: makes the station's roll (`station.steps.cutbites.Roll`) from its configuration
 RollOpener = Callable[[Config, Machine, CameraOpener, PortOpener], Roll]
@@ -117,8 +118,9 @@ class StationPipeline:
                       control: JobControl, resuming: bool) -> None:
         """`station.steps.cutbites.cut_in_bites` on this station's roll and machine."""
         job_dir = Path(job.plan["layout"]).parent
-        fabric = (held.captured if held is not None
-                  else Captured.read(job.plan["fabric"], job_dir)).fabric
+        captured = held.captured if held is not None else Captured.read(job.plan["fabric"],
+                                                                         job_dir)
+        fabric = captured.fabric
         if self._roll is None:
             self._roll = self.open_roll(self.config, self.machine, self.open_camera,
                                         self.open_port)
@@ -127,14 +129,22 @@ class StationPipeline:
             return machine_layout(track.bite_layout(bites, bite), fabric_origin(self.config),
                                   job.plan["layout"])
 
-        def cut_bite(marker: MachineLayout, pieces: set[str]) -> None:
-            cut_job(job, job_dir, marker, store, control, config=self.config,
+        def cut_bite(marker: MachineLayout, pieces: set[str], bite: JobControl) -> None:
+            cut_job(job, job_dir, marker, store, bite, config=self.config,
                     machine=self.machine, open_port=self.open_port, resuming=resuming,
                     pieces=pieces)
 
+        reference = print_reference(captured)
+        roll = self._roll
+
+        def local_maps(track: RollTrack, bite, photo: np.ndarray) -> RollTrack:
+            return localise(track, bite, photo, plan=bites, reference=reference,
+                            mm_per_px=roll.mm_per_px,
+                            follow=self.config["roll"]["follow_print"])
+
         cut_in_bites(job, job_dir, bites, store, control, roll=self._roll,
                      lattice=print_lattice(fabric), machine_marker=machine_marker,
-                     cut_bite=cut_bite)
+                     cut_bite=cut_bite, local_maps=None if reference is None else local_maps)
 
     @staticmethod
     def _bites_file(record: dict[str, Any]) -> BitePlan | None:
@@ -154,6 +164,17 @@ class StationPipeline:
         program, _ = program_of(self.marker_file(layout), self.machine, only,
                                 title=f"station {Path(layout).parent.name}")
         return program
+
+
+def print_reference(captured: Captured) -> PrintReference | None:
+    """The print as planned, that each bite's pieces are placed on (`localise`): the
+    capture's photograph folded into one cell of its lattice; None without a photograph
+    or on cloth that does not repeat both ways."""
+    basis = print_lattice(captured.fabric)
+    if captured.photo is None or basis is None or "origin" not in captured.fabric:
+        return None
+    return PrintReference.from_photo(captured.photo, basis, captured.fabric["origin"],
+                                     mm_per_px=captured.mm_per_px)
 
 
 def print_lattice(fabric: dict[str, Any]) -> np.ndarray | None:

@@ -35,9 +35,16 @@ def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
             bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
             return status
         progress = status.get("progress") or {}
-        bar.show(progress.get("step") or status["state"], progress.get("fraction"),
+        bar.show(step_label(progress) or status["state"], progress.get("fraction"),
                  progress.get("seconds_left"), _pieces(status, progress))
         time.sleep(interval)
+
+
+def step_label(progress: dict[str, Any]) -> str:
+    """The running step as the operator reads it: ``cutting, bite 2 of 3`` while a
+    marker longer than the table is cut bite by bite (each bite its own bar)."""
+    step = progress.get("step") or ""
+    return f"{step}, bite {progress['bite']}" if step and progress.get("bite") else step
 
 
 def _pieces(status: dict[str, Any], progress: dict[str, Any]) -> str:

@@ -21,6 +21,7 @@ from gcode.program import program_moves
 from solver.fit import FitReport
 from solver.garment.grain import grain_lines
 from solver.jsonfile import read_json
+from solver.nest.layout import Layout, Placed
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
 
@@ -287,38 +288,38 @@ def _draw_legend(image: np.ndarray, report: FitReport, red_mm: float, title: str
                 0.45, (30, 30, 30), 1, cv2.LINE_AA)
 
 
-def cloth_image(layout: dict, width_px: int, *, photo: np.ndarray | None = None,
+def cloth_image(layout: Layout, width_px: int, *, photo: np.ndarray | None = None,
                 photo_mm_per_px: float = 1.0) -> np.ndarray:
     """The fabric under a marker, ``width_px`` wide over the layout's length (BGR): the
     rectified photo when there is one, else the layout's lattice ruled on plain cloth,
     else plain cloth. The console draws its live marker over this very picture."""
-    length = float(layout["length"]) or 1.0
+    length = layout.length or 1.0
     scale = width_px / length
-    height_px = max(1, int(np.ceil(float(layout["width"]) * scale)))
+    height_px = max(1, int(np.ceil(layout.width * scale)))
     if photo is not None:
         m = np.array([[scale * photo_mm_per_px, 0, 0], [0, scale * photo_mm_per_px, 0]])
         return cv2.warpAffine(photo, m, (width_px, height_px), flags=cv2.INTER_AREA)
-    if not layout.get("fabric"):
+    if not layout.fabric:
         return np.full((height_px, width_px, 3), 225, np.uint8)
-    colour_of = lattice_colours(Wallpaper.from_dict(layout["fabric"]), 1.0 / scale)
+    colour_of = lattice_colours(Wallpaper.from_dict(layout.fabric), 1.0 / scale)
     ys, xs = np.mgrid[0:height_px, 0:width_px]
     pts = np.column_stack([(xs.ravel() + 0.5) / scale, (ys.ravel() + 0.5) / scale])
     return colour_of(pts).reshape(height_px, width_px, 3)
 
 
-def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitReport | None = None,
+def draw_marker(layout: Layout, path: str | Path, *, garment=None, report: FitReport | None = None,
                 photo: np.ndarray | None = None, photo_mm_per_px: float = 1.0,
                 width_px: int = 1600, red_mm: float = 20.0,
                 credit: str | None = None, title: str | None = None) -> np.ndarray:
     """The marker: every piece where it lies on the fabric, seams coloured by mismatch;
     ``title`` (an order and its size ratio) heads the banner.
 
-    ``layout`` is LAYOUT.json's content (fabric mm, x along the roll, y across it, drawn
-    with y down like the rectified photo). The background is the rectified photo when
+    ``layout`` is in fabric mm, x along the roll, y across it, drawn with y down like the
+    rectified photo. The background is the rectified photo when
     given (pixel (c, r) at (c, r) * ``photo_mm_per_px`` mm), else the layout's lattice
     ruled on plain cloth (:func:`cloth_image`).
     """
-    length = float(layout["length"]) or 1.0
+    length = layout.length or 1.0
     scale = width_px / length
     cloth = cloth_image(layout, width_px, photo=photo, photo_mm_per_px=photo_mm_per_px)
     height_px = cloth.shape[0]
@@ -333,28 +334,27 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
                         ).astype(np.int32)
 
     mask = np.zeros(image.shape[:2], np.uint8)
-    rings = [to_px(piece["outline"]) for piece in layout["pieces"]]
+    rings = [to_px(piece.outline) for piece in layout.pieces]
     cv2.fillPoly(mask, rings, 255, cv2.LINE_8, shift=4)
     full = np.full_like(image, 245)
     full[banner:] = cloth
     image[mask > 0] = full[mask > 0]
     cv2.polylines(image, rings, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)  # cut lines
-    for piece in layout["pieces"]:
-        if piece.get("sew_line") is not None:
-            dashed(image, to_px(piece["sew_line"]), (40, 40, 40), 1)
+    for piece in layout.pieces:
+        if piece.sew_line is not None:
+            dashed(image, to_px(piece.sew_line), (40, 40, 40), 1)
     _draw_marker_details(image, layout, to_px, scale)
     if garment is not None and report is not None:
         _draw_marker_seams(image, layout, garment, report, to_px, red_mm)
-    for piece, ring in zip(layout["pieces"], rings):
+    for piece, ring in zip(layout.pieces, rings):
         centre = (ring.mean(axis=0) / 16).astype(int)
         for k, line in enumerate(_piece_label(piece)):
             cv2.putText(image, line, tuple(centre - [20, -14 * k]), cv2.FONT_HERSHEY_SIMPLEX,
                         0.4, (20, 20, 20), 1, cv2.LINE_AA)
     if credit:  # the garment's licence may ask for it on every image (garment_credit)
         _draw_credit(image, credit)
-    density = layout.get("density")
-    text = (f"marker {length:.0f} x {float(layout['width']):.0f} mm, {len(layout['pieces'])} pieces"
-            + (f", density {100 * density:.1f}%" if density is not None else ""))
+    text = (f"marker {length:.0f} x {layout.width:.0f} mm, {len(layout.pieces)} pieces, "
+            f"density {100 * layout.density:.1f}%")
     if title:
         text = f"{title}; {text}"
     cv2.putText(image, text, (12, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.65, (30, 30, 30), 2,
@@ -364,49 +364,47 @@ def draw_marker(layout: dict, path: str | Path, *, garment=None, report: FitRepo
     return image
 
 
-def _piece_label(piece: dict) -> list[str]:
+def _piece_label(piece: Placed) -> list[str]:
     """A piece's label lines: its id, and for an order's piece its name and its size."""
-    garment = piece.get("garment")
-    if not garment:
-        return [piece["id"]]
-    return [piece["id"].removeprefix(f"{garment}."), f"size {piece.get('size') or '-'}"]
+    if not piece.garment:
+        return [piece.id]
+    return [piece.id.removeprefix(f"{piece.garment}."), f"size {piece.size or '-'}"]
 
 
-def _draw_marker_details(image, layout, to_px, scale: float) -> None:
+def _draw_marker_details(image, layout: Layout, to_px, scale: float) -> None:
     """Keep-outs (red), holes, notches (red slits), marks (red crosses) and grain lines
     (green arrows)."""
-    keepouts = [to_px(k) for k in layout.get("keepouts", [])]
+    keepouts = [to_px(k) for k in layout.keepouts]
     if keepouts:
         shade = image.copy()
         cv2.fillPoly(shade, keepouts, (60, 60, 200), cv2.LINE_AA, shift=4)
         cv2.addWeighted(shade, 0.5, image, 0.5, 0, dst=image)
-    holes = [to_px(h) for piece in layout["pieces"] for h in piece.get("holes", [])]
+    holes = [to_px(h) for piece in layout.pieces for h in piece.holes]
     cv2.polylines(image, holes, True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
     arm = 3.0 / scale  # marks (drill holes, dart points) as small crosses, 3 px each way
-    for piece in layout["pieces"]:
-        notch_ticks(image, [(n["at"], n["direction"], n.get("depth"))
-                            for n in piece.get("notches", [])], to_px, 4.0 / scale)
-        for m in np.asarray(piece.get("marks") or [], float).reshape(-1, 2):
+    for piece in layout.pieces:
+        notch_ticks(image, piece.notches, to_px, 4.0 / scale)
+        for m in np.asarray(piece.marks, float).reshape(-1, 2):
             for d in ((arm, arm), (arm, -arm)):
                 a, b = to_px(np.stack([m - d, m + d]))
                 cv2.line(image, tuple(map(int, a)), tuple(map(int, b)), (0, 0, 200), 1,
                          cv2.LINE_AA, shift=4)
-        if piece.get("grainline") is not None:
-            a, b = to_px(piece["grainline"])
+        if piece.grainline is not None:
+            a, b = to_px(piece.grainline)
             cv2.arrowedLine(image, tuple(a), tuple(b), (0, 130, 0), 1, cv2.LINE_AA, shift=4)
 
 
-def _draw_marker_seams(image, layout, garment, report, to_px, red_mm) -> None:
+def _draw_marker_seams(image, layout: Layout, garment, report, to_px, red_mm) -> None:
     """Seam edges carried from pattern space into the fabric by each piece's transform."""
     name_to_piece = {n: i for i, n in enumerate(garment.piece_names)}
     palette = mismatch_colours(np.arange(32) / 31 * red_mm, red_mm)
     edges = garment.seam_edges
     level = np.minimum((report.distance / red_mm * 31).astype(int), 31)
-    for placed in layout["pieces"]:
-        piece = name_to_piece.get(placed["name"])
+    for placed in layout.pieces:
+        piece = name_to_piece.get(placed.name)
         if piece is None:
             continue
-        t = np.asarray(placed["transform"], float)
+        t = placed.transform
         for a, b in ((0, 1), (2, 3)):
             mine = garment.piece_of_vertex[edges[:, a]] == piece
             if not mine.any():

@@ -19,29 +19,39 @@ import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
 from gcode.machine import Machine
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.classics import classic_print
-from simulators.roll import Conveyor, RollCamera, RollPrint
+from simulators.roll import LaidPrint, RollCamera, RollPrint
 from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
+from station.simroll import kept_conveyor
 from station.steps.capture import CameraOpener
 from station.steps.cut import PortOpener, serial_port
 from vision.camera import Camera, open_camera
 
 __all__ = ["SimulatedRoll", "copy_job_files", "open_simulated_camera", "open_simulated_port",
-           "read_json_or_empty", "roll_by_hand", "simulated_camera", "simulated_pipeline",
-           "simulated_roll",
-           "start_simulated_station"]
+           "read_json_or_empty", "roll_by_hand", "roll_print", "simulated_camera",
+           "simulated_pipeline", "simulated_roll", "start_simulated_station"]
 
 #: the simulated camera's print, and where its lattice's origin lies on the fabric
 PRINT, REPEAT_MM, PRINT_ORIGIN = "plaid", 80.0, (13.0, 21.0)
 
 
+def roll_print(config: Config, print_name: str = PRINT, repeat_mm: float = REPEAT_MM
+               ) -> RollPrint:
+    """The simulated roll's print: the plaid, bowing, skewing and stretching along the
+    roll (`simulators.roll.RollPrint`), across the configured fabric width."""
+    return RollPrint(classic_print(print_name, repeat_mm, origin=PRINT_ORIGIN),
+                     float(config["nest"]["width_mm"]))
+
+
 def simulated_camera(config: Config, print_name: str = PRINT, repeat_mm: float = REPEAT_MM,
                      seed: int = 3) -> SyntheticCamera:
-    """The dry run's camera: a plaid sheet covering the usable fabric, seen from above."""
+    """The dry run's camera: the start of the simulated roll covering the usable fabric,
+    its print as it lies (bowed, as the bites will see it: `simulators.roll.LaidPrint`),
+    seen from above."""
     n = config["nest"]
     ox, oy = (float(v) for v in config["machine"]["fabric_origin"])
-    sheet = Sheet(classic_print(print_name, repeat_mm, origin=PRINT_ORIGIN),
+    sheet = Sheet(LaidPrint(roll_print(config, print_name, repeat_mm)),
                   size=(n["length_mm"], n["width_mm"]), shift=(ox, oy))
     return SyntheticCamera(sheet, seed=seed)
 
@@ -65,11 +75,13 @@ class SimulatedRoll:
 
     mm_per_px = 1.0
 
-    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False) -> None:
+    def __init__(self, config: Config, seed: int = 0, *, by_hand: bool = False,
+                 machine: Machine | None = None) -> None:
         n = config["nest"]
         length, width = float(n["length_mm"]), float(n["width_mm"])
-        self.print = RollPrint(classic_print(PRINT, REPEAT_MM, origin=PRINT_ORIGIN), width)
-        self.conveyor = Conveyor(pivot=(length / 2, width / 2), seed=seed)
+        self.print = roll_print(config)
+        # kept in the work folder: a restarted station finds the cloth where it was
+        self.conveyor = kept_conveyor(config, machine, (length / 2, width / 2), seed)
         self.camera = RollCamera(self.print, self.conveyor, (0.0, 0.0, length, width),
                                  self.mm_per_px, seed=seed)
         # by hand: the job waits for the operator, whose hands slip like the conveyor
@@ -81,6 +93,10 @@ class SimulatedRoll:
     def photograph(self):
         return self.camera.photograph()
 
+    def settle(self) -> None:
+        """Nothing to wait for: a move the simulated conveyor had not finished died with
+        the process that commanded it (`station.simroll`)."""
+
     def truth(self) -> list[dict[str, float]]:
         """Each advance as the conveyor really made it (the simulator's truth), to hold
         the station's measurements against."""
@@ -90,16 +106,16 @@ class SimulatedRoll:
                 for a, b in zip(poses, poses[1:])]
 
 
-def simulated_roll(config: Config, _machine: Machine, _open_camera: CameraOpener,
+def simulated_roll(config: Config, machine: Machine, _open_camera: CameraOpener,
                    _open_port: PortOpener) -> SimulatedRoll:
     """The simulated station's roll (`SimulatedRoll`), for `StationPipeline`'s open_roll."""
-    return SimulatedRoll(config)
+    return SimulatedRoll(config, machine=machine)
 
 
-def roll_by_hand(config: Config, _machine: Machine, _open_camera: CameraOpener,
+def roll_by_hand(config: Config, machine: Machine, _open_camera: CameraOpener,
                  _open_port: PortOpener) -> SimulatedRoll:
     """`simulated_roll` with no conveyor: the job waits for the operator at each advance."""
-    return SimulatedRoll(config, by_hand=True)
+    return SimulatedRoll(config, by_hand=True, machine=machine)
 
 
 def simulated_pipeline(config: Config, cls: type[StationPipeline] = StationPipeline, *,

@@ -35,6 +35,8 @@ def load_garment(
     world: str | Path | None = None,
     resolution_mm: float | None = None,
     size: str | None = None,
+    seam_allowance_mm: float | None = None,
+    allowance_from: str = "--seam-allowance",
 ) -> Garment:
     """Load a garment from OBJ (single file or -m/-w pair), a JSON pattern specification or
     a DXF-AAMA/ASTM pattern (its seams inferred, :mod:`solver.seams`).
@@ -43,7 +45,9 @@ def load_garment(
     file says, else mm. ``world`` names the world-space OBJ of a pattern/world pair (found
     automatically beside ``name-m.obj``). ``resolution_mm`` is the target edge length when
     a JSON specification is triangulated. ``size`` picks a graded DXF's size (default: its
-    sample size).
+    sample size); a DXF's sew line where the file gives neither layer 14 nor its allowance
+    is its cut line inset by ``seam_allowance_mm`` (default 10), whose origin
+    ``allowance_from`` names in the pattern's notes.
     """
     path = Path(path)
     if units is not None:
@@ -67,5 +71,6 @@ def load_garment(
     if suffix == ".dxf":  # DXF-AAMA / ASTM D6673: seams inferred (solver.seams)
         from solver.garment.dxf_garment import load_dxf  # ezdxf: 0.3-0.6 s, DXF only
 
-        return load_dxf(path, units=units, size=size)
+        return load_dxf(path, units=units, size=size, allowance_mm=seam_allowance_mm,
+                        allowance_from=allowance_from)
     raise GarmentError(path, f"unknown garment format {suffix!r} (expected .obj, .json or .dxf)")

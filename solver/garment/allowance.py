@@ -360,13 +360,17 @@ def cut_lines(garment: Garment, rules: AllowanceRules | None = None,
     (:attr:`Garment.edge_curves`: a specification's Beziers and arcs, within
     :data:`~solver.garment.curves.CHORD_TOL_MM`), each fine segment offset by the
     allowance of the mesh edge it lies on; the sew line stays the mesh's outline, whose
-    edges the allowances and notches are counted on."""
+    edges the allowances and notches are counted on. A piece whose file draws its cut line
+    (:attr:`Garment.cut_outlines`) is cut there, each sew edge's allowance measured to it."""
     rules = rules or AllowanceRules()
     per_piece = edge_allowances(garment, rules, pairs)
     out = []
     for i in range(garment.n_pieces):
         ids = garment.piece_loops(i)
         loops = [garment.uv[lp] for lp in ids]
+        if i in garment.cut_outlines:
+            out.append(_file_cut(loops, garment.cut_outlines[i]))
+            continue
         darts = dart_fills(garment, i, per_piece[i][0], rules.cap)
         fine = [fine_loop(garment.uv, lp, garment.edge_curves) for lp in ids]
         cut = offset_outline([pts for pts, _ in fine],
@@ -376,3 +380,12 @@ def cut_lines(garment: Garment, rules: AllowanceRules | None = None,
         out.append(CutLine(loops[0], loops[1:], per_piece[i][0], per_piece[i][1:], cut,
                            *curved))
     return out
+
+
+def _file_cut(loops: list[np.ndarray], outline: np.ndarray) -> CutLine:
+    """The cut line a pattern file draws around the sew ``loops``, with each sew edge's
+    allowance as the file has it (its middle's distance to the cut line)."""
+    cut = shapely.geometry.polygon.orient(shapely.Polygon(outline), 1.0)
+    mids = [0.5 * (lp + np.roll(lp, -1, axis=0)) for lp in loops]
+    gaps = [shapely.distance(shapely.points(m), cut.exterior) for m in mids]
+    return CutLine(loops[0], loops[1:], gaps[0], gaps[1:], cut)

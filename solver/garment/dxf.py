@@ -2,7 +2,8 @@
 
 Layers (AAMA): 1 cut line (84 its ASTM duplicate), 2 turn points, 4 notches, 6 mirror line,
 7 grain line, 8 internal lines, 13 drill holes, 14 sew line. TEXTs: ``Piece Name:``,
-``Size:``, ``Quantity:``; the modelspace says ``Units:`` and ``Sample Size:``.
+``Size:``, ``Quantity:`` (AAMA: ``2``, an even count cut as left/right pairs; ASTM D6673:
+``1,1``, as drawn and mirrored); the modelspace says ``Units:`` and ``Sample Size:``.
 
 A graded file repeats every piece once per size, but AccuMark writes the notches, turn
 points and quantity on the sample size only: every size is its own outline, and what it
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -25,6 +26,7 @@ import shapely
 
 import untrusted
 from solver.garment.dxf_file import chain_rings, read_blocks, reflect, texts, units_scale
+from solver.seams.darts import open_darts
 
 __all__ = ["DxfPattern", "DxfPiece", "read_dxf_pattern"]
 
@@ -49,6 +51,13 @@ class DxfPiece:
     carried: tuple[str, ...] = ()  # what came from the sample size
     mirrored: bool = False  # the right-hand copy of a piece cut as a left/right pair
     family: str = ""  # the pattern piece (name and size) a copy in the cut list was made of
+    flipped: int | None = None  # of ``quantity``, how many mirrored (ASTM "a,b"; None: AAMA)
+
+    @property
+    def in_pairs(self) -> bool:
+        """Whether its copies are cut as left/right pairs: an even AAMA count, or ASTM's
+        as many mirrored as drawn."""
+        return self.quantity % 2 == 0 and self.flipped in (None, self.quantity // 2)
 
     def mirror_copy(self) -> DxfPiece:
         """The other half of a left/right pair: every part mirrored left to right."""
@@ -82,19 +91,21 @@ class DxfPattern:
 
     def cut_list(self) -> list[DxfPiece]:
         """Every piece to cut: ``Quantity: 0`` left out, an even quantity cut as left/right
-        pairs (the second of each pair mirrored), an odd one as that many copies."""
+        pairs (the second of each pair mirrored), an odd one as that many copies; an ASTM
+        ``a,b`` other than as many mirrored as drawn: ``a`` copies, then ``b`` mirrored."""
         out = []
         many = len({p.size for p in self.pieces}) > 1
         for p in self.pieces:
             base = f"{p.name} {p.size}" if many and p.size else p.name
             for k in range(p.quantity):
-                if p.quantity % 2 == 0:  # left and right halves of pairs
+                if not p.in_pairs:  # copies, the last ``flipped`` of them mirrored
+                    q = p.mirror_copy() if k >= p.quantity - (p.flipped or 0) else p
+                    out.append(replace(q, name=f"{base} #{k + 1}" if p.quantity > 1 else base,
+                                       family=base))
+                else:  # left and right halves of pairs
                     tag = ("L", "R")[k % 2] + (f"{k // 2 + 1}" if p.quantity > 2 else "")
                     q = p.mirror_copy() if k % 2 else p
                     out.append(replace(q, name=f"{base} {tag}", family=base))
-                else:
-                    out.append(replace(p, name=f"{base} #{k + 1}" if p.quantity > 1 else base,
-                                       family=base))
         return out
 
 
@@ -145,11 +156,21 @@ def _largest_ring(parts: list[np.ndarray], tol: float) -> np.ndarray | None:
     return max(rings, key=lambda r: abs(shapely.Polygon(r).area)) if rings else None
 
 
-def _quantity(text: str | None, where: str) -> int | None:
+def _quantity(text: str | None, where: str) -> tuple[int, int | None] | None:
+    """(copies, of them mirrored or None) of a ``Quantity:`` text: AAMA's ``N`` (None:
+    pairs by the count), ASTM D6673's ``a,b`` (``a`` as drawn, ``b`` mirrored)."""
     if text is None or not text.strip():
         return None
+    counts = [_count(part, text, where) for part in text.split(",", 1)]
+    total = sum(counts)
+    if total > untrusted.limits.MAX_DEMAND:
+        raise ValueError(f"{where}: quantity is over {untrusted.limits.MAX_DEMAND} copies")
+    return total, counts[1] if len(counts) == 2 else None
+
+
+def _count(part: str, text: str, where: str) -> int:
     try:
-        q = float(text)
+        q = float(part)
     except ValueError:
         raise ValueError(f"{where}: Quantity {text[:40]!r} is not a number") from None
     if q > untrusted.limits.MAX_DEMAND:  # inf too
@@ -178,7 +199,8 @@ def _raw_piece(block: str, entities, scale: float, where: str) -> DxfPiece:
     grain = _polylines(entities, "7", scale)
     mirror = _polylines(entities, "6", scale)
     qty = _quantity(text.get("quantity"), at)
-    return DxfPiece(name=name, size=text.get("size") or None, quantity=-1 if qty is None else qty,
+    return DxfPiece(name=name, size=text.get("size") or None,
+                    quantity=-1 if qty is None else qty[0], flipped=None if qty is None else qty[1],
                     cut=_ccw(cut), sew=None if sew is None else _ccw(sew),
                     sew_source="the file's sew line (layer 14)" if sew is not None else "",
                     grain=grain[0][[0, -1]] if grain else None,
@@ -254,7 +276,8 @@ def _graded(p: DxfPiece, sample: DxfPiece) -> DxfPiece:
     carried = []
     out = p
     if p.quantity < 0:
-        out, carried = replace(out, quantity=sample.quantity), carried + ["quantity"]
+        out, carried = replace(out, quantity=sample.quantity, flipped=sample.flipped), \
+            carried + ["quantity"]
     if not p.notches and sample.notches:
         moved = _along(np.array([a for a, _ in sample.notches]), sample.cut, p.cut)
         tips = _along(np.array([a + d for a, d in sample.notches]), sample.cut, p.cut)
@@ -285,8 +308,10 @@ def _with_sew(p: DxfPiece, allowance_mm: float | None, allowance_from: str,
     if inner.geom_type != "Polygon":
         inner = max(inner.geoms, key=lambda q: q.area)
     ring = np.asarray(shapely.geometry.polygon.orient(inner, 1.0).exterior.coords)[:-1]
+    # a CAD's cut line runs across a dart's mouth: the notches and drill hole open it again
+    ring, darts = open_darts(ring, np.array([a for a, _ in p.notches]), p.drills)
     return replace(p, sew=ring, sew_source=f"the cut line inset by {allowance_mm:g} mm "
-                   f"({allowance_from})")
+                   f"({allowance_from})" + (f", {darts} dart(s) opened" if darts else ""))
 
 
 def _file_allowance(doc, scale: float) -> float | None:
@@ -323,6 +348,15 @@ def _decisions(pieces: list[DxfPiece], sample: str | None) -> list[str]:
                     f"{', '.join(sorted(set(got)))}" for what, got in groups.items()]
 
 
+def _line_notes(pieces: list[DxfPiece]) -> list[str]:
+    """Where the lines the station cuts and sews on come from, one line per source."""
+    sources = Counter(p.sew_source or "none: the piece is sewn on its cut line"
+                      for p in pieces)
+    return ["cut line: the file's layer 1, as the pattern maker drew it (the allowance "
+            "it carries is the file's)",
+            *(f"sew line of {n} piece(s): {src}" for src, n in sources.items())]
+
+
 def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
                      units: str | None = None, allowance_mm: float | None = None,
                      allowance_from: str = "--seam-allowance",
@@ -357,5 +391,5 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
         p = unfold(p) if unfold_folds else p
         p = replace(p, quantity=1) if p.quantity < 0 else p
         pieces.append(_with_sew(p, allowance_mm, allowance_from, str(path)))
-    notes = [f"units: {unit_note}", *_decisions(pieces, sample)]
+    notes = [f"units: {unit_note}", *_decisions(pieces, sample), *_line_notes(pieces)]
     return DxfPattern(pieces, sizes, sample, unit_note.split()[0], str(path), notes)

@@ -11,9 +11,11 @@ is triangulated (Shewchuk's Triangle, boundary kept as sampled). The common topo
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 from solver.garment.dxf import DxfPattern, DxfPiece, read_dxf_pattern
 from solver.garment.errors import GarmentError
@@ -26,6 +28,8 @@ from solver.seams.outline import point_at
 __all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
 
 RESOLUTION_MM = 20.0  # boundary sample spacing of the mesh
+DEFAULT_ALLOWANCE_MM = 10.0  # a sew line the file lacks: its cut line inset by this
+SEW_INSIDE_MM = 0.5  # a sew line may touch its cut line (no allowance), not cross it
 GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
 
 
@@ -65,18 +69,20 @@ def _boundary_samples(piece: SewPiece, spans: list[tuple[float, float, int]]
 
 
 def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
-    """(uv, faces, point ids, grain lines) of the pieces with the seams' twins shared."""
+    """(uv, faces, point ids, grain lines, each piece's shift into the pattern plane) of
+    the pieces with the seams' twins shared."""
     spans: list[list[tuple[float, float, int]]] = [[] for _ in pieces]
     for s in seams:
         count = max(int(np.ceil(s.length_mm / RESOLUTION_MM)), 1)
         spans[s.piece_a].append((s.a_start, s.a_end, count))
         spans[s.piece_b].append((s.b_start, s.b_end, count))
-    uv, faces, point_ids, offset, first_of, grains = [], [], [], 0, {}, {}
+    uv, faces, point_ids, offset, first_of, grains, shifts = [], [], [], 0, {}, {}, []
     x = 0.0
     for i, p in enumerate(pieces):
         s, firsts = _boundary_samples(p, spans[i])
         loop = point_at(p, s)
         shift = np.array([x - loop[:, 0].min(), -loop[:, 1].min()])
+        shifts.append(shift)
         tri = _triangulate(source, p.name, loop + shift, RESOLUTION_MM)
         if p.grain is not None:
             grains[i] = tuple(map(tuple, (p.grain + shift).tolist()))
@@ -97,7 +103,7 @@ def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
             va = oa + (ka + k) % na
             vb = ob + (kb + count - k) % nb
             ids[ids == ids[vb]] = ids[va]
-    return np.vstack(uv), np.vstack(faces), ids, grains
+    return np.vstack(uv), np.vstack(faces), ids, grains, shifts
 
 
 def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
@@ -111,16 +117,40 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
     pieces = sew_pieces(cut)
     declared, vetoed = read_seams_file(seams_file, pieces) if seams_file else ([], set())
     seams = infer_seams(pieces, declared=declared, vetoed=vetoed)
-    uv, faces, ids, grains = _mesh(pieces, seams, Path(pattern.source))
+    uv, faces, ids, grains, shifts = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
                       units_in_file=pattern.units,
                       piece_names=[p.name for p in pieces],
                       grainlines=grains)
+    g.cut_outlines = _file_cut_lines(cut, pieces, shifts)
     return g, seams, pieces
 
 
+def _file_cut_lines(cut: list[DxfPiece], pieces: list[SewPiece], shifts: list[np.ndarray]
+                    ) -> dict[int, np.ndarray]:
+    """Each piece's cut line as the file draws it (layer 1), laid where its piece lies: the
+    station cuts there, not on an offset of the sew line. A cut line that does not hold
+    its sew line (a file whose layer 14 strays outside layer 1) is not used, and said."""
+    out = {}
+    for i, (p, sew, shift) in enumerate(zip(cut, pieces, shifts, strict=True)):
+        ring = np.asarray(p.cut, float) + shift
+        if not shapely.Polygon(ring).buffer(SEW_INSIDE_MM).contains(
+                shapely.Polygon(sew.loop + shift)):
+            warnings.warn(f"piece {p.name!r}: its sew line crosses its cut line (layer 1); "
+                          "cut on the station's allowance instead", stacklevel=3)
+            continue
+        out[i] = ring
+    return out
+
+
 def load_dxf(path: str | Path, *, units: str | None = None, size: str | None = None,
-             allowance_mm: float = 10.0) -> Garment:
-    """A DXF-AAMA/ASTM file as a garment (sample size unless ``size``), seams inferred."""
-    pattern = read_dxf_pattern(path, size=size, units=units, allowance_mm=allowance_mm)
+             allowance_mm: float | None = None, allowance_from: str = "--seam-allowance"
+             ) -> Garment:
+    """A DXF-AAMA/ASTM file as a garment (sample size unless ``size``), seams inferred; a
+    sew line the file lacks is its cut line inset by ``allowance_mm`` (default
+    :data:`DEFAULT_ALLOWANCE_MM`), whose origin ``allowance_from`` names."""
+    if allowance_mm is None:
+        allowance_mm, allowance_from = DEFAULT_ALLOWANCE_MM, "the default seam allowance"
+    pattern = read_dxf_pattern(path, size=size, units=units, allowance_mm=allowance_mm,
+                               allowance_from=allowance_from)
     return garment_of_pattern(pattern)[0]

@@ -76,6 +76,11 @@ class Garment:
         Per directed boundary edge (a, b) the pattern's own curve between its two ends, as
         (m,2) chord coordinates (:mod:`solver.garment.curves`): a specification's Beziers
         and arcs, for cutting; empty where the outline is the mesh itself.
+    cut_outlines : dict
+        Per piece the cut line its file draws, (k,2) CCW, pattern mm (a DXF's layer 1, as
+        the pattern maker drew it): cut there rather than on an offset of the sew line;
+        dropped when the sew line moves (:meth:`with_uv`), since the file's allowance no
+        longer holds.
     units_in_file : str
         Units the file's coordinates were read in ("m", "cm", "mm", "in", or "1/N m").
     scale_recovered : float or None
@@ -102,6 +107,7 @@ class Garment:
     grain: tuple[PieceGrain, ...] = ()
     panel_frames: dict[int, np.ndarray] = field(default_factory=dict)
     edge_curves: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
+    cut_outlines: dict[int, np.ndarray] = field(default_factory=dict)
     units_in_file: str = "mm"
     scale_recovered: float | None = None
     source: str = ""
@@ -165,6 +171,7 @@ class Garment:
             raise ValueError(f"new uv has shape {new_uv.shape}, expected {self.uv.shape}")
         out = self.copy()
         out.uv = new_uv.copy()
+        out.cut_outlines = {}  # the file's cut lines carried the allowance of the old outline
         return out
 
     def copy(self) -> Garment:
@@ -184,6 +191,7 @@ class Garment:
             notches={k: list(v) for k, v in self.notches.items()},
             panel_frames={k: v.copy() for k, v in self.panel_frames.items()},
             edge_curves=dict(self.edge_curves),  # arrays never changed in place
+            cut_outlines=dict(self.cut_outlines),
             _loops=None,
         )
 

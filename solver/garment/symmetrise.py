@@ -14,7 +14,9 @@ by hand, relaxed by a simulator) into one piece cut once as drawn and once flipp
   another symmetrised piece (or across the centre line) is the exact mirror of the first
   piece's seam, and a seam to an unpaired piece is re-sewn edge for edge;
 * the second piece's drape is read off its old drape at the same places, and twin
-  vertices share one 3D point.
+  vertices share one 3D point;
+* the pattern's own curves (a specification's Beziers and arcs) go with the first piece's
+  edges and, mirrored, to the second's, so both are still cut on the curves.
 
 A pair whose seams do not correspond edge for edge (different sampling along a seam) is
 left as it is and reported, never forced.
@@ -43,6 +45,7 @@ from solver.garment.symmetry import (
 from solver.geometry import closest_on_polygon, signed_areas
 
 _KEPT, _FIRST, _SECOND = 0, 1, 2
+CUT_KEPT_MM = 0.5  # a file's cut line still holds its sew line moved this little
 
 
 @dataclass(frozen=True)
@@ -108,8 +111,10 @@ def symmetrise(garment: Garment, pairs: Sequence[MirrorPair]) -> Symmetrised:
         exact = [MirrorPair(q.first, q.second, 0.0, q.size_mm, q.rotation, q.translation,
                             declared=True)
                  for q in (given[frozenset((p.first, p.second))] for p in todo)]
-        return Symmetrised(out, sorted(done + exact, key=lambda p: p.first),
-                           _moves(garment, out, todo), _sorted(skipped))
+        moves = _moves(garment, out, todo)
+        out.cut_outlines = _carried_cut_lines(garment, todo, moves)
+        return Symmetrised(out, sorted(done + exact, key=lambda p: p.first), moves,
+                           _sorted(skipped))
     return Symmetrised(garment.copy(), done, [], _sorted(skipped))
 
 
@@ -274,8 +279,40 @@ def _rebuilt(g: Garment, pairs: Sequence[MirrorPair], averaged: dict[int, np.nda
     out = build_garment(uv, faces, point, xyz=xyz, source=g.source, kind=g.kind,
                         units_in_file=g.units_in_file, scale_recovered=g.scale_recovered,
                         piece_names=list(g.piece_names), grainlines=grainlines,
-                        notches=notches, twins=twins, panel_frames=g.panel_frames)
+                        notches=notches, twins=twins, panel_frames=g.panel_frames,
+                        edge_curves=_carried_curves(g, new_index, mirror_index))
     _keep_seam_lines(g, out)
+    return out
+
+
+def _carried_curves(g: Garment, new_index: np.ndarray, mirror_index: np.ndarray
+                    ) -> dict[tuple[int, int], np.ndarray]:
+    """The pattern's own curves (:attr:`Garment.edge_curves`) on the new mesh, so the cut
+    line still follows them: a kept or first piece keeps its own (chord coordinates bend
+    with its averaged chords), a second piece takes its first's, mirrored. A reflection
+    keeps each point's share ``s`` along the chord and flips its side ``h``."""
+    out = {}
+    for (a, b), rel in g.edge_curves.items():
+        if new_index[a] >= 0 and new_index[b] >= 0:
+            out[(int(new_index[a]), int(new_index[b]))] = rel
+        if mirror_index[a] >= 0 and mirror_index[b] >= 0:
+            out[(int(mirror_index[a]), int(mirror_index[b]))] = rel * np.array([1.0, -1.0])
+    return out
+
+
+def _carried_cut_lines(g: Garment, pairs: Sequence[MirrorPair], moves: list[PieceMove]
+                       ) -> dict[int, np.ndarray]:
+    """The cut lines a file drew (:attr:`Garment.cut_outlines`) where symmetrising left
+    the sew lines in place, as it does a CAD's left and right (mirror copies already): a
+    piece not symmetrised keeps its own, a pair's second takes its first's, mirrored. A
+    pair moved farther than :data:`CUT_KEPT_MM` is cut on the station's allowance."""
+    moved = {m.piece: m.max_mm for m in moves}
+    out = {i: ring for i, ring in g.cut_outlines.items() if i not in moved}
+    for p in pairs:
+        if p.first in g.cut_outlines and max(moved.get(p.first, 0.0),
+                                             moved.get(p.second, 0.0)) <= CUT_KEPT_MM:
+            out[p.first] = g.cut_outlines[p.first]
+            out[p.second] = p.map_first_to_second(g.cut_outlines[p.first])[::-1]
     return out
 
 

@@ -48,7 +48,7 @@ def pieces_of_pattern(pattern: DxfPattern, *, name_sizes: bool = False) -> list[
             warnings.warn(f"{pattern.source}: piece {p.name!r} size {p.size}: Quantity 0, "
                           "not cut", stacklevel=2)
             continue
-        paired = p.quantity % 2 == 0
+        paired = p.in_pairs
         piece = Piece(f"{p.name} {p.size}" if name_sizes and p.size else p.name, p.cut,
                       quantity=p.quantity // 2 if paired else p.quantity,
                       mirrored_pair=paired, grainline=p.grain,

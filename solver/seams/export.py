@@ -4,9 +4,11 @@ A pattern CAD writes each piece's cut line (layer 1), its turn points (layer 2: 
 the ends of every seam), balance notches on both sides of each seam (layer 4: at the same
 share of the seam on both pieces; a double notch where the seam is on the back, a single one
 elsewhere, as sewers expect), a grain line (layer 7) and the piece's name, and no seam data
-at all. Each piece is turned by a random angle. The true seams come back as point
-correspondences in the exported pieces' coordinates, so :mod:`solver.seams.score` can
-compare an inference made from the file alone.
+at all. A dart is not cut out: the cut line runs across its mouth with the take-up's peak, a
+notch marks each leg and a drill hole (layer 13) its tip (:mod:`solver.seams.darts`). Each
+piece is turned by a random angle. The true seams come back as point correspondences in the
+exported pieces' coordinates, so :mod:`solver.seams.score` can compare an inference made
+from the file alone.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import shapely
 
 from solver.garment.model import Garment
 from solver.garment.notches import chain_seam_rows
+from solver.seams.darts import DRILL_SETBACK_MM, dart_cap
 from solver.seams.names import name_parts
 from solver.seams.score import STEP_MM, Correspondence
 
@@ -33,15 +36,70 @@ def _seam_sides(g: Garment, line: int) -> tuple[np.ndarray, np.ndarray]:
     return (np.append(rows[:, 0], rows[-1, 1]), np.append(rows[:, 2], rows[-1, 3]))
 
 
-def _at_share(uv: np.ndarray, chain: np.ndarray, twin: np.ndarray, share: np.ndarray
+def _dart_of(chain: np.ndarray, twin: np.ndarray) -> tuple[int, int, int] | None:
+    """(one leg's mouth end, tip, the other's) when a seam's two sides meet at one end."""
+    for i in (0, -1):
+        for j in (0, -1):
+            if chain[i] == twin[j]:
+                return int(chain[-1 - i]), int(chain[i]), int(twin[-1 - j])
+    return None
+
+
+def _closed(g: Garment, i: int, darts: list[tuple[int, int, int]]) -> np.ndarray:
+    """Piece ``i``'s sew line as a CAD draws its cut line's course: each dart's legs
+    replaced by the take-up's peak across the mouth."""
+    loop = g.piece_loops(i)[0]
+    at = {int(v): k for k, v in enumerate(loop)}
+    n = len(loop)
+    drop, peak_after = np.zeros(n, bool), {}
+    for m1, tip, m2 in darts:
+        k1, kt, k2 = at[m1], at[tip], at[m2]
+        if (kt - k1) % n > (k2 - k1) % n:
+            k1, k2 = k2, k1  # walk forward from k1 through the tip to k2
+        inner = (k1 + 1 + np.arange((k2 - k1 - 1) % n)) % n
+        drop[inner] = True
+        peak_after[k1] = dart_cap(g.uv[loop[k1]], g.uv[tip], g.uv[loop[k2]])
+    out = []
+    for k in range(n):
+        if not drop[k]:
+            out.append(g.uv[loop[k]])
+        if k in peak_after:
+            out.append(peak_after[k])
+    return np.array(out)
+
+
+def _stretches(edges: np.ndarray) -> list[np.ndarray]:
+    """Vertex chains of the (k,2) directed edges, one per contiguous stretch."""
+    nxt = {int(a): int(b) for a, b in edges}
+    out = []
+    for a in sorted(set(nxt) - set(nxt.values())):
+        chain = [a]
+        while chain[-1] in nxt and len(chain) <= len(edges):
+            chain.append(nxt[chain[-1]])
+        out.append(np.array(chain))
+    return out
+
+
+def _one_chain(rows: np.ndarray) -> np.ndarray | None:
+    """The twin rows ordered along a side that is one chain (the other side may jump a
+    dart), that side first; None when neither is."""
+    for r in (rows, rows[:, [2, 3, 0, 1]]):
+        o = chain_seam_rows(r)
+        if np.array_equal(o[1:, 0], o[:-1, 1]):
+            return o
+    return None
+
+
+def _at_share(uv: np.ndarray, rows: np.ndarray, share: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Points at ``share`` of side A's length and their sewn partners on side B."""
-    a, b = uv[chain], uv[twin]
-    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(a, axis=0), axis=1))])
+    """Points at ``share`` of side A's length and their sewn partners on side B, twin edge
+    by twin edge (side B may jump a dart that side A runs past)."""
+    a0, a1, b0, b1 = (uv[rows[:, k]] for k in range(4))
+    cum = np.concatenate([[0], np.cumsum(np.linalg.norm(a1 - a0, axis=1))])
     s = np.clip(share, 0, 1) * cum[-1]
-    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(a) - 2)
+    k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(rows) - 1)
     t = ((s - cum[k]) / np.maximum(cum[k + 1] - cum[k], 1e-300))[:, None]
-    return a[k] + t * (a[k + 1] - a[k]), b[k] + t * (b[k + 1] - b[k])
+    return a0[k] + t * (a1[k] - a0[k]), b0[k] + t * (b1[k] - b0[k])
 
 
 def _face_down(g: Garment) -> np.ndarray:
@@ -122,35 +180,54 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
     turns: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     notches: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     truth = []
+    darts: list[list[tuple[int, int, int]]] = [[] for _ in range(g.n_pieces)]
+    drills: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     for line in range(len(g.seam_lines)):
         chain, twin = _seam_sides(g, line)
         pa, pb = int(piece[chain[0]]), int(piece[twin[0]])
-        for p, v in ((pa, chain), (pb, twin)):
-            turns[p] += [g.uv[v[0]], g.uv[v[-1]]]
+        dart = _dart_of(chain, twin) if pa == pb else None
+        if dart is not None:  # notches at the legs' ends, a drill hole short of the tip
+            darts[pa].append(dart)
+            m1, tip, m2 = g.uv[list(dart)]
+            axis = 0.5 * (m1 + m2) - tip
+            drills[pa].append(tip + axis / np.linalg.norm(axis) * DRILL_SETBACK_MM)
+            notches[pa] += [m1, m2]
         rows = g.seam_edges[g.seam_line_of_edge == line]
         a, b, w = _sampled_twins(g.uv, rows)
         truth.append(Correspondence(np.tile([pa, pb], (len(w), 1)), _apply(frames[pa], a),
                                     _apply(frames[pb], b), w))
-        a_len = float(np.linalg.norm(np.diff(g.uv[chain], axis=0), axis=1).sum())
-        if a_len < 80.0 or abs(a_len - w.sum()) > 1e-6 * a_len:
-            continue  # short, or not one chain (a branching seam line): no notches
+        if dart is not None:
+            continue
+        for side in (0, 2):  # the ends of every stretch of each side (it may jump a dart)
+            for v in _stretches(rows[:, side:side + 2]):
+                turns[int(piece[v[0]])] += [g.uv[v[0]], g.uv[v[-1]]]
+        ordered = _one_chain(rows)
+        if ordered is None:
+            continue  # a branching seam line, or both sides jump darts: no notches
+        a_len = float(np.linalg.norm(g.uv[ordered[:, 1]] - g.uv[ordered[:, 0]], axis=1).sum())
+        if a_len < 80.0:
+            continue
         back = "back" in name_parts(g.piece_names[pa])[0] | name_parts(g.piece_names[pb])[0]
         share = 0.25 + 0.5 * ((line * 0.618034) % 1.0)
         shares = [share] + ([share + DOUBLE_GAP_MM / a_len] if back else [])
-        na, nb = _at_share(g.uv, chain, twin, np.array(shares))
-        notches[pa] += list(na)
-        notches[pb] += list(nb)
-    _write(g, path, frames, turns, notches, allowance_mm)
+        na, nb = _at_share(g.uv, ordered, np.array(shares))
+        notches[int(piece[ordered[0, 0]])] += list(na)
+        notches[int(piece[ordered[0, 2]])] += list(nb)
+    outlines = [_closed(g, i, darts[i]) for i in range(g.n_pieces)]
+    _write(g, path, frames, outlines, (turns, notches, drills), allowance_mm)
     return Correspondence.join(truth)
 
 
-def _write(g: Garment, path, frames, turns, notches, allowance_mm: float) -> None:
+def _write(g: Garment, path, frames, outlines, marks, allowance_mm: float) -> None:
+    """The DXF: per piece a block with its cut line (``outlines`` buffered by the
+    allowance), and its ``marks`` (turn points, notches, drill holes: lists per piece)."""
+    turns, notches, drills = marks
     doc = ezdxf.new("R12")
     msp = doc.modelspace()
     grains = g.grains()  # the file's, the drape's or the panel's placement on the body
     msp.add_text("Units: METRIC", dxfattribs={"layer": "1", "height": 5.0})
     for i, name in enumerate(g.piece_names):
-        sew = g.piece_outline(i)
+        sew = outlines[i]
         cut_poly = shapely.Polygon(sew).buffer(allowance_mm, join_style="mitre",
                                                mitre_limit=2.0)
         ring = shapely.LinearRing(cut_poly.exterior.coords)
@@ -165,6 +242,8 @@ def _write(g: Garment, path, frames, turns, notches, allowance_mm: float) -> Non
             blk.add_point(tuple(q), dxfattribs={"layer": "2"})
         for q in _apply(m, np.array(on_cut[len(corners) + len(turns[i]):]).reshape(-1, 2)):
             blk.add_point(tuple(q), dxfattribs={"layer": "4"})
+        for q in _apply(m, np.array(drills[i]).reshape(-1, 2)):
+            blk.add_point(tuple(q), dxfattribs={"layer": "13"})
         c = sew.mean(0)
         th = np.radians(grains[i].deg)
         h = 0.3 * float(np.ptp(sew, axis=0).max()) * np.array([np.cos(th), np.sin(th)])

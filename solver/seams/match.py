@@ -23,13 +23,14 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
+from solver.seams.junctions import junction_conflicts
 from solver.seams.names import name_affinity, name_parts
-from solver.seams.outline import MERGE_MM, SewPiece, sub_loop
+from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
+from solver.seams.runs import Run, candidate_runs, run_line
 from solver.seams.shape import fit_and_overlap
 
 __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
-MAX_RUN = 8  # edges in one candidate run
 LENGTH_TOL = 0.06  # relative difference of sewn lengths beyond which two runs never match
 EASE_TOL = 0.1  # the same for two curved runs (ease: a sleeve cap is longer than its armhole)
 CURVED = 0.95  # a run whose chord is less than this share of its length is curved
@@ -37,30 +38,20 @@ NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same 
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
-MIN_LENGTH_MM = 15.0  # shorter runs are no seam of their own
 SEAM_COST_MM = 160.0  # each seam chosen costs this much matched length (score x mm): a
 # long seam is preferred to the same line cut into short ones, each with its own partner
 # found by chance (measured on half of the bench's garments, checked on the other half)
-SHARP_DEG = 50.0  # a run never turns a corner sharper than this (a seam ends there)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 30.0  # a centre line lies within this of the grain
-
-
-@dataclass(frozen=True)
-class Run:
-    """Edges ``first`` .. ``first + count - 1`` of a piece: arc interval, length, notches."""
-
-    piece: int
-    first: int
-    count: int
-    start: float
-    end: float  # may exceed the loop length (wraps)
-    length: float
-    straightness: float  # chord / length
-    notches: tuple[tuple[float, int], ...]  # (share of the run from its start, count)
-    end_notches: tuple[int, int] = (0, 0)  # notch count at the run's start and end
+GATHER_MAX = 2.0  # a seam gathered more than this (longer side / shorter) is not proposed
+GATHER_PENALTY = 0.3  # a gathered seam's length term is minus this (an equal length scores 1)
+WHOLE_BONUS = 0.3  # both sides run corner to corner between pieces whose names say they
+# meet (a shoulder): a seam ends where the lines turn, a chance pairing rarely does on both
+SHOULDER_MM = 150.0  # a front and a back (named so) are mirror images across their
+# shoulders: a seam this short between pieces of other kinds is no centre line
+DART_BONUS = 0.6  # two equal legs at a sharp reflex tip: a dart, as sure as matching notches
 
 
 @dataclass(frozen=True)
@@ -77,62 +68,6 @@ class Seam:
     length_mm: float
     confidence: float
     source: str = "inferred"
-
-
-def _inside(s: np.ndarray, start: float, end: float, length: float) -> bool:
-    """Whether any arc position of ``s`` lies strictly inside (start, end), laps counted."""
-    for lap in (0.0, length):
-        if np.any((s + lap > start + MERGE_MM) & (s + lap < end - MERGE_MM)):
-            return True
-    return False
-
-
-def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]:
-    """Every run of 1..:data:`MAX_RUN` edges of every piece that turns no sharp corner
-    (a seam ends where the outline turns by more than :data:`SHARP_DEG`), and each piece's
-    breakpoints."""
-    runs, cuts = [], []
-    for i, p in enumerate(pieces):
-        b = p.breakpoints()
-        cuts.append(b)
-        n = len(b)
-        if n == 0:
-            continue
-        sharp = p.corners(SHARP_DEG)[0]
-        groups = p.notch_groups()
-        for first in range(n):
-            for count in range(1, min(MAX_RUN, n) + 1):
-                if count == n and n > 1:
-                    continue  # the whole loop is no seam
-                start = b[first]
-                end = b[(first + count) % n] + (p.length if first + count >= n else 0.0)
-                if n == 1:
-                    end = start + p.length
-                length = end - start
-                if length < MIN_LENGTH_MM or (count > 1 and _inside(sharp, start, end,
-                                                                    p.length)):
-                    continue
-                line = sub_loop(p, start, end)
-                chord = float(np.linalg.norm(line[-1] - line[0]))
-                runs.append(Run(i, first, count, float(start), float(end), float(length),
-                                chord / length, *_run_notches(groups, start, end, p.length)))
-    return runs, cuts
-
-
-def _run_notches(groups: list[tuple[float, int]], start: float, end: float, length: float
-                 ) -> tuple[tuple[tuple[float, int], ...], tuple[int, int]]:
-    """The notch groups inside a run (share, count) and the counts at its two ends."""
-    inner, at_ends = [], [0, 0]
-    for s, c in groups:
-        for lap in (0.0, length):
-            at = s + lap
-            if abs(at - start) <= MERGE_MM:
-                at_ends[0] = c
-            elif abs(at - end) <= MERGE_MM:
-                at_ends[1] = c
-            elif start < at < end:
-                inner.append((round((at - start) / (end - start), 4), c))
-    return tuple(sorted(inner)), (at_ends[0], at_ends[1])
 
 
 def _notch_score(a: Run, b: Run) -> float:
@@ -153,36 +88,59 @@ def _notch_score(a: Run, b: Run) -> float:
     return 1.0 - worst ** 2  # the closer the notches, the surer (ease moves them a little)
 
 
+def _length_score(a: Run, b: Run) -> tuple[float, bool]:
+    """(the length term: 1 for equal sewn lengths, 0 at the tolerance, -1 beyond; whether
+    the longer side is gathered onto the shorter, which only notches on both can tell)."""
+    rel = abs(a.length - b.length) / max(a.length, b.length)
+    curved = min(a.straightness, b.straightness) < CURVED
+    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
+    if rel <= tol:
+        return 1.0 - (rel / tol) ** 2, False
+    gather = (a.notches and b.notches and a.piece != b.piece
+              and max(a.length, b.length) <= GATHER_MAX * min(a.length, b.length))
+    return (-GATHER_PENALTY, True) if gather else (-1.0, False)
+
+
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
     """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
     seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
     on each other only for a candidate that could still pass."""
-    rel = abs(a.length - b.length) / max(a.length, b.length)
-    curved = min(a.straightness, b.straightness) < CURVED
-    tol = EASE_TOL if curved else LENGTH_TOL  # a sleeve cap is eased into its armhole
-    if rel > tol:
+    s, gathered = _length_score(a, b)
+    if s <= -1.0:
         return -1.0
-    s = 1.0 - (rel / tol) ** 2
-    notch = _notch_score(a, b)
+    notch = 0.0 if a.piece == b.piece else _notch_score(a, b)  # a dart's notches: its legs
+    if gathered and notch <= 0:
+        return -1.0  # a gathered seam is known by its notches alone
     s += 0.6 * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
-    s += name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+    s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
     if s < MIN_SCORE:
         return s
-    rms, overlap, mirror = fit_and_overlap(pieces[a.piece], (a.start, a.end), polys[a.piece],
-                                           pieces[b.piece], (b.start, b.end), polys[b.piece])
-    dart = a.piece == b.piece  # a dart folds its piece onto itself: overlap says nothing
-    s -= RMS_W * rms + (0.0 if dart else 3.0 * overlap)
+    rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
+                                           run_line(pieces[b.piece], b), polys[b.piece],
+                                           gathered=gathered)
+    if a.piece == b.piece:  # a dart folds its piece onto itself: overlap says nothing
+        return s - RMS_W * rms + DART_BONUS
+    return s - RMS_W * rms - 3.0 * overlap - _halves_penalty(pieces, a, b, mirror)
+
+
+def _halves_penalty(pieces: list[SewPiece], a: Run, b: Run, mirror: float) -> float:
+    """What sewing two pieces that are halves of one (copies, or mirror images in the seam)
+    costs: only a centre line, along the grain, joins them."""
     pa, pb = pieces[a.piece], pieces[b.piece]
-    copies = a.piece != b.piece and pa.family and pa.family == pb.family
-    if (copies or mirror > MIRROR_IOU) and not _along_grain(pa, a):
-        # two halves mirrored in the seam (two copies of one piece surely are): only a
-        # centre line, along the grain, joins them
+    copies = bool(pa.family) and pa.family == pb.family
+    shoulder = _other_kinds(pa, pb) and a.length <= SHOULDER_MM
+    if (copies or (mirror > MIRROR_IOU and not shoulder)) and not _along_grain(pa, a):
         # (unnamed pieces may as well be identical gores, which do meet so)
-        s -= 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
-    elif copies:
-        s -= 0.5  # a left and a right are rarely sewn to each other (a centre seam)
-    return s
+        return 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
+    return 0.5 if copies else 0.0  # a left and a right are rarely sewn to each other
+
+
+def _other_kinds(a: SewPiece, b: SewPiece) -> bool:
+    """Whether the names say the two pieces are different kinds (a front and a back)."""
+    ka, kb = name_parts(a.name)[0], name_parts(b.name)[0]
+    return bool(ka and kb and not ka & kb)
 
 
 def _named(*pieces: SewPiece) -> bool:
@@ -220,18 +178,21 @@ def _dart(a: Run, b: Run, length: float, tips: np.ndarray) -> bool:
 
 
 def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.ndarray:
-    """(k,2) indices of run pairs whose lengths agree within tolerance: on two pieces, or
-    the two legs of a dart on one piece."""
+    """(k,2) indices of run pairs whose lengths agree within tolerance, or within
+    :data:`GATHER_MAX` when both have notches (a gathered seam): on two pieces, or the two
+    legs of a dart on one piece."""
     length = np.array([r.length for r in runs])
     piece = np.array([r.piece for r in runs])
+    notched = np.array([bool(r.notches) for r in runs])
     order = np.argsort(length)
     ls = length[order]
     out = []
     for k, i in enumerate(order.tolist()):
-        hi = np.searchsorted(ls, ls[k] / (1 - max(LENGTH_TOL, EASE_TOL)), side="right")
+        eased = ls[k] / (1 - max(LENGTH_TOL, EASE_TOL))
+        hi = np.searchsorted(ls, ls[k] * GATHER_MAX if notched[i] else eased, side="right")
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
-        ok = ~same
+        ok = ~same & ((length[j] <= eased) | notched[j])  # longer: gathered, notched both
         ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]], tips[piece[i]])
                     for m in j[same].tolist()]
         j = j[ok]
@@ -239,8 +200,17 @@ def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.
     return np.vstack(out) if out else np.zeros((0, 2), dtype=int)
 
 
-def _edges_of(run: Run, n_edges: int) -> list[int]:
-    return [(run.first + k) % n_edges for k in range(run.count)]
+def _edges_of(run: Run, cuts: np.ndarray, length: float) -> list[int]:
+    """The run's edges (indices into its piece's breakpoints) but the darts it skips."""
+    edges = [(run.first + k) % len(cuts) for k in range(run.count)]
+    if not run.skips:
+        return edges
+    out = []
+    for e in edges:
+        mid = cuts[e] + 0.5 * ((cuts[(e + 1) % len(cuts)] - cuts[e]) % length or length)
+        if not any(d0 <= mid + lap <= d1 for d0, d1 in run.skips for lap in (0.0, length)):
+            out.append(e)
+    return out
 
 
 def _overlaps(run: Run, seam: Seam, length: float) -> bool:
@@ -261,7 +231,8 @@ def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
     ``fixed`` seams (declared by the operator) are kept and their edges taken, no seam is
     made between a ``vetoed`` pair of pieces."""
     runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
-    tips = [pos[turn < -SHARP_DEG] for pos, turn in (p.corners(SHARP_DEG) for p in pieces)]
+    tips = [pos[turn < -DART_TIP_DEG] for pos, turn in (p.corners(DART_TIP_DEG)
+                                                         for p in pieces)]
     pairs = _pairs(runs, [p.length for p in pieces], tips)
     if vetoed:
         pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)
@@ -285,20 +256,24 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     rows, cols = [], []
     for k, (i, j) in enumerate(pairs.tolist()):
         for r in (runs[i], runs[j]):
-            for e in _edges_of(r, len(cuts[r.piece])):
+            for e in _edges_of(r, cuts[r.piece], pieces[r.piece].length):
                 rows.append(offset[r.piece] + e)
                 cols.append(k)
     a = np.zeros((int(offset[-1]), len(pairs)))
     a[rows, cols] = 1.0
     weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
                                  [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
+    conflicts = junction_conflicts(pieces, runs, pairs)
+    c = np.zeros((len(conflicts), len(pairs)))
+    c[np.repeat(np.arange(len(conflicts)), 2), conflicts.reshape(-1)] = 1.0
     res = milp(-weight, integrality=np.ones(len(pairs)), bounds=Bounds(0, 1),
-               constraints=LinearConstraint(a, 0, 1), options={"time_limit": 20.0})
+               constraints=LinearConstraint(np.vstack([a, c]), 0, 1),
+               options={"time_limit": 20.0})
     if res.x is None:
         return []
     chosen = np.flatnonzero(res.x > 0.5)
-    return [_seam(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
-                  _rival(k, pairs, scores, a)) for k in chosen]
+    return [s for k in chosen for s in _seams(runs[pairs[k, 0]], runs[pairs[k, 1]], scores[k],
+                                              _rival(k, pairs, scores, a))]
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
@@ -308,10 +283,21 @@ def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> floa
     return float(scores[shares].max()) if shares.any() else 0.0
 
 
-def _seam(a: Run, b: Run, score: float, rival: float) -> Seam:
-    """A chosen candidate as a seam; confidence from its score and its margin over the best
-    rival for the same edges (a near tie between two partners is unsure)."""
+def _seams(a: Run, b: Run, score: float, rival: float) -> list[Seam]:
+    """A chosen candidate as seams: one, or one between each two darts either side skips
+    (a seam is a stretch of line on each piece); confidence from its score and its margin
+    over the best rival for the same edges (a near tie between two partners is unsure)."""
     margin = max(score - rival, 0.0)
-    confidence = float(np.clip(score / 2.0, 0, 1) * np.clip(0.5 + margin, 0, 1))
-    return Seam(a.piece, a.start, a.end, b.piece, b.start, b.end,
-                0.5 * (a.length + b.length), round(confidence, 3))
+    confidence = round(float(np.clip(score / 2.0, 0, 1) * np.clip(0.5 + margin, 0, 1)), 3)
+    shares = sorted({0.0, 1.0, *(u / a.length for u in a.skip_offsets()),
+                     *(1.0 - u / b.length for u in b.skip_offsets())})
+    out = []
+    for t0, t1 in zip(shares[:-1], shares[1:], strict=True):
+        if t1 - t0 < 1e-9:
+            continue
+        out.append(Seam(a.piece, a.arc_at(t0 * a.length, after=True),
+                        a.arc_at(t1 * a.length, after=False),
+                        b.piece, b.arc_at((1 - t1) * b.length, after=True),
+                        b.arc_at((1 - t0) * b.length, after=False),
+                        0.5 * (t1 - t0) * (a.length + b.length), confidence))
+    return out

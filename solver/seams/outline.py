@@ -14,14 +14,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-__all__ = ["SewPiece", "arc_position", "point_at", "sub_loop"]
+__all__ = ["SewPiece", "arc_position", "point_at", "sewn_line", "sub_loop"]
 
 CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a corner there
 MERGE_MM = 3.0  # breakpoints closer than this are one
 NOTCH_GROUP_MM = 12.0
+SAME_NOTCH_MM = 0.5  # notches closer than this are one
 TURN_DEG = 8.0
 DENSE_TURNS = 3  # turn points per corner (plus two) beyond which a CAD marks every vertex
 TURN_SPAN_MM = 8.0  # notches closer than this along the line are one double notch
+DART_TIP_DEG = 120.0  # a reflex corner turning more than this is a dart's tip ...
+DART_LEGS = 0.15  # ... when its two legs agree in length within this share
+MIN_LEG_MM = 20.0  # and each leg is at least this long
 
 
 @dataclass
@@ -77,6 +81,8 @@ class SewPiece:
     def notch_groups(self) -> list[tuple[float, int]]:
         """(arc position, notch count) of each notch group along the line."""
         s = np.sort(arc_position(self, self.notches))
+        s = s[np.diff(s, prepend=-np.inf) > SAME_NOTCH_MM]  # a notch on a fold, unfolded,
+        # is there twice
         groups: list[list[float]] = []
         for v in s.tolist():
             if groups and v - groups[-1][-1] <= NOTCH_GROUP_MM:
@@ -87,19 +93,37 @@ class SewPiece:
             groups[0] = groups.pop() + groups[0]
         return [(float(g[len(g) // 2]), len(g)) for g in groups]
 
+    def darts(self) -> list[tuple[float, float]]:
+        """Arc spans (mouth, mouth) of the line's darts: a tip (a reflex corner sharper than
+        :data:`DART_TIP_DEG`) between two legs of one length, each leg running from the tip
+        to the next breakpoint. The span's end may pass the loop's length (it wraps)."""
+        pos, turn = self.corners(DART_TIP_DEG)
+        cuts = self.breakpoints()
+        out = []
+        for tip in pos[turn < 0].tolist():
+            k = int(np.argmin(np.abs(np.mod(cuts - tip + self.length / 2, self.length)
+                                     - self.length / 2)))
+            legs = ((cuts[k] - cuts[k - 1]) % self.length,
+                    (cuts[(k + 1) % len(cuts)] - cuts[k]) % self.length)
+            if len(cuts) >= 3 and min(legs) >= MIN_LEG_MM and \
+                    abs(legs[0] - legs[1]) <= DART_LEGS * max(legs):
+                start = float(cuts[k - 1])
+                out.append((start, start + legs[0] + legs[1]))
+        return out
+
     def breakpoints(self) -> np.ndarray:
-        """Sorted arc positions where the line is split: corners, turn points, notches."""
+        """Sorted arc positions where the line is split: corners, notches, turn points; of
+        several within :data:`MERGE_MM`, the first of that order (a seam ends at the corner
+        itself, not at a turn point a millimetre or two beside it)."""
         notch = [s for s, _ in self.notch_groups()]
-        raw = np.concatenate([self.corners()[0], self.turning_points(), notch, [0.0]
-                              if not len(self.turns) and not len(notch) else []])
-        raw = np.sort(np.mod(raw, self.length))
-        keep: list[float] = []
-        for v in raw.tolist():
-            if not keep or v - keep[-1] > MERGE_MM:
-                keep.append(v)
-        if len(keep) > 1 and keep[0] + self.length - keep[-1] <= MERGE_MM:
-            keep.pop()
-        return np.array(keep)
+        raw = [self.corners()[0], notch, self.turning_points(),
+               [0.0] if not len(self.turns) and not len(notch) else []]
+        keep = np.zeros(0)
+        for v in np.mod(np.concatenate(raw), self.length).tolist():
+            d = np.abs(keep - v)
+            if not len(keep) or np.minimum(d, self.length - d).min() > MERGE_MM:
+                keep = np.append(keep, v)
+        return np.sort(keep)
 
 
 def arc_position(piece: SewPiece, points: np.ndarray) -> np.ndarray:
@@ -135,3 +159,22 @@ def sub_loop(piece: SewPiece, start: float, end: float) -> np.ndarray:
         inner.append(c[(c > start) & (c < end)])
     s = np.concatenate([[start], *inner, [end]])
     return point_at(piece, s)
+
+
+def sewn_line(piece: SewPiece, start: float, end: float,
+              skips: tuple[tuple[float, float], ...] = ()) -> np.ndarray:
+    """The loop's polyline from ``start`` to ``end`` as sewn with the darts ``skips`` (arc
+    spans inside the interval, sorted) closed: the line after each dart turned about its tip
+    so that the dart's far mouth lands on its near one."""
+    bounds = [start, *[v for span in skips for v in span], end]
+    parts = [sub_loop(piece, bounds[k], bounds[k + 1]) for k in range(0, len(bounds), 2)]
+    rot, shift = np.eye(2), np.zeros(2)  # the motion of what follows the darts closed so far
+    out = [parts[0]]
+    for (d0, d1), part in zip(skips, parts[1:], strict=True):
+        near, tip, far = point_at(piece, np.array([d0, 0.5 * (d0 + d1), d1])) @ rot.T + shift
+        u, v = near - tip, far - tip
+        ang = np.arctan2(v[0] * u[1] - v[1] * u[0], float(u @ v))
+        turn = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+        rot, shift = turn @ rot, turn @ (shift - far) + near
+        out.append((part @ rot.T + shift)[1:])
+    return np.vstack(out)

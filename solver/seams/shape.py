@@ -15,7 +15,6 @@ import shapely
 from shapely import affinity
 
 from solver.geometry import resample_polyline
-from solver.seams.outline import SewPiece, sub_loop
 
 __all__ = ["fit_and_overlap"]
 
@@ -31,16 +30,26 @@ def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return r, cd - r @ cs
 
 
-def fit_and_overlap(a: SewPiece, a_span: tuple[float, float], poly_a: shapely.Polygon,
-                    b: SewPiece, b_span: tuple[float, float], poly_b: shapely.Polygon
+def _length(line: np.ndarray) -> float:
+    return max(float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum()), 1e-9)
+
+
+def fit_and_overlap(line_a: np.ndarray, poly_a: shapely.Polygon, line_b: np.ndarray,
+                    poly_b: shapely.Polygon, *, gathered: bool = False
                     ) -> tuple[float, float, float]:
     """(RMS distance / length, overlapping share of the smaller piece, how much the moved
-    ``b`` is ``a`` mirrored in the seam (intersection over union)) with edge ``b_span`` of
-    ``b`` (read backwards) laid onto ``a_span`` of ``a``."""
-    la = resample_polyline(sub_loop(a, *a_span), SAMPLES - 1)
-    lb = resample_polyline(sub_loop(b, *b_span), SAMPLES - 1)[::-1]
+    piece b is piece a mirrored in the seam (intersection over union)) with ``line_b`` of
+    b (read backwards) laid onto ``line_a`` of a; a ``gathered`` b is first scaled to a's
+    length (gathers shorten it evenly)."""
+    la = resample_polyline(line_a, SAMPLES - 1)
+    lb = resample_polyline(line_b, SAMPLES - 1)[::-1]
+    length = _length(line_a)
+    if gathered:
+        k = length / _length(line_b)
+        c = lb.mean(0)
+        lb = c + k * (lb - c)
+        poly_b = affinity.scale(poly_b, k, k, origin=tuple(c))
     r, t = _kabsch(lb, la)
-    length = max(a_span[1] - a_span[0], 1e-9)
     rms = float(np.sqrt(((lb @ r.T + t - la) ** 2).sum(1).mean())) / length
     moved = affinity.affine_transform(poly_b, [r[0, 0], r[0, 1], r[1, 0], r[1, 1], t[0], t[1]])
     d = la[-1] - la[0]

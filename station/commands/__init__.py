@@ -22,7 +22,8 @@ COMMANDS: dict[str, Command] = {
                      "method)"),
     "calibrate": Command("calibrate", "calibrate the camera to the table with a ChArUco board"),
     "confirm": Command("confirm", "accept or correct the detected print of a job waiting at "
-                       "'confirm fabric'"),
+                       "'confirm fabric', or the inferred seams of one waiting at "
+                       "'confirm seams'"),
     "submit": Command("submit", "queue a garment to be aligned, nested and cut"),
     "jobs": Command("console", "list every job"),
     "status": Command("console", "state, pieces and progress"),

@@ -15,13 +15,15 @@ from station.cliargs import (
     add_garment_arguments,
     add_grain_arguments,
     add_symmetrise_argument,
-    cli_pairs,
     fabric_grain_deg,
-    garment_with_grain,
     grain_tolerance,
     load_fabric,
-    load_garment_arg,
     picture_path,
+)
+from station.cliload import (
+    cli_pairs,
+    garment_with_grain,
+    load_garment_arg,
     read_name_map,
     symmetrised_garment,
 )

@@ -19,7 +19,7 @@ from typing import Any
 from station.cliargs import add_config_argument, load_config_arg
 from station.control import ControlError, request
 from station.errors import UserError
-from station.progress import garment_counts
+from station.progress import garment_counts, step_label
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -126,6 +126,8 @@ def _line(job: dict[str, Any]) -> str:
     if job.get("owner"):
         text += f"  @{job['owner']}"
     progress = job.get("progress") or {}
+    if progress.get("bite"):
+        text += f"  {step_label(progress)}"
     if "fraction" in progress:
         text += f"  {100 * progress['fraction']:.0f}%"
     if progress.get("seconds_left") is not None:

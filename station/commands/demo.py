@@ -21,13 +21,16 @@ from typing import Any
 
 import numpy as np
 
+from simulators.grbl import lookup
+from simulators.grbl.trace import trace_rows
 from solver.garment import load_garment
 from solver.wallpaper import Wallpaper
 from station.control import request
-from station.daemon import setup_logging
+from station.daemon import CONFIRM_SEAMS, setup_logging
 from station.fleetdemo import run as run_fleet
 from station.order import is_order_file, read_order
 from station.progress import follow
+from station.simseams import measure_seams
 from station.simstation import (
     SimulatedRoll,
     copy_job_files,
@@ -35,6 +38,7 @@ from station.simstation import (
     start_simulated_station,
 )
 from station.steps.bites import operator_advance_mm
+from station.steps.program import fabric_origin
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "tshirt-iso.obj"
 
@@ -120,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
                           )["job"]["id"]
             print(f"station demo: job {job} submitted to the simulated station "
                   f"(store and socket in {tmp})", file=sys.stderr)
-            status = follow_by_hand(sock, job, daemon) if args.by_hand else follow(sock, job)
+            status = follow_by_hand(sock, job, daemon)  # the operator answers what it asks
             events = request(sock, "log", job=job, limit=100000)["events"]
         finally:
             daemon.shutdown()
@@ -133,13 +137,24 @@ def run(args: argparse.Namespace) -> int:
         fabric = read_json_or_empty(workdir / "fabric.json")
         pieces = pieces_cut(daemon.store.pieces(job), events)
         roll = daemon.pipeline.roll
-        truth = roll.truth() if isinstance(roll, SimulatedRoll) else None
+        simulated = isinstance(roll, SimulatedRoll)
+        truth = roll.truth() if simulated else None
+        emulator = lookup(f"demo-{id(args)}")
+        seams = measure_seams(workdir, roll.print, roll.conveyor.poses,
+                              trace=None if emulator is None else trace_rows(emulator),
+                              origin=fabric_origin(daemon.pipeline.config)
+                              ) if simulated else {}
         daemon.store.close()
     seconds = time.monotonic() - t0
     summary = summarise(status, plan_report, camera, fabric, seconds)
     summary["bites"] = plan_report.get("bites")
     summary["advances_truth"] = truth  # the simulated conveyor's, slips included
     summary["pieces"] = pieces
+    summary.update(seams)  # the print across the seams as cut on the simulated cloth
+    # pieces whose seams are expected off the print by over the tolerance, and by how much
+    summary["pieces_distorted"] = [
+        {"piece": r["piece"], "seam_error_expected_mm": r["seam_error_expected_mm"]}
+        for r in plan_report.get("local_maps") or [] if r.get("distorted")]
     missing = [name for name in FILES if name not in copied]
     report = {"summary": summary, "job": status, "plan": plan_report, "camera": camera,
               "files": {name: FILES[name] for name in copied}, "missing": missing,
@@ -164,15 +179,22 @@ def _settle_args(args: argparse.Namespace) -> bool:
 
 
 def follow_by_hand(sock: Path, job: int, daemon) -> dict[str, Any]:
-    """`follow` the job, playing the operator whenever it waits for the roll to be
-    advanced: the simulated roll moved by the mm asked (slipping), then `resume`."""
+    """`follow` the job, playing the operator whenever it waits: for the roll to be
+    advanced (the simulated roll moved by the mm asked, slipping, then `resume`), or at
+    "confirm seams" (a CAD pattern's seams confirmed as found, as seams.png shows them)."""
     status = follow(sock, job)
-    while status["state"] == "paused" and (
-            mm := operator_advance_mm(status["reason"])) is not None:
-        print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
-              file=sys.stderr)
-        daemon.pipeline.roll.advance(mm)
-        request(sock, "resume", job=job)
+    while status["state"] == "paused":
+        if status["reason"].startswith(CONFIRM_SEAMS):
+            print("station demo: the operator looks at seams.png and confirms the seams",
+                  file=sys.stderr)
+            request(sock, "confirm", job=job)
+        elif (mm := operator_advance_mm(status["reason"])) is not None:
+            print(f"station demo: the operator advances the fabric {mm:.1f} mm and resumes",
+                  file=sys.stderr)
+            daemon.pipeline.roll.advance(mm)
+            request(sock, "resume", job=job)
+        else:
+            break
         status = follow(sock, job)
     return status
 
@@ -257,6 +279,23 @@ def cut_ready_parts(s: dict[str, Any]) -> list[str]:
     return parts
 
 
+def seam_lines(s: dict[str, Any]) -> list[str]:
+    """The summary's seam line: the print's mismatch across the seams on the simulated
+    cloth at the 90th percentile, as cut, uncompensated and planned (none: no bites)."""
+    cut, matched = s.get("seam_mismatch_mm"), s.get("seam_matched")
+    if not cut or not matched:
+        return []
+
+    def p90(d: dict[str, Any] | None) -> str:
+        return f"{d['p90']:.2f}" if d and d.get("p90") is not None else "n/a"
+
+    return [f"  seams p90     {p90(cut)} mm as cut on the cloth, "
+            f"{p90(s.get('seam_mismatch_uncompensated_mm'))} uncompensated, "
+            f"{p90(s.get('seam_mismatch_planned_mm'))} as planned; where the plan matched "
+            f"({matched['seam_mismatch_mm']['seams']} edges) {p90(matched['seam_mismatch_mm'])}"
+            f" mm, {p90(matched.get('seam_mismatch_uncompensated_mm'))} uncompensated"]
+
+
 def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
     def num(v, fmt: str) -> str:
         return "n/a" if v is None else format(v, fmt)
@@ -287,6 +326,7 @@ def print_summary(s: dict[str, Any], out: Path, missing: list[str]) -> None:
         f"  nest density  {num(s['nest_density'] and 100 * s['nest_density'], '.1f')}%",
         f"  pieces cut    {s['pieces_cut']}/{s['pieces_total']}"
         + (f" in {len(s['bites'])} bites" if s.get("bites") else ""),
+        *seam_lines(s),
         f"  time          {s['seconds']:.1f} s",
         f"  files in      {out}/ (report.json has everything)",
     ]

@@ -18,11 +18,13 @@ from station.cliargs import (
     add_garment_arguments,
     add_grain_arguments,
     add_symmetrise_argument,
+    load_fabric,
+    picture_path,
+)
+from station.cliload import (
     allowance_rules,
     garment_with_grain,
-    load_fabric,
     load_garment_arg,
-    picture_path,
     symmetrised_garment,
 )
 from station.front_view import draw_front_view

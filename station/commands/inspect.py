@@ -6,19 +6,18 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+from gcode.layout import load_layout
 from solver.garment.allowance import open_edges
 from solver.garment.grain import paired_grains
 from solver.garment.symmetry import centre_seams, mirror_pairs
-from station.cliargs import (
-    add_garment_arguments,
-    add_grain_arguments,
-    cli_pairs,
-    garment_with_grain,
-    load_garment_arg,
-)
+from station.cliargs import add_garment_arguments, add_grain_arguments
+from station.cliload import cli_pairs, garment_with_grain, load_garment_arg
+from station.commands.gcode import bites_beside
+from station.errors import UserError
 from station.seams_view import add_dxf_arguments, draw_seams, inspect_dxf
 from station.steps.garment import symmetrised
 
@@ -181,8 +180,23 @@ def _print_text(s: dict, out) -> None:
             print(f"    pair {i}~{j} left as it is: {why}", file=out)
 
 
+def refuse_marker(path: Path) -> None:
+    """A marker (LAYOUT.json) given for a garment: say so, and how to cut it, in one line."""
+    try:
+        load_layout(path)
+    except ValueError:
+        return  # not a marker: the garment's own loader says what is wrong
+    bites = bites_beside(path)
+    how = (f"it is cut in {len(bites.bites)} bites: `station gcode {path} --bite K -o "
+           f"BITE.nc` makes bite K's program" if bites is not None
+           else f"`station gcode {path} -o JOB.nc` makes its program")
+    raise UserError(f"{path}: a marker (LAYOUT.json), not a garment; {how}")
+
+
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    if str(args.garment).lower().endswith(".json"):
+        refuse_marker(Path(args.garment))
     dxf = inspect_dxf(args) if str(args.garment).lower().endswith(".dxf") else None
     g = garment_with_grain(dxf.garment if dxf else
                            load_garment_arg(args, resolution_mm=args.resolution_mm), args)
@@ -192,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     if dxf:  # issue 34: the inferred seams' confidences, the file's facts, the picture
         dxf.annotate(summary)
         if args.png:
-            draw_seams(dxf.pieces, dxf.seams, args.png)
+            draw_seams(dxf.pieces, dxf.seams, args.png, folds=dxf.folds())
     if args.symmetrise:
         summary["symmetrise"] = symmetrised(g, pairs)[1].to_dict()
     summary["seconds"] = round(time.perf_counter() - start, 4)

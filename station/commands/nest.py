@@ -19,10 +19,10 @@ from station import order_commands as order_command
 from station.cliargs import (
     add_allowance_arguments,
     add_config_argument,
-    allowance_rules,
     load_config_arg,
     picture_path,
 )
+from station.cliload import allowance_rules
 from station.errors import UserError
 from station.render import draw_marker
 
@@ -128,7 +128,7 @@ def run(args) -> int:
               f"window is {config['nest']['width_mm']:g} mm across (station.toml [nest] "
               "width_mm): station gcode will refuse it", file=sys.stderr)
     if args.png:
-        draw_marker(layout.to_dict(), args.png)
+        draw_marker(layout, args.png)
     summary = {"length": round(layout.length, 6), "width": layout.width,
                "density": round(layout.density, 6), "pieces": len(layout.pieces),
                "seconds": round(seconds, 3), "startup_seconds": round(startup, 3),

@@ -16,6 +16,7 @@ import cv2
 
 from solver.fit import fit_report
 from solver.garment import load_garment
+from solver.nest.layout import Layout
 from solver.placement import Placement
 from station.cliargs import add_config_argument, load_config_arg, picture_path
 from station.control import ControlError, request
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 def preview(plan: dict, output: str | Path, *, width_px: int = 1600) -> None:
     """Draw the marker of a planned job (its plan dict) into ``output``."""
     try:
-        layout = json.loads(Path(plan["layout"]).read_text())
+        layout = Layout.load(plan["layout"])
         garment = load_garment(plan["garment"])
         placement = Placement.load(plan["placement"])
     except FileNotFoundError as exc:

@@ -14,7 +14,8 @@ from typing import Any
 
 from solver.garment.grain import parse_grain_lines
 from solver.jsonfile import read_json
-from station.cliargs import load_config_arg, read_name_map
+from station.cliargs import load_config_arg
+from station.cliload import read_name_map
 from station.commands.console import add_console_arguments, ask
 from station.errors import UserError
 from station.steps.submission import check_job
@@ -42,6 +43,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bias", action="append", metavar="PIECE", help="cut this piece on the bias")
     p.add_argument("--pairs", metavar="P.json",
                    help="declare or veto left/right pairs for this job (sent by value)")
+    p.add_argument("--seams", metavar="S.json",
+                   help="a DXF pattern's seams, declared or vetoed as `station inspect "
+                   "--seams` takes them (sent by value): the job does not ask to confirm them")
     p.add_argument("--symmetrise", action="store_true",
                    help="cut each near left/right pair as one pattern, the average of the two")
     p.add_argument("--no-symmetry", action="store_true",
@@ -49,6 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-stripe-matching", action="store_true",
                    help="on a stripe print, nest on the stripes' grain without matching the "
                    "stripes across the seams (default: matched, as a 1-D print)")
+    p.add_argument("--match-notches", action="store_true",
+                   help="on a print, put the balance notches where its lattice lines cross "
+                   "each seam (the plaid's match points), not every ~200 mm")
     p.add_argument("--seam-allowance", type=float, metavar="MM",
                    help="seam allowance for this job (default: station.toml)")
     p.add_argument("--allowance", metavar="A.json",
@@ -131,6 +138,10 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
         options["match_stripes"] = False
     if args.symmetrise:
         options["symmetrise"] = True
+    if args.match_notches:
+        options["match_notches"] = True
     if args.pairs:
         options["pairs"] = read_json(args.pairs)
+    if args.seams:
+        options["seams"] = read_json(args.seams)
     return options

@@ -12,8 +12,11 @@ the operator at `OPERATOR_ADVANCE`), photograph, measure, follow. `bites_report`
 report's per-bite list.
 
 `save_bites` and `load_bites` keep the plan beside the job's layout.json (a job cut by
-another process reads it back); the cut loop itself is `station.steps.cutbites`. Not yet
-here: local maps of the print's own bow and stretch under each piece.
+another process reads it back); the cut loop itself is `station.steps.cutbites`.
+`localise` adds the print's own bow, skew and stretch: a local map of the print under
+each piece of a bite (`vision.localmap`), and each piece placed on the print as it lies,
+rigidly by default (a piece keeps its shape; what the map would have stretched is named
+as the seam error expected), or stretched with it (`[roll] follow_print`).
 """
 
 from __future__ import annotations
@@ -28,10 +31,29 @@ from typing import Any
 import numpy as np
 
 from solver.nest.bites import Bite, BitePlan, moved_piece, plan_bites
-from solver.nest.instance import compose
-from solver.nest.layout import Layout
+from solver.nest.instance import IDENTITY, affine, compose, invert
+from solver.nest.layout import Layout, Placed
+from station.config import FOLLOW_PRINT
 from station.steps.table import TableWindow
 from vision.advance import MIN_OVERLAP_MM, Advance, measure_advance
+from vision.localmap import (
+    LocalMap,
+    PrintReference,
+    fit_local_map,
+    local_shifts,
+    nearest_rigid,
+    tile_centres,
+)
+
+#: a piece whose seams are expected off the print by more than this (mm) is named in the
+#: report with that figure: the print's departure from one affine map under it, plus,
+#: placed rigidly, what the rigid placement leaves of that map at its sew line
+LOCAL_MAP_TOLERANCE_MM = 1.0
+#: a local map stretching or shearing a piece by more than this (a fraction) is no bow or
+#: skew of a print but tiles matched the wrong way: the piece keeps the track alone
+MAX_LOCAL_STRAIN = 0.03
+#: nor is a print whose tiles disagree with one affine map by a quarter of its repeat
+MAX_BEYOND_REPEAT = 0.25
 
 #: room kept at each end of the window (mm) for what one advance may do that was not
 #: commanded: a slip of up to 3 mm, and a skew of 0.2 degrees turning the far side
@@ -42,10 +64,16 @@ def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | No
                    ) -> BitePlan:
     """The bites of ``layout`` on this table; ``lattice`` (2, 2 columns, mm) of the print
     the pieces were placed on (None: plain cloth). Each bite keeps ``ROLL_MARGIN_MM`` of
-    the window free at both ends, so that one advance's error cannot push a piece off."""
+    the window free at both ends, so that one advance's error cannot push a piece off.
+    The first bite is cut where the marker was planned (`RollTrack`), and a marker on a
+    print may begin up to a repeat into the window: every bite is shorter by that lead,
+    so that the first still ends ``ROLL_MARGIN_MM`` before the window does and the first
+    advance, from there, leaves ``MIN_OVERLAP_MM`` of cloth in view."""
     usable = window.length - 2 * ROLL_MARGIN_MM
-    return plan_bites(layout, usable, lattice=lattice,
-                      max_advance_mm=usable - MIN_OVERLAP_MM)
+    first = min(float(p.outline[:, 0].min()) for p in layout.pieces) - float(layout.gap)
+    bite_mm = usable - max(0.0, first - ROLL_MARGIN_MM)
+    return plan_bites(layout, bite_mm, lattice=lattice,
+                      max_advance_mm=bite_mm - MIN_OVERLAP_MM)
 
 
 @dataclass
@@ -58,6 +86,11 @@ class RollTrack:
     marker_to_window: np.ndarray = field(default_factory=lambda: np.array(
         [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
     advances: list[Advance] = field(default_factory=list)
+    #: per piece of the bite on the table, window mm -> window mm: the local map of the
+    #: print under it (`localise`); a piece without one is cut where the track says
+    piece_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    #: per piece mapped, what its local map did (the report's ``local_maps``)
+    local: list[dict[str, Any]] = field(default_factory=list)
 
     def advance_for(self, bite: Bite) -> float:
         """The advance to command so that ``bite`` begins ``ROLL_MARGIN_MM`` into the
@@ -87,10 +120,85 @@ class RollTrack:
         """The pieces of ``bite`` where they now lie in the window (the marker's other
         pieces left out), ready for `station.steps.program.machine_layout`."""
         wanted = set(bite.pieces)
-        pieces = [moved_piece(p, self.marker_to_window) for p in plan.layout.pieces
-                  if p.id in wanted]
+        pieces = [moved_piece(p, compose(self.piece_maps.get(p.id, IDENTITY),
+                                         self.marker_to_window))
+                  for p in plan.layout.pieces if p.id in wanted]
         return replace(plan.layout, pieces=pieces, pairs=[],
                        length=plan.window_mm + 2 * ROLL_MARGIN_MM)
+
+
+def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: BitePlan,
+             reference: PrintReference, mm_per_px: float = 1.0,
+             follow: str = "affine") -> RollTrack:
+    """``track`` with a local map of the print under each piece of ``bite``, measured on
+    ``photograph`` (the window with the bite on it) against ``reference`` (the print as
+    planned). ``follow`` (`[roll] follow_print`): "affine" cuts the piece stretched and
+    sheared with the print (up to `MAX_LOCAL_STRAIN`): a roll's bow, skew and stretch are
+    the cloth's own (weft bow, tension on the table), so the piece follows the yarns and
+    is true, its seams as long as their twins, once the cloth lies relaxed. "rigid" only
+    turns and moves each piece onto the print, for a print misregistered on straight
+    cloth, and names what that leaves of the print's stretch and shear. All tiles of all
+    pieces are measured at once."""
+    if follow not in FOLLOW_PRINT:
+        raise ValueError(f"follow must be one of {', '.join(FOLLOW_PRINT)}, not {follow!r}")
+    wanted = set(bite.pieces)
+    pieces = [p for p in plan.layout.pieces if p.id in wanted]
+    if not pieces:
+        return track
+    centres, owner = [], []
+    for k, p in enumerate(pieces):
+        outline = affine(track.marker_to_window, p.outline)
+        c = tile_centres(np.array([outline.min(axis=0), outline.max(axis=0)]),
+                         photograph.shape[:2], mm_per_px=mm_per_px)
+        centres.append(c)
+        owner.append(np.full(len(c), k))
+    centres_px, owner = np.concatenate(centres), np.concatenate(owner)
+    shifts = local_shifts(photograph, reference, invert(track.marker_to_window), centres_px,
+                          mm_per_px=mm_per_px)
+    maps, notes = {}, []
+    repeat = float(np.hypot(*reference.basis).min())
+    for k, p in enumerate(pieces):
+        local = fit_local_map(centres_px[owner == k] * mm_per_px, shifts[owner == k])
+        kept = (local.tiles >= 3 and local.strain <= MAX_LOCAL_STRAIN
+                and local.beyond_mm <= MAX_BEYOND_REPEAT * repeat)
+        points, weights = sew_points(p, track.marker_to_window)
+        rigid, residual = nearest_rigid(local.correction, points, weights)
+        left_mm = float(residual.max())  # what the rigid map leaves of the affine one
+        chosen = rigid if follow == "rigid" else local.correction
+        if kept:  # else the print was not found under the piece: cut where the track says
+            maps[p.id] = chosen
+        notes.append({"piece": p.id, "bite": bite.index, "follow": follow,
+                      **_map_note(local, chosen if kept else None, points, weights,
+                                  left_mm if follow == "rigid" else 0.0),
+                      "rigid_residual_mm": round(left_mm, 3)})
+    return replace(track, piece_maps=maps, local=notes)
+
+
+def sew_points(piece: Placed, marker_to_window: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((n, 2) window mm, (n,) weights): the vertices of ``piece``'s sew line (where its
+    seams meet; its cut line when it has none), each weighted by the length of sew line
+    it stands for (half of each edge beside it), so that a densely drawn curve does not
+    outweigh a long straight seam."""
+    ring = affine(marker_to_window, piece.outline if piece.sew_line is None
+                  else piece.sew_line)
+    edge = np.hypot(*(np.roll(ring, -1, axis=0) - ring).T)
+    return ring, 0.5 * (edge + np.roll(edge, 1))
+
+
+def _map_note(local: LocalMap, chosen: np.ndarray | None, points: np.ndarray,
+              weights: np.ndarray, rigid_residual_mm: float) -> dict[str, Any]:
+    """The report's figures of one piece's map: how far the map ``chosen`` (None: refused)
+    moves the piece's sew-line centre, the print's strain and departure from one affine
+    map under it, and the seam error expected (at most the departure plus what a rigid
+    placement leaves of the map, ``rigid_residual_mm``, 0 when the piece follows it)."""
+    centre = weights @ points / weights.sum()
+    moved = 0.0 if chosen is None else float(np.hypot(*(affine(chosen, centre)[0] - centre)))
+    expected = None if chosen is None else local.beyond_mm + rigid_residual_mm
+    return {"tiles": local.tiles, "moved_mm": round(moved, 3),
+            "strain": round(local.strain, 5), "beyond_affine_mm": round(local.beyond_mm, 3),
+            "mapped": chosen is not None,
+            "seam_error_expected_mm": None if expected is None else round(expected, 3),
+            "distorted": expected is None or expected > LOCAL_MAP_TOLERANCE_MM}
 
 
 #: what the job waits at when the operator advances the roll by hand (`station resume`

@@ -9,13 +9,22 @@ advance and skew measured from the print), then cut its pieces where the cloth n
 is written before every advance and after every measurement, so a job paused, stopped
 or killed between bites resumes at the right bite, without advancing the roll twice;
 each piece is recorded cut in the job store at its sync point as ever, with its bite.
+
+An advance asked for before this process (of the operator, or sent to the conveyor by a
+daemon that died) may never have run: a power cut or a reset between the command and
+the move, an operator who resumed without advancing. Measured near the commanded
+advance, a periodic print would still match a whole number of repeats away, so before
+believing it the photograph is also measured against no advance at all
+(`roll_moved`): the roll found where it was is advanced again (or the operator asked
+again), and a print that cannot tell leaves the job paused, saying so. The job's log
+records every advance asked for and measured; the status names the bite being cut.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Protocol
 
@@ -25,25 +34,56 @@ from gcode.layout import Layout as MachineLayout
 from solver.nest.bites import Bite, BitePlan
 from station.daemon import JobControl, JobInterrupted
 from station.jobstore import Job, JobStore
-from station.steps.bites import OPERATOR_ADVANCE, BiteStep, RollTrack, bites_report, find_bite
+from station.steps.bites import (
+    OPERATOR_ADVANCE,
+    ROLL_MARGIN_MM,
+    BiteStep,
+    RollTrack,
+    bites_report,
+    find_bite,
+)
+from vision.advance import Advance, measure_advance
 
 STATE_FILE = "bites-state.json"
 PHOTO_FILE = "bite-photo.npy"
+#: each bite as handed to the cut: ``{"track": (2, 3) marker -> window mm, "pieces":
+#: {piece id: (2, 3) pattern -> window mm}}`` (local maps included)
+BITE_PIECES_FILE = "bite-{index}-pieces.json"
+
+
+#: the photographs show the same cloth under one explanation (advanced, or not moved)
+#: when its residual is under this share of the other's: the same cloth leaves only the
+#: camera's noise, cloth a whole advance away on a periodic print leaves the print's own
+#: irregularity on top. Measured on the simulated roll (plaid 80 mm, p2 50 mm), the
+#: other explanation left 1.5 to 4 times the same cloth's; a roll moved part of the
+#: way, 0.9 to 1.8 times (the advance then also measures more than ``ROLL_MARGIN_MM``
+#: off the commanded one, or the two explanations differ by less than this share).
+SAME_CLOTH_SHARE = 0.8
+#: a motion this small (mm, degrees) between two photographs is the roll at rest (the
+#: measurement's own error is 0.02 mm and 0.002 degrees)
+AT_REST_MM, AT_REST_DEG = 0.1, 0.01
 
 
 class Roll(Protocol):
     """How the station moves and sees the roll between bites: ``feed`` advances it by
     the mm given (None: the operator does, at `OPERATOR_ADVANCE`); ``photograph`` gives
-    the table window rectified, pixel (c, r) at window mm (c, r) * ``mm_per_px``."""
+    the table window rectified, pixel (c, r) at window mm (c, r) * ``mm_per_px``;
+    ``settle`` waits until a move an earlier process sent to the conveyor is over."""
 
     feed: Callable[[float], None] | None
     mm_per_px: float
 
     def photograph(self) -> np.ndarray: ...
 
+    def settle(self) -> None: ...
 
-#: cuts ``pieces`` (names) of a bite from the machine marker where the bite now lies
-CutBite = Callable[[MachineLayout, set[str]], None]
+
+#: cuts ``pieces`` (names) of a bite from the machine marker where the bite now lies,
+#: under the control it is given (the bite's, `BiteControl`)
+CutBite = Callable[[MachineLayout, set[str], JobControl], None]
+#: the track with a local map of the print under each piece of the bite, measured on the
+#: bite's photograph (`station.steps.bites.localise`)
+LocalMaps = Callable[[RollTrack, Bite, np.ndarray], RollTrack]
 
 
 @dataclass
@@ -86,52 +126,166 @@ class BiteJournal:
         tmp.replace(job_dir / STATE_FILE)
 
 
+@dataclass
+class BiteControl(JobControl):
+    """The job's control while it cuts a bite: the same flags and progress, and every
+    step the cut announces ("connecting", "cutting", ...) names the bite, so that the
+    status and `station watch` say "cutting, bite 2 of 3"."""
+
+    bite: str = field(default="", kw_only=True)
+
+    @classmethod
+    def of(cls, control: JobControl, bite: str) -> BiteControl:
+        return cls(control.job_id, control.pause, control.abort, control.stop,
+                   control.progress, bite=bite)
+
+    def start_step(self, step: str, fraction: float | None = None) -> None:
+        super().start_step(step, fraction)
+        self.progress["bite"] = self.bite
+
+
 def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
                  control: JobControl, *, roll: Roll, lattice: np.ndarray | None,
                  machine_marker: Callable[[RollTrack, Bite], MachineLayout],
-                 cut_bite: CutBite) -> list[Bite]:
+                 cut_bite: CutBite, local_maps: LocalMaps | None = None) -> list[Bite]:
     """Cut ``plan`` bite by bite (see the module's docstring); the bites as measured.
     ``machine_marker`` makes a bite's machine marker from the track, ``cut_bite`` cuts
-    pieces of it."""
+    pieces of it under the control it is given (the bite's); ``local_maps`` (None: none)
+    places each piece on the print under it, measured again from the journalled
+    photograph on a resume, so identically."""
     store.set_piece_bites(job.id, plan.bite_of())
     journal = BiteJournal.load(job_dir, plan)
     for bite in plan.bites:
         reached = journal.step.bite.index if journal.step is not None else -1
         if bite.index < reached:
             continue
+        named = BiteControl.of(control, f"{bite.index + 1} of {len(plan.bites)}")
         if bite.index > reached:
             control.checkpoint()
-            journal = _bring(journal, bite, roll, lattice, job_dir)
+            named.start_step("finding the print")
+            journal = _bring(journal, bite, roll, lattice, job_dir, lambda text, b=named.bite:
+                             store.log(job.id, "bite", f"bite {b}: {text}"))
             _write_bites(job_dir, journal.measured)
         left = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
         todo = left & set(bite.pieces)
         if todo:
-            control.start_step(f"cutting bite {bite.index + 1} of {len(plan.bites)}")
-            cut_bite(machine_marker(journal.step.track, bite), todo)
+            track = journal.step.track
+            if local_maps is not None:
+                track = local_maps(track, bite, journal.step.photograph)
+            marker = machine_marker(track, bite)
+            _record_pieces(job_dir, bite, marker, track)
+            cut_bite(marker, todo, named)
     return journal.measured
 
 
 def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | None,
-           job_dir: Path) -> BiteJournal:
+           job_dir: Path, log: Callable[[str], None]) -> BiteJournal:
     """``bite`` on the table and measured, journalled. Without a conveyor the job first
     waits for the operator (JobInterrupted, paused); `station resume` comes back here
-    with the roll advanced. An advance already sent is never sent again."""
+    with the roll advanced. An advance already asked for is asked for again only when
+    the print shows the roll where it was (`_advanced_photograph`)."""
     previous = journal.step
-    advanced = journal.advancing == bite.index
-    if previous is not None and not advanced:
-        journal = replace(journal, advancing=bite.index)
-        journal.save(job_dir)  # before the roll moves: a kill now must not move it twice
-        if roll.feed is None:
-            raise JobInterrupted("paused", OPERATOR_ADVANCE.format(
-                mm=previous.track.advance_for(bite)) + " (then: station resume)")
-    feed = roll.feed if previous is not None and not advanced else _already_advanced
-    step = find_bite(previous, bite, advance=feed, photograph=roll.photograph,
-                     lattice=lattice, mm_per_px=roll.mm_per_px)
-    if previous is None:
+    if previous is None:  # the first bite: the marker lies where it was planned
+        step = find_bite(None, bite, advance=_already_advanced, photograph=roll.photograph,
+                         lattice=lattice, mm_per_px=roll.mm_per_px)
         step = BiteStep(step.track, replace(bite, advance_commanded_mm=0.0), step.photograph)
+    else:
+        commanded = previous.track.advance_for(bite)
+        photo = _advanced_photograph(journal, previous, bite, roll, lattice, log)
+        if photo is None:  # not asked for yet, or asked for and never run
+            again = journal.advancing == bite.index
+            journal = replace(journal, advancing=bite.index)
+            journal.save(job_dir)  # before the roll moves: a kill now must not move it twice
+            if roll.feed is None:
+                raise JobInterrupted("paused", OPERATOR_ADVANCE.format(mm=commanded)
+                                     + " (then: station resume)"
+                                     + ("; the print showed it had not moved" if again else ""))
+            log(f"advancing the roll {commanded:.3f} mm")
+            roll.feed(commanded)
+            photo = roll.photograph()
+        step = find_bite(previous, bite, advance=_already_advanced,
+                         photograph=lambda: photo, lattice=lattice, mm_per_px=roll.mm_per_px)
     journal = BiteJournal(step, [*journal.measured, step.bite], None)
     journal.save(job_dir)
+    if previous is not None:  # logged once journalled: a restart now does not measure again
+        log(f"advance {step.bite.advance_commanded_mm:.3f} mm commanded, "
+            f"{step.bite.advance_measured_mm:.3f} mm measured, skew {step.bite.skew_deg:.4f} deg")
     return journal
+
+
+def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite, roll: Roll,
+                         lattice: np.ndarray | None, log: Callable[[str], None]
+                         ) -> np.ndarray | None:
+    """The window's photograph when the advance to ``bite`` was asked for before this
+    turn and the roll really made it; None when it was not asked for yet, or when the
+    print shows the roll where it was (the advance never ran). A print that cannot tell
+    leaves the job paused (JobInterrupted), its reason saying what to look at."""
+    if journal.advancing != bite.index:
+        return None
+    roll.settle()  # a conveyor the last daemon started may still be moving
+    photo = roll.photograph()
+    commanded = previous.track.advance_for(bite)
+    moved = roll_moved(previous.photograph, photo, commanded_mm=commanded, lattice=lattice,
+                       mm_per_px=roll.mm_per_px)
+    if moved is None:
+        raise JobInterrupted("paused", f"bite {bite.index + 1}: the print cannot tell "
+                             f"whether the roll advanced "
+                             f"{commanded:.1f} mm or not at all since the last bite: look "
+                             "whether the last bite's cuts still lie in the window, then "
+                             "station resume")
+    if not moved:
+        log(f"the roll had not moved since the advance of {commanded:.3f} mm was asked "
+            "for (never run): asking again")
+        return None
+    return photo
+
+
+def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
+               lattice: np.ndarray | None, mm_per_px: float) -> bool | None:
+    """Whether the roll advanced by about ``commanded_mm`` between the two photographs
+    (True), did not move (False), or the print cannot tell (None: it moved part of the
+    way, or the print repeats too perfectly). Both explanations are measured; the one
+    that shows the same cloth leaves the smaller residual (`SAME_CLOTH_SHARE`); "not
+    moved" also needs the motion found near zero to be nil (`AT_REST_MM`), "advanced"
+    a slip within the room kept for one (`ROLL_MARGIN_MM`): a print matched whole
+    repeats from where the roll really lies measures a slip of up to half a repeat."""
+    still = _explained(before, after, 0.0, lattice, mm_per_px)
+    moved = _explained(before, after, commanded_mm, lattice, mm_per_px)
+    at_rest = still is not None and max(abs(still.advance_mm), abs(still.across_mm)) \
+        < AT_REST_MM and abs(still.skew_deg) < AT_REST_DEG
+    if at_rest and (moved is None or still.residual < SAME_CLOTH_SHARE * moved.residual):
+        return False
+    if not at_rest and moved is not None and abs(moved.slip_mm) <= ROLL_MARGIN_MM and (
+            still is None or moved.residual < SAME_CLOTH_SHARE * still.residual):
+        return True
+    return None
+
+
+def _explained(before: np.ndarray, after: np.ndarray, commanded_mm: float,
+               lattice: np.ndarray | None, mm_per_px: float) -> Advance | None:
+    """The motion measured near ``commanded_mm``; None where the photographs do not
+    match near it at all."""
+    try:
+        return measure_advance(before, after, commanded_mm=commanded_mm, mm_per_px=mm_per_px,
+                               lattice=lattice)
+    except ValueError:
+        return None
+
+
+def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout, track: RollTrack
+                   ) -> None:
+    """``bite-K-pieces.json``: where each piece of the bite was cut, as its map from the
+    pattern to the window (what a report or an inspection holds against the cloth), and
+    report.json's ``local_maps``: what each piece's local map did."""
+    (job_dir / BITE_PIECES_FILE.format(index=bite.index)).write_text(json.dumps({
+        "track": track.marker_to_window.tolist(),
+        "pieces": {p.id: np.asarray(p.transform, float).tolist() for p in marker.pieces}}))
+    path = job_dir / "report.json"
+    report = json.loads(path.read_text()) if path.is_file() else {}
+    done = {row["piece"] for row in track.local}
+    report["local_maps"] = [r for r in report.get("local_maps", []) if r["piece"] not in done
+                            ] + track.local
+    path.write_text(json.dumps(report, indent=2, default=float))
 
 
 def _already_advanced(_mm: float) -> None:

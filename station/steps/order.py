@@ -67,19 +67,26 @@ def write_aligned(order: Order, aligned: list[OrderedGarment], path: str | Path)
     Path(path).write_text(json.dumps(d, indent=1) + "\n")
 
 
-def load_order_garment(item: OrderGarment) -> Garment:
-    """The garment's pattern in mm, in its size."""
-    return garment_files.load_garment(item.pattern, units=item.units, size=item.size)
+#: (mm, where from) a DXF pattern's cut line is inset by where the file gives no sew line
+Inset = tuple[float, str]
 
 
-def align_order(order: Order, align_one: AlignOne) -> list[OrderedGarment]:
+def load_order_garment(item: OrderGarment, inset: Inset | None = None) -> Garment:
+    """The garment's pattern in mm, in its size (a DXF's missing sew line: ``inset``, by
+    default 10 mm)."""
+    more = {} if inset is None else {"seam_allowance_mm": inset[0], "allowance_from": inset[1]}
+    return garment_files.load_garment(item.pattern, units=item.units, size=item.size, **more)
+
+
+def align_order(order: Order, align_one: AlignOne, inset: Inset | None = None
+                ) -> list[OrderedGarment]:
     """Every garment of ``order`` aligned by ``align_one`` (once per style and size)."""
     done: dict[tuple, tuple[Garment, Placement]] = {}
     out = []
     for item in order.garments:
         key = (item.pattern, item.size, item.units)
         if key not in done:
-            garment = load_order_garment(item)
+            garment = load_order_garment(item, inset)
             done[key] = garment, align_one(garment, item)
         garment, placement = done[key]
         placement = dataclasses.replace(placement, garment=str(item.pattern),

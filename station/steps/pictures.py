@@ -18,7 +18,7 @@ def draw_plan(plan: Plan, machine: Machine) -> None:
     credit = garment_credit(plan.report["garment"])  # the submitted file's licence
     draw_toolpath(plan.program, machine, plan.job_dir / "toolpath.png", credit=credit)
     printed = plan.wallpaper is not None
-    draw_marker(plan.layout.to_dict(), plan.job_dir / "marker.png",
+    draw_marker(plan.layout, plan.job_dir / "marker.png",
                 garment=plan.garment if printed else None, report=plan.fit,
                 photo=plan.captured.photo if printed else None,
                 photo_mm_per_px=plan.captured.mm_per_px if printed else 1.0, credit=credit,

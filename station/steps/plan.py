@@ -13,9 +13,10 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from gcode.machine import Machine
 from solver.fit import FitReport, fit_report
@@ -23,6 +24,7 @@ from solver.garment import Garment, save_obj
 from solver.nest.bites import BitePlan
 from solver.nest.layout import Layout
 from solver.placement import Placement
+from solver.reshape import ReshapeReport
 from solver.wallpaper import Wallpaper
 from station.allowance import rules_for_job
 from station.config import Config
@@ -38,6 +40,8 @@ from station.steps.records import Plan, Stage
 from station.stripes import stripe_grain, stripe_print
 
 log = logging.getLogger("station.plan")
+Cut = TypeVar("Cut")  # what a marker is nested of: a pattern, or an order's garments
+Nested = TypeVar("Nested")
 
 FABRIC_KEYS = ("group", "w1", "w2", "origin", "source", "confidence", "kind", "period_mm",
                "direction_deg", "grain_deg", "note")
@@ -68,12 +72,13 @@ class Pattern:
     garment: Garment
     path: Path
     fit: FitReport | None = None
+    units: str | None = None  # the file's units, when it does not say them itself
 
 
 def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
              control: JobControl) -> Plan:
     """Align, optionally reshape, nest and program one job (see the module's docstring)."""
-    garment, garment_path, symmetrised = job_garment(job, workdir)
+    garment, garment_path, symmetrised = job_garment(job, workdir, config)
     kind = captured.fabric.get("kind")
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment})
     stages: list[Stage] = []  # the states of the fit, for the pictures
@@ -160,53 +165,79 @@ def _place(job: Job, pattern: Pattern, wallpaper: Wallpaper, config: Config,
                           fabric_grain_deg=report.data["fabric"].get("grain_deg"))
     placement.garment = str(pattern.path)
     report.data["align"] = placement.report
-    aligned = Pattern(garment, pattern.path, fit_report(garment, placement))
+    aligned = Pattern(garment, pattern.path, fit_report(garment, placement),
+                      placement.garment_units)
     rules = rules_for_job(config, job.options)
     report.data["allowance"] = rules.to_dict()
     stages.append(Stage(folder / "fit-aligned.png", f"aligned on {group}", garment,
                         placement, aligned.fit, rules))
     report.step_done("align")
     control.checkpoint()
-    if not job.options.get("reshape", config["reshape"]["enabled"]):
+    if not reshaping(job, config):
         return [aligned], placement
     control.start_step("reshaping")
-    new, reshaped = reshape_placed(garment, placement, config)
-    path = folder / "garment-reshaped.obj"
-    save_obj(new, path)
+    fitted, reshaped = reshape_step(aligned, placement, config, folder / "garment-reshaped.obj")
     report.data["reshape"] = reshaped.to_dict()
-    fitted = Pattern(new, path, fit_report(new, placement))
-    stages.append(Stage(folder / "fit-reshaped.png", f"reshaped on {group}", new,
+    stages.append(Stage(folder / "fit-reshaped.png", f"reshaped on {group}", fitted.garment,
                         placement, fitted.fit, rules, original=garment))
     report.step_done("reshape")
     control.checkpoint()
     return [fitted, aligned], placement
 
 
-def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workdir: Path,
-                  config: Config, control: JobControl, report: JobReport
-                  ) -> tuple[Pattern, tuple[Layout, BitePlan | None]]:
-    """(the pattern cut, its marker): the reshaped pattern if the cutter can use it, else,
-    saying so, the aligned one (a reshaped outline crossing itself must not stop the job)."""
+def reshaping(job: Job, config: Config) -> bool:
+    """Whether ``job`` is reshaped: its option, else the station's ``[reshape] enabled``."""
+    return bool(job.options.get("reshape", config["reshape"]["enabled"]))
+
+
+def reshape_step(aligned: Pattern, placement: Placement, config: Config, path: Path
+                 ) -> tuple[Pattern, ReshapeReport]:
+    """(the pattern nudged so the print fits across its seams on ``placement``, written at
+    ``path`` as an OBJ in mm for the operator and whatever reads the plan back; its fit),
+    and the reshape's report: one garment's, or one style and size of an order's."""
+    new, reshaped = reshape_placed(aligned.garment, placement, config)
+    save_obj(new, path)
+    return Pattern(new, path, fit_report(new, placement), "mm"), reshaped
+
+
+def nest_progress(control: JobControl, config: Config) -> Callable[[str], None]:
+    """The nest's progress callback, the nesting step started: the share of the station's
+    nesting time spent."""
     seconds = config["nest"]["seconds"]
     control.start_step("nesting", 0.0)
-    t_nest = time.monotonic()
+    t0 = time.monotonic()
 
     def on_nest(_message: str) -> None:
         control.progress.update(step="nesting", fraction=min(
-            1.0, (time.monotonic() - t_nest) / seconds))
+            1.0, (time.monotonic() - t0) / seconds))
 
-    first = patterns[0]
-    try:
-        return first, _nest(first, placement, workdir, config, job.options, on_nest)
-    except ValueError as exc:
-        if len(patterns) == 1:
-            raise
-        log.error("job %d: the reshaped pattern cannot be nested (%s); cutting the "
-                  "aligned pattern instead", job.id, exc)
-        report.data["reshape"]["rejected"] = f"not used for cutting: {exc}"
-    aligned = patterns[1]
-    t_nest = time.monotonic()
-    return aligned, _nest(aligned, placement, workdir, config, job.options, on_nest)
+    return on_nest
+
+
+def first_nested(job: Job, candidates: list[Cut], nest: Callable[[Cut], Nested],
+                 report: JobReport) -> tuple[Cut, Nested]:
+    """(the candidate cut, its marker): the first (reshaped) if the cutter can use it, else,
+    saying so, the next (aligned): a reshaped outline crossing itself must not stop the
+    job. A candidate is a garment's pattern or an order's garments."""
+    for candidate in candidates[:-1]:
+        try:
+            return candidate, nest(candidate)
+        except ValueError as exc:
+            log.error("job %d: the reshaped pattern cannot be nested (%s); cutting the "
+                      "aligned pattern instead", job.id, exc)
+            report.data["reshape"]["rejected"] = f"not used for cutting: {exc}"
+    return candidates[-1], nest(candidates[-1])
+
+
+def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workdir: Path,
+                  config: Config, control: JobControl, report: JobReport
+                  ) -> tuple[Pattern, tuple[Layout, BitePlan | None]]:
+    """(the pattern cut, its marker): `first_nested` of the reshaped and aligned ones."""
+    def nest_one(pattern: Pattern) -> tuple[Layout, BitePlan | None]:
+        return _nest(pattern, placement, workdir, config, job.options,
+                     nest_progress(control, config))
+
+    return first_nested(job, patterns, nest_one, report)
 
 
 def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
@@ -215,6 +246,7 @@ def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
     """(the marker of ``pattern``, its bites if longer than the table); placement.json
     and layout.json written beside it."""
     placement.garment = str(pattern.path)
+    placement.garment_units = pattern.units or placement.garment_units  # reshaped: mm
     placement.save(workdir / "placement.json")
     layout, bites = placed_marker(pattern.garment, placement, config, progress, options,
                                   plain=plain)

@@ -14,11 +14,14 @@ from solver.wallpaper import Wallpaper
 from station.allowance import rules_for_job
 from station.config import Config
 from station.order import is_order_file, read_order
+from station.seams_confirm import checked_seams
 from station.steps.garment import grained
 
 JOB_OPTIONS = frozenset({"units", "size", "reshape", "method", "restarts", "seed", "grain_lines",
                          "bias", "seam_allowance", "allowance", "symmetry", "pairs",
-                         "symmetrise"})
+                         "symmetrise", "match_notches", "match_stripes", "seams"})
+#: job options that are true or false, and their default
+FLAGS = {"symmetry": True, "symmetrise": False, "match_notches": False, "match_stripes": True}
 
 
 def check_job(garment: str, fabric: str | None, options: dict[str, Any],
@@ -45,11 +48,15 @@ def check_job(garment: str, fabric: str | None, options: dict[str, Any],
         warnings.simplefilter("ignore")
         grained(loaded, config, options)  # names every piece that does not exist
     edge_allowances(loaded, rules_for_job(config, options), ())  # names must exist
-    for key in ("symmetry", "symmetrise"):
-        if not isinstance(options.get(key, key == "symmetry"), bool):
+    for key, default in FLAGS.items():
+        if not isinstance(options.get(key, default), bool):
             raise ValueError(f"job option {key} must be true or false")
     if "pairs" in options:
         pairs_from_dict(options["pairs"], loaded, "job option pairs")  # names must exist
+    if "seams" in options:  # the operator's seams of a CAD pattern: pieces must exist
+        if loaded.kind != "dxf":
+            raise ValueError(f"job option seams is for a DXF pattern; {garment} has its own")
+        checked_seams(options["seams"], set(loaded.piece_names), "job option seams")
 
 
 def _check_order(path: str, fabric: str | None, options: dict[str, Any], config: Config
@@ -59,9 +66,12 @@ def _check_order(path: str, fabric: str | None, options: dict[str, Any], config:
     given = [k for k in ("units", "size") if options.get(k) is not None]
     if given:
         raise ValueError(f"{path}: job option {given[0]} is the order file's to give")
-    if options.get("symmetrise") or options.get("reshape"):  # not yet run per garment
-        raise ValueError(f"{path}: an order is cut as aligned: drop job options symmetrise "
-                         "and reshape")
+    if options.get("symmetrise"):  # not yet run per garment
+        raise ValueError(f"{path}: an order's patterns are not symmetrised: drop job "
+                         "option symmetrise")
+    if "seams" in options:
+        raise ValueError(f"{path}: job option seams names one pattern's pieces; an order's "
+                         "patterns each have their own")
     order = read_order(path)
     seen = set()
     for item in order.garments:

@@ -17,6 +17,8 @@ import threading
 from collections import deque
 from typing import Any
 
+from station.progress import step_label
+
 log = logging.getLogger("station.web")
 
 EVENTS_KEPT = 300  # the log lines a page is shown (newest last)
@@ -116,7 +118,7 @@ class Feed:
         return {"name": fleet.info.name if fleet else "this station",
                 "state": "busy" if running else "idle",
                 "job": running.job_id if running else None,
-                "step": (running.progress.get("step") if running else None)}
+                "step": (step_label(running.progress) if running else None)}
 
     def _stations(self) -> list[dict[str, Any]]:
         """The fleet's stations with their state, or this lone station."""

@@ -4,7 +4,7 @@ Only files of the job's own folder under the work folder are ever read or served
 names from a fixed list: a request cannot name a path. The page draws the marker itself
 (an SVG over :func:`station.render.cloth_image`, the photographed fabric) so that each
 piece can change colour as the machine cuts it; the pictures the pipeline drew
-(detection, seam fit, toolpath) are served as they are.
+(detection, a CAD pattern's seams, seam fit, toolpath) are served as they are.
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ from typing import Any
 import cv2
 import numpy as np
 
+from solver.nest.layout import Layout
 from station.render import cloth_image
 
 #: the pictures a job's folder may hold, in the order the page offers them
-PICTURES = ("rectified.png", "detection.png", "frame.png", "marker.png", "fit-reshaped.png",
-            "fit-aligned.png", "fit-before.png", "toolpath.png")
+PICTURES = ("rectified.png", "detection.png", "seams.png", "frame.png", "marker.png",
+            "fit-reshaped.png", "fit-aligned.png", "fit-before.png", "toolpath.png")
 CLOTH_WIDTH_PX = 1400  # the marker's background, drawn once per job and kept
 FABRIC_KEYS = ("group", "confidence", "w1", "w2", "origin", "source", "kind", "units")
 
@@ -85,7 +86,8 @@ class JobFiles:
         photo_path = self.file(job_id, "rectified.png")
         photo = None if photo_path is None else cv2.imread(str(photo_path))
         mm_per_px = float((self._json(job_id, "camera.json") or {}).get("mm_per_px", 1.0))
-        image = cloth_image(layout, CLOTH_WIDTH_PX, photo=photo, photo_mm_per_px=mm_per_px)
+        image = cloth_image(Layout.from_dict(layout), CLOTH_WIDTH_PX, photo=photo,
+                            photo_mm_per_px=mm_per_px)
         ok, png = cv2.imencode(".png", image)
         if not ok:
             return None

@@ -20,7 +20,8 @@ from solver.garment.notches import (
 )
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
-from station.cliargs import add_allowance_arguments, allowance_rules
+from station.cliargs import add_allowance_arguments
+from station.cliload import allowance_rules
 from station.config import load_config
 from tests.conftest import DATA
 

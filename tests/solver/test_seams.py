@@ -52,8 +52,8 @@ def test_seams_of_a_generated_export_score_against_the_truth(tee_export):
         pieces = sew_pieces(read_dxf_pattern(path, allowance_mm=10.0).cut_list())
         seams = infer_seams(pieces)
     score = score_seams(truth, sample_seams(seams, pieces))
-    # measured 0.91 / 1.00 for seeds 0-4 (python -m bench seams); the issue asks 0.90
-    assert score.recall >= 0.85 and score.precision >= 0.85
+    # measured 0.911 / 1.00 for seeds 0-4 (python -m bench seams); the issue asks 0.90
+    assert score.recall >= 0.9 and score.precision >= 0.95
     assert all(0 <= s.confidence <= 1 and s.source == "inferred" for s in seams)
     for s in seams:  # every edge is sewn at most once: no two seams overlap on a piece
         for t in seams:
@@ -69,10 +69,13 @@ def test_seams_of_a_generated_export_score_against_the_truth(tee_export):
 @pytest.mark.parametrize(("garment", "options", "min_found"), [
     ("garmentcode/tshirt_specification.json", {}, 0.9),  # named left and right halves
     ("berkeley/tshirt-coarse.obj", {"units": "m"}, 0.65),  # unnamed pieces
+    ("garmentcode/pants_specification.json", {}, 0.9),  # back darts, a waistband over them
 ])
 def test_what_is_inferred_is_true(garment, options, min_found, tmp_path):
-    """Seams are inferred whole, named halves are told apart: measured 95 / 100 % and
-    70 / 100 % (found / inferred true) for every seed 0-4; 88 % and 89 % true before."""
+    """Seams are inferred whole, named halves are told apart, darts marked by notches and
+    drill holes are sewn and the waist across them: measured 95 / 100 %, 70 / 100 % and
+    92-98 / 100 % (found / inferred true) for every seed 0-4; the pants were 66 / 100 %
+    before darts were marked."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         g = load_garment(Path(__file__).resolve().parents[1] / "data" / "garments" / garment,

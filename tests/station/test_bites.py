@@ -21,16 +21,18 @@ from station.steps.bites import (
     plan_job_bites,
 )
 from station.steps.table import TableWindow
+from vision.advance import MIN_OVERLAP_MM
 
 WINDOW = TableWindow(0.0, 0.0, 800.0, 500.0)
 
 
-def _marker():
-    """Thirty 140 x 200 mm pieces in two rows: a marker 2.25 m long, three windows."""
+def _marker(lead: float = 0.0):
+    """Thirty 140 x 200 mm pieces in two rows: a marker 2.25 m long, three windows;
+    ``lead`` mm of cloth before the first (a marker placed on a print's phase)."""
     pieces = [Piece(f"r{i}", [[0, 0], [140, 0], [140, 200], [0, 200]]) for i in range(30)]
     problem = NestProblem(pieces, width=WINDOW.width, gap=5.0)
-    moves = [np.array([[1.0, 0.0, 5.0 + 150.0 * (i // 2)], [0.0, 1.0, 5.0 + 210.0 * (i % 2)]])
-             for i in range(30)]
+    moves = [np.array([[1.0, 0.0, lead + 5.0 + 150.0 * (i // 2)],
+                       [0.0, 1.0, 5.0 + 210.0 * (i % 2)]]) for i in range(30)]
     return build_layout(problem, problem.items(), moves)
 
 
@@ -90,3 +92,13 @@ def test_the_bites_keep_cloth_in_view_across_each_advance():
     usable = WINDOW.length - 2 * ROLL_MARGIN_MM
     assert plan.window_mm == pytest.approx(usable)
     assert max(b.advance_commanded_mm for b in plan.bites) <= usable - 40.0 + 1e-9
+
+
+def test_a_marker_that_begins_into_the_window_keeps_its_first_bite_and_advance_in_view():
+    """The first bite is cut where it was planned: 45 mm into the window, it still ends
+    ROLL_MARGIN_MM before the window does, and the first advance leaves cloth in view."""
+    plan = plan_job_bites(_marker(lead=45.0), WINDOW, None)
+    first = [p for p in plan.layout.pieces if p.id in plan.bites[0].pieces]
+    assert max(p.outline[:, 0].max() for p in first) <= WINDOW.length - ROLL_MARGIN_MM
+    advance = RollTrack().advance_for(plan.bites[1])
+    assert WINDOW.length - advance >= MIN_OVERLAP_MM

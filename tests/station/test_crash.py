@@ -47,6 +47,8 @@ FABRIC = {"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0], "units
 class Station:
     """A pty machine in this process and `station serve` processes started on demand."""
 
+    SERVE: tuple[str, ...] = ("serve",)  # the daemon's command line before --config
+
     def __init__(self, tmp: Path, speed: float) -> None:
         self.tmp = tmp
         self.emulator = GrblEmulator(speed=speed, force_origin=True, settings=SETTINGS,
@@ -73,7 +75,7 @@ class Station:
         self.starts += 1
         log = open(self.tmp / f"daemon-{self.starts}.log", "wb")  # noqa: SIM115
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "station.cli", "serve", "--config", str(self.config_path)],
+            [sys.executable, "-m", "station.cli", *self.SERVE, "--config", str(self.config_path)],
             stdout=log, stderr=log, cwd=self.tmp)
         log.close()
 
@@ -171,9 +173,11 @@ def contours(program) -> list[list[np.ndarray]]:
     return [c for c in out if c]
 
 
-def check_cut_exactly_once(station: Station, job: int) -> list[float]:
+def check_cut_exactly_once(station: Station, job: int, program_of=None) -> list[float]:
     """The store says every piece cut once; the machine's trace agrees (nothing cut twice
-    beyond the resumed attempts' overlap); the mm of closed contours cut twice."""
+    beyond the resumed attempts' overlap); the mm of closed contours cut twice.
+    ``program_of(name)``: the program that cut piece ``name`` alone (default: from the
+    job's layout.json, a marker cut whole where it was planned)."""
     store = JobStore(station.tmp / "jobs.db")
     try:
         pieces = store.pieces(job)
@@ -196,11 +200,12 @@ def check_cut_exactly_once(station: Station, job: int) -> list[float]:
     trace = station.emulator.trace
     seg = np.array([[s.x0, s.y0, s.x1, s.y1] for s in trace])
     beam_on = cutting(trace)  # a dark braking step does not break a run
-    config = load_config(station.config_path)
-    pipeline = StationPipeline(config)
+    if program_of is None:
+        pipeline = StationPipeline(load_config(station.config_path))
+        program_of = lambda name: pipeline.program_for(plan["layout"], {name})  # noqa: E731
     retraced_mm = []
     for p in pieces:
-        program = pipeline.program_for(plan["layout"], {p["name"]})
+        program = program_of(p["name"])
         for c, contour in enumerate(contours(program)):
             samples = densify(np.hstack([np.vstack(contour)[:-1], np.vstack(contour)[1:]]),
                               0.5)

@@ -3,17 +3,28 @@ advance measured on the simulated roll; the operator's wait; a kill between bite
 
 from __future__ import annotations
 
+import io
+import os
+
 import numpy as np
 import pytest
+import serial
 
+import simulators.grbl  # noqa: F401  (the emulator's grblsim:// URLs)
+from gcode.machine import machine_from_dict
 from simulators.fabric import random_print
+from simulators.grbl.registry import forget, lookup
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
-from station.daemon import JobControl, JobInterrupted
+from station.config import load_config
+from station.daemon import JobControl, JobInterrupted, wait_until
 from station.jobstore import JobStore
+from station.progress import follow
 from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
-from station.steps.cutbites import BiteJournal, cut_in_bites
+from station.steps.capture import real_camera
+from station.steps.cutbites import BiteJournal, cut_in_bites, roll_moved
+from station.steps.roll import CameraRoll
 from station.steps.table import TableWindow
 
 WINDOW = TableWindow(0.0, 0.0, 600.0, 400.0)
@@ -40,6 +51,9 @@ class SimRoll:
     def photograph(self) -> np.ndarray:
         return self.camera.photograph()
 
+    def settle(self) -> None:
+        """The simulated conveyor's moves are over when `advance` returns."""
+
 
 def _plan():
     """Twelve 120 x 150 mm pieces in two rows, 0.8 m of marker: two bites of the window."""
@@ -61,7 +75,7 @@ def _cutter(store, job, calls):
     """A cut that records every piece cut in the store (which refuses a second cut)."""
     index = {p["name"]: p["piece"] for p in store.pieces(job.id)}
 
-    def cut_bite(marker, pieces):
+    def cut_bite(marker, pieces, _control=None):
         calls.append((marker, set(pieces)))
         for name in sorted(pieces):
             store.set_piece_state(job.id, index[name], "cut")
@@ -143,7 +157,7 @@ def test_a_kill_within_a_bite_resumes_it_on_the_same_marker(tmp_path):
 
     cut_whole = _cutter(store, job, calls)
 
-    def cut_bite(marker, pieces):  # the second bite: two pieces cut, then the power goes
+    def cut_bite(marker, pieces, _control):  # the second bite: two cut, then the power goes
         if not pieces <= set(plan.bites[1].pieces):
             return cut_whole(marker, pieces)
         first_try.update({p.id: p.outline for p in marker.pieces})
@@ -163,3 +177,107 @@ def test_a_kill_within_a_bite_resumes_it_on_the_same_marker(tmp_path):
     for p in marker.pieces:  # the journalled track: the very outlines of the first try
         np.testing.assert_array_equal(p.outline, first_try[p.id])
     assert all(p["state"] == "cut" for p in store.pieces(job.id))
+
+
+def test_an_operator_who_resumes_without_advancing_is_asked_again(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(conveyor=False), []
+    with pytest.raises(JobInterrupted) as first:
+        _run(tmp_path, store, job, plan, roll, calls)
+    with pytest.raises(JobInterrupted) as again:  # `station resume`, the roll untouched
+        _run(tmp_path, store, job, plan, roll, calls)
+    assert again.value.state == "paused" and "had not moved" in again.value.reason
+    assert operator_advance_mm(again.value.reason) == operator_advance_mm(first.value.reason)
+    assert [pieces for _, pieces in calls] == [set(plan.bites[0].pieces)]
+    roll.conveyor.advance(operator_advance_mm(again.value.reason))
+    measured = _run(tmp_path, store, job, plan, roll, calls)
+    assert measured[1].advance_measured_mm == pytest.approx(roll.conveyor.poses[1].along,
+                                                            abs=0.3)
+    assert [pieces for _, pieces in calls] == [set(b.pieces) for b in plan.bites]
+
+
+def test_the_print_tells_a_roll_advanced_from_one_that_never_moved_or_moved_part_way():
+    roll = SimRoll()
+    before = roll.photograph()
+    commanded = 430.0
+    judged = {}
+    for name, moved_mm in (("still", 0.0), ("advanced", commanded), ("part way", 200.0),
+                           ("most of the way", 300.0)):
+        roll.conveyor.poses[1:] = []
+        if moved_mm:
+            roll.conveyor.advance(moved_mm)
+        judged[name] = roll_moved(before, roll.photograph(), commanded_mm=commanded,
+                                  lattice=roll.lattice, mm_per_px=1.0)
+    assert judged == {"still": False, "advanced": True, "part way": None,
+                      "most of the way": None}
+
+
+def test_a_roll_found_moved_part_way_leaves_the_job_paused_saying_why(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    roll, calls = SimRoll(), []
+
+    def power_cut(mm: float) -> None:  # the conveyor stops half way, the daemon dies
+        roll.conveyor.advance(mm / 2)
+        raise KeyboardInterrupt
+
+    roll.feed = power_cut
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, store, job, plan, roll, calls)
+    roll.feed = roll._feed
+    with pytest.raises(JobInterrupted) as paused:
+        _run(tmp_path, store, job, plan, roll, calls)
+    assert paused.value.state == "paused"
+    assert paused.value.reason.startswith("bite 2: the print cannot tell whether the roll "
+                                          "advanced")
+    assert roll.feeds == [] and len(calls) == 1  # nothing advanced or cut on a guess
+
+
+def test_the_status_names_the_bite_being_cut(tmp_path):
+    plan = _plan()
+    store, job = _job(tmp_path, plan)
+    control, seen = JobControl(job.id), []
+    cut_whole = _cutter(store, job, [])
+
+    def cut_bite(marker, pieces, bite_control):
+        bite_control.start_step("cutting", 0.0)  # as `station.steps.cut.cut_job` does
+        seen.append(dict(control.progress))  # what the daemon's status answer shows
+        cut_whole(marker, pieces)
+
+    roll = SimRoll()
+    cut_in_bites(job, tmp_path, plan, store, control, roll=roll, lattice=roll.lattice,
+                 machine_marker=lambda track, bite: track.bite_layout(plan, bite),
+                 cut_bite=cut_bite)
+    assert seen == [{"step": "cutting", "fraction": 0.0, "bite": "1 of 2"},
+                    {"step": "cutting", "fraction": 0.0, "bite": "2 of 2"}]
+    # `station watch`: a bar per bite
+    statuses = iter([{"state": "cutting", "reason": "", "pieces": {"cut": 0, "pending": 12},
+                      "progress": progress} for progress in seen]
+                    + [{"state": "done", "reason": "", "pieces": {"cut": 12}}])
+    shown = io.StringIO()
+    follow(lambda _job: next(statuses), job.id, stream=shown, interval=0.0)
+    assert shown.getvalue().splitlines() == ["  cutting, bite 1 of 2 ...",
+                                             "  cutting, bite 2 of 2 ...", "  done"]
+
+
+def test_a_restarted_station_waits_for_the_relay_conveyor_a_dead_daemon_left_running(
+        tmp_path):
+    """GRBL reports Idle through a dwell: the relay's run (M8, G4, M9) is waited for by
+    the line queued after it, not by the status."""
+    name = f"relay-{os.getpid()}"
+    url = f"grblsim://?name={name}&speed=10&force_origin=1"
+    dead = serial.serial_for_url(url, timeout=0.05)  # the daemon that died
+    try:
+        dead.write(b"M8\nG4 P4.000\nM9\nG4 P0\n")
+        emulator = lookup(name)
+        assert wait_until(lambda: emulator.parser_state.flood, 5, 0.01)
+        assert emulator.state == "Idle"  # the relay runs the roll, and the status says Idle
+        machine = machine_from_dict({"conveyor": {"kind": "relay", "mm_per_s": 100.0}})
+        roll = CameraRoll(load_config(None), machine, real_camera,
+                          lambda _config: serial.serial_for_url(url, timeout=0.05))
+        roll.settle()
+        assert not emulator.parser_state.flood  # the relay's M9 has run
+    finally:
+        dead.close()
+        forget(name)

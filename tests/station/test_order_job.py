@@ -61,7 +61,7 @@ def test_the_daemon_takes_an_order_with_its_patterns_and_refuses_a_bad_one(tee_o
 
 def test_an_order_is_planned_per_garment_into_one_marker_and_counted_per_garment(
         tee_order, tmp_path):
-    config = load_config(None, {"nest": {"seconds": 3.0, "length_mm": 3000.0}})
+    config = load_config(None, {"nest": {"seconds": 1.0, "length_mm": 3000.0}})
     fabric = tmp_path / "fabric.json"
     fabric.write_text(json.dumps(P4M_60))
     store = JobStore(tmp_path / "jobs.db")

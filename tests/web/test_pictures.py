@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 import station.render
+from solver.nest.layout import Layout
 from solver.wallpaper import Wallpaper
 from station.cli import main
 from station.render import cloth_image, fabric_picture, lattice_colours
@@ -47,8 +48,8 @@ def test_without_a_photograph_only_the_lattice_is_drawn():
 def test_the_cloth_under_a_marker_is_the_photograph():
     rng = np.random.default_rng(3)
     photo = rng.integers(0, 255, (120, 200, 3), dtype=np.uint8)
-    layout = {"length": 200 * 1.5, "width": 120 * 1.5, "pieces": [],
-              "fabric": {"group": "p1", "w1": [40, 0], "w2": [0, 40]}}
+    layout = Layout(width=120 * 1.5, length=200 * 1.5, gap=0.0, pieces=[],
+                    fabric={"group": "p1", "w1": [40, 0], "w2": [0, 40]})
     assert np.array_equal(cloth_image(layout, 200, photo=photo, photo_mm_per_px=1.5), photo)
     # without the photograph: the layout's lattice on plain cloth, every 40 mm
     ruled = cloth_image(layout, 300)  # 1 mm per pixel

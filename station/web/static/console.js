@@ -116,8 +116,17 @@ function showJobs(jobs) {
 
 function showQuestions(questions) {
   const boxes = questions.map((q) => {
-    const box = el("div", { class: "question", "data-job": q.job });
+    const box = el("div", { class: "question", "data-job": q.job, "data-question": q.question });
     box.append(el("p", {}, `Job ${q.job} asks: ${q.reason}`));
+    if (q.question === "confirm seams") {
+      // the seams numbered on both pieces; a correction goes by `station confirm N --seams`
+      const picture = el("img", { class: "seams", alt: "the seams found, numbered",
+        src: `/api/jobs/${q.job}/files/seams.png` });
+      const yes = el("button", { "data-answer": q.answer }, "Confirm seams");
+      yes.addEventListener("click", () => act(q.answer, q.job, {}));
+      box.append(picture, yes);
+      return box;
+    }
     const group = el("input", { placeholder: "group (empty: as detected)", size: "22" });
     const yes = el("button", { "data-answer": q.answer }, "Confirm fabric");
     yes.addEventListener("click", () => act(q.answer, q.job, group.value ? { group: group.value } : {}));
