@@ -94,7 +94,7 @@ def _content_key(flat: np.ndarray, basis: np.ndarray, *options: float) -> tuple:
     return (flat.shape, flat.dtype.str, pixels, np.asarray(basis, float).tobytes(), options)
 
 
-def _frozen(answer):
+def _frozen(answer: object) -> object:
     """``answer`` with its arrays read-only: it is handed to every caller that asks again,
     so none may change it in place."""
     if isinstance(answer, np.ndarray):
