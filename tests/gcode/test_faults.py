@@ -15,6 +15,8 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Iterable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -31,13 +33,25 @@ from gcode.toolpath import build_toolpaths
 sys.path.insert(0, str(Path(__file__).parent))  # gcode_helpers (importlib mode)
 from gcode_helpers import trace  # noqa: E402
 
-#: The every-position sweeps of the fault kinds added after issue 16 (about a minute of
-#: both cores): their sampled versions always run; the full ones on request, so the
+#: The every-position sweeps of the fault kinds added after issue 16 (half a minute,
+#: four runs at a time): their sampled versions always run; the full ones on request, so the
 #: whole suite stays within CI's ten minutes. Their results are in BENCHMARKS.md.
 full_sweep = pytest.mark.skipif(not os.environ.get("STATION_FULL_SWEEPS"),
                                 reason="full fault sweep: set STATION_FULL_SWEEPS=1")
 
 SETTINGS = "settings=32:1,130:1600,131:1000,110:12000,111:12000,120:1500,121:1500"
+
+#: How long the machine may sit Idle with lines unanswered (a lost newline) before the
+#: streamer stops (wall seconds). A lost byte leaves it so for good: nothing moves and
+#: nothing more is sent, so waiting longer changes no outcome, only the sweep's time (a
+#: stall ended one run in eight at 1 s). 0.4 s is 20 s of machine time at speed 50 and
+#: 40 times the 10 ms dwells (G4) the programs hold the controller Idle with a line out.
+STALL_S = 0.4
+
+#: Runs of a sweep at a time, each with its own emulator: a run waits on the machine's
+#: time most of its wall time (a fifth of it busy). Every position of the flip and drop
+#: sweeps stopped for the same reason four at a time as one by one (448 runs each way).
+SWEEP_RUNS = 4
 
 
 def _square(x: float, y: float, side: float) -> list[list[float]]:
@@ -172,7 +186,7 @@ def run_with(prog: Program, speed: float, kind: str | None = None, line: int = 0
         if rec.state == "cut" and not fully_cut(prog, em, piece):
             early.append(rec.id)
 
-    st = Streamer(port, response_timeout=2.0, stall_timeout=1.0, on_piece=on_piece)
+    st = Streamer(port, response_timeout=2.0, stall_timeout=STALL_S, on_piece=on_piece)
     st.connect(quiet=0.02)
     res = st.run(prog)
     assert not early, f"marked cut before the machine had cut them: {early}"
@@ -184,6 +198,20 @@ def run_with(prog: Program, speed: float, kind: str | None = None, line: int = 0
 def positions(prog: Program) -> list[tuple[int, int]]:
     """(line, offset) of every byte of the program on the wire."""
     return [(i, k) for i, ln in enumerate(wire_lines(prog)) for k in range(len(ln))]
+
+
+def sweep(prog: Program, kind: str, places: Iterable[tuple[int, int]],
+          value: bytes | None = None) -> None:
+    """``run_with`` at speed 50 with the fault ``kind`` at each (line, offset) of
+    ``places``, ``SWEEP_RUNS`` at a time; a failure names its place."""
+    with ThreadPoolExecutor(SWEEP_RUNS) as pool:
+        runs = {place: pool.submit(run_with, prog, 50, kind, *place, value=value)
+                for place in places}
+        for (line, offset), run in runs.items():
+            try:
+                run.result()
+            except AssertionError as exc:
+                raise AssertionError(f"{kind} at line {line}, byte {offset}: {exc}") from exc
 
 
 def test_tiny_job_runs_clean(tiny):
@@ -223,15 +251,13 @@ def test_named_flips_at_speed_1(tiny, what):
 
 @pytest.mark.parametrize("kind,stride", [("flip", 7), ("drop", 11)])
 def test_byte_faults_sampled_at_speed_50(tiny, kind, stride):
-    for line, offset in positions(tiny)[::stride]:
-        run_with(tiny, 50, kind, line, offset)
+    sweep(tiny, kind, positions(tiny)[::stride])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["flip", "drop"])
 def test_byte_faults_at_every_position_speed_50(tiny, kind):
-    for line, offset in positions(tiny):
-        run_with(tiny, 50, kind, line, offset)
+    sweep(tiny, kind, positions(tiny))
 
 
 @pytest.mark.parametrize("fault", ["error_at=12:20", "alarm_at=14:1", "reset_at=13",
@@ -342,8 +368,7 @@ def _line_of(prog: Program, prefix: bytes, nth: int = 0) -> int:
     ("insert_at", b"\x18", 29),  # a soft reset from the line
 ])
 def test_bytes_duplicated_or_inserted_toward_grbl_sampled(tiny, kind, value, stride):
-    for line, offset in positions(tiny)[::stride]:
-        run_with(tiny, 50, kind, line, offset, value=value)
+    sweep(tiny, kind, positions(tiny)[::stride], value)
 
 
 @pytest.mark.parametrize("kind,value", [
@@ -355,25 +380,23 @@ def test_faults_on_grbls_transmit_line_sampled(tiny, kind, value):
     """Bytes GRBL sends: `ok`s, reports and the banner, from a few bytes to a report
     length after each of a spread of lines goes out."""
     lines = wire_lines(tiny)
-    for i, line in enumerate(range(3, len(lines), 4)):
-        run_with(tiny, 50, kind, line, (7 * i) % 60, value=value)
+    sweep(tiny, kind, [(line, (7 * i) % 60) for i, line in enumerate(range(3, len(lines), 4))],
+          value)
 
 
 @pytest.mark.parametrize("kind,stride", [("drop_ok_at", 4), ("dup_ok_at", 2)])
 def test_an_ok_lost_or_doubled_never_marks_a_piece_cut_early(tiny, kind, stride):
     """A doubled ok moves every later answer onto the line after its own. The sync line
     still only counts once the machine has run the cut: the `M5` before it is answered
-    only after the motion ends. A lost ok ends in the stall timeout (1 s each)."""
-    for line in range(0, len(wire_lines(tiny)), stride):
-        run_with(tiny, 50, kind, line, 0)
+    only after the motion ends. A lost ok ends in the stall timeout (``STALL_S`` each)."""
+    sweep(tiny, kind, [(line, 0) for line in range(0, len(wire_lines(tiny)), stride)])
 
 
 @pytest.mark.slow
 @full_sweep
 @pytest.mark.parametrize("kind", ["drop_ok_at", "dup_ok_at"])
 def test_every_ok_lost_or_doubled(tiny, kind):
-    for line in range(len(wire_lines(tiny))):
-        run_with(tiny, 50, kind, line, 0)
+    sweep(tiny, kind, [(line, 0) for line in range(len(wire_lines(tiny)))])
 
 
 @pytest.mark.parametrize("where", [b"G1X26.1Y26.1", b"G4", b"G0X39.9", b"M4S700"])
@@ -430,5 +453,4 @@ def test_an_override_byte_from_the_line_stops_the_cut(tiny, byte, reason):
 @pytest.mark.parametrize("kind,value", [("dup_byte_at", None), ("insert_at", b"\n"),
                                         ("insert_at", b"!")])
 def test_bytes_duplicated_or_inserted_at_every_position_speed_50(tiny, kind, value):
-    for line, offset in positions(tiny):
-        run_with(tiny, 50, kind, line, offset, value=value)
+    sweep(tiny, kind, positions(tiny), value)
