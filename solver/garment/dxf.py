@@ -26,6 +26,7 @@ import shapely
 
 import untrusted
 from solver.garment.dxf_file import chain_rings, read_blocks, reflect, texts, units_scale
+from solver.geometry import polygon_area
 from solver.seams.darts import open_darts
 
 __all__ = ["DxfPattern", "DxfPiece", "read_dxf_pattern"]
@@ -148,7 +149,9 @@ def _notches(entities, scale: float) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _ccw(ring: np.ndarray) -> np.ndarray:
-    return ring[::-1].copy() if shapely.Polygon(ring).area < 0 else ring
+    """The ring counter-clockwise (a CAD draws pieces either way; shapely's area is
+    unsigned, so the shoelace sign decides)."""
+    return ring[::-1].copy() if polygon_area(ring) < 0 else ring
 
 
 def _largest_ring(parts: list[np.ndarray], tol: float) -> np.ndarray | None:

@@ -101,7 +101,7 @@ def meeting_triples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray
     """(m,3) indices into ``pairs``: two candidates that follow each other along one piece's
     line where it turns no sharp corner, sewn there to a corner of each of two other pieces
     (an armhole turns into the shoulder), and a candidate between those two that ends at
-    those two corners."""
+    those two corners; the two are no copies of one piece."""
     lengths = [p.length for p in pieces]
     sharp = [p.corners(SHARP_DEG)[0] for p in pieces]
     corner = [p.corners()[0] for p in pieces]
@@ -119,11 +119,18 @@ def meeting_triples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray
             if starts:
                 continue  # x ends at the break, y starts there
             for ky, s2, starts2, b, pb in here:
-                if not starts2 or len({p, f, b}) < 3 or not _close(s, s2, lengths[p]):
+                if not starts2 or len({p, f, b}) < 3 or not _close(s, s2, lengths[p]) \
+                        or _copies(pieces[f], pieces[b]):
                     continue
                 out |= {(kx, ky, kz) for kz, u, v in by_pieces[(f, b)]
                         if _close(u, pf, lengths[f]) and _close(v, pb, lengths[b])}
     return np.array(sorted(out), dtype=int).reshape(-1, 3)
+
+
+def _copies(a: SewPiece, b: SewPiece) -> bool:
+    """Whether two pieces are copies of one pattern piece (a left and a right): a cap's two
+    armholes are a front and a back, never a piece and its mirror image."""
+    return bool(a.family) and a.family == b.family
 
 
 def _cap_halves(x: Run, y: Run, underarm: float, length: float, sharp: np.ndarray) -> bool:
@@ -157,7 +164,7 @@ def tube_meetings(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
             xs = [e for e in by_piece[p] if e[2] and _close(e[1], u1, length)]
             ys = [e for e in by_piece[p] if not e[2] and _close(e[1], u2, length)]
             for (kx, _, _, f, pf), (ky, _, _, g, pg) in itertools.product(xs, ys):
-                if len({p, f, g}) == 3 and _cap_halves(
+                if len({p, f, g}) == 3 and not _copies(pieces[f], pieces[g]) and _cap_halves(
                         _run_on(runs, pairs[kx], p), _run_on(runs, pairs[ky], p),
                         max(a.length, b.length), length, sharp[p]):
                     out |= {(kx, ky, kz, ku) for kz, v, w in by_pieces[(f, g)]

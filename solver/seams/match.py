@@ -63,6 +63,13 @@ WHOLE_BONUS = 0.3  # both sides run corner to corner between pieces whose names 
 SHOULDER_MM = 150.0  # a front and a back (named so) are mirror images across their
 # shoulders: a seam this short between pieces of other kinds is no centre line
 DART_BONUS = 0.6  # two equal legs at a sharp reflex tip: a dart, as sure as matching notches
+BAND_KINDS = frozenset(("collar",))  # a neck rib or band, sewn stretched (a waistband or
+# cuff too, knit, but a woven one's other edge then finds a stretched partner by chance:
+# GarmentCode's pants 100 -> 92 % true with them)
+BAND_STRETCH = (1.1, 1.45)  # a rib is cut ~70-90 % of the edge it is sewn to
+BAND_SCORE = 0.3  # a stretched band, known by its name alone: too weak to be sewn but as
+# the two halves of a meeting (a neck rib's halves on a front and a back neckline, met by
+# the shoulder seam), which :data:`MEETING_MM` pays for
 
 
 @dataclass(frozen=True)
@@ -114,10 +121,29 @@ def _length_score(a: Run, b: Run) -> tuple[float, bool]:
     return (-GATHER_PENALTY, True) if gather else (-1.0, False)
 
 
+def _band(piece: SewPiece) -> bool:
+    """Whether the piece's name says it is a neck rib or band (:data:`BAND_KINDS`)."""
+    return bool(name_parts(piece.name)[0] & BAND_KINDS)
+
+
+def _stretched(a: Run, b: Run, pieces: list[SewPiece]) -> bool:
+    """Whether the shorter run is a straight edge of a band stretched onto the longer run of
+    a piece that is no band, by :data:`BAND_STRETCH`."""
+    short, long_ = sorted((a, b), key=lambda r: r.length)
+    ratio = long_.length / short.length
+    return (_band(pieces[short.piece]) and not _band(pieces[long_.piece])
+            and short.straightness >= 0.98
+            and BAND_STRETCH[0] <= ratio <= BAND_STRETCH[1])
+
+
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
     """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
     seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
     on each other only for a candidate that could still pass."""
+    if _stretched(a, b, pieces):  # a straight rib takes the shape of its edge, and a neck's
+        # centre notch has no twin on a rib cut without: neither shape nor notches tell
+        names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
+        return BAND_SCORE if names > 0 else -1.0
     s, gathered = _length_score(a, b)
     if s <= -1.0:
         return -1.0
@@ -147,7 +173,10 @@ def _halves_penalty(pieces: list[SewPiece], a: Run, b: Run, mirror: float) -> fl
     if (copies or (mirror > MIRROR_IOU and not shoulder)) and not _along_grain(pa, a):
         # (unnamed pieces may as well be identical gores, which do meet so)
         return 2.0 if copies else (1.0 if _named(pa, pb) else 0.5)
-    return 0.5 if copies else 0.0  # a left and a right are rarely sewn to each other
+    if copies:  # a left and a right are rarely sewn to each other, and then only along a
+        # centre line, where they are mirror images (a back cut twice, sewn at the centre)
+        return 0.5 if mirror > MIRROR_IOU else 2.0
+    return 0.0
 
 
 def _other_kinds(a: SewPiece, b: SewPiece) -> bool:
@@ -190,22 +219,28 @@ def _dart(a: Run, b: Run, length: float, tips: np.ndarray) -> bool:
                for m in meet) if len(tips) else False
 
 
-def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray]) -> np.ndarray:
+def _pairs(runs: list[Run], lengths: list[float], tips: list[np.ndarray],
+           bands: list[bool] | None = None) -> np.ndarray:
     """(k,2) indices of run pairs whose lengths agree within tolerance, or within
-    :data:`GATHER_MAX` when both have notches (a gathered seam): on two pieces, or the two
-    legs of a dart on one piece."""
+    :data:`GATHER_MAX` when both have notches (a gathered seam), or a band's run (``bands``:
+    per piece) shorter by :data:`BAND_STRETCH`: on two pieces, or the two legs of a dart on
+    one piece."""
     length = np.array([r.length for r in runs])
     piece = np.array([r.piece for r in runs])
     notched = np.array([bool(r.notches) for r in runs])
+    band = np.array([bool(bands and bands[r.piece]) for r in runs], dtype=bool)
     order = np.argsort(length)
     ls = length[order]
     out = []
     for k, i in enumerate(order.tolist()):
         eased = ls[k] / (1 - max(LENGTH_TOL, EASE_TOL))
-        hi = np.searchsorted(ls, ls[k] * GATHER_MAX if notched[i] else eased, side="right")
+        hi = np.searchsorted(ls, ls[k] * GATHER_MAX if notched[i] or band[i] else eased,
+                             side="right")
         j = order[k + 1:hi]
         same = piece[j] == piece[i]
-        ok = ~same & ((length[j] <= eased) | notched[j])  # longer: gathered, notched both
+        stretched = band[i] & ~band[j] & (length[j] <= ls[k] * BAND_STRETCH[1])
+        ok = ~same & ((length[j] <= eased) | notched[j] | stretched)  # longer: gathered,
+        # notched both, or a band stretched onto it
         ok[same] = [_dart(runs[i], runs[m], lengths[piece[i]], tips[piece[i]])
                     for m in j[same].tolist()]
         j = j[ok]
@@ -246,7 +281,7 @@ def choose_seams(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray]
     runs = [r for r in runs if not any(_overlaps(r, f, pieces[r.piece].length) for f in fixed)]
     tips = [pos[turn < -DART_TIP_DEG] for pos, turn in (p.corners(DART_TIP_DEG)
                                                          for p in pieces)]
-    pairs = _pairs(runs, [p.length for p in pieces], tips)
+    pairs = _pairs(runs, [p.length for p in pieces], tips, [_band(p) for p in pieces])
     if vetoed:
         pieces_of = np.array([r.piece for r in runs], dtype=int).reshape(-1)
         keep = [frozenset((int(pieces_of[i]), int(pieces_of[j]))) not in vetoed
@@ -262,11 +297,14 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
     strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
+    bands = np.array([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()],
+                     dtype=bool).reshape(-1) & (scores >= 0)
     tubes = _tube_pairs(runs, [p.length for p in pieces])
     pairs, scores, triples = _with_closing(
         pieces, runs, np.vstack([pairs, tubes]),
         np.concatenate([scores, [_tube_score(runs[i], runs[j]) for i, j in tubes.tolist()]]),
-        np.concatenate([strong, np.zeros(len(tubes), bool)]), len(pairs))
+        np.concatenate([strong, np.zeros(len(tubes), bool)]), len(pairs),
+        np.concatenate([bands, np.zeros(len(tubes), bool)]))
     if not len(pairs):
         return []
     offset = np.concatenate([[0], np.cumsum([len(c) for c in cuts])])
@@ -278,10 +316,13 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
                 cols.append(k)
     a = np.zeros((int(offset[-1]), len(pairs)))
     a[rows, cols] = 1.0
-    weight = scores * np.minimum([runs[i].length for i in pairs[:, 0]],
-                                 [runs[j].length for j in pairs[:, 1]]) - SEAM_COST_MM
+    la, lb = [runs[i].length for i in pairs[:, 0]], [runs[j].length for j in pairs[:, 1]]
+    band = np.array([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()])
+    covered = np.where(band, np.maximum(la, lb), np.minimum(la, lb))  # a band covers its edge
+    weight = scores * covered - SEAM_COST_MM
     x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
-                             order_conflicts(pieces, runs, pairs)], triples)
+                             order_conflicts(pieces, runs, pairs),
+                             _one_band_meeting(runs, pairs, band, triples)], triples)
     if x is None:
         return []
     chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
@@ -290,23 +331,44 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
 
 
 def _with_closing(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
-                  scores: np.ndarray, strong: np.ndarray, n_tube: int
+                  scores: np.ndarray, strong: np.ndarray, n_tube: int, bands: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """The strong candidates, and the weak ones (scoring at least :data:`CLOSING_SCORE`)
     that close a meeting of two strong ones (a shoulder between a front and a back that
     mirror each other across it, unnamed; a tube sleeve's underarm: ``pairs`` from
-    ``n_tube`` on), with the meetings (index arrays into the kept)."""
+    ``n_tube`` on) or of two stretched ``bands`` (a neck rib's halves), with the meetings
+    (index arrays into the kept)."""
     idx = np.flatnonzero(strong | (scores >= CLOSING_SCORE))
     ok = strong[idx]
+    half = ok | bands[idx]
     tubes = np.flatnonzero(idx >= n_tube)
-    groups = [g for g in (meeting_triples(pieces, runs, pairs[idx]),
-                          tube_meetings(pieces, runs, pairs[idx], tubes)) if len(g)]
-    groups = [g[ok[g[:, 0]] & ok[g[:, 1]]] for g in groups]
+    groups = [meeting_triples(pieces, runs, pairs[idx]),  # a band's halves meet here,
+              tube_meetings(pieces, runs, pairs[idx], tubes)]  # not round a sleeve's tube
+    groups = [g[h[g[:, 0]] & h[g[:, 1]]] for g, h in zip(groups, (half, ok), strict=True)
+              if len(g)]
     keep = ok.copy()
     for g in groups:
-        keep[g[:, 2:].reshape(-1)] = True
+        keep[g.reshape(-1)] = True
     new = np.cumsum(keep) - 1
     return pairs[idx[keep]], scores[idx[keep]], [new[g] for g in groups]
+
+
+def _one_band_meeting(runs: list[Run], pairs: np.ndarray, band: np.ndarray,
+                      groups: list[np.ndarray]) -> np.ndarray:
+    """(r,4) rows: the halves of two meetings of stretched bands on one band piece, never
+    all four. A folded rib's two raw edges are sewn together onto one neckline; its second
+    edge would otherwise find the armholes, as long and meeting at the side seam as the
+    neckline's halves do at the shoulder."""
+    rows: list[tuple[int, ...]] = []
+    if not groups:
+        return np.zeros((0, 4), dtype=int)
+    halves = [g[:2] for g in groups[0].tolist() if band[g[0]] and band[g[1]]]
+    piece = [min((runs[i] for i in pairs[h[0]]), key=lambda r: r.length).piece for h in halves]
+    for i, (x1, y1) in enumerate(halves):
+        for j in range(i + 1, len(halves)):
+            if piece[i] == piece[j] and not {x1, y1} & set(halves[j]):
+                rows.append((x1, y1, *halves[j]))
+    return np.array(rows, dtype=int).reshape(-1, 4)
 
 
 def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],

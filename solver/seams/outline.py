@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from solver.geometry import polygon_area
+
 __all__ = ["SewPiece", "arc_position", "point_at", "sewn_line", "sub_loop"]
 
 CORNER_DEG = 30.0  # a sew line turning by more than this at one point has a corner there
@@ -41,7 +43,7 @@ class SewPiece:
 
     def __post_init__(self) -> None:
         loop = np.asarray(self.loop, float).reshape(-1, 2)
-        if shapely.Polygon(loop).area < 0:
+        if polygon_area(loop) < 0:  # (shapely's area is unsigned)
             loop = loop[::-1]
         self.loop = loop
         seg = np.linalg.norm(np.roll(loop, -1, axis=0) - loop, axis=1)
