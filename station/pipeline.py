@@ -62,6 +62,10 @@ class StationPipeline:
         self._roll: Roll | None = None  # the roll on the table, made at the first bite
         self.machine = station_machine(config)
         self.window = table_window(config, self.machine)  # refused here, not after planning
+        # a marker longer than the table is cut in bites only where each advance can be
+        # found again on a photograph: not by a station with no camera configured
+        self.can_bite = (open_camera is not real_camera
+                         or config["camera"]["source"] != "simulated")
         # Plans made here by job id, used only while the store's record is still this
         # one's (another station may have planned the job again since).
         self._planned: dict[int, Plan] = {}
@@ -89,7 +93,8 @@ class StationPipeline:
         if captured is None:
             captured = Captured.read(job.plan["fabric"], workdir)
         plan_of = plan_order if is_order_file(job.garment) else plan_job  # an order: per garment
-        plan = plan_of(job, captured, workdir, self.config, self.machine, control)
+        plan = plan_of(job, captured, workdir, self.config, self.machine, control,
+                       can_bite=self.can_bite)
         draw_plan(plan, self.machine)
         self._planned.pop(job.id, None)
         self._planned[job.id] = plan

@@ -125,12 +125,18 @@ def nest_lattice(problem: NestProblem, *, time_limit: float | Deadline = 30.0, s
 def _default_strategies(problem: NestProblem, items: list, deadline: Deadline,
                         any_phase: bool = False) -> tuple[str, ...]:
     """Joint, fill, dotted (if the model is small enough), coset; naive first when not
-    even a whole fill fits the time. Free of phase: fill, dotted, joint, coset."""
+    even a whole fill fits the time. Free of phase: fill, dotted, joint, coset, when the
+    quick fill's small share still holds a whole fill (else, under a short budget or a
+    loaded machine, no strategy would finish a marker: the found-phase order)."""
     small = positions(problem, items, problem.piece_area / (problem.width * LIKELY))
     strategies = ("joint", "fill", "dotted", "coset") if small <= MAX_OPTIONS else (
         "joint", "fill", "coset")
     if any_phase and small <= MAX_OPTIONS:  # see PHASE_SHARES
-        strategies = ("fill", "dotted", "joint", "coset")
+        phase_order = ("fill", "dotted", "joint", "coset")
+        fill_time = deadline.left() * PHASE_SHARES["fill"] / sum(
+            PHASE_SHARES[s] for s in phase_order)
+        if 2 * first_fill_estimate(items) <= fill_time:  # 2: the estimate's spread
+            return phase_order
     first = deadline.left() * SHARES[strategies[0]] / (SHARES[strategies[0]] + SHARES["fill"])
     if 2 * first_fill_estimate(items) > first:  # 2: the estimate's spread under load
         # too short for a whole fill: the naive marker is certain and quick, a fill

@@ -45,16 +45,17 @@ def nest_placement(garment: Garment, placement: Placement, config: Config,
 
 def placed_marker(garment: Garment, placement: Placement, config: Config,
                   progress: Callable[[str], None] | None = None,
-                  options: dict[str, Any] | None = None, *, plain: bool = False
-                  ) -> tuple[Layout, BitePlan | None]:
+                  options: dict[str, Any] | None = None, *, plain: bool = False,
+                  can_bite: bool = True) -> tuple[Layout, BitePlan | None]:
     """(the verified marker, its bites or None): as `nest_placement`, but a marker longer
-    than the table window is nested on the roll and planned in bites."""
+    than the table window is nested on the roll and planned in bites (when ``can_bite``: the
+    station can find the print again after an advance)."""
     seconds = config["nest"]["seconds"]
     deadline = Deadline(seconds)  # making the cut lines and verifying count too
     problem = placement_problem(garment, placement, **problem_size(config),
                                 allowance=rules_for_job(config, options or {}), plain=plain)
     return nest_in_window_or_bites(problem, config_window(config), seconds, progress,
-                                   deadline=deadline)
+                                   deadline=deadline, can_bite=can_bite)
 
 
 def problem_size(config: Config) -> dict[str, float]:
@@ -77,18 +78,20 @@ def nest_verified(problem: NestProblem, deadline: Deadline,
 
 def nest_in_window_or_bites(problem: NestProblem, window: TableWindow, seconds: float,
                             progress: Callable[[str], None] | None = None, *,
-                            deadline: Deadline | None = None
+                            deadline: Deadline | None = None, can_bite: bool = True
                             ) -> tuple[Layout, BitePlan | None]:
     """(the marker, its bites or None): the marker within the window when it fits there
     (by ``deadline``, default ``seconds`` from now), else nested on the roll with no
-    length limit, in ``seconds`` more, and planned in bites of the window."""
+    length limit, in ``seconds`` more, and planned in bites of the window. A station that
+    cannot cut in bites (``can_bite`` False: no camera to find the print after an advance)
+    gets the window's nest or its refusal, never bites it could not cut."""
     area = sum(p.area * p.quantity * (2 if p.mirrored_pair else 1) for p in problem.pieces)
-    if area < WINDOW_FILL_LIMIT * window.length * window.width:
+    if not can_bite or area < WINDOW_FILL_LIMIT * window.length * window.width:
         try:  # the whole time, as ever: a marker that fits is nested as it always was
             return nest_verified(problem, deadline or Deadline(seconds), progress), None
         except ValueError as exc:
-            if "verification" in str(exc):
-                raise  # a fault of the nest, not a marker too long for the window
+            if "verification" in str(exc) or not can_bite:
+                raise  # a fault of the nest, or no bites: not a marker for the roll
     roll = replace(problem, length=None)  # (a second budget: the window was not enough)
     bites = plan_job_bites(nest_verified(roll, Deadline(seconds), progress), window,
                            problem.lattice)

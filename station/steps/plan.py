@@ -76,8 +76,10 @@ class Pattern:
 
 
 def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
-             control: JobControl) -> Plan:
-    """Align, optionally reshape, nest and program one job (see the module's docstring)."""
+             control: JobControl, *, can_bite: bool = True) -> Plan:
+    """Align, optionally reshape, nest and program one job (see the module's docstring);
+    ``can_bite``: a marker longer than the table may be cut in bites (the station has a
+    camera to find the print again after each advance)."""
     garment, garment_path, symmetrised = job_garment(job, workdir, config)
     kind = captured.fabric.get("kind")
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment})
@@ -88,7 +90,7 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
         placement = _on_grain(chosen, captured, config, report)
         control.start_step("nesting", 0.0)
         layout, bites = _nest(chosen, placement, workdir, config, job.options, None,
-                              plain=True)
+                              plain=True, can_bite=can_bite)
     else:
         wallpaper = print_of(captured, config, report)
         if symmetrised is not None:
@@ -97,7 +99,7 @@ def plan_job(job: Job, captured: Captured, workdir: Path, config: Config, machin
             patterns, placement = _place(job, Pattern(garment, garment_path), wallpaper,
                                          config, control, report, stages)
             chosen, (layout, bites) = _nest_printed(job, patterns, placement, workdir, config,
-                                           control, report)
+                                                    control, report, can_bite)
         except BaseException:
             draw_fits(stages, captured, wallpaper)  # a failed job shows what it got to
             raise
@@ -230,18 +232,18 @@ def first_nested(job: Job, candidates: list[Cut], nest: Callable[[Cut], Nested],
 
 
 def _nest_printed(job: Job, patterns: list[Pattern], placement: Placement, workdir: Path,
-                  config: Config, control: JobControl, report: JobReport
+                  config: Config, control: JobControl, report: JobReport, can_bite: bool
                   ) -> tuple[Pattern, tuple[Layout, BitePlan | None]]:
     """(the pattern cut, its marker): `first_nested` of the reshaped and aligned ones."""
     def nest_one(pattern: Pattern) -> tuple[Layout, BitePlan | None]:
         return _nest(pattern, placement, workdir, config, job.options,
-                     nest_progress(control, config))
+                     nest_progress(control, config), can_bite=can_bite)
 
     return first_nested(job, patterns, nest_one, report)
 
 
 def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
-          options: dict[str, Any], progress, *, plain: bool = False
+          options: dict[str, Any], progress, *, plain: bool = False, can_bite: bool = True
           ) -> tuple[Layout, BitePlan | None]:
     """(the marker of ``pattern``, its bites if longer than the table); placement.json
     and layout.json written beside it."""
@@ -249,6 +251,6 @@ def _nest(pattern: Pattern, placement: Placement, workdir: Path, config: Config,
     placement.garment_units = pattern.units or placement.garment_units  # reshaped: mm
     placement.save(workdir / "placement.json")
     layout, bites = placed_marker(pattern.garment, placement, config, progress, options,
-                                  plain=plain)
+                                  plain=plain, can_bite=can_bite)
     layout.save(workdir / "layout.json")
     return layout, bites

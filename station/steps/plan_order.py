@@ -47,8 +47,9 @@ from station.stripes import stripe_grain
 
 
 def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, machine: Machine,
-               control: JobControl) -> Plan:
-    """Align every garment of the order, nest them in one marker, program it."""
+               control: JobControl, *, can_bite: bool = True) -> Plan:
+    """Align every garment of the order, nest them in one marker, program it (in bites of
+    the table when it is longer and ``can_bite``: see `station.steps.plan.plan_job`)."""
     order = read_order(job.garment)
     job = replace(job, options=order.job_options(job.options))  # the order's match_notches
     report = JobReport(workdir / "report.json", {"job": job.id, "garment": job.garment,
@@ -83,7 +84,8 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
 
     def nest_one(garments: list[OrderedGarment]) -> tuple[Layout, BitePlan | None]:
         write_aligned(order, garments, workdir / "placement.json")
-        return _nest(garments, config, job, control, plain=wallpaper is None)
+        return _nest(garments, config, job, control, plain=wallpaper is None,
+                     can_bite=can_bite)
 
     cut, (layout, bites) = first_nested(job, candidates, nest_one, report)
     layout.save(workdir / "layout.json")
@@ -124,7 +126,7 @@ def _reshaped(aligned: list[OrderedGarment], config: Config, workdir: Path,
 
 
 def _nest(aligned: list[OrderedGarment], config: Config, job: Job, control: JobControl, *,
-          plain: bool) -> tuple[Layout, BitePlan | None]:
+          plain: bool, can_bite: bool) -> tuple[Layout, BitePlan | None]:
     """(the order's verified marker within the station's nesting time, its bites when it
     is longer than the table window)."""
     n = config["nest"]
@@ -132,4 +134,4 @@ def _nest(aligned: list[OrderedGarment], config: Config, job: Job, control: JobC
                             gap=n["gap_mm"], allowance=rules_for_job(config, job.options),
                             plain=plain)
     return nest_in_window_or_bites(problem, config_window(config), n["seconds"],
-                                   nest_progress(control, config))
+                                   nest_progress(control, config), can_bite=can_bite)

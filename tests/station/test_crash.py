@@ -63,7 +63,7 @@ class Station:
             f'[serial]\nport = "{tmp / "ttyGRBL"}"\n'
             f'[store]\npath = "{tmp / "jobs.db"}"\nwork_dir = "{tmp / "work"}"\n'
             f'[control]\nsocket = "{tmp / "station.sock"}"\n'
-            "[align]\nrestarts = 1\n[nest]\nseconds = 1.0\n")
+            "[align]\nrestarts = 1\n[nest]\nseconds = 3.0\n")  # 1 s: no fit under load
         self.socket = tmp / "station.sock"
         self.fabric = tmp / "fabric.json"
         self.fabric.write_text(json.dumps(FABRIC))
@@ -310,7 +310,8 @@ def test_sigterm_then_sigkill_at_random_moments_resumes_each_piece_where_it_stop
         # once this attempt streams, the store holds where it started (the journal carried
         # to the head's rest position), so what is left to cut is known
         assert wait_until(lambda: any(p["state"] == "cutting"
-                                      for p in station.status_pieces(job)), 60)
+                                      for p in station.status_pieces(job)), 60), \
+            (kills, station.status(job), station.daemon_log()[-3000:])
         pieces = station.status_pieces(job)
         left = sum(p["state"] != "cut" for p in pieces)
         remaining = sum(lengths[p["name"]] - (p["cut_mm"] or 0.0) for p in pieces
