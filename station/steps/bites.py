@@ -124,7 +124,8 @@ class RollTrack:
                                          self.marker_to_window))
                   for p in plan.layout.pieces if p.id in wanted]
         return replace(plan.layout, pieces=pieces, pairs=[],
-                       length=plan.window_mm + 2 * ROLL_MARGIN_MM)
+                       length=plan.window_mm + 2 * ROLL_MARGIN_MM,
+                       phase_mm=0.0)  # the window's own layout starts at the window
 
 
 def localise(track: RollTrack, bite: Bite, photograph: np.ndarray, *, plan: BitePlan,

@@ -114,6 +114,7 @@ def program_step(layout: Layout, bites: BitePlan | None, config: Config, machine
     garment's or a whole order's): the step after nesting, written once."""
     report.data["nest"] = {"length_mm": layout.length, "width_mm": layout.width,
                            "density": layout.density, "pieces": len(layout.pieces),
+                           "phase_mm": layout.phase_mm,  # where the marker starts
                            **({"bites": bites.summary()} if bites is not None else {})}
     report.step_done("nest")
     control.checkpoint()
