@@ -44,6 +44,10 @@ CURVED = 0.95  # a run whose chord is less than this share of its length is curv
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch
 EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread evenly, so
 # its notches sit further off their share of the run than on a straight seam
+NOTCH_W = 0.6  # notch groups that match score this much (at most) ...
+NOTCHED_EXTRA = 0.6  # ... and this much more inside both sides in a file that notches
+# its seams (:class:`solver.seams.marks.FileMarks`): matching notches there are what a
+# sewer goes by (from {0, 0.3, 0.6, 0.9, 1.4} on half 0 of the bench)
 NOTCH_MIN_MM = 10.0  # but never less than this along the run (a short seam's share is tight)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MEETING_MM = 240.0  # three seams that close where three pieces meet (a cap's break, the
@@ -154,7 +158,8 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
     notch = 0.0 if a.piece == b.piece else _notch_score(a, b)  # a dart's notches: its legs
     if gathered and notch <= 0:
         return -1.0  # a gathered seam is known by its notches alone
-    s += 0.6 * notch if notch >= 0 else 1.5 * notch
+    matched = NOTCH_W + (NOTCHED_EXTRA if marks.notched and a.notches and b.notches else 0.0)
+    s += matched * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
     names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
@@ -433,7 +438,7 @@ def _tube_score(a: Run, b: Run) -> float:
     """A tube's two sides scored by their lengths and notches alone (the piece folds onto
     itself: overlap says nothing)."""
     notch = _notch_score(a, b)
-    return _length_score(a, b)[0] + (0.6 * notch if notch >= 0 else 1.5 * notch)
+    return _length_score(a, b)[0] + (NOTCH_W * notch if notch >= 0 else 1.5 * notch)
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
