@@ -23,6 +23,7 @@ from station.control import ControlError, request
 from station.daemon import CONFIRM_SEAMS, Daemon, JobControl, wait_until
 from station.jobstore import Job
 from station.order import read_order
+from station.seams_confirm import checked_seams
 from station.steps.dxfseams import dxf_job_garment, order_dxf_garments
 from station.steps.submission import check_job
 from station.web.feed import Feed
@@ -225,3 +226,9 @@ def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, t
         assert cv2.imread(str(folder / f"seams-{tag}.png")) is not None
     assert own == listed  # the last question's list is what the last style was sewn by
     assert not (folder / "seams-confirmed.json").exists()  # every answer went to its style
+
+
+def test_infer_must_say_true_or_false():
+    with pytest.raises(ValueError, match="infer: true or false"):
+        checked_seams({"seams": [], "infer": "no"}, {"front"}, "the seams sent")
+    assert checked_seams({"seams": [], "infer": False}, {"front"}, "s")["infer"] is False
