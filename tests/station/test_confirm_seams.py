@@ -5,6 +5,7 @@ daemon's planning step reads it with the station's own `dxf_job_garment`."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import shutil
@@ -65,25 +66,34 @@ def tee_dxf(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture
-def station(tmp_path, tee_dxf):
+@contextlib.contextmanager
+def served(tmp_path: Path, pipeline_class: type[SeamsPipeline]):
+    """A daemon planning with ``pipeline_class`` (seams.confirm_below = BELOW) on its own
+    thread: (daemon, pipeline, control socket)."""
     config = load_config(None, {
         "store": {"path": str(tmp_path / "jobs.db"), "work_dir": str(tmp_path / "work")},
         "control": {"socket": str(tmp_path / "station.sock")},
         "seams": {"confirm_below": BELOW},
     })
-    pipeline = SeamsPipeline(config)
+    pipeline = pipeline_class(config)
     daemon = Daemon(config, pipeline)
     daemon.control.start()
     thread = threading.Thread(target=daemon.run_loop, daemon=True)
     thread.start()
-    sock = tmp_path / "station.sock"
-    job = request(sock, "submit", garment=str(tee_dxf), fabric=None)["job"]["id"]
-    assert wait_until(lambda: _state(sock, job)["state"] == "paused", 10)
-    yield daemon, pipeline, sock, job, tmp_path / "work" / f"job-{job}"
-    daemon.shutdown()
-    thread.join(5)
-    daemon.control.stop()
+    try:
+        yield daemon, pipeline, tmp_path / "station.sock"
+    finally:
+        daemon.shutdown()
+        thread.join(5)
+        daemon.control.stop()
+
+
+@pytest.fixture
+def station(tmp_path, tee_dxf):
+    with served(tmp_path, SeamsPipeline) as (daemon, pipeline, sock):
+        job = request(sock, "submit", garment=str(tee_dxf), fabric=None)["job"]["id"]
+        assert wait_until(lambda: _state(sock, job)["state"] == "paused", 10)
+        yield daemon, pipeline, sock, job, tmp_path / "work" / f"job-{job}"
 
 
 def _state(sock, job):
@@ -177,8 +187,7 @@ class OrderSeamsPipeline(SeamsPipeline):
         return _daemon_tests.TickingPipeline.plan(self, job, captured, workdir, control)
 
 
-def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, tee_dxf,
-                                                                     capsys):
+def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, tee_dxf):
     shutil.copyfile(tee_dxf, tmp_path / "tee.dxf")  # an order's patterns lie beside it
     other = tmp_path / "tee-b.dxf"
     with warnings.catch_warnings():
@@ -187,18 +196,7 @@ def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, t
     order = tmp_path / "order.toml"
     order.write_text(f'name = "PO-7"\n[[garment]]\npattern = "tee.dxf"\ncopies = 2\n'
                      f'[[garment]]\npattern = "{other.name}"\ncopies = 1\n')
-    config = load_config(None, {
-        "store": {"path": str(tmp_path / "jobs.db"), "work_dir": str(tmp_path / "work")},
-        "control": {"socket": str(tmp_path / "station.sock")},
-        "seams": {"confirm_below": BELOW},
-    })
-    pipeline = OrderSeamsPipeline(config)
-    daemon = Daemon(config, pipeline)
-    daemon.control.start()
-    thread = threading.Thread(target=daemon.run_loop, daemon=True)
-    thread.start()
-    sock = tmp_path / "station.sock"
-    try:
+    with served(tmp_path, OrderSeamsPipeline) as (_, pipeline, sock):
         job = request(sock, "submit", garment=str(order), fabric=None)["job"]["id"]
         folder = tmp_path / "work" / f"job-{job}"
         asked = []
@@ -211,10 +209,6 @@ def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, t
             assert main(["confirm", str(job), "--socket", str(sock)]) == 0
             assert wait_until(lambda: _state(sock, job)["state"] != "paused", 10)
         assert _state(sock, job)["state"] == "done"
-    finally:
-        daemon.shutdown()
-        thread.join(5)
-        daemon.control.stop()
     assert [r.split(":")[1].strip() for r in asked] == ["tee.dxf", "tee-b.dxf"]
     assert all(r.startswith(CONFIRM_SEAMS) for r in asked)
     styles = pipeline.planned[-1]
