@@ -17,13 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.seams.outline import MERGE_MM, SewPiece, arc_position
+from solver.seams.outline import CORNER_DEG, MERGE_MM, SewPiece, arc_position
 from solver.seams.runs import Run
 
 __all__ = ["FileMarks", "PieceMarks"]
 
-BEND_DEG = 15.0  # a line turning less than this at a turn point runs on smoothly there (a
-# CAD's corner, at 30 degrees, may measure a little less once the line is read back) ...
+BEND_DEG = CORNER_DEG - 2.0  # a line turning less than this at a turn point runs on
+# smoothly there: the turn point is no corner, it marks a seam's end (a corner may read a
+# degree or two less once offset and read back; 15 degrees kept GC dress_circle's waistband
+# ends, turning 26 degrees, inside its waist seam) ...
 BEND_NEAR_MM = 8.0  # ... within this of the turn point (simplified, offset)
 SMOOTH_EXTRA = 2  # a piece marks a seam's end on a smooth line at most this many times
 # more often than it turns a corner; one that marks more marks points along its curves
