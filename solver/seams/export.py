@@ -28,6 +28,8 @@ from solver.seams.score import STEP_MM, Correspondence
 __all__ = ["export_cad_dxf"]
 
 DOUBLE_GAP_MM = 6.0  # between the two slits of a double notch
+BACK_SIDE = 0.1  # an unnamed piece this share of the garment's depth behind its middle is
+# a back
 
 
 def _seam_rows(g: Garment, line: int) -> np.ndarray:
@@ -91,6 +93,24 @@ def _closed(g: Garment, i: int, darts: list[tuple[int, int, int]]) -> np.ndarray
         if k in peak_after:
             out.append(peak_after[k])
     return np.array(out)
+
+
+def _backs(g: Garment) -> np.ndarray:
+    """(n_pieces,) which pieces a pattern maker calls the back: by name; for a garment whose
+    names say neither (a scanned or simulated mesh), the pieces that hang on one side of
+    the body, along the garment's thinnest axis (a garment is wider and taller than deep),
+    by more than :data:`BACK_SIDE` of its depth. Which side is the back cannot be told from
+    the mesh, nor need it: the double notches only have to tell the two halves of a cap or
+    a waist apart as consistently as a CAD's single front and double back notches do."""
+    kinds = [name_parts(n)[0] for n in g.piece_names]
+    if any(k & {"front", "back"} for k in kinds) or g.xyz is None:
+        return np.array(["back" in k for k in kinds], dtype=bool)
+    xyz = np.asarray(g.xyz, float)
+    centred = xyz - xyz.mean(0)
+    depth = np.linalg.svd(centred, full_matrices=False)[2][-1]  # least spread
+    along = centred @ depth
+    at = np.array([along[g.piece_of_vertex == i].mean() for i in range(g.n_pieces)])
+    return at < -BACK_SIDE * float(np.ptp(along))
 
 
 def _stretches(edges: np.ndarray) -> list[np.ndarray]:
@@ -209,6 +229,7 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
     notches: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     truth = []
     darts: list[list[tuple[int, int, int]]] = [[] for _ in range(g.n_pieces)]
+    backs = _backs(g)
     drills: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     for line in range(len(g.seam_lines)):
         chain, twin = _seam_sides(g, line)
@@ -235,7 +256,7 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
         a_len = float(np.linalg.norm(g.uv[ordered[:, 1]] - g.uv[ordered[:, 0]], axis=1).sum())
         if a_len < 80.0:
             continue
-        back = "back" in name_parts(g.piece_names[pa])[0] | name_parts(g.piece_names[pb])[0]
+        back = backs[pa] or backs[pb]
         share = 0.25 + 0.5 * ((line * 0.618034) % 1.0)
         shares = [share] + ([share + DOUBLE_GAP_MM / a_len] if back else [])
         na, nb = _at_share(g.uv, ordered, np.array(shares))
