@@ -420,8 +420,9 @@ def _tube_score(a: Run, b: Run) -> float:
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
-    """The best score of another candidate sharing an edge with candidate ``k``."""
-    shares = (a[:, k:k + 1] * a).sum(0) > 0
+    """The best score of another candidate sharing an edge with candidate ``k`` and sewing
+    an edge ``k`` does not (a part of the same seam is no other partner)."""
+    shares = ((a[:, k:k + 1] * a).sum(0) > 0) & ~(a <= a[:, k:k + 1]).all(0)
     shares[k] = False
     return float(scores[shares].max()) if shares.any() else 0.0
 
