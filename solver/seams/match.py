@@ -57,7 +57,8 @@ RMS_W = 10.0  # weight of the distance between the two lines laid on each other 
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 30.0  # a centre line lies within this of the grain
 GATHER_MAX = 2.0  # a seam gathered more than this (longer side / shorter) is not proposed
-GATHER_PENALTY = 0.3  # a gathered seam's length term is minus this (an equal length scores 1)
+GATHER_PENALTY = 0.0  # a gathered seam's length term is minus this (an equal length scores 1):
+# its notches, matched, carry it alone (from {0, 0.15, 0.3} on half 0)
 WHOLE_BONUS = 0.3  # both sides run corner to corner between pieces whose names say they
 # meet (a shoulder): a seam ends where the lines turn, a chance pairing rarely does on both
 SHOULDER_MM = 150.0  # a front and a back (named so) are mirror images across their
