@@ -166,8 +166,8 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
     s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
     if a.piece != b.piece:  # a dart's legs end at its mouth's notches
         s -= marks.penalty(a, b)
-    if s < MIN_SCORE:
-        return s
+    if s < min(MIN_SCORE, CLOSING_SCORE):  # no shape can lift it to a seam; one that
+        return s  # could still close a meeting is scored whole, its halves' penalty too
     rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
                                            run_line(pieces[b.piece], b), polys[b.piece],
                                            gathered=gathered)
