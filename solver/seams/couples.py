@@ -16,6 +16,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from solver.garment.symmetry import mirror_misfit
 from solver.seams.names import front_or_back, name_parts
 from solver.seams.outline import MERGE_MM, SewPiece
 from solver.seams.runs import SHARP_DEG, Run
@@ -24,6 +25,8 @@ __all__ = ["PAIR_COST_MM", "piece_couples", "split_conflicts"]
 
 PAIR_COST_MM = 60.0  # of each seam's cost, what is paid once per two pieces sewn together
 # (from {0, 40, 60, 80, 100} on half 0 of the bench)
+MIRROR_MISFIT = 0.005  # a left and a right half: mirror images within this share of their
+# size (Berkeley's flattened halves 0.0001-0.0011; a front and a back half 0.011-0.02)
 
 
 def piece_couples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray) -> np.ndarray:
@@ -49,10 +52,16 @@ def _meet_twice(a: SewPiece, b: SewPiece) -> bool:
 
 def _left_and_right(a: SewPiece, b: SewPiece) -> bool:
     """Whether two pieces are the left and right halves of one kind: copies of one pattern
-    piece, or named so (a left and a right front)."""
+    piece, named so (a left and a right front), or unnamed and each other's mirror image
+    (within :data:`MIRROR_MISFIT`: a front and a back half, alike but for the neckline, are
+    further apart)."""
     (ka, sa), (kb, sb) = name_parts(a.name), name_parts(b.name)
-    return (bool(a.family) and a.family == b.family) or (
-        bool(ka) and ka == kb and sa is not None and sb is not None and sa != sb)
+    if (bool(a.family) and a.family == b.family) or (
+            bool(ka) and ka == kb and sa is not None and sb is not None and sa != sb):
+        return True
+    return (not any(name_parts(a.name)) and not any(name_parts(b.name))
+            and abs(a.length - b.length) <= MIRROR_MISFIT * max(a.length, b.length)
+            and mirror_misfit(a.loop, b.loop) <= MIRROR_MISFIT)
 
 
 def _at(x: float, positions: np.ndarray, length: float) -> bool:
