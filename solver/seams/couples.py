@@ -3,10 +3,10 @@
 The integer program pays :data:`PAIR_COST_MM` once for each two pieces it sews together,
 so a second seam between pieces already sewn costs less than a seam between two more: a
 tank's shoulder goes to the back whose side seam the front already takes, not to the other
-back, which mirrors it as well (a crossed shoulder). Two exceptions keep that from
-rewarding the wrong thing. A left and a right half of one kind meet only at the centre: a
-second seam between them gets no discount. And one seam cut in two between the same two
-pieces (both halves meeting at one point of each, where neither turns a corner) is the
+back, which mirrors it as well (a crossed shoulder). Only a front and a back of the body,
+or pieces whose names say nothing, are discounted so: a left and a right half of one kind
+meet only at the centre, a sleeve or a band once. And one seam cut in two between the same
+two pieces (both halves meeting at one point of each, where neither turns a corner) is the
 same seam: never both halves, the whole is a candidate of its own.
 """
 
@@ -33,16 +33,17 @@ def piece_couples(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray) ->
     """(k,) index of each candidate's two pieces among the candidates' piece pairs, -1 for a
     piece with itself (a dart, a tube) and for a left and a right half of one kind."""
     ends = [tuple(sorted((runs[i].piece, runs[j].piece))) for i, j in pairs.tolist()]
+    twice = {(p, q): p != q and _meet_twice(pieces[p], pieces[q]) for p, q in set(ends)}
     index: dict[tuple[int, int], int] = {}
-    return np.array([index.setdefault((p, q), len(index))
-                     if p != q and _meet_twice(pieces[p], pieces[q]) else -1
-                     for p, q in ends], dtype=int).reshape(-1)
+    return np.array([index.setdefault(e, len(index)) if twice[e] else -1 for e in ends],
+                    dtype=int).reshape(-1)
 
 
 def _meet_twice(a: SewPiece, b: SewPiece) -> bool:
-    """Whether two pieces may meet along two seams: a front and a back of one kind (a body's
-    at the side and the shoulder, a two-piece sleeve's halves at the top and underneath),
-    or pieces whose names say nothing; not a left and a right half."""
+    """Whether two pieces may meet along two seams: a front and a back of the body (at the
+    side and the shoulder), or pieces whose names say nothing; not a left and a right half,
+    nor a sleeve, collar or band (on the Gerber tee a sleeve half was sewn to the body's
+    other shoulder as well as to its armhole)."""
     if _left_and_right(a, b):
         return False
     ra, rb = front_or_back(a.name), front_or_back(b.name)
