@@ -17,7 +17,7 @@ from solver.nest.dotted_board import Board
 
 # any phase: share of the solver's time for the depth-first pass, before the default
 # search from its marker. T-shirt p1: 822.5 mm proven in 1 s (the default search: 865 mm
-# after 10 s); p2: 814 mm in 5.4 s (left to right first: 853 mm after 8 s)
+# after 10 s); p2: 814 mm in 1.4-2.3 s (left to right first: 853 mm after 8 s)
 FIXED_SHARE = 0.75
 
 
