@@ -73,21 +73,28 @@ def depth_first_order(board: Board, period: float) -> list:
     return literals
 
 
-def depth_first_then_default(board: Board, period: float, seconds: float, workers: int,
-                             reporter, least: float):
-    """(solver, status): ``FIXED_SHARE`` of ``seconds`` of the depth-first pass
-    (:func:`depth_first_order`), then the default search from its best marker if
-    ``least`` s (its presolve) are left; the better of the two."""
+def depth_first(board: Board, period: float, solver, reporter=None) -> tuple[int, dict]:
+    """(status, hint): ``solver`` (:func:`depth_first_solver`) run on the board in
+    :func:`depth_first_order`, without the board's hint, which held the search near it
+    (t-shirt p1: 865 mm for 2.5 s); ``hint`` is that hint's values by variable index."""
     cp, model = board.cp_model, board.model
     model.add_decision_strategy(depth_first_order(board, period), cp.CHOOSE_FIRST,
                                 cp.SELECT_MAX_VALUE)
-    # without the hint, which held the search near it (t-shirt p1: 865 mm for 2.5 s)
     hint = model.proto.solution_hint
     hinted = dict(zip(list(hint.vars), list(hint.values)))
     model.clear_hints()
+    return solver.solve(model, reporter), hinted
+
+
+def depth_first_then_default(board: Board, period: float, seconds: float, workers: int,
+                             reporter, least: float):
+    """(solver, status): ``FIXED_SHARE`` of ``seconds`` of the depth-first pass
+    (:func:`depth_first`), then the default search from its best marker if ``least`` s
+    (its presolve) are left; the better of the two."""
+    cp, model = board.cp_model, board.model
     t0 = time.monotonic()
     first = depth_first_solver(cp, FIXED_SHARE * seconds, workers)
-    status = first.solve(model, reporter)
+    status, hinted = depth_first(board, period, first, reporter)
     rest = seconds - (time.monotonic() - t0)
     if status in (cp.OPTIMAL, cp.INFEASIBLE) or rest < least:
         return first, status
