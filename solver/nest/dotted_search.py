@@ -2,8 +2,8 @@
 
 Found phase, CP-SAT's default search from the hint. Free of phase, a depth-first pass
 first: the largest pieces first, each tried bottom to top, then left to right (CP-SAT's
-fixed search), the first piece one period in before the roll's start; then the
-default search from its marker with what is left.
+fixed search), the first piece tried one period in from the roll's start before it is
+tried within the first period; then the default search from its marker with what is left.
 """
 
 from __future__ import annotations
