@@ -21,7 +21,12 @@ from station.config import load_config
 from station.daemon import JobControl, JobInterrupted, wait_until
 from station.jobstore import JobStore
 from station.progress import follow
-from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
+from station.steps.bites import (
+    CUT_IN_VIEW_MM,
+    ROLL_MARGIN_MM,
+    operator_advance_mm,
+    plan_job_bites,
+)
 from station.steps.capture import real_camera
 from station.steps.cutbites import BiteJournal, cut_in_bites, roll_moved
 from station.steps.roll import CameraRoll
@@ -119,7 +124,9 @@ def test_without_a_conveyor_the_job_waits_for_the_operator(tmp_path):
         _run(tmp_path, store, job, plan, roll, calls)
     assert waiting.value.state == "paused"
     mm = operator_advance_mm(waiting.value.reason)
-    assert mm == pytest.approx(plan.bites[1].start_mm - ROLL_MARGIN_MM, abs=0.05)
+    # the second bite leaves room: the first bite's cut is kept in view across the advance
+    assert mm == pytest.approx(plan.bites[0].end_mm - CUT_IN_VIEW_MM, abs=0.05)
+    assert mm < plan.bites[1].start_mm - ROLL_MARGIN_MM
     assert [pieces for _, pieces in calls] == [set(plan.bites[0].pieces)]
     roll.conveyor.advance(mm)  # the operator's hands, slip included
     measured = _run(tmp_path, store, job, plan, roll, calls)  # `station resume`
@@ -218,8 +225,10 @@ def test_a_roll_found_moved_part_way_leaves_the_job_paused_saying_why(tmp_path):
     store, job = _job(tmp_path, plan)
     roll, calls = SimRoll(), []
 
-    def power_cut(mm: float) -> None:  # the conveyor stops half way, the daemon dies
-        roll.conveyor.advance(mm / 2)
+    def power_cut(mm: float) -> None:  # the conveyor stops part way, the daemon dies
+        # half a repeat (25 mm) off any whole number of repeats short of the advance: a
+        # stop within the slip of one would look advanced to the print alone
+        roll.conveyor.advance(mm - 275.0)
         raise KeyboardInterrupt
 
     roll.feed = power_cut
