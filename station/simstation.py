@@ -13,12 +13,16 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import serial
 
 import simulators.grbl  # noqa: F401  (registers the emulator's grblsim:// URLs)
 from gcode.machine import Machine
 from simulators.camera import Sheet, SyntheticCamera
 from simulators.classics import classic_print
+from simulators.grbl.protocol_grblsim import parse_url
+from simulators.grbl.registry import lookup
+from simulators.grbl.trace import trace_rows
 from simulators.roll import LaidPrint, RollCamera, RollPrint
 from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
@@ -26,6 +30,7 @@ from station.pipeline import StationPipeline
 from station.simroll import kept_conveyor
 from station.steps.capture import CameraOpener
 from station.steps.cut import PortOpener, serial_port
+from station.steps.program import fabric_origin
 from vision.camera import Camera, open_camera
 
 __all__ = ["SimulatedRoll", "copy_job_files", "open_simulated_camera", "open_simulated_port",
@@ -71,7 +76,11 @@ class SimulatedRoll:
     """The dry run's roll between bites: the camera's print on a roll that bows, skews and
     stretches along its length (`simulators.roll.RollPrint`), on a conveyor that slips,
     photographed through the table window only, at 1 mm per pixel. The conveyor's poses
-    are the truth of where every bite was cut on the cloth."""
+    are the truth of where every bite was cut on the cloth. What the station's GRBL
+    emulator burnt is cut into the cloth where the roll lay (`RollCamera.burn`) before
+    each photograph and each advance, so the photographs show the kerfs the station may
+    measure an advance from (what this process's emulator burnt: a restarted station
+    does not see the kerfs a dead one cut)."""
 
     mm_per_px = 1.0
 
@@ -86,12 +95,32 @@ class SimulatedRoll:
                                  self.mm_per_px, seed=seed)
         # by hand: the job waits for the operator, whose hands slip like the conveyor
         self.feed = None if by_hand else self.advance
+        self.origin = fabric_origin(config)
+        self.emulator = _emulator_name(str(config["serial"]["port"]))
+        self._burnt = len(self._trace())  # cut before this roll was laid: not on it
 
     def advance(self, mm: float) -> None:
+        self.burn()
         self.conveyor.advance(mm)
 
     def photograph(self):
+        self.burn()
         return self.camera.photograph()
+
+    def burn(self) -> None:
+        """Cut into the cloth, where the roll lies now, what the emulator burnt since the
+        last call (its trace in work mm, the fabric's corner at ``origin``)."""
+        rows = self._trace()[self._burnt:]
+        self._burnt += len(rows)
+        burning = rows[(rows[:, 5] > 0) & (rows[:, 6] == 0)]
+        if len(burning):
+            self.camera.burn(burning[:, :4] - np.tile(self.origin, 2))
+
+    def _trace(self) -> np.ndarray:
+        """(n, 7) the emulator's trace (`simulators.grbl.trace.trace_rows`); none when the
+        port is not an emulator of this process."""
+        emulator = None if self.emulator is None else lookup(self.emulator)
+        return np.zeros((0, 7)) if emulator is None else trace_rows(emulator)
 
     def settle(self) -> None:
         """Nothing to wait for: a move the simulated conveyor had not finished died with
@@ -104,6 +133,15 @@ class SimulatedRoll:
         return [{"advance_mm": round(b.along - a.along, 3),
                  "skew_deg": round(b.angle_deg - a.angle_deg, 4)}
                 for a, b in zip(poses, poses[1:])]
+
+
+def _emulator_name(port: str) -> str | None:
+    """The named emulator a grblsim:// ``port`` opens (None: another port, or unnamed)."""
+    try:
+        options, _, _ = parse_url(port)
+    except ValueError:
+        return None
+    return options.get("name")
 
 
 def simulated_roll(config: Config, machine: Machine, _open_camera: CameraOpener,

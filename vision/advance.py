@@ -60,11 +60,12 @@ MAX_SLIP_MM = 4.0
 #: this share more residual than it does: the sensor's noise moves the residual by about
 #: 1 % over a strip; a print that says nothing along the roll leaves it flat
 UNIQUE_SHARE = 0.25
-#: a component whose formal error (one sigma) exceeds this is not measured
-MAX_SIGMA_MM, MAX_SIGMA_DEG = 0.05, 0.01
-#: the noise of neighbouring pixels is correlated by the smoothing: a strip of n pixels
-#: holds n / (4 pi SMOOTH_PX^2) independent ones, which scales the formal error
-NOISE_SPREAD = math.sqrt(4.0 * math.pi) * SMOOTH_PX
+#: a component whose formal error (one sigma) exceeds this is not measured (a third of
+#: what issue 35 allows an advance: 0.3 mm, 0.05 degrees)
+MAX_SIGMA_MM, MAX_SIGMA_DEG = 0.1, 0.015
+#: the wider smoothing that first finds the drift and skew where the tiles could not,
+#: aligning what it measures within this many times the limits (into the fine basin)
+WIDE_SMOOTH_PX, WIDE_LIMITS = 3.0, 10.0
 COMPONENTS = ("along", "across", "skew")
 
 
@@ -120,15 +121,27 @@ def measure_advance(before: np.ndarray, after: np.ndarray, *, commanded_mm: floa
         raise ValueError(f"an advance of {commanded_mm:g} mm leaves {shared:g} mm of cloth in "
                          f"both photographs of the {w * mm_per_px:g} mm window; at least "
                          f"{MIN_OVERLAP_MM:g} mm must stay in view")
-    frames = _Frames.of(cv2.GaussianBlur(a, (0, 0), SMOOTH_PX),
-                        cv2.GaussianBlur(b, (0, 0), SMOOTH_PX))
+    frames = _Frames.of(a, b, SMOOTH_PX)
     prior = np.array([commanded_mm / mm_per_px, 0.0, 0.0])
     lattice_px = None if lattice is None else np.asarray(lattice, float) / mm_per_px
     coarse, tiles = _coarse_motion(frames.a, frames.b, prior[0], frames.pivot, lattice_px)
-    coarse[0], unique = _along_scan(frames, coarse, math.ceil(2 * MAX_SLIP_MM / mm_per_px))
+    reach = math.ceil(2 * MAX_SLIP_MM / mm_per_px)
     limits = np.array([MAX_SIGMA_MM / mm_per_px, MAX_SIGMA_MM / mm_per_px,
                        math.radians(MAX_SIGMA_DEG)])
+    coarse[0], unique = _along_scan(frames, coarse, reach)
     free = _measurable(frames, coarse, limits, np.array([unique, True, True]))
+    if not free.all():  # or the tiles' motion was rough, as where they matched only
+        # across the roll (stripes along it, a few kerfs): first align what the
+        # photographs smoothed wider measure (a wider basin), look along the roll again
+        # from there, and judge again
+        wide = _Frames.of(a, b, WIDE_SMOOTH_PX)
+        for _ in range(2):
+            coarse, _ = _refine(wide, coarse, _measurable(
+                wide, coarse, WIDE_LIMITS * limits, np.array([unique, True, True])))
+            if unique:
+                break
+            coarse[0], unique = _along_scan(frames, coarse, reach)
+        free = _measurable(frames, coarse, limits, np.array([unique, True, True]))
     # the held components are refined at the best match (on a print repeating along the
     # roll, one repeat from the true one: the drift and skew are the same there), and
     # reported at their prior
@@ -151,14 +164,21 @@ class _Frames:
     grad_b: tuple[np.ndarray, np.ndarray]
     pivot: np.ndarray
     offsets: tuple[np.ndarray, np.ndarray]  # each pixel's (x, y) from the pivot
+    #: the noise of neighbouring pixels is correlated by the smoothing: a strip of n
+    #: pixels holds n / (4 pi sigma^2) independent ones, which scales the formal error
+    noise_spread: float
 
     @classmethod
-    def of(cls, a: np.ndarray, b: np.ndarray) -> _Frames:
+    def of(cls, a: np.ndarray, b: np.ndarray, smooth_px: float) -> _Frames:
+        """The grey photographs ``a`` and ``b`` smoothed by a Gaussian of ``smooth_px``."""
+        a = cv2.GaussianBlur(a, (0, 0), smooth_px)
+        b = cv2.GaussianBlur(b, (0, 0), smooth_px)
         h, w = a.shape
         pivot = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
         ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
         return cls(a, b, _gradients(a), _gradients(b), pivot,
-                   (xs - np.float32(pivot[0]), ys - np.float32(pivot[1])))
+                   (xs - np.float32(pivot[0]), ys - np.float32(pivot[1])),
+                   math.sqrt(4.0 * math.pi) * smooth_px)
 
     def warp(self, motion: np.ndarray, margin: float = 2.0
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -303,18 +323,23 @@ def _jacobian(grad: tuple[np.ndarray, np.ndarray], mx: np.ndarray, my: np.ndarra
 def _measurable(frames: _Frames, motion: np.ndarray, limits: np.ndarray,
                 free: np.ndarray) -> np.ndarray:
     """(3,) bool: the components of ``free`` that the print measures near ``motion``:
-    with the others held, no combination of them has a formal error (one sigma) beyond
-    ``limits`` (each component counted in its limit). While one has, the component that
-    direction loads most is held, and the rest judged again without it."""
+    with the others held, each one's formal error (one sigma, all of them free) within
+    its ``limits``. While one is beyond, the worst is held and the rest judged again
+    without it; a direction of no information at all (the print's normal matrix not
+    positive there) holds the component it loads most."""
     normal, noise = _signal_normal(frames, motion)
     free = free.copy()
     while free.any():
         idx = np.flatnonzero(free)
         scaled = normal[np.ix_(idx, idx)] * np.outer(limits[idx], limits[idx])
         values, vectors = np.linalg.eigh(scaled)
-        if values[0] > 0 and noise / math.sqrt(values[0]) <= 1.0:
+        if values[0] <= 1e-12 * max(values[-1], 1e-300):
+            free[idx[int(np.argmax(np.abs(vectors[:, 0])))]] = False
+            continue
+        ratio = noise * np.sqrt(np.einsum("ij,j,ij->i", vectors, 1.0 / values, vectors))
+        if np.all(ratio <= 1.0):
             break
-        free[idx[int(np.argmax(np.abs(vectors[:, 0])))]] = False
+        free[idx[int(np.argmax(ratio))]] = False
     return free
 
 
@@ -323,7 +348,7 @@ def _signal_normal(frames: _Frames, motion: np.ndarray) -> tuple[np.ndarray, flo
     ``motion``, and the noise it is weighed against: the gradients of one photograph
     times the other's (the sensor's noise in each is its own, so it adds nothing in
     expectation, where the Gauss-Newton matrix of one photograph counts it as
-    information), and the residual's rms times `NOISE_SPREAD` for the smoothing. A
+    information), and the residual's rms spread by the smoothing (`_Frames.noise_spread`). A
     motion's formal error along a unit direction d is noise / sqrt(d' normal d)."""
     mx, my, inside, qx, qy = frames.warp(motion)
     if inside.sum() < 16:
@@ -332,7 +357,7 @@ def _signal_normal(frames: _Frames, motion: np.ndarray) -> tuple[np.ndarray, flo
     jb = _jacobian(frames.grad_b, mx, my, inside, qx, qy, motion[2], warped=False)
     err = cv2.remap(frames.a, mx, my, cv2.INTER_LINEAR)[inside] - frames.b[inside]
     rms = float(np.sqrt(np.mean(err.astype(np.float64) ** 2)))
-    return 0.5 * (ja.T @ jb + jb.T @ ja), NOISE_SPREAD * rms
+    return 0.5 * (ja.T @ jb + jb.T @ ja), frames.noise_spread * rms
 
 
 def _refine(frames: _Frames, motion: np.ndarray, free: np.ndarray
