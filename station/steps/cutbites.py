@@ -286,15 +286,20 @@ def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
     that shows the same cloth leaves the smaller residual (`SAME_CLOTH_SHARE`); "not
     moved" also needs the motion found near zero to be nil (`AT_REST_MM`), "advanced"
     a slip within the room kept for one (`ROLL_MARGIN_MM`): a print matched whole
-    repeats from where the roll really lies measures a slip of up to half a repeat."""
+    repeats from where the roll really lies measures a slip of up to half a repeat.
+    The motion found near zero is no rival when it lies beyond that room from rest: the
+    print matched whole repeats away, so the roll moved. (A stop within the room of a
+    whole number of repeats short of the advance then looks advanced: a print that
+    repeats that perfectly cannot tell it.)"""
     still = _explained(before, after, 0.0, lattice, mm_per_px)
     moved = _explained(before, after, commanded_mm, lattice, mm_per_px)
     at_rest = still is not None and max(abs(still.advance_mm), abs(still.across_mm)) \
         < AT_REST_MM and abs(still.skew_deg) < AT_REST_DEG
     if at_rest and (moved is None or still.residual < SAME_CLOTH_SHARE * moved.residual):
         return False
+    rival = still is not None and abs(still.advance_mm) <= ROLL_MARGIN_MM
     if not at_rest and moved is not None and abs(moved.slip_mm) <= ROLL_MARGIN_MM and (
-            still is None or moved.residual < SAME_CLOTH_SHARE * still.residual):
+            not rival or moved.residual < SAME_CLOTH_SHARE * still.residual):
         return True
     return None
 
