@@ -142,10 +142,12 @@ def measure_advance(before: np.ndarray, after: np.ndarray, *, commanded_mm: floa
                 break
             coarse[0], unique = _along_scan(frames, coarse, reach)
         free = _measurable(frames, coarse, limits, np.array([unique, True, True]))
-    # the held components are refined at the best match (on a print repeating along the
-    # roll, one repeat from the true one: the drift and skew are the same there), and
-    # reported at their prior
-    motion, residual = _refine(frames, coarse, free)
+    # a held advance is refined at the best match (on a print repeating along the roll,
+    # a repeat from the true one: the drift and skew are the same there), a held drift
+    # or skew at its prior (the tiles' guess at it is noise); all reported at the prior
+    start = np.where(free, coarse, prior)
+    start[0] = coarse[0]
+    motion, residual = _refine(frames, start, free)
     motion = np.where(free, motion, prior)
     pivot = frames.pivot
     return Advance(float(motion[0] * mm_per_px), float(motion[1] * mm_per_px),

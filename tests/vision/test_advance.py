@@ -10,7 +10,7 @@ import pytest
 
 from simulators.classics import classic_print
 from simulators.fabric import random_print
-from simulators.roll import Conveyor, RollCamera, RollPrint
+from simulators.roll import Conveyor, RollCamera, RollPrint, kerf_cover
 from vision.advance import measure_advance
 
 WINDOW = (0.0, 0.0, 800.0, 500.0)  # a small table, 1 mm per pixel: the test stays fast
@@ -126,3 +126,25 @@ def test_a_repeat_along_the_roll_within_the_slip_is_not_measured(repeat, measure
     assert adv.along_measured is measured and "across" in adv.unmeasured
     assert abs(adv.advance_mm - (along if measured else 500.0)) < 0.3
     assert abs(adv.skew_deg - turned) < 0.05
+
+
+def test_a_plain_cloth_measures_nothing_and_its_cut_edges_the_advance():
+    rng = np.random.default_rng(0)
+    h, w = int(WINDOW[3]), int(WINDOW[2])
+
+    def plain(kerfs: np.ndarray | None = None) -> np.ndarray:
+        grey = np.full((h, w), 0.6, np.float32) + rng.normal(0.0, 0.02, (h, w)).astype(
+            np.float32)
+        if kerfs is not None:  # the kerfs, charred, over the cloth
+            cover = kerf_cover(kerfs, (h, w), 0.5)
+            grey = grey * (1.0 - cover) + 0.1 * cover
+        return (np.clip(grey, 0.0, 1.0) * 255).astype(np.uint8)
+
+    nothing = measure_advance(plain(), plain(), commanded_mm=500.0)
+    assert nothing.unmeasured == ("along", "across", "skew")
+    assert (nothing.advance_mm, nothing.across_mm, nothing.skew_deg) == (500.0, 0.0, 0.0)
+    cut = _oval_kerfs(700.0, 250.0)
+    moved = cut - np.array([503.0, -0.4, 503.0, -0.4])  # advanced 503 mm, drifted 0.4
+    by_cut = measure_advance(plain(cut), plain(moved), commanded_mm=500.0)
+    assert by_cut.along_measured and abs(by_cut.advance_mm - 503.0) < 0.3
+    assert "across" not in by_cut.unmeasured and abs(by_cut.across_mm + 0.4) < 0.3
