@@ -27,7 +27,7 @@ from simulators.roll import LaidPrint, RollCamera, RollPrint
 from station.config import EMULATOR_PORT, Config, load_config
 from station.daemon import Daemon
 from station.pipeline import StationPipeline
-from station.simroll import kept_conveyor
+from station.simroll import kept_conveyor, roll_state_path, save_poses
 from station.steps.capture import CameraOpener
 from station.steps.cut import PortOpener, serial_port
 from station.steps.program import fabric_origin
@@ -37,6 +37,8 @@ __all__ = ["SimulatedRoll", "copy_job_files", "open_simulated_camera", "open_sim
            "read_json_or_empty", "roll_by_hand", "roll_print", "simulated_camera",
            "simulated_pipeline", "simulated_roll", "start_simulated_station"]
 
+#: what was cut into the simulated roll, (n, 4) cloth mm, beside its poses
+KERFS_FILE = "simulated-kerfs.npy"
 #: the simulated camera's print, and where its lattice's origin lies on the fabric
 PRINT, REPEAT_MM, PRINT_ORIGIN = "plaid", 80.0, (13.0, 21.0)
 
@@ -79,8 +81,9 @@ class SimulatedRoll:
     are the truth of where every bite was cut on the cloth. What the station's GRBL
     emulator burnt is cut into the cloth where the roll lay (`RollCamera.burn`) before
     each photograph and each advance, so the photographs show the kerfs the station may
-    measure an advance from (what this process's emulator burnt: a restarted station
-    does not see the kerfs a dead one cut)."""
+    measure an advance from. The kerfs are kept beside the roll's poses
+    (``KERFS_FILE``): a restarted station finds them on the cloth where the last one
+    cut them."""
 
     mm_per_px = 1.0
 
@@ -89,10 +92,16 @@ class SimulatedRoll:
         n = config["nest"]
         length, width = float(n["length_mm"]), float(n["width_mm"])
         self.print = roll_print(config)
-        # kept in the work folder: a restarted station finds the cloth where it was
+        # kept in the work folder: a restarted station finds the cloth where it was, with
+        # what was cut into it (a fresh roll has no kerfs)
+        self.kerfs_path = roll_state_path(config).with_name(KERFS_FILE)
+        if not roll_state_path(config).is_file():
+            self.kerfs_path.unlink(missing_ok=True)
         self.conveyor = kept_conveyor(config, machine, (length / 2, width / 2), seed)
         self.camera = RollCamera(self.print, self.conveyor, (0.0, 0.0, length, width),
                                  self.mm_per_px, seed=seed)
+        if self.kerfs_path.is_file():
+            self.camera.kerfs.append(np.load(self.kerfs_path))
         # by hand: the job waits for the operator, whose hands slip like the conveyor
         self.feed = None if by_hand else self.advance
         self.origin = fabric_origin(config)
@@ -115,6 +124,11 @@ class SimulatedRoll:
         burning = rows[(rows[:, 5] > 0) & (rows[:, 6] == 0)]
         if len(burning):
             self.camera.burn(burning[:, :4] - np.tile(self.origin, 2))
+            self.kerfs_path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = self.kerfs_path.with_suffix(".tmp.npy")
+            np.save(tmp, np.concatenate(self.camera.kerfs))
+            tmp.replace(self.kerfs_path)
+            save_poses(self.conveyor.poses, self.conveyor.path)  # the roll is in use now
 
     def _trace(self) -> np.ndarray:
         """(n, 7) the emulator's trace (`simulators.grbl.trace.trace_rows`); none when the

@@ -1,5 +1,6 @@
 """The simulated station's roll shows what the GRBL emulator really burnt (issue 35): the
-kerfs are cut into the cloth where the roll lay, and travel with it on each advance."""
+kerfs are cut into the cloth where the roll lay, travel with it on each advance, and are
+still there for a restarted station."""
 
 from __future__ import annotations
 
@@ -38,5 +39,8 @@ def test_the_simulated_roll_shows_the_emulators_kerfs_where_the_cloth_carries_th
         roll.advance(600.0)  # the conveyor slips: the kerf lies where the cloth went
         along = roll.conveyor.pose.along
         assert abs(_darkest_column(roll.photograph(), rows) - (700 - along)) <= 1.0
+        # a restarted station finds the roll where it was, the kerf still cut into it
+        again = SimulatedRoll(config)
+        assert abs(_darkest_column(again.photograph(), rows) - (700 - along)) <= 1.0
     finally:
         forget(NAME)
