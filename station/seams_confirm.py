@@ -38,8 +38,9 @@ def confirm_seams(folder: Path, correction: Any = None) -> str:
         doc, message = found, f"seams confirmed as found ({len(found.get('seams', []))})"
     else:
         doc = checked_seams(correction, pieces, "the seams sent")
+        only = "" if doc.get("infer", True) else ", no others"
         message = (f"seams corrected by the operator ({len(doc.get('seams', []))} declared, "
-                   f"{len(doc.get('not_seams', []))} vetoed)")
+                   f"{len(doc.get('not_seams', []))} vetoed{only})")
     (folder / SEAMS_CONFIRMED).write_text(json.dumps(doc, indent=2))
     return message
 
@@ -48,9 +49,12 @@ def checked_seams(doc: Any, pieces: set[str], src: str) -> dict[str, Any]:
     """A ``--seams`` document (sent by value, called ``src`` in errors) whose every piece
     the job has; its points are checked against the pattern when planning reads it."""
     doc = untrusted.mapping(doc, src)
-    unknown = sorted(set(doc) - {"seams", "not_seams", "pieces"})
+    unknown = sorted(set(doc) - {"seams", "not_seams", "pieces", "infer"})
     if unknown:
-        raise untrusted.InputError(src, f"unknown key {unknown[0]!r} (seams, not_seams)")
+        raise untrusted.InputError(src, f"unknown key {unknown[0]!r} (seams, not_seams, "
+                                   "infer)")
+    if not isinstance(doc.get("infer", True), bool):
+        raise untrusted.InputError(src, "infer: true or false (false: these seams only)")
     named = []
     for k, item in enumerate(untrusted.sequence(doc.get("seams", []), src, "seams",
                                                 max_len=MAX_SEAMS)):

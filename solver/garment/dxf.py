@@ -133,7 +133,10 @@ def _points(entities, layer: str, scale: float) -> np.ndarray:
 
 
 def _notches(entities, scale: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    out = []
+    """(point on the outline, unit direction into the piece) of each notch on layer 4, as
+    CADs draw them: a POINT with an angle, a slit (a LINE from the outline inwards), or a
+    V (an open polyline, or two LINEs meeting at the tip) whose mouth is on the outline."""
+    out, slits = [], []
     for e in entities:
         if str(e.dxf.layer) != "4":
             continue
@@ -142,9 +145,49 @@ def _notches(entities, scale: float) -> list[tuple[np.ndarray, np.ndarray]]:
             out.append((np.array(tuple(e.dxf.location)[:2]) * scale,
                         np.array([math.cos(ang), math.sin(ang)])))
         elif e.dxftype() == "LINE":
-            a, b = (np.array(tuple(v)[:2]) * scale for v in (e.dxf.start, e.dxf.end))
-            n = float(np.linalg.norm(b - a))
-            out.append((a, (b - a) / n if n > 0 else np.array([1.0, 0.0])))
+            slits.append(np.array([tuple(e.dxf.start)[:2], tuple(e.dxf.end)[:2]]) * scale)
+        elif e.dxftype() in ("LWPOLYLINE", "POLYLINE") and not _closed_entity(e):
+            pts = _polylines([e], "4", scale)[0]
+            out.append(_slit(pts) if len(pts) == 2 else _v_notch(pts[0], pts[-1], pts[1:-1]))
+    return out + _slit_notches(slits)
+
+
+def _closed_entity(e) -> bool:
+    return bool(e.closed if e.dxftype() == "LWPOLYLINE" else e.is_closed)
+
+
+def _slit(ab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = float(np.linalg.norm(ab[1] - ab[0]))
+    return ab[0], (ab[1] - ab[0]) / n if n > 0 else np.array([1.0, 0.0])
+
+
+def _v_notch(end_a: np.ndarray, end_b: np.ndarray, inner: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """A V's mouth (midway between its two ends, on the outline) and its way to the tip
+    (of its ``inner`` vertices, the farthest from the mouth)."""
+    mouth = 0.5 * (end_a + end_b)
+    tip = inner[np.argmax(np.linalg.norm(inner - mouth, axis=1))]
+    return _slit(np.array([mouth, tip]))
+
+
+def _slit_notches(lines: list[np.ndarray], tol: float = 0.01) -> list[tuple[np.ndarray,
+                                                                            np.ndarray]]:
+    """Slits, and V notches drawn as two LINEs sharing their tip (one notch, not two)."""
+    out, used = [], set()
+    for i, a in enumerate(lines):
+        if i in used:
+            continue
+        for j in range(i + 1, len(lines)):
+            b = lines[j]
+            shared = [(p, q) for p in (0, 1) for q in (0, 1)
+                      if j not in used and np.linalg.norm(a[p] - b[q]) < tol]
+            if shared:
+                p, q = shared[0]
+                out.append(_v_notch(a[1 - p], b[1 - q], np.array([a[p]])))
+                used |= {i, j}
+                break
+        else:
+            out.append(_slit(a))
     return out
 
 

@@ -22,7 +22,7 @@ from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, build_garment
 from solver.garment.spec import _triangulate
 from solver.seams import Seam, SewPiece, infer_seams
-from solver.seams.declared import read_seams_file
+from solver.seams.declared import SeamsWord, read_seams_file
 from solver.seams.outline import point_at
 
 __all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
@@ -115,8 +115,9 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
     if not cut:
         raise GarmentError(pattern.source, "no piece to cut (every Quantity is 0)")
     pieces = sew_pieces(cut)
-    declared, vetoed = read_seams_file(seams_file, pieces) if seams_file else ([], set())
-    seams = infer_seams(pieces, declared=declared, vetoed=vetoed)
+    word = read_seams_file(seams_file, pieces) if seams_file else SeamsWord()
+    seams = (infer_seams(pieces, declared=word.declared, vetoed=word.vetoed)
+             if word.infer_others else word.declared)
     uv, faces, ids, grains, shifts = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
                       units_in_file=pattern.units,

@@ -2,23 +2,38 @@
 
     {"seams": [{"a": "FRONT", "a_ends": [[x, y], [x, y]],
                 "b": "BACK",  "b_ends": [[x, y], [x, y]]}],
-     "not_seams": [["FRONT", "SLEEVE"]]}
+     "not_seams": [["FRONT", "SLEEVE"]],
+     "infer": true}
 
 Pieces by name, edge ends as points (mm, the pattern's own coordinates as the file draws
 the piece): each is taken to the nearest point of the piece's sew line. A declared seam
 runs counter-clockwise on piece ``a`` from its first end to its second, and is sewn to
-``b`` the other way round (right side to right side), as :class:`Seam` says.
+``b`` the other way round (right side to right side), as :class:`Seam` says. The seams
+the file does not declare are inferred around them, unless ``"infer": false``: then the
+file is the operator's whole list (what the console sends when a seam found is struck
+out, so that it is not found again).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import untrusted
 from solver.seams.match import Seam
 from solver.seams.outline import SewPiece, arc_position
 
-__all__ = ["read_seams_file"]
+__all__ = ["SeamsWord", "read_seams_file"]
+
+
+@dataclass(frozen=True)
+class SeamsWord:
+    """What a seams file says: seams declared, piece pairs vetoed, and whether the seams it
+    does not declare are still to be inferred."""
+
+    declared: list[Seam] = field(default_factory=list)
+    vetoed: set[frozenset[int]] = field(default_factory=set)
+    infer_others: bool = True
 
 
 def _piece(names: dict[str, int], name, src: str, where: str) -> int:
@@ -35,9 +50,9 @@ def _span(piece: SewPiece, ends, src: str, where: str) -> tuple[float, float]:
     return s0, s1 if s1 > s0 else s1 + piece.length
 
 
-def read_seams_file(path: str | Path, pieces: list[SewPiece]
-                    ) -> tuple[list[Seam], set[frozenset[int]]]:
-    """(declared seams, vetoed piece pairs) of a seams file, checked before any work."""
+def read_seams_file(path: str | Path, pieces: list[SewPiece]) -> SeamsWord:
+    """The declared seams, vetoed piece pairs and ``infer`` of a seams file, checked
+    before any work."""
     src = str(path)
     doc = untrusted.mapping(untrusted.read_json(path, what="seams file"), src)
     names = {p.name: i for i, p in enumerate(pieces)}
@@ -56,4 +71,7 @@ def read_seams_file(path: str | Path, pieces: list[SewPiece]
                                                 max_len=1000)):
         pair = untrusted.sequence(pair, src, f"not_seams[{k}]", min_len=2, max_len=2)
         vetoed.add(frozenset(_piece(names, n, src, f"not_seams[{k}]") for n in pair))
-    return declared, vetoed
+    infer = doc.get("infer", True)
+    if not isinstance(infer, bool):
+        raise untrusted.InputError(src, "infer: true or false (false: these seams only)")
+    return SeamsWord(declared, vetoed, infer)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -78,15 +78,17 @@ def load_order_garment(item: OrderGarment, inset: Inset | None = None) -> Garmen
     return garment_files.load_garment(item.pattern, units=item.units, size=item.size, **more)
 
 
-def align_order(order: Order, align_one: AlignOne, inset: Inset | None = None
-                ) -> list[OrderedGarment]:
-    """Every garment of ``order`` aligned by ``align_one`` (once per style and size)."""
+def align_order(order: Order, align_one: AlignOne, inset: Inset | None = None,
+                loaded: Mapping[tuple, Garment] | None = None) -> list[OrderedGarment]:
+    """Every garment of ``order`` aligned by ``align_one`` (once per style and size);
+    ``loaded``: patterns already read, by (pattern, size, units) (a job's DXF styles with
+    their seams as the operator confirmed them)."""
     done: dict[tuple, tuple[Garment, Placement]] = {}
     out = []
     for item in order.garments:
         key = (item.pattern, item.size, item.units)
         if key not in done:
-            garment = load_order_garment(item, inset)
+            garment = (loaded or {}).get(key) or load_order_garment(item, inset)
             done[key] = garment, align_one(garment, item)
         garment, placement = done[key]
         placement = dataclasses.replace(placement, garment=str(item.pattern),

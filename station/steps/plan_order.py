@@ -1,6 +1,7 @@
 """Steps 2 to 5 for a job that is an order: every garment (style, size, copy) loaded and
 aligned by the same steps as a single garment (`steps.garment.grained`,
-`steps.place.align_job`, or `plain_placement` on plain cloth), reshaped when the job asks
+`steps.place.align_job`, or `plain_placement` on plain cloth; a DXF style's seams
+confirmed first, `steps.dxfseams`), reshaped when the job asks
 as a single garment is (`steps.plan.reshape_step`, once per style and size; the aligned
 garments are cut if the reshaped ones cannot be nested), one marker holding every piece
 of the order (`steps.order`), then the program (`steps.program`).
@@ -27,6 +28,7 @@ from station.daemon import JobControl
 from station.jobstore import Job
 from station.order import OrderGarment, read_order
 from station.steps.capture import Captured
+from station.steps.dxfseams import order_dxf_garments
 from station.steps.garment import grained
 from station.steps.nest import nest_in_window_or_bites
 from station.steps.order import OrderedGarment, align_order, order_problem, write_aligned
@@ -58,6 +60,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
     plain = kind == "plain" or (kind == "stripes" and not job.options.get("match_stripes",
                                                                           True))
     wallpaper = None if plain else print_of(captured, config, report)
+    dxf_styles = order_dxf_garments(job, order, workdir, config)  # may wait: confirm seams
     control.start_step("aligning", 0.0)
     done = 0
 
@@ -74,7 +77,7 @@ def plan_order(job: Job, captured: Captured, workdir: Path, config: Config, mach
                          fabric_grain_deg=report.data["fabric"].get("grain_deg"))
 
     inset = (rules_for_job(config, job.options).seam_mm, "the station's seam allowance")
-    aligned = align_order(order, align_one, inset)
+    aligned = align_order(order, align_one, inset, loaded=dxf_styles)
     report.data["garments"] = [a.report() for a in aligned]
     report.step_done("align")
     control.checkpoint()

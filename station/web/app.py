@@ -151,6 +151,8 @@ class ConsoleApp:
         req: dict[str, Any] = {"cmd": action, "job": request.path_params["job"]}
         if action == "confirm" and body.get("group"):
             req["group"] = body["group"]
+        if action == "confirm" and body.get("seams") is not None:
+            req["seams"] = body["seams"]  # checked by the daemon as `station confirm --seams`
         return self.answered(await asyncio.to_thread(self.command, req))
 
     async def upload(self, request: Request) -> Response:

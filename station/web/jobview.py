@@ -19,6 +19,7 @@ import numpy as np
 
 from solver.nest.layout import Layout
 from station.render import cloth_image
+from station.seams_confirm import SEAMS_FOUND
 
 #: the pictures a job's folder may hold, in the order the page offers them
 PICTURES = ("rectified.png", "detection.png", "seams.png", "frame.png", "marker.png",
@@ -60,7 +61,7 @@ class JobFiles:
 
     def detail(self, job_id: int) -> dict[str, Any]:
         """What the page needs to draw the job: the print, the camera's scale, the marker's
-        pieces (fabric mm) and which pictures exist."""
+        pieces (fabric mm), which pictures exist, and a CAD pattern's seams as found."""
         fabric = self._json(job_id, "fabric.json") or {}
         camera = self._json(job_id, "camera.json") or {}
         layout = self._json(job_id, "layout.json")
@@ -70,6 +71,7 @@ class JobFiles:
             else None,
             "marker": None if layout is None else marker_outline(layout),
             "pictures": [n for n in PICTURES if self.file(job_id, n) is not None],
+            "seams": self._json(job_id, SEAMS_FOUND),  # a CAD pattern's, as inferred
         }
 
     def cloth_png(self, job_id: int) -> bytes | None:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import shapely
 
+from solver.garment.dxf import read_dxf_pattern
 from solver.nest import NestProblem, Piece, verify_layout
 from solver.nest.dxf_aama import dxf_sizes, read_dxf_aama, write_dxf_aama
 from solver.nest.instance import affine
@@ -185,3 +186,25 @@ def test_a_piece_too_narrow_for_the_allowance_is_told_not_silently_left_without_
     assert rc == 0
     assert len(warned) == 1 and warned[0].startswith("station nest: warning: ")
     assert str(path) in warned[0] and "'binding'" in warned[0]
+
+
+def test_notches_as_cads_draw_them_slit_v_polyline_and_v_of_two_lines(tmp_path):
+    """A slit, a V drawn as one polyline and a V drawn as two LINEs meeting at the tip:
+    three notches, each at its mouth on the outline and pointing into the piece (the two
+    LINEs of a V are one notch, not a double notch)."""
+    doc = ezdxf.new("R12")
+    blk = doc.blocks.new("SQUARE")
+    blk.add_text("Piece Name: PANEL", dxfattribs={"layer": "1"})
+    blk.add_polyline2d([(0, 0), (200, 0), (200, 100), (0, 100)], close=True,
+                       dxfattribs={"layer": "1"})
+    blk.add_line((50, 0), (50, 6), dxfattribs={"layer": "4"})  # slit on the bottom
+    blk.add_polyline2d([(200, 40), (194, 46), (200, 52)], dxfattribs={"layer": "4"})
+    blk.add_line((120, 100), (123, 94), dxfattribs={"layer": "4"})  # V of two lines, top
+    blk.add_line((123, 94), (126, 100), dxfattribs={"layer": "4"})
+    doc.modelspace().add_blockref("SQUARE", (0, 0))
+    path = tmp_path / "notches.dxf"
+    doc.saveas(path)
+    (piece,) = read_dxf_pattern(path, units="mm", allowance_mm=10.0).pieces
+    got = sorted((tuple(np.round(a, 6)), tuple(np.round(d, 6))) for a, d in piece.notches)
+    assert got == [((50.0, 0.0), (0.0, 1.0)), ((123.0, 100.0), (0.0, -1.0)),
+                   ((200.0, 46.0), (-1.0, 0.0))]

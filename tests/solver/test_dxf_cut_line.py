@@ -30,7 +30,7 @@ from station.cliload import load_garment_arg
 from station.config import load_config
 from station.order import OrderGarment
 from station.seams_view import read_dxf
-from station.steps.garment import dxf_job_garment
+from station.steps.dxfseams import dxf_job_garment
 from station.steps.order import load_order_garment
 
 GPG_TEE = Path(__file__).resolve().parents[1] / "data" / "garments" / \

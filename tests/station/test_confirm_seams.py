@@ -5,8 +5,10 @@ daemon's planning step reads it with the station's own `dxf_job_garment`."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
+import shutil
 import threading
 import warnings
 from pathlib import Path
@@ -21,7 +23,9 @@ from station.config import load_config
 from station.control import ControlError, request
 from station.daemon import CONFIRM_SEAMS, Daemon, JobControl, wait_until
 from station.jobstore import Job
-from station.steps.garment import dxf_job_garment
+from station.order import read_order
+from station.seams_confirm import checked_seams
+from station.steps.dxfseams import dxf_job_garment, order_dxf_garments
 from station.steps.submission import check_job
 from station.web.feed import Feed
 from station.web.jobview import JobFiles
@@ -62,25 +66,34 @@ def tee_dxf(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture
-def station(tmp_path, tee_dxf):
+@contextlib.contextmanager
+def served(tmp_path: Path, pipeline_class: type[SeamsPipeline]):
+    """A daemon planning with ``pipeline_class`` (seams.confirm_below = BELOW) on its own
+    thread: (daemon, pipeline, control socket)."""
     config = load_config(None, {
         "store": {"path": str(tmp_path / "jobs.db"), "work_dir": str(tmp_path / "work")},
         "control": {"socket": str(tmp_path / "station.sock")},
         "seams": {"confirm_below": BELOW},
     })
-    pipeline = SeamsPipeline(config)
+    pipeline = pipeline_class(config)
     daemon = Daemon(config, pipeline)
     daemon.control.start()
     thread = threading.Thread(target=daemon.run_loop, daemon=True)
     thread.start()
-    sock = tmp_path / "station.sock"
-    job = request(sock, "submit", garment=str(tee_dxf), fabric=None)["job"]["id"]
-    assert wait_until(lambda: _state(sock, job)["state"] == "paused", 10)
-    yield daemon, pipeline, sock, job, tmp_path / "work" / f"job-{job}"
-    daemon.shutdown()
-    thread.join(5)
-    daemon.control.stop()
+    try:
+        yield daemon, pipeline, tmp_path / "station.sock"
+    finally:
+        daemon.shutdown()
+        thread.join(5)
+        daemon.control.stop()
+
+
+@pytest.fixture
+def station(tmp_path, tee_dxf):
+    with served(tmp_path, SeamsPipeline) as (daemon, pipeline, sock):
+        job = request(sock, "submit", garment=str(tee_dxf), fabric=None)["job"]["id"]
+        assert wait_until(lambda: _state(sock, job)["state"] == "paused", 10)
+        yield daemon, pipeline, sock, job, tmp_path / "work" / f"job-{job}"
 
 
 def _state(sock, job):
@@ -162,3 +175,54 @@ def test_seams_sent_with_the_job_are_not_asked_again(station, tee_dxf, data_dir)
     assert wait_until(lambda: _state(sock, job)["state"] == "done", 10)
     assert frozenset((sleeves["a"], sleeves["b"])) not in _pairs(pipeline.planned[-1])
     assert _state(sock, first)["state"] == "paused"
+
+
+class OrderSeamsPipeline(SeamsPipeline):
+    """Plans an order's DXF styles with the station's own step, then cuts as the ticking
+    pipeline does."""
+
+    def plan(self, job: Job, captured, workdir: Path, control: JobControl):
+        self.planned.append(order_dxf_garments(job, read_order(job.garment), workdir,
+                                               self.config))
+        return _daemon_tests.TickingPipeline.plan(self, job, captured, workdir, control)
+
+
+def test_an_order_asks_for_each_unsure_style_in_turn_and_never_twice(tmp_path, tee_dxf):
+    shutil.copyfile(tee_dxf, tmp_path / "tee.dxf")  # an order's patterns lie beside it
+    other = tmp_path / "tee-b.dxf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        export_cad_dxf(load_garment(GPG_TEE), other, allowance_mm=10.0, seed=5)
+    order = tmp_path / "order.toml"
+    order.write_text(f'name = "PO-7"\n[[garment]]\npattern = "tee.dxf"\ncopies = 2\n'
+                     f'[[garment]]\npattern = "{other.name}"\ncopies = 1\n')
+    with served(tmp_path, OrderSeamsPipeline) as (_, pipeline, sock):
+        job = request(sock, "submit", garment=str(order), fabric=None)["job"]["id"]
+        folder = tmp_path / "work" / f"job-{job}"
+        asked = []
+        for _ in range(3):  # two styles, each unsure: two questions, then done
+            assert wait_until(lambda: _state(sock, job)["state"] in ("paused", "done"), 20)
+            if _state(sock, job)["state"] == "done":
+                break
+            asked.append(_state(sock, job)["reason"])
+            listed = json.loads((folder / "seams.json").read_text())
+            assert main(["confirm", str(job), "--socket", str(sock)]) == 0
+            assert wait_until(lambda: _state(sock, job)["state"] != "paused", 10)
+        assert _state(sock, job)["state"] == "done"
+    assert [r.split(":")[1].strip() for r in asked] == ["tee.dxf", "tee-b.dxf"]
+    assert all(r.startswith(CONFIRM_SEAMS) for r in asked)
+    styles = pipeline.planned[-1]
+    assert [key[0].name for key in styles] == ["tee.dxf", "tee-b.dxf"]
+    for key, garment in styles.items():  # each planned with the seams its question listed
+        tag = key[0].stem
+        own = json.loads((folder / f"seams-confirmed-{tag}.json").read_text())
+        assert _pairs(garment) == {frozenset((s["a"], s["b"])) for s in own["seams"]}
+        assert cv2.imread(str(folder / f"seams-{tag}.png")) is not None
+    assert own == listed  # the last question's list is what the last style was sewn by
+    assert not (folder / "seams-confirmed.json").exists()  # every answer went to its style
+
+
+def test_infer_must_say_true_or_false():
+    with pytest.raises(ValueError, match="infer: true or false"):
+        checked_seams({"seams": [], "infer": "no"}, {"front"}, "the seams sent")
+    assert checked_seams({"seams": [], "infer": False}, {"front"}, "s")["infer"] is False

@@ -1,6 +1,7 @@
 """An order as a station job (issue 34, item 3): submitted through the daemon's intake (the
 order and its patterns copied together, checked garment by garment), planned by the same
-steps per garment into one marker and program, and counted per garment in its status."""
+steps per garment into one marker and program (each DXF size's unsure seams confirmed
+by the operator first), and counted per garment in its status."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ import pytest
 from gcode.machine import default_machine
 from station.config import load_config
 from station.control import ControlError, request
-from station.daemon import Daemon, JobControl
+from station.daemon import CONFIRM_SEAMS, Daemon, JobControl, JobInterrupted
 from station.jobstore import JobStore
 from station.progress import garment_counts
+from station.seams_confirm import confirm_seams
 from station.steps.capture import Captured
 from station.steps.plan_order import plan_order
 from tests.station.test_daemon_defence import StationChecked, config_file
@@ -69,8 +71,17 @@ def test_an_order_is_planned_per_garment_into_one_marker_and_counted_per_garment
     work = tmp_path / "job"
     work.mkdir()
     table = dataclasses.replace(default_machine(), work_area=(0.0, 0.0, 3000.0, 1000.0))
-    plan = plan_order(job, Captured(str(fabric), P4M_60), work, config, table,
-                      JobControl(job.id))
+    asked = []
+    while True:  # each size an unsure pattern of its own: the operator confirms each once
+        try:
+            plan = plan_order(job, Captured(str(fabric), P4M_60), work, config, table,
+                              JobControl(job.id))
+            break
+        except JobInterrupted as wait:
+            assert wait.reason.startswith(CONFIRM_SEAMS) and len(asked) < 2, wait.reason
+            asked.append(wait.reason.split(":")[1].strip())
+            confirm_seams(work)
+    assert asked == ["tee.dxf size S", "tee.dxf size M"]
     report = json.loads((work / "report.json").read_text())
     assert [g["garment"] for g in report["garments"]] == ["tee-S-1", "tee-M-1"]
     assert all(g["e_fit_aligned_mm2"] < g["e_fit_random_mm2"] for g in report["garments"])

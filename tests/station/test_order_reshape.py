@@ -31,7 +31,8 @@ def test_an_order_asking_for_reshaping_cuts_each_garment_reshaped(tmp_path):
     order = tmp_path / "order.toml"
     order.write_text('name = "PO-8"\n[[garment]]\npattern = "patterns/tee.dxf"\n'
                      'sizes = { "S" = 2 }\n')
-    config = load_config(None, {"nest": {"seconds": 0.5, "length_mm": 3000.0}})
+    config = load_config(None, {"nest": {"seconds": 0.5, "length_mm": 3000.0},
+                                "seams": {"confirm_below": 0.0}})  # its seams taken as found
     check_job(str(order), None, {"reshape": True}, config)  # an order may ask for it
     with pytest.raises(ValueError, match="drop job option symmetrise"):
         check_job(str(order), None, {"symmetrise": True}, config)

@@ -103,7 +103,7 @@ def station(tmp_path_factory):
         '[store]\npath = "jobs.db"\nwork_dir = "work"\n'
         '[control]\nsocket = "station.sock"\n'
         f'[console]\nlisten = "127.0.0.1:{port}"\ntoken_file = "console.token"\n'
-        "[camera]\nconfirm_below = 1.0\n"
+        "[camera]\nconfirm_below = 1.0\n[seams]\nconfirm_below = 0.9\n"
         "[align]\nrestarts = 1\n[nest]\nseconds = 1.0\n")
     with open(folder / "daemon.log", "wb") as log:
         proc = subprocess.Popen([sys.executable, "-m", "station.cli", "serve", "--simulate",

@@ -13,18 +13,23 @@ import json
 import socket
 import urllib.error
 import urllib.request
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from solver.garment import load_garment
+from solver.seams.export import export_cad_dxf
 from station.control import ControlError, request
 from station.daemon import wait_until
 from station.web.app import MAX_STREAMS
 
 GARMENT = Path(__file__).resolve().parents[1] / "data" / "garments" / "berkeley" / \
     "tshirt-coarse.obj"
+GPG_TEE = Path(__file__).resolve().parents[1] / "data" / "garments" / \
+    "garment_pattern_generator" / "tee.json"  # MIT, bundled
 
 # Records, on every change of the marker, how many of its pieces the page shows cut.
 WATCH_MARKER = """() => {
@@ -43,7 +48,7 @@ WATCH_MARKER = """() => {
 }"""
 
 
-def test_the_console_from_upload_to_cut_pieces(page, station):
+def test_the_console_from_upload_to_cut_pieces(page, station, tmp_path_factory):
     """One job the whole way from the page, then what the page and the server show and
     refuse about it. One test, so that the simulated job runs once on whichever xdist
     worker takes it; each check below is named for what it shows."""
@@ -57,6 +62,7 @@ def test_the_console_from_upload_to_cut_pieces(page, station):
     oversized_requests_are_refused(station)
     a_broken_pattern_is_refused_and_nothing_queued(station)
     live_views_are_bounded(station)
+    a_seam_struck_out_on_the_page_is_not_sewn(page, station, tmp_path_factory)
     for client in (silent, trickling):  # long closed by the console, as the socket does
         assert client.recv(1024) == b""
         client.close()
@@ -244,3 +250,46 @@ def live_views_are_bounded(station) -> None:
         return answer.status == 200
 
     assert wait_until(seat_free, 5)
+
+
+def a_seam_struck_out_on_the_page_is_not_sewn(page, station, tmp_path_factory) -> None:
+    """A CAD pattern whose seams are unsure: the page lists them with tick boxes; the
+    operator strikes out one unsure seam and confirms, and the job is planned with the
+    others only (the answer is the whole list, nothing inferred again)."""
+    dxf = tmp_path_factory.mktemp("cad") / "tee.dxf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        export_cad_dxf(load_garment(GPG_TEE), dxf, allowance_mm=10.0, seed=3)
+    job = request(station.socket, "submit", garment=str(dxf), fabric=None)["job"]["id"]
+    folder = station.work / f"job-{job}"
+
+    def asks(question: str) -> bool:
+        return any(q["job"] == job and q["question"] == question
+                   for q in station.state()["questions"])
+
+    assert wait_until(lambda: asks("confirm fabric"), 60), station.log()
+    request(station.socket, "confirm", job=job)
+    assert wait_until(lambda: asks("confirm seams"), 60), station.log()
+    found = json.loads((folder / "seams.json").read_text())
+    page.goto(station.url)
+    box = page.locator(f'.question[data-job="{job}"]')
+    box.locator("input[data-seam]").first.wait_for(timeout=10_000)
+    assert box.locator("input[data-seam]").count() == len(found["seams"])
+    unsure = box.locator('li[data-unsure="yes"] input[data-seam]')
+    struck = int(unsure.first.get_attribute("data-seam"))
+    marked = [int(t.get_attribute("data-seam")) for t in unsure.all()]
+    assert marked == [s["number"] for s in found["seams"] if s["confidence"] < 0.9]
+    unsure.first.uncheck()
+    box.locator("button").click()
+    page.wait_for_selector("#message.good", timeout=10_000)
+    assert "no others" in page.inner_text("#message")
+    confirmed = json.loads((folder / "seams-confirmed.json").read_text())
+    assert confirmed["infer"] is False
+    assert len(confirmed["seams"]) == len(found["seams"]) - 1
+    # planning reads the answer: the seams listed again are the kept ones, none added
+    assert wait_until(lambda: not asks("confirm seams") and json.loads(
+        (folder / "seams.json").read_text())["seams"] != found["seams"], 30), station.log()
+    again = json.loads((folder / "seams.json").read_text())["seams"]
+    kept = [(s["a"], s["b"], s["length_mm"]) for s in found["seams"] if s["number"] != struck]
+    assert sorted((s["a"], s["b"], s["length_mm"]) for s in again) == sorted(kept)
+    request(station.socket, "abort", job=job)

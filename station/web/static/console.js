@@ -4,7 +4,8 @@
 
 const SVG = "http://www.w3.org/2000/svg";
 const TOKEN_KEY = "station-console-token";
-const state = { view: null, selected: null, followNewest: true, detail: null, detailKey: "" };
+const state = { view: null, selected: null, followNewest: true, detail: null, detailKey: "",
+  questionsKey: "" };
 
 function $(sel) { return document.querySelector(sel); }
 
@@ -115,16 +116,23 @@ function showJobs(jobs) {
 }
 
 function showQuestions(questions) {
+  // drawn again only when the questions change, so a box the operator is filling in stays
+  const key = JSON.stringify(questions.map((q) => [q.job, q.reason]));
+  if (key === state.questionsKey) return;
+  state.questionsKey = key;
   const boxes = questions.map((q) => {
     const box = el("div", { class: "question", "data-job": q.job, "data-question": q.question });
     box.append(el("p", {}, `Job ${q.job} asks: ${q.reason}`));
     if (q.question === "confirm seams") {
-      // the seams numbered on both pieces; a correction goes by `station confirm N --seams`
       const picture = el("img", { class: "seams", alt: "the seams found, numbered",
-        src: `/api/jobs/${q.job}/files/seams.png` });
+        src: `/api/jobs/${q.job}/files/seams.png?v=${encodeURIComponent(q.reason)}` });
+      const list = el("ul", { class: "seams" });
       const yes = el("button", { "data-answer": q.answer }, "Confirm seams");
-      yes.addEventListener("click", () => act(q.answer, q.job, {}));
-      box.append(picture, yes);
+      yes.addEventListener("click", () => act(q.answer, q.job, seamsAnswer(list)));
+      box.append(picture, list, yes);
+      // unsure as the question counts them (seams.confirm_below), as seams.png marks them
+      const below = Number((q.reason.match(/under confidence ([0-9.]+)/) || [])[1] || 0.5);
+      listSeams(q.job, list, below);
       return box;
     }
     const group = el("input", { placeholder: "group (empty: as detected)", size: "22" });
@@ -134,6 +142,37 @@ function showQuestions(questions) {
     return box;
   });
   $("#questions").replaceChildren(...boxes);
+}
+
+// The seams found, one tick box each (the unsure ones marked): a seam struck out is
+// answered as the operator's whole list of seams, the others kept as found, none inferred
+// again (`"infer": false`); all ticked, the seams are confirmed as found.
+async function listSeams(jobId, list, below) {
+  const response = await fetch(`/api/jobs/${jobId}`);
+  if (!response.ok) return;
+  const found = (await response.json()).seams;
+  if (!found) return;
+  list.found = found;
+  list.replaceChildren(...found.seams.map((s) => {
+    const tick = el("input", { type: "checkbox", "data-seam": s.number });
+    tick.checked = true;
+    const unsure = s.confidence < below ? " ?" : "";
+    const item = el("li", { "data-unsure": unsure ? "yes" : "no" });
+    item.append(tick, ` ${s.number}${unsure}: ${s.a} to ${s.b}, ${s.length_mm} mm`
+      + ` (confidence ${s.confidence})`);
+    return item;
+  }));
+}
+
+function seamsAnswer(list) {
+  const found = list.found;
+  if (!found) return {};
+  const kept = [...list.querySelectorAll("input[data-seam]")].filter((t) => t.checked)
+    .map((t) => Number(t.dataset.seam));
+  if (kept.length === found.seams.length) return {};
+  const seams = found.seams.filter((s) => kept.includes(s.number)).map((s) =>
+    ({ a: s.a, a_ends: s.a_ends, b: s.b, b_ends: s.b_ends }));
+  return { seams: { pieces: found.pieces, seams, not_seams: [], infer: false } };
 }
 
 function showEvents(events) {
