@@ -24,7 +24,7 @@ normal matrix of the shared strip's own print (the gradients of both photographs
 multiplied with each other, so the sensor's noise, independent in the two, adds
 nothing). A component left unmeasured keeps its prior: the commanded advance, no drift,
 no skew. What the station itself put on the cloth, the kerfs of the bite it cut, can
-then carry the advance (`station.steps.bites.find_bite`).
+then carry the advance (`station.steps.bites.measure_bite_advance`).
 
 References
 ----------
