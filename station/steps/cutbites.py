@@ -3,10 +3,13 @@
 For each bite in order: bring it onto the table (`station.steps.bites.find_bite`: the
 roll advanced by the machine profile's conveyor, or by the operator while the job waits
 at "advance the fabric N mm" until `station resume`; the window photographed; the real
-advance and skew measured from the print), then cut its pieces where the cloth now lies
-(`station.steps.cut.cut_job`, restricted to the bite). The journal of the bites
-(``bites-state.json`` and the last photograph, ``bite-photo.npy``, in the job's folder)
-is written before every advance and after every measurement, so a job paused, stopped
+advance and skew measured from the print, or from the last bite's kerfs where the
+print says nothing along the roll), then cut its pieces where the cloth now lies
+(`station.steps.cut.cut_job`, restricted to the bite), and photograph the window again
+with the bite's kerfs in it. The journal of the bites (``bites-state.json``, the last
+photograph ``bite-photo.npy`` and the one after its cut ``bite-cut-photo.npy``, in the
+job's folder) is written before every advance, after every measurement and after every
+photograph of a cut, so a job paused, stopped
 or killed between bites resumes at the right bite, without advancing the roll twice;
 each piece is recorded cut in the job store at its sync point as ever, with its bite.
 
