@@ -267,7 +267,7 @@ def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite,
     photo = roll.photograph()
     commanded = previous.track.advance_for(bite, plan)
     moved = roll_moved(previous.photograph, photo, commanded_mm=commanded, lattice=lattice,
-                       mm_per_px=roll.mm_per_px)
+                       mm_per_px=roll.mm_per_px, cut=previous.cut_photograph)
     if moved is None:
         raise JobInterrupted("paused", f"bite {bite.index + 1}: the print cannot tell "
                              f"whether the roll advanced "
@@ -282,7 +282,8 @@ def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite,
 
 
 def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
-               lattice: np.ndarray | None, mm_per_px: float) -> bool | None:
+               lattice: np.ndarray | None, mm_per_px: float,
+               cut: np.ndarray | None = None) -> bool | None:
     """Whether the roll advanced by about ``commanded_mm`` between the two photographs
     (True), did not move (False), or the print cannot tell (None: it moved part of the
     way, or the print repeats too perfectly). Both explanations are measured; the one
@@ -293,9 +294,11 @@ def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
     The motion found near zero is no rival when it lies beyond that room from rest: the
     print matched whole repeats away, so the roll moved. (A stop within the room of a
     whole number of repeats short of the advance then looks advanced: a print that
-    repeats that perfectly cannot tell it.)"""
-    still = _explained(before, after, 0.0, lattice, mm_per_px)
-    moved = _explained(before, after, commanded_mm, lattice, mm_per_px)
+    repeats that perfectly cannot tell it.) Where the print says nothing along the roll,
+    each explanation is measured on ``cut`` instead (the window photographed after the
+    last bite's cut, None: none), from the kerfs."""
+    still = _explained(before, after, 0.0, lattice, mm_per_px, cut)
+    moved = _explained(before, after, commanded_mm, lattice, mm_per_px, cut)
     at_rest = still is not None and max(abs(still.advance_mm), abs(still.across_mm)) \
         < AT_REST_MM and abs(still.skew_deg) < AT_REST_DEG
     if at_rest and (moved is None or still.residual < SAME_CLOTH_SHARE * moved.residual):
@@ -308,15 +311,22 @@ def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
 
 
 def _explained(before: np.ndarray, after: np.ndarray, commanded_mm: float,
-               lattice: np.ndarray | None, mm_per_px: float) -> Advance | None:
-    """The motion measured near ``commanded_mm``; None where the photographs do not
-    match near it at all, or the print cannot measure the advance along the roll."""
-    try:
-        found = measure_advance(before, after, commanded_mm=commanded_mm,
-                                mm_per_px=mm_per_px, lattice=lattice)
-    except ValueError:
-        return None
-    return found if found.along_measured else None
+               lattice: np.ndarray | None, mm_per_px: float, cut: np.ndarray | None = None
+               ) -> Advance | None:
+    """The motion measured near ``commanded_mm``, from the print, else from the kerfs of
+    ``cut`` (the photograph after the last cut); None where the photographs do not match
+    near it at all, or neither measures the advance along the roll."""
+    for first in (before, cut):
+        if first is None:
+            continue
+        try:
+            found = measure_advance(first, after, commanded_mm=commanded_mm,
+                                    mm_per_px=mm_per_px, lattice=lattice)
+        except ValueError:
+            return None
+        if found.along_measured:
+            return found
+    return None
 
 
 def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout, track: RollTrack

@@ -12,6 +12,7 @@ import serial
 
 import simulators.grbl  # noqa: F401  (the emulator's grblsim:// URLs)
 from gcode.machine import machine_from_dict
+from simulators.classics import classic_print
 from simulators.fabric import random_print
 from simulators.grbl.registry import forget, lookup
 from simulators.roll import Conveyor, RollCamera, RollPrint
@@ -290,3 +291,25 @@ def test_a_restarted_station_waits_for_the_relay_conveyor_a_dead_daemon_left_run
     finally:
         dead.close()
         forget(name)
+
+
+def test_on_stripes_along_the_roll_the_last_cut_tells_an_advance_from_none():
+    conveyor = Conveyor(pivot=(199.5, 149.5), seed=8)
+    camera = RollCamera(RollPrint(classic_print("stripes", 20.0, rotation=90.0),
+                                  width=300.0), conveyor, (0.0, 0.0, 400.0, 300.0))
+    before = camera.photograph()
+    t = np.linspace(0.0, 2 * np.pi, 90, endpoint=False)
+    ring = np.column_stack([360.0 + 30.0 * np.cos(t), 150.0 + 100.0 * np.sin(t)])
+    camera.burn(np.column_stack([ring, np.roll(ring, -1, axis=0)]))  # the last bite's cut
+    cut = camera.photograph()
+    judged = {}
+    for name, moved_mm in (("still", 0.0), ("advanced", 330.0)):
+        conveyor.poses[1:] = []
+        if moved_mm:
+            conveyor.advance(moved_mm)
+        judged[name] = roll_moved(before, camera.photograph(), commanded_mm=330.0,
+                                  lattice=None, mm_per_px=1.0, cut=cut)
+    assert judged == {"still": False, "advanced": True}  # told by the kerfs
+    # the stripes alone cannot tell
+    assert roll_moved(before, camera.photograph(), commanded_mm=330.0, lattice=None,
+                      mm_per_px=1.0) is None
