@@ -28,11 +28,38 @@ from solver.seams.score import STEP_MM, Correspondence
 __all__ = ["export_cad_dxf"]
 
 DOUBLE_GAP_MM = 6.0  # between the two slits of a double notch
+BACK_SIDE = 0.1  # an unnamed piece this share of the garment's depth behind its middle is
+# a back
+
+
+def _seam_rows(g: Garment, line: int) -> np.ndarray:
+    """The twin rows (a0, a1, b0, b1) of one seam line, side A all on one side and running
+    round its loop: a mesh may list a seam of a piece with itself (a dart, a tube's
+    underarm) either side first and either way round, row by row (a CAD then got a turn
+    point at every change, and a dart was not seen). Going round the loop from the widest
+    stretch the seam leaves free, side A is the one met first (a dart's first leg)."""
+    rows = g.seam_edges[g.seam_line_of_edge == line]
+    piece = g.piece_of_vertex
+    if len(rows) < 2 or piece[rows[0, 0]] != piece[rows[0, 2]]:
+        return rows
+    loop = g.piece_loops(int(piece[rows[0, 0]]))[0]
+    at = np.full(len(g.uv), -1)
+    at[loop] = np.arange(len(loop))
+    n = len(loop)
+    pos = np.stack([np.where((at[rows[:, k + 1]] - at[rows[:, k]]) % n == 1, at[rows[:, k]],
+                             at[rows[:, k + 1]]) for k in (0, 2)], axis=1)  # (r,2) edges
+    used = np.unique(pos)
+    gaps = np.diff(np.append(used, used[0] + n))
+    start = used[(np.argmax(gaps) + 1) % len(used)]
+    ahead = (pos - start) % n
+    rows = np.where((ahead[:, 1] < ahead[:, 0])[:, None], rows[:, [2, 3, 0, 1]], rows)
+    forward = (at[rows[:, 1]] - at[rows[:, 0]]) % n == 1  # side A runs round the loop
+    return np.where(forward[:, None], rows, rows[:, [1, 0, 3, 2]])
 
 
 def _seam_sides(g: Garment, line: int) -> tuple[np.ndarray, np.ndarray]:
     """Twin vertex chains (side A, side B) of one seam line, A's k-th sewn to B's k-th."""
-    rows = chain_seam_rows(g.seam_edges[g.seam_line_of_edge == line])
+    rows = chain_seam_rows(_seam_rows(g, line))
     return (np.append(rows[:, 0], rows[-1, 1]), np.append(rows[:, 2], rows[-1, 3]))
 
 
@@ -66,6 +93,24 @@ def _closed(g: Garment, i: int, darts: list[tuple[int, int, int]]) -> np.ndarray
         if k in peak_after:
             out.append(peak_after[k])
     return np.array(out)
+
+
+def _backs(g: Garment) -> np.ndarray:
+    """(n_pieces,) which pieces a pattern maker calls the back: by name; for a garment whose
+    names say neither (a scanned or simulated mesh), the pieces that hang on one side of
+    the body, along the garment's thinnest axis (a garment is wider and taller than deep),
+    by more than :data:`BACK_SIDE` of its depth. Which side is the back cannot be told from
+    the mesh, nor need it: the double notches only have to tell the two halves of a cap or
+    a waist apart as consistently as a CAD's single front and double back notches do."""
+    kinds = [name_parts(n)[0] for n in g.piece_names]
+    if any(k & {"front", "back"} for k in kinds) or g.xyz is None:
+        return np.array(["back" in k for k in kinds], dtype=bool)
+    xyz = np.asarray(g.xyz, float)
+    centred = xyz - xyz.mean(0)
+    depth = np.linalg.svd(centred, full_matrices=False)[2][-1]  # least spread
+    along = centred @ depth
+    at = np.array([along[g.piece_of_vertex == i].mean() for i in range(g.n_pieces)])
+    return at < -BACK_SIDE * float(np.ptp(along))
 
 
 def _stretches(edges: np.ndarray) -> list[np.ndarray]:
@@ -107,16 +152,19 @@ def _face_down(g: Garment) -> np.ndarray:
     side up, so two pieces sewn right side to right side run opposite ways along their seam;
     GarmentCode draws back panels as seen from the front. Two-colour the seam graph so that
     every seam runs opposite ways (where it cannot, the first colour found stays)."""
+    at = np.full(len(g.uv), -1)
+    size = np.zeros(len(g.uv), int)
+    for i in range(g.n_pieces):
+        loop = g.piece_loops(i)[0]
+        at[loop], size[loop] = np.arange(len(loop)), len(loop)
     sign = {}
     for line in range(len(g.seam_lines)):
-        chain, twin = _seam_sides(g, line)
-        ways = []
-        for v in (chain, twin):
-            loop = g.piece_loops(int(g.piece_of_vertex[v[0]]))[0]
-            at = {int(x): k for k, x in enumerate(loop)}
-            step = (at.get(int(v[1]), 0) - at.get(int(v[0]), 0)) % len(loop)
-            ways.append(1 if step == 1 else -1)
-        sign[line] = ways[0] * ways[1]  # +1: both run the same way (one piece face down)
+        rows = g.seam_edges[g.seam_line_of_edge == line]
+        ways = [(at[rows[:, k + 1]] - at[rows[:, k]]) % np.maximum(size[rows[:, k]], 1) == 1
+                for k in (0, 2)]  # each twin edge as its loop runs, row by row (a mesh may
+        # list a seam's rows either way round, or its side across a dart out of order)
+        sign[line] = 1 if np.mean(ways[0] == ways[1]) > 0.5 else -1  # +1: both run the
+        # same way (one piece face down)
     flip = np.full(g.n_pieces, -1)
     for start in range(g.n_pieces):
         if flip[start] >= 0:
@@ -181,6 +229,7 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
     notches: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     truth = []
     darts: list[list[tuple[int, int, int]]] = [[] for _ in range(g.n_pieces)]
+    backs = _backs(g)
     drills: list[list[np.ndarray]] = [[] for _ in range(g.n_pieces)]
     for line in range(len(g.seam_lines)):
         chain, twin = _seam_sides(g, line)
@@ -192,7 +241,7 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
             axis = 0.5 * (m1 + m2) - tip
             drills[pa].append(tip + axis / np.linalg.norm(axis) * DRILL_SETBACK_MM)
             notches[pa] += [m1, m2]
-        rows = g.seam_edges[g.seam_line_of_edge == line]
+        rows = _seam_rows(g, line)
         a, b, w = _sampled_twins(g.uv, rows)
         truth.append(Correspondence(np.tile([pa, pb], (len(w), 1)), _apply(frames[pa], a),
                                     _apply(frames[pb], b), w))
@@ -207,7 +256,7 @@ def export_cad_dxf(g: Garment, path: str | Path, *, allowance_mm: float = 10.0,
         a_len = float(np.linalg.norm(g.uv[ordered[:, 1]] - g.uv[ordered[:, 0]], axis=1).sum())
         if a_len < 80.0:
             continue
-        back = "back" in name_parts(g.piece_names[pa])[0] | name_parts(g.piece_names[pb])[0]
+        back = backs[pa] or backs[pb]
         share = 0.25 + 0.5 * ((line * 0.618034) % 1.0)
         shares = [share] + ([share + DOUBLE_GAP_MM / a_len] if back else [])
         na, nb = _at_share(g.uv, ordered, np.array(shares))

@@ -57,7 +57,8 @@ RMS_W = 10.0  # weight of the distance between the two lines laid on each other 
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
 GRAIN_DEG = 30.0  # a centre line lies within this of the grain
 GATHER_MAX = 2.0  # a seam gathered more than this (longer side / shorter) is not proposed
-GATHER_PENALTY = 0.3  # a gathered seam's length term is minus this (an equal length scores 1)
+GATHER_PENALTY = 0.0  # a gathered seam's length term is minus this (an equal length scores 1):
+# its notches, matched, carry it alone (from {0, 0.15, 0.3} on half 0)
 WHOLE_BONUS = 0.3  # both sides run corner to corner between pieces whose names say they
 # meet (a shoulder): a seam ends where the lines turn, a chance pairing rarely does on both
 SHOULDER_MM = 150.0  # a front and a back (named so) are mirror images across their
@@ -420,8 +421,9 @@ def _tube_score(a: Run, b: Run) -> float:
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:
-    """The best score of another candidate sharing an edge with candidate ``k``."""
-    shares = (a[:, k:k + 1] * a).sum(0) > 0
+    """The best score of another candidate sharing an edge with candidate ``k`` and sewing
+    an edge ``k`` does not (a part of the same seam is no other partner)."""
+    shares = ((a[:, k:k + 1] * a).sum(0) > 0) & ~(a <= a[:, k:k + 1]).all(0)
     shares[k] = False
     return float(scores[shares].max()) if shares.any() else 0.0
 

@@ -80,11 +80,17 @@ class SewPiece:
         turn = np.degrees(np.abs(np.arctan2(cross, (before * after).sum(1))))
         return s[turn > TURN_DEG]
 
-    def notch_groups(self) -> list[tuple[float, int]]:
-        """(arc position, notch count) of each notch group along the line."""
+    def notch_groups(self, without: np.ndarray | tuple = ()) -> list[tuple[float, int]]:
+        """(arc position, notch count) of each notch group along the line, the notches
+        within :data:`MERGE_MM` of the arc positions ``without`` left out (a dart's mouth)."""
         s = np.sort(arc_position(self, self.notches))
         s = s[np.diff(s, prepend=-np.inf) > SAME_NOTCH_MM]  # a notch on a fold, unfolded,
         # is there twice
+        for v in np.asarray(without, float).reshape(-1):
+            d = np.abs(s - v % self.length)
+            d = np.minimum(d, self.length - d)
+            if len(s) and d.min() <= MERGE_MM:
+                s = np.delete(s, int(np.argmin(d)))
         groups: list[list[float]] = []
         for v in s.tolist():
             if groups and v - groups[-1][-1] <= NOTCH_GROUP_MM:
@@ -93,7 +99,10 @@ class SewPiece:
                 groups.append([v])
         if len(groups) > 1 and groups[0][0] + self.length - groups[-1][-1] <= NOTCH_GROUP_MM:
             groups[0] = groups.pop() + groups[0]
-        return [(float(g[len(g) // 2]), len(g)) for g in groups]
+        # each group at its middle: a double notch read from the other side of its seam
+        # (backwards) is at the same place (a group across the loop's start wraps)
+        return [(float(0.5 * (g[0] + g[-1] + (self.length if g[-1] < g[0] else 0.0))
+                       % self.length), len(g)) for g in groups]
 
     def darts(self) -> list[tuple[float, float]]:
         """Arc spans (mouth, mouth) of the line's darts: a tip (a reflex corner sharper than

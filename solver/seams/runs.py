@@ -86,14 +86,8 @@ def _sharp_outside(sharp: np.ndarray, skips, length: float) -> np.ndarray:
 
 def _balance_notches(piece: SewPiece, darts: list[tuple[float, float]]
                      ) -> list[tuple[float, int]]:
-    """The piece's notch groups less one notch at each dart's mouth (it marks a leg)."""
-    out = []
-    for s, c in piece.notch_groups():
-        at_mouth = sum(abs(s - v - lap) <= MERGE_MM for d in darts for v in d
-                       for lap in (-piece.length, 0.0, piece.length))
-        if c > at_mouth:
-            out.append((s, c - at_mouth))
-    return out
+    """The piece's notch groups less the notch at each dart's mouth (it marks a leg)."""
+    return piece.notch_groups(without=[v for d in darts for v in d])
 
 
 def run_line(piece: SewPiece, run: Run) -> np.ndarray:
