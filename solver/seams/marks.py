@@ -5,10 +5,11 @@ smooth line (a slit's top, a sleeve cap's break); a balance notch marks a point 
 seam, where its two sides are matched. So a candidate side that ends at a notch, with no
 turn point there, is a seam cut short by chance, and one that runs on past a turn point
 where the line does not turn is two seams, or a seam and an opening (a side seam and the
-slit below it, both pieces alike). A file with no turn points, or one on every vertex
-(AccuMark's digitised lines), says neither. And a file that notches its seams (every piece
-carries notches) leaves a long stretch with no notch on either side unsewn: a neckline and
-a sleeve's hem, a vest's two front edges, a slit, are as long and as straight as a seam.
+slit below it, both pieces alike). A file with no turn points, or with one on every vertex
+or along its curves (AccuMark's digitised lines), says neither. And a file that notches its
+seams (nearly every piece carries notches) leaves a long stretch with no notch on either side
+unsewn: a neckline and a sleeve's hem, a vest's two front edges, a slit, are as long and as
+straight as a seam.
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ SMOOTH_EXTRA = 2  # a piece marks a seam's end on a smooth line at most this man
 # more often than it turns a corner; one that marks more marks points along its curves
 UNMARKED_END = 0.3  # per end of either side at no turn point (at a notch) ...
 CROSSED_MARK = 0.5  # ... and per turn point on a smooth line either side runs past
-NOTCHED_MM = 100.0  # in a file that notches its seams, two sides this long with no notch,
+NOTCHED_SHARE = 0.75  # a file notches its seams when this share of its pieces carry notches
+# (a small piece whose seams are all short may carry none; the Gerber tee: 5 of 7) ...
+NOTCHED_MM = 100.0  # ... and there two sides this long with no notch,
 UNNOTCHED = 1.0  # not even at an end, are no seam by this much
 
 
@@ -80,8 +83,9 @@ class FileMarks:
 
     @staticmethod
     def of(pieces: list[SewPiece]) -> FileMarks:
+        notched = sum(bool(len(p.notches)) for p in pieces)
         return FileMarks([PieceMarks(p) for p in pieces],
-                         bool(pieces) and all(len(p.notches) for p in pieces))
+                         bool(pieces) and notched >= NOTCHED_SHARE * len(pieces))
 
     def penalty(self, a: Run, b: Run) -> float:
         """What the marks say against sewing run ``a`` to run ``b`` (0 when nothing)."""
