@@ -33,6 +33,7 @@ from solver.seams.junctions import (
 from solver.seams.marks import FileMarks
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
+from solver.seams.pivot import pivot_shares, shape_by_parts
 from solver.seams.runs import Run, candidate_runs, run_line
 from solver.seams.shape import fit_and_overlap
 
@@ -165,19 +166,33 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
         return -1.0  # a gathered seam is known by its notches alone
     matched = NOTCH_W + (NOTCHED_EXTRA if marks.notched and a.notches and b.notches else 0.0)
     s += matched * notch if notch >= 0 else 1.5 * notch
-    s -= STRAIGHT_W * abs(a.straightness - b.straightness)
+    pivots = _pivots(a, b, pieces)  # compared part by part below
+    s -= 0.0 if pivots else STRAIGHT_W * abs(a.straightness - b.straightness)
     names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
     if a.piece != b.piece:  # a dart's legs end at its mouth's notches
         s -= marks.penalty(a, b)
     if s < min(MIN_SCORE, CLOSING_SCORE):  # no shape can lift it to a seam; one that
         return s  # could still close a meeting is scored whole, its halves' penalty too
-    rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
-                                           run_line(pieces[b.piece], b), polys[b.piece],
-                                           gathered=gathered)
+    lines = (run_line(pieces[a.piece], a), polys[a.piece], run_line(pieces[b.piece], b),
+             polys[b.piece])
+    if pivots:
+        straight, rms, overlap, mirror = shape_by_parts(*lines, pivots, gathered=gathered)
+        s -= STRAIGHT_W * straight
+    else:
+        rms, overlap, mirror = fit_and_overlap(*lines, gathered=gathered)
     if a.piece == b.piece:  # a dart folds its piece onto itself: overlap says nothing
         return s - RMS_W * rms + DART_BONUS
     return s - RMS_W * rms - 3.0 * overlap - _halves_penalty(pieces, a, b, mirror)
+
+
+def _pivots(a: Run, b: Run, pieces: list[SewPiece]) -> list[float]:
+    """Shares of run a at which either side pivots (:mod:`solver.seams.pivot`)."""
+    if a.piece == b.piece:
+        return []
+    u = pivot_shares(pieces[a.piece], a, DART_TIP_DEG)
+    u += [1.0 - v for v in pivot_shares(pieces[b.piece], b, DART_TIP_DEG)]
+    return sorted(u)
 
 
 def _halves_penalty(pieces: list[SewPiece], a: Run, b: Run, mirror: float) -> float:
