@@ -33,7 +33,7 @@ from solver.seams.junctions import (
 from solver.seams.marks import FileMarks
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
-from solver.seams.pivot import pivot_shares, shape_by_parts
+from solver.seams.pivot import pivot_shares, reflex_corners, shape_by_parts
 from solver.seams.runs import Run, candidate_runs, run_line
 from solver.seams.shape import fit_and_overlap
 
@@ -150,10 +150,11 @@ def _stretched(a: Run, b: Run, pieces: list[SewPiece]) -> bool:
 
 
 def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
-           marks: FileMarks) -> float:
+           marks: FileMarks, reflex: list[np.ndarray]) -> float:
     """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
     seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
-    on each other only for a candidate that could still pass."""
+    on each other only for a candidate that could still pass (part by part where either
+    side pivots at one of its piece's ``reflex`` corners)."""
     if _stretched(a, b, pieces):  # a straight rib takes the shape of its edge, and a neck's
         # centre notch has no twin on a rib cut without: neither shape nor notches tell
         names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
@@ -166,7 +167,7 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
         return -1.0  # a gathered seam is known by its notches alone
     matched = NOTCH_W + (NOTCHED_EXTRA if marks.notched and a.notches and b.notches else 0.0)
     s += matched * notch if notch >= 0 else 1.5 * notch
-    pivots = _pivots(a, b, pieces)  # compared part by part below
+    pivots = _pivots(a, b, pieces, reflex)  # compared part by part below
     s -= 0.0 if pivots else STRAIGHT_W * abs(a.straightness - b.straightness)
     names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
@@ -186,12 +187,12 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
     return s - RMS_W * rms - 3.0 * overlap - _halves_penalty(pieces, a, b, mirror)
 
 
-def _pivots(a: Run, b: Run, pieces: list[SewPiece]) -> list[float]:
+def _pivots(a: Run, b: Run, pieces: list[SewPiece], reflex: list[np.ndarray]) -> list[float]:
     """Shares of run a at which either side pivots (:mod:`solver.seams.pivot`)."""
     if a.piece == b.piece:
         return []
-    u = pivot_shares(pieces[a.piece], a, DART_TIP_DEG)
-    u += [1.0 - v for v in pivot_shares(pieces[b.piece], b, DART_TIP_DEG)]
+    u = pivot_shares(reflex[a.piece], pieces[a.piece].length, a)
+    u += [1.0 - v for v in pivot_shares(reflex[b.piece], pieces[b.piece].length, b)]
     return sorted(u)
 
 
@@ -326,7 +327,8 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     """The integer program over the candidate ``pairs`` of ``runs``."""
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
     marks = FileMarks.of(pieces)
-    scores = np.array([_score(runs[i], runs[j], pieces, polys, marks)
+    reflex = [reflex_corners(p, DART_TIP_DEG) for p in pieces]
+    scores = np.array([_score(runs[i], runs[j], pieces, polys, marks, reflex)
                        for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
     strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often

@@ -16,19 +16,24 @@ from solver.seams.outline import MERGE_MM, SewPiece
 from solver.seams.runs import SHARP_DEG, Run
 from solver.seams.shape import fit_and_overlap
 
-__all__ = ["pivot_shares", "shape_by_parts"]
+__all__ = ["pivot_shares", "reflex_corners", "shape_by_parts"]
 
 
 
-def pivot_shares(piece: SewPiece, run: Run, tip_deg: float) -> list[float]:
-    """Shares of the run's sewn length at which its line turns a reflex corner sharper than
-    :data:`~solver.seams.runs.SHARP_DEG` (where a run would
-    end at a convex one) but no dart's tip (``tip_deg``); none for a run that skips darts."""
-    if run.skips:
-        return []
+def reflex_corners(piece: SewPiece, tip_deg: float) -> np.ndarray:
+    """Arc positions at which the piece's line turns a reflex corner sharper than
+    :data:`~solver.seams.runs.SHARP_DEG` (where a run would end at a convex one) but no
+    dart's tip (``tip_deg``)."""
     at, turn = piece.corners(SHARP_DEG)
-    at = at[(turn < 0) & (turn > -tip_deg)]
-    u = np.concatenate([at - run.start, at + piece.length - run.start])
+    return at[(turn < 0) & (turn > -tip_deg)]
+
+
+def pivot_shares(corners: np.ndarray, length: float, run: Run) -> list[float]:
+    """Shares of the run's sewn length at the piece's reflex ``corners`` inside it (the
+    piece's line ``length`` long); none for a run that skips darts."""
+    if run.skips or not len(corners):
+        return []
+    u = np.concatenate([corners - run.start, corners + length - run.start])
     u = u[(u > MERGE_MM) & (u < run.length - MERGE_MM)]
     return sorted((u / run.length).tolist())
 
