@@ -23,14 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
+from simulators.classics import classic_print
 from simulators.fabric import random_print
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.garment import load_garment
 from solver.nest import NestProblem, Piece, load_esicup
-from solver.nest.bites import fenced_nest, plan_bites
+from solver.nest.bites import Bite, fenced_nest, plan_bites
 from solver.nest.solve import nest
 from solver.wallpaper import Wallpaper
-from vision.advance import measure_advance
+from station.steps.bites import BiteStep, RollTrack, measure_bite_advance
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 TSHIRT = "berkeley_garment_library/Garments/tshirt/isotropic/tshirt-iso.obj"
@@ -89,33 +90,53 @@ def main(argv: list[str] | None = None) -> None:
 
 def register(advances: int = 12) -> None:
     """Seconds and error of one measured advance on the default table's window (1600 x
-    1000 mm at 1 mm per pixel), the simulated roll slipping up to 3 mm and 0.2 degrees."""
+    1000 mm at 1 mm per pixel), the simulated roll slipping up to 3 mm and 0.2 degrees:
+    on a p2 print, and on stripes along the roll, where the print cannot give the advance
+    and the kerfs of the last bite's pieces across the shared strip do (both measured, as
+    the station does: `station.steps.bites.measure_bite_advance`)."""
     print(f"\n### Finding the print again: {advances} advances per row, 1600 x 1000 mm window "
-          "at 1 mm/px, p2 print, 50 mm repeat\n")
-    print("| commanded advance | shared strip | seconds per bite (median, max) | "
-          "advance error max | skew error max |")
-    print("|---|---|---|---|---|")
+          "at 1 mm/px\n")
+    print("| print | commanded advance | shared strip | measured from | seconds per bite "
+          "(median, max) | advance error max | skew error max |")
+    print("|---|---|---|---|---|---|---|")
     design = random_print("p2", 50.0, seed=7)
     lattice = np.column_stack([design.wallpaper.w1, design.wallpaper.w2])
     for commanded in (800.0, 1400.0, 1540.0):
-        conv = Conveyor(pivot=(799.5, 499.5), seed=11)
-        camera = RollCamera(RollPrint(design, width=1000.0), conv, (0.0, 0.0, 1600.0, 1000.0))
-        secs, err_a, err_s = [], [], []
-        before = camera.photograph()
-        for _ in range(advances):
-            p0 = conv.pose
-            p1 = conv.advance(commanded)
-            after = camera.photograph()
-            t0 = time.perf_counter()
-            adv = measure_advance(before, after, commanded_mm=commanded, lattice=lattice)
-            secs.append(time.perf_counter() - t0)
-            a = np.radians(p0.angle_deg)
-            along = np.cos(a) * (p1.along - p0.along) + np.sin(a) * (p1.across - p0.across)
-            err_a.append(abs(adv.advance_mm - along))
-            err_s.append(abs(adv.skew_deg - (p1.angle_deg - p0.angle_deg)))
-            before = after
-        print(f"| {commanded:g} mm | {1600 - commanded:g} mm | {np.median(secs):.2f}, "
-              f"{max(secs):.2f} | {max(err_a):.3f} mm | {max(err_s):.4f} deg |", flush=True)
+        _register_row("p2 50 mm", design, lattice, commanded, advances)
+    _register_row("stripes along", classic_print("stripes", 20.0, rotation=90.0), None,
+                  1540.0, advances)
+
+
+def _register_row(name: str, design, lattice: np.ndarray | None, commanded: float,
+                  advances: int) -> None:
+    """One row of `register`: ``advances`` advances of ``commanded`` mm, each after an
+    oval piece was cut into the cloth that stays in view."""
+    conv = Conveyor(pivot=(799.5, 499.5), seed=11)
+    camera = RollCamera(RollPrint(design, width=1000.0), conv, (0.0, 0.0, 1600.0, 1000.0))
+    secs, err_a, err_s, sources = [], [], [], set()
+    before = camera.photograph()
+    t = np.linspace(0.0, 2 * np.pi, 120, endpoint=False)
+    for _ in range(advances):
+        ring = np.column_stack([1540.0 + 50.0 * np.cos(t), 500.0 + 300.0 * np.sin(t)])
+        camera.burn(np.column_stack([ring, np.roll(ring, -1, axis=0)]))
+        previous = BiteStep(RollTrack(), Bite(0, 0.0, 0.0, (), 0.0), before,
+                            cut_photograph=camera.photograph())
+        p0 = conv.pose
+        p1 = conv.advance(commanded)
+        after = camera.photograph()
+        t0 = time.perf_counter()
+        adv, source = measure_bite_advance(previous, after, commanded_mm=commanded,
+                                           lattice=lattice)
+        secs.append(time.perf_counter() - t0)
+        sources.add(source)
+        a = np.radians(p0.angle_deg)
+        along = np.cos(a) * (p1.along - p0.along) + np.sin(a) * (p1.across - p0.across)
+        err_a.append(abs(adv.advance_mm - along))
+        err_s.append(abs(adv.skew_deg - (p1.angle_deg - p0.angle_deg)))
+        before = after
+    print(f"| {name} | {commanded:g} mm | {1600 - commanded:g} mm | {', '.join(sorted(sources))} "
+          f"| {np.median(secs):.2f}, {max(secs):.2f} | {max(err_a):.3f} mm "
+          f"| {max(err_s):.4f} deg |", flush=True)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,10 @@ advances the roll by the commanded length plus a slip (up to ±3 mm) and turns i
 small skew; :class:`RollCamera` photographs only the table window, rectified to table
 mm (the calibration's own simulation is `simulators.camera`). Every pose is kept, so a
 test or report can say where any table point of any bite lay on the cloth.
+
+What the cutter burns is kept too (:meth:`RollCamera.burn`), in cloth coordinates: the
+kerfs travel with the cloth, and every later photograph shows those still in the window,
+as thin dark lines (the cut and its charred edges, `KERF_MM` wide), anti-aliased.
 """
 
 from __future__ import annotations
@@ -15,9 +19,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from simulators.fabric import Print, to_uint8
+
+#: a laser's kerf in cloth as the camera sees it: the cut and its charred edges (mm)
+KERF_MM = 0.5
+KERF_BGR = np.array([0.10, 0.09, 0.08], np.float32)  # charred cloth over the dark table
+#: kerfs are drawn this many times finer than the photograph, then averaged down
+KERF_SUPERSAMPLE = 4
 
 
 @dataclass(frozen=True)
@@ -87,6 +98,14 @@ class Pose:
         return (c * dx - s * dy + self.pivot[0] + self.along,
                 s * dx + c * dy + self.pivot[1] + self.across)
 
+    def table_point(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The table point that shows cloth point ``(u, v)`` (the inverse of
+        :meth:`cloth_point`)."""
+        c, s = math.cos(math.radians(self.angle_deg)), math.sin(math.radians(self.angle_deg))
+        du = np.asarray(u, float) - self.pivot[0] - self.along
+        dv = np.asarray(v, float) - self.pivot[1] - self.across
+        return c * du + s * dv + self.pivot[0], -s * du + c * dv + self.pivot[1]
+
 
 @dataclass
 class Conveyor:
@@ -135,9 +154,19 @@ class RollCamera:
     mm_per_px: float = 1.0
     noise: float = 0.02
     seed: int = 0
+    #: what was cut so far: (n, 4) segments u0, v0, u1, v1 in cloth mm, per burn
+    kerfs: list[np.ndarray] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng(self.seed)
+
+    def burn(self, segments: np.ndarray) -> None:
+        """Cut the (n, 4) ``segments`` (x0, y0, x1, y1, table mm) into the cloth where the
+        roll lies now."""
+        seg = np.asarray(segments, float).reshape(-1, 4)
+        pose = self.conveyor.pose
+        self.kerfs.append(np.column_stack([*pose.cloth_point(seg[:, 0], seg[:, 1]),
+                                           *pose.cloth_point(seg[:, 2], seg[:, 3])]))
 
     def photograph(self) -> np.ndarray:
         """(H, W, 3) BGR uint8 of the window; pixel (col, row) centred on
@@ -149,5 +178,42 @@ class RollCamera:
         u, v = self.conveyor.pose.cloth_point(x, y)
         px, py = self.roll.design_point(u, v)
         img = self.roll.design.colour_at(px, py, self.mm_per_px)
+        if self.kerfs:
+            cloth = np.concatenate(self.kerfs)
+            pose = self.conveyor.pose
+            table = np.column_stack([*pose.table_point(cloth[:, 0], cloth[:, 1]),
+                                     *pose.table_point(cloth[:, 2], cloth[:, 3])])
+            cover = kerf_cover((table - np.tile([x0, y0], 2)) / self.mm_per_px,
+                               img.shape[:2], KERF_MM / self.mm_per_px)[..., None]
+            img = img * (1.0 - cover) + KERF_BGR * cover
         img = img + self._rng.normal(0.0, self.noise, img.shape).astype(np.float32)
         return to_uint8(img)
+
+
+def kerf_cover(segments_px: np.ndarray, shape: tuple[int, int], width_px: float
+               ) -> np.ndarray:
+    """(H, W) float32 in [0, 1]: the share of each pixel that the (n, 4) ``segments_px``
+    (x0, y0, x1, y1, pixel centres at whole numbers), ``width_px`` wide, cover: drawn
+    `KERF_SUPERSAMPLE` times finer, only where they cross the photograph, and averaged."""
+    h, w = shape
+    cover = np.zeros((h, w), np.float32)
+    seg = np.asarray(segments_px, float).reshape(-1, 4)
+    lo, hi = np.minimum(seg[:, :2], seg[:, 2:]), np.maximum(seg[:, :2], seg[:, 2:])
+    seg = seg[np.all(hi >= -width_px - 1, axis=1) & (lo[:, 0] <= w + width_px)
+              & (lo[:, 1] <= h + width_px)]
+    if not len(seg):
+        return cover
+    k = KERF_SUPERSAMPLE
+    c0, r0 = (max(0, int(np.floor(v - width_px)) - 1) for v in seg.reshape(-1, 2).min(axis=0))
+    c1, r1 = (min(n, int(np.ceil(v + width_px)) + 2)
+              for v, n in zip(seg.reshape(-1, 2).max(axis=0), (w, h)))
+    if c1 <= c0 or r1 <= r0:
+        return cover
+    fine = np.zeros(((r1 - r0) * k, (c1 - c0) * k), np.uint8)
+    ends = (seg - np.tile([c0, r0], 2)) * k + (k - 1) / 2  # the fine grid's pixel centres
+    ends = np.round(np.clip(ends, -1e6, 1e6) * 16).astype(np.int32).reshape(-1, 2, 1, 2)
+    cv2.polylines(fine, list(ends), False, 255, max(1, round(width_px * k)), cv2.LINE_8,
+                  shift=4)
+    cover[r0:r1, c0:c1] = cv2.resize(fine, (c1 - c0, r1 - r0),
+                                     interpolation=cv2.INTER_AREA).astype(np.float32) / 255
+    return cover

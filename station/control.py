@@ -43,6 +43,11 @@ class ControlError(Exception):
     """A bad request: answered with ``{"ok": false, "error": ...}``; nothing changed."""
 
 
+class DaemonBusy(ControlError):
+    """The daemon took the request but did not answer in time (a step holding the
+    interpreter on a loaded machine): asking again later may be answered."""
+
+
 def peer_credentials(sock: socket.socket) -> tuple[int, int, int]:
     """(pid, uid, gid) of the process at the other end of a Unix socket."""
     creds = sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i"))
@@ -308,8 +313,8 @@ def request(path: str | Path, cmd: str, timeout: float = 5.0,
             raise ControlError(f"{path}: the daemon did not answer ({exc.strerror or exc})"
                                ) from None
     if line is None:
-        raise ControlError(f"{path}: no answer within {timeout:g} s; the daemon is busy or "
-                           "stuck (see `station log`)")
+        raise DaemonBusy(f"{path}: no answer within {timeout:g} s; the daemon is busy or "
+                         "stuck (see `station log`)")
     if not line:
         raise ControlError(f"{path}: the daemon closed the connection")
     try:

@@ -13,9 +13,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from station.control import request
+from station.control import DaemonBusy, request
 
 FINAL_STATES = ("done", "failed", "aborted", "paused", "interrupted")
+#: how long (s) a follower keeps asking a daemon that does not answer in time: one step
+#: may hold it for tens of seconds on a loaded machine (the demo's reshape, at load 6)
+BUSY_PATIENCE_S = 120.0
 
 
 def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
@@ -29,8 +32,15 @@ def follow(sock: Path | Callable[[int], dict[str, Any]], job: int, stream=None,
         return sock(job) if callable(sock) else request(sock, "status", job=job)["job"]
 
     bar = ProgressBar(stream or sys.stderr)
+    answered = time.monotonic()
     while True:
-        status = status_of(job)
+        try:
+            status = status_of(job)
+        except DaemonBusy:  # a step holding the daemon on a loaded machine: ask again
+            if time.monotonic() - answered > BUSY_PATIENCE_S:
+                raise
+            continue
+        answered = time.monotonic()
         if status["state"] in FINAL_STATES:
             bar.finish(status["state"] + (f": {status['reason']}" if status["reason"] else ""))
             return status

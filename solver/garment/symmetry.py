@@ -306,6 +306,12 @@ def _procrustes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rot, cb - rot @ ca
 
 
+def mirror_misfit(first: np.ndarray, second: np.ndarray) -> float:
+    """RMS distance of the ``first`` outline's mirror image, best fitted, from ``second``, as
+    a share of the larger one's size (bounding-box diagonal)."""
+    return _mirror_fit(first, second)[2] / max(_size(first), _size(second))
+
+
 def _mirror_fit(first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Best rigid map of the mirrored ``first`` outline onto ``second``: (R, t, RMS mm)."""
     a = resample_closed(first @ FLIP.T, _SAMPLES)[::-1]  # mirroring reverses the orientation

@@ -25,7 +25,8 @@ import numpy as np
 
 from solver.nest.budget import Deadline, Progress, deadline_of
 from solver.nest.coset import coset_search
-from solver.nest.dotted import MAX_OPTIONS, dotted_nest, phase_period, positions
+from solver.nest.dotted import MAX_OPTIONS, dotted_nest, phase_period
+from solver.nest.dotted_options import positions
 from solver.nest.fill import fill_search, first_fill_estimate, problem_density
 from solver.nest.instance import NestProblem, marker_span
 from solver.nest.layout import Layout, build_layout

@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from solver.fit import fit_report
 from solver.garment.refine import refined
-from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams
+from solver.reshape.ideal import IdealSeams, SeamTargets, ideal_seams, matched_seams, reach_mm
 from solver.reshape.optimise import (  # the driver optimise() stays in its module, so
     OptimiseResult,  # that ``solver.reshape.optimise`` keeps naming the module: bound
     OptimiseState,  # here under another name
@@ -73,7 +73,8 @@ def reshape(garment, placement, *, fixed: np.ndarray | None = None,
     new = garment.with_uv(result.uv)
     new.grainlines, new.notches = _carry_marks(garment, result.uv)
     return new, reshape_report(garment, placement, result, subdivisions=levels,
-                               max_move_mm=options.max_move_mm)
+                               max_move_mm=options.max_move_mm,
+                               reach_mm=reach_mm(placement, options.reach, options.max_move_mm))
 
 
 def _carry_marks(garment, uv: np.ndarray):

@@ -83,7 +83,8 @@ class ReshapeOptions:
     xtol_mm: float = 1e-3  # largest vertex step (mm) that ends a round (cutters: 0.1 mm)
     refresh_every: int = 40  # fewest iterations between two factorisations in a round
     unit_mm: float = UNIT_MM  # seam length carrying one unit of proximity / penalty weight
-    reach: float = 1.0  # ideal lines farther than this x covering radius start matched
+    reach: float = 1.0  # ideal lines farther than this x covering radius (or the move
+    # bound) start matched
     refinements: int = 4  # rounds of matched (closest equivalent point) targets
     refine_gain: float = 0.02  # relative E_fit gain below which refinement stops
     # eps never below this fraction of the seam length (1 mm per metre, 0.1 % strain, which
@@ -510,7 +511,8 @@ def optimise(garment, placement, *, fixed: np.ndarray | None = None,
     eased = (eased_lines(garment) if options.keep_ease
              else np.zeros(len(garment.seam_lines), bool))
     energy = build_energy(garment, across_only(garment, initial_targets(
-        garment, placement, ideal, fixed=fixed, unit_mm=unit, reach=options.reach),
+        garment, placement, ideal, fixed=fixed, unit_mm=unit, reach=options.reach,
+        max_move_mm=options.max_move_mm),
         garment.uv, eased), options)
     state = _start_state(garment, fixed, pairs, options)
     sewn = SeamSewing(garment, keep_ease=options.keep_ease, give_mm=options.ease_give_mm,

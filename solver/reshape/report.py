@@ -6,8 +6,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from solver.fit import fit_report
+from solver.fit import FitReport, fit_report
 from solver.geometry import signed_areas
+from solver.reshape.ideal import IdealSeams, ideal_move_rms
 from solver.reshape.quality import outline_roughness, seam_ease_changes
 
 
@@ -44,6 +45,9 @@ class ReshapeReport:
     # (`solver.reshape.quality.outline_roughness`): 95th percentile and largest, mm
     roughness_p95_mm: float = 0.0
     roughness_max_mm: float = 0.0
+    # the seam lines whose ideal lines lie beyond reach (`seam_reach`): no reshape within
+    # the bound fits them, so their mismatch stays; named so the report can say so
+    seams_out_of_reach: tuple[str, ...] = ()
 
     @property
     def e_fit_ratio(self) -> float:
@@ -54,6 +58,7 @@ class ReshapeReport:
         d = asdict(self)
         d["pieces"] = list(self.pieces)
         d["seams"] = list(self.seams)
+        d["seams_out_of_reach"] = list(self.seams_out_of_reach)
         d["max_move_bound_mm"] = (None if not np.isfinite(self.max_move_bound_mm)
                                   else self.max_move_bound_mm)
         d["e_fit_before_cm2"] = self.e_fit_before_mm2 / 100.0
@@ -87,12 +92,38 @@ def piece_changes(garment, uv: np.ndarray) -> list[dict]:
             for i in range(n)]
 
 
+def seam_reach(garment, ideal: IdealSeams, after: FitReport, reach_mm: float
+               ) -> list[dict]:
+    """Per seam line what fitting it would take and what reshaping reached: the turn
+    (degrees) and the RMS move (mm) its ideal lines ask of it, whether that is within
+    ``reach_mm`` (`solver.reshape.ideal.reach_mm`), and the print's mismatch across it
+    after reshaping (mean and 90th percentile over its seam edges, mm). A seam out of
+    reach cannot fit within the bound: its two sides run in directions no symmetry of
+    the print relates (a set-in sleeve's cap against its armhole on a plaid), and tailors
+    match such a seam at one notch only."""
+    rms = ideal_move_rms(garment, ideal)
+    line = np.asarray(garment.seam_line_of_edge, np.int64)
+    out = []
+    for k in range(len(garment.seam_lines)):
+        d = after.distance[line == k]
+        out.append({"ideal_turn_deg": round(float(np.degrees(abs(ideal.theta[k]))), 2),
+                    "ideal_move_rms_mm": round(float(rms[k]), 3),
+                    "within_reach": bool(rms[k] <= reach_mm),
+                    "mismatch_mean_mm": round(float(d.mean()), 3) if len(d) else 0.0,
+                    "mismatch_p90_mm": round(float(np.percentile(d, 90)), 3) if len(d) else 0.0})
+    return out
+
+
 def reshape_report(garment, placement, result, *, subdivisions: int = 0,
-                   max_move_mm: float = float("inf")) -> ReshapeReport:
-    """Measure ``result`` (an ``OptimiseResult``) against the ``garment`` it reshaped."""
+                   max_move_mm: float = float("inf"), reach_mm: float = float("inf")
+                   ) -> ReshapeReport:
+    """Measure ``result`` (an ``OptimiseResult``) against the ``garment`` it reshaped;
+    ``reach_mm``: how far an ideal line may lie and still be pulled to."""
     disp = np.hypot(*(result.uv - garment.uv).T)
     pieces = piece_changes(garment, result.uv)
-    seams = seam_ease_changes(garment, result.uv)
+    after = fit_report(garment, placement, uv=result.uv)
+    reach = seam_reach(garment, result.ideal, after, reach_mm)
+    seams = [{**ease, **r} for ease, r in zip(seam_ease_changes(garment, result.uv), reach)]
     rough = outline_roughness(garment, result.uv)
     ideal = result.ideal
     ideal_disp = (np.hypot(*(ideal.target - garment.uv[ideal.vertex]).T)
@@ -100,7 +131,7 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0,
     st = result.state
     return ReshapeReport(
         e_fit_before_mm2=fit_report(garment, placement).e_fit_mm2,
-        e_fit_after_mm2=fit_report(garment, placement, uv=result.uv).e_fit_mm2,
+        e_fit_after_mm2=after.e_fit_mm2,
         length_mismatch_initial_mm=result.length_mismatch_initial_mm,
         length_mismatch_final_mm=result.length_mismatch_final_mm,
         epsilon_mm=result.eps_mm,
@@ -123,4 +154,5 @@ def reshape_report(garment, placement, result, *, subdivisions: int = 0,
         sewn_drift_max_mm=max((s["sewn_drift_mm"] for s in seams), default=0.0),
         roughness_p95_mm=float(np.percentile(rough, 95)) if len(rough) else 0.0,
         roughness_max_mm=float(rough.max(initial=0.0)),
+        seams_out_of_reach=tuple(s["seam"] for s in seams if not s["within_reach"]),
     )

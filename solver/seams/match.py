@@ -23,12 +23,14 @@ import numpy as np
 import shapely
 from scipy.optimize import Bounds, LinearConstraint, milp
 
+from solver.seams.couples import PAIR_COST_MM, piece_couples, split_conflicts
 from solver.seams.junctions import (
     junction_conflicts,
     meeting_triples,
     order_conflicts,
     tube_meetings,
 )
+from solver.seams.marks import FileMarks
 from solver.seams.names import name_affinity, name_parts
 from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.runs import Run, candidate_runs, run_line
@@ -42,6 +44,10 @@ CURVED = 0.95  # a run whose chord is less than this share of its length is curv
 NOTCH_TOL = 0.06  # notch positions (share of the run) within this are the same notch
 EASED_NOTCH_TOL = 0.1  # the same on two curved runs: a cap's ease is not spread evenly, so
 # its notches sit further off their share of the run than on a straight seam
+NOTCH_W = 0.6  # notch groups that match score this much (at most) ...
+NOTCHED_EXTRA = 0.6  # ... and this much more inside both sides in a file that notches
+# its seams (:class:`solver.seams.marks.FileMarks`): matching notches there are what a
+# sewer goes by (from {0, 0.3, 0.6, 0.9, 1.4} on half 0 of the bench)
 NOTCH_MIN_MM = 10.0  # but never less than this along the run (a short seam's share is tight)
 MIN_SCORE = 0.55  # a candidate scoring less is never sewn
 MEETING_MM = 240.0  # three seams that close where three pieces meet (a cap's break, the
@@ -51,7 +57,8 @@ SHORT_MM = 60.0  # runs this short match many others by chance ...
 SHORT_EXTRA = 0.8  # ... so they must score this much more
 SEAM_COST_MM = 160.0  # each seam chosen costs this much matched length (score x mm): a
 # long seam is preferred to the same line cut into short ones, each with its own partner
-# found by chance (measured on half of the bench's garments, checked on the other half)
+# found by chance (measured on half of the bench's garments, checked on the other half);
+# :data:`PAIR_COST_MM` of it is paid once per two pieces sewn (:mod:`solver.seams.couples`)
 STRAIGHT_W = 2.0  # weight of a difference in straightness (chord / length)
 RMS_W = 10.0  # weight of the distance between the two lines laid on each other (/ length)
 MIRROR_IOU = 0.8  # a piece laid on the other this much its mirror image: two halves
@@ -137,7 +144,8 @@ def _stretched(a: Run, b: Run, pieces: list[SewPiece]) -> bool:
             and BAND_STRETCH[0] <= ratio <= BAND_STRETCH[1])
 
 
-def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon]) -> float:
+def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon],
+           marks: FileMarks) -> float:
     """How plausible sewing run ``a`` to run ``b`` (read backwards) is: about 2 for a sure
     seam, below :data:`MIN_SCORE` for none. The cheap terms first; the two pieces are laid
     on each other only for a candidate that could still pass."""
@@ -151,12 +159,15 @@ def _score(a: Run, b: Run, pieces: list[SewPiece], polys: list[shapely.Polygon])
     notch = 0.0 if a.piece == b.piece else _notch_score(a, b)  # a dart's notches: its legs
     if gathered and notch <= 0:
         return -1.0  # a gathered seam is known by its notches alone
-    s += 0.6 * notch if notch >= 0 else 1.5 * notch
+    matched = NOTCH_W + (NOTCHED_EXTRA if marks.notched and a.notches and b.notches else 0.0)
+    s += matched * notch if notch >= 0 else 1.5 * notch
     s -= STRAIGHT_W * abs(a.straightness - b.straightness)
     names = name_affinity(pieces[a.piece].name, pieces[b.piece].name)
     s += names + (WHOLE_BONUS if a.whole and b.whole and names > 0 else 0.0)
-    if s < MIN_SCORE:
-        return s
+    if a.piece != b.piece:  # a dart's legs end at its mouth's notches
+        s -= marks.penalty(a, b)
+    if s < min(MIN_SCORE, CLOSING_SCORE):  # no shape can lift it to a seam; one that
+        return s  # could still close a meeting is scored whole, its halves' penalty too
     rms, overlap, mirror = fit_and_overlap(run_line(pieces[a.piece], a), polys[a.piece],
                                            run_line(pieces[b.piece], b), polys[b.piece],
                                            gathered=gathered)
@@ -295,7 +306,9 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
            pairs: np.ndarray) -> list[Seam]:
     """The integer program over the candidate ``pairs`` of ``runs``."""
     polys = [shapely.Polygon(p.loop).buffer(0) for p in pieces]
-    scores = np.array([_score(runs[i], runs[j], pieces, polys) for i, j in pairs.tolist()])
+    marks = FileMarks.of(pieces)
+    scores = np.array([_score(runs[i], runs[j], pieces, polys, marks)
+                       for i, j in pairs.tolist()])
     shortest = np.array([min(runs[i].length, runs[j].length) for i, j in pairs.tolist()])
     strong = scores >= MIN_SCORE + SHORT_EXTRA * (shortest < SHORT_MM)  # short ones tie often
     bands = np.array([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()],
@@ -320,10 +333,12 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     la, lb = [runs[i].length for i in pairs[:, 0]], [runs[j].length for j in pairs[:, 1]]
     band = np.array([_stretched(runs[i], runs[j], pieces) for i, j in pairs.tolist()])
     covered = np.where(band, np.maximum(la, lb), np.minimum(la, lb))  # a band covers its edge
-    weight = scores * covered - SEAM_COST_MM
+    couple = piece_couples(pieces, runs, pairs)
+    weight = scores * covered - SEAM_COST_MM + PAIR_COST_MM * (couple >= 0)
     x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
                              order_conflicts(pieces, runs, pairs),
-                             _one_band_meeting(runs, pairs, band, triples)], triples)
+                             split_conflicts(pieces, runs, pairs),
+                             _one_band_meeting(runs, pairs, band, triples)], triples, couple)
     if x is None:
         return []
     chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
@@ -373,28 +388,35 @@ def _one_band_meeting(runs: list[Run], pairs: np.ndarray, band: np.ndarray,
 
 
 def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
-             groups: list[np.ndarray]) -> np.ndarray | None:
+             groups: list[np.ndarray], couple: np.ndarray) -> np.ndarray | None:
     """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per meeting
     all chosen (one variable per meeting, at most each of its members; ``groups``: (m,k)
-    arrays of members), each edge sewn at most once (``a``: edges x candidates), never all
-    k of a row of ``conflicts`` ((r,k) arrays)."""
+    arrays of members), less :data:`PAIR_COST_MM` per two pieces sewn (one variable per
+    ``couple`` index, at least each of its candidates), each edge sewn at most once (``a``:
+    edges x candidates), never all k of a row of ``conflicts`` ((r,k) arrays)."""
     n = len(weight)
     member = np.concatenate([g.reshape(-1) for g in groups]) if groups else np.zeros(0, int)
     meeting = np.concatenate([np.repeat(np.arange(len(g)), g.shape[1]) + sum(
         len(h) for h in groups[:i]) for i, g in enumerate(groups)]) if groups else member
     m = sum(len(g) for g in groups)
-    c = np.zeros((sum(len(x) for x in conflicts), n + m))
+    sewn = np.flatnonzero(couple >= 0)
+    q = int(couple.max()) + 1 if len(sewn) else 0
+    width = n + m + q
+    c = np.zeros((sum(len(x) for x in conflicts), width))
     bound = np.concatenate([np.full(len(x), x.shape[1] - 1.0) for x in conflicts])
     rows = np.concatenate([np.repeat(np.arange(len(x)), x.shape[1]) + sum(
         len(y) for y in conflicts[:i]) for i, x in enumerate(conflicts)])
     c[rows, np.concatenate([x.reshape(-1) for x in conflicts])] = 1.0
-    t = np.zeros((len(member), n + m))  # meeting - member <= 0
-    rows = np.arange(len(member))
+    t = np.zeros((len(member) + len(sewn), width))  # meeting - member <= 0, and
+    rows = np.arange(len(member))  # candidate - its pieces' pair <= 0
     t[rows, member] = -1.0
     t[rows, n + meeting] = 1.0
-    edges = np.hstack([a, np.zeros((len(a), m))])
-    res = milp(-np.concatenate([weight, np.full(m, MEETING_MM)]),
-               integrality=np.ones(n + m), bounds=Bounds(0, 1),
+    rows = len(member) + np.arange(len(sewn))
+    t[rows, sewn] = 1.0
+    t[rows, n + m + couple[sewn]] = -1.0
+    edges = np.hstack([a, np.zeros((len(a), m + q))])
+    res = milp(-np.concatenate([weight, np.full(m, MEETING_MM), np.full(q, -PAIR_COST_MM)]),
+               integrality=np.ones(width), bounds=Bounds(0, 1),
                constraints=[LinearConstraint(edges, 0, 1), LinearConstraint(c, 0, bound),
                             LinearConstraint(t, -1, 0)],
                options={"time_limit": 20.0})
@@ -417,7 +439,7 @@ def _tube_score(a: Run, b: Run) -> float:
     """A tube's two sides scored by their lengths and notches alone (the piece folds onto
     itself: overlap says nothing)."""
     notch = _notch_score(a, b)
-    return _length_score(a, b)[0] + (0.6 * notch if notch >= 0 else 1.5 * notch)
+    return _length_score(a, b)[0] + (NOTCH_W * notch if notch >= 0 else 1.5 * notch)
 
 
 def _rival(k: int, pairs: np.ndarray, scores: np.ndarray, a: np.ndarray) -> float:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["name_affinity", "name_parts"]
+__all__ = ["front_or_back", "name_affinity", "name_parts"]
 
 _KINDS = {
     "front": ("front", "fr", "frt", "ftorso", "vorder", "vorderteil", "devant", "delantero",
@@ -75,6 +75,14 @@ def _role(name: str) -> tuple[set[str], str | None]:
     if specific:
         return specific, (next(iter(place)) if len(place) == 1 else None)
     return place, None
+
+
+def front_or_back(name: str) -> tuple[frozenset[str], str] | None:
+    """(what the piece is, besides a front or a back; "front" or "back") where the name says
+    exactly one of the two ("sleeve_f": a sleeve's front half), else None."""
+    raw = _raw_kinds(name)
+    place = raw & _PLACES
+    return (frozenset(raw - _PLACES), next(iter(place))) if len(place) == 1 else None
 
 
 def _placement_affinity(a: str, b: str) -> float:

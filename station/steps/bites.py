@@ -9,7 +9,14 @@ it was planned; each measured advance (`vision.advance.Advance`) moves it by the
 motion the roll really made, and `RollTrack.bite_layout` gives the next bite's pieces
 where they now lie. `find_bite` is one turn of the loop: advance (by the conveyor, or
 the operator at `OPERATOR_ADVANCE`), photograph, measure, follow. `bites_report` is the
-report's per-bite list.
+report's per-bite list, each advance with how it was measured (`ADVANCE_SOURCES`).
+
+A print that says nothing along the roll (stripes along it, a plain cloth) cannot give
+the advance; the station then measures it from what it put on the cloth itself: the
+kerfs of the bite it just cut, photographed after the cut (`BiteStep.cut_photograph`).
+Where the bite leaves room, the advance keeps `CUT_IN_VIEW_MM` of that cut in view.
+Where no cut lies in the strip, the advance is the commanded one, reported as not
+measured.
 
 `save_bites` and `load_bites` keep the plan beside the job's layout.json (a job cut by
 another process reads it back); the cut loop itself is `station.steps.cutbites`.
@@ -58,6 +65,13 @@ MAX_BEYOND_REPEAT = 0.25
 #: room kept at each end of the window (mm) for what one advance may do that was not
 #: commanded: a slip of up to 3 mm, and a skew of 0.2 degrees turning the far side
 ROLL_MARGIN_MM = 5.0
+#: how far into the window the last bite's cut is kept after an advance where the next
+#: bite leaves room (mm): its kerfs across the shared strip measure the advance where
+#: the print cannot (beyond the slip, and the smoothing of the photographs)
+CUT_IN_VIEW_MM = 15.0
+#: how an advance was measured: from the print, from the last bite's kerfs, or not at
+#: all (the commanded advance, reported as not measured)
+ADVANCE_SOURCES = ("print", "cut edges", "commanded")
 
 
 def plan_job_bites(layout: Layout, window: TableWindow, lattice: np.ndarray | None
@@ -92,11 +106,25 @@ class RollTrack:
     #: per piece mapped, what its local map did (the report's ``local_maps``)
     local: list[dict[str, Any]] = field(default_factory=list)
 
-    def advance_for(self, bite: Bite) -> float:
+    def advance_for(self, bite: Bite, plan: BitePlan | None = None) -> float:
         """The advance to command so that ``bite`` begins ``ROLL_MARGIN_MM`` into the
-        window: the planned one corrected by every slip measured so far."""
-        start = self.window_points(np.array([[bite.start_mm, 0.0]]))[0, 0]
-        return float(start - ROLL_MARGIN_MM)
+        window: the planned one corrected by every slip measured so far. Given its
+        ``plan``, as much shorter as keeps `CUT_IN_VIEW_MM` of the previous bite's cut in
+        view, while the bite still ends ``ROLL_MARGIN_MM`` before the window does and the
+        next advance still leaves `MIN_OVERLAP_MM` of cloth in view."""
+        start, end = self.window_points(np.array([[bite.start_mm, 0.0],
+                                                  [bite.end_mm, 0.0]]))[:, 0]
+        planned = float(start - ROLL_MARGIN_MM)
+        if plan is None or bite.index == 0:
+            return planned
+        window = plan.window_mm + 2 * ROLL_MARGIN_MM  # the photograph's length, at least
+        cut_end = self.window_points(np.array([[plan.bites[bite.index - 1].end_mm, 0.0]]))
+        wanted = planned - (float(cut_end[0, 0]) - CUT_IN_VIEW_MM)
+        room = window - 2 * ROLL_MARGIN_MM - (end - start)
+        if bite.index + 1 < len(plan.bites):
+            room = min(room, window - MIN_OVERLAP_MM
+                       - (plan.bites[bite.index + 1].start_mm - bite.start_mm))
+        return planned - float(np.clip(wanted, 0.0, max(room, 0.0)))
 
     def follow(self, advance: Advance, photo_origin_mm: tuple[float, float] = (0.0, 0.0)
                ) -> RollTrack:
@@ -218,36 +246,77 @@ def operator_advance_mm(reason: str) -> float | None:
 @dataclass
 class BiteStep:
     """One bite found on the table: the track after it, the bite with its measured
-    advance and skew (None for the first), the photograph the next advance compares to."""
+    advance and skew (None for the first, or where not measured), the photograph the
+    next advance compares to, the window photographed again once the bite was cut (its
+    kerfs; None until then), and how the advance was measured (`ADVANCE_SOURCES`, None
+    for the first bite) with the components the photographs could not measure."""
 
     track: RollTrack
     bite: Bite
     photograph: np.ndarray
+    cut_photograph: np.ndarray | None = None
+    source: str | None = None
+    unmeasured: tuple[str, ...] = ()
+
+    def how(self) -> dict[str, Any]:
+        """The report's words on how this bite's advance was measured."""
+        return {"advance_source": self.source, "advance_unmeasured": list(self.unmeasured)}
 
 
 def find_bite(previous: BiteStep | None, bite: Bite, *, advance: Callable[[float], None],
               photograph: Callable[[], np.ndarray], lattice: np.ndarray | None,
-              mm_per_px: float = 1.0) -> BiteStep:
+              mm_per_px: float = 1.0, plan: BitePlan | None = None) -> BiteStep:
     """Bring ``bite`` onto the table: command the advance the track asks for (the planned
-    one corrected by the slips so far) through ``advance``, photograph the window, and
-    measure what the roll really did from the print. The first bite (``previous`` None)
-    is only photographed: the marker lies where it was planned."""
+    one corrected by the slips so far; given the ``plan``, keeping the last cut in view
+    where it can) through ``advance``, photograph the window, and measure what the roll
+    really did (`measure_bite_advance`). The first bite (``previous`` None) is only
+    photographed: the marker lies where it was planned."""
     if previous is None:
         return BiteStep(RollTrack(), bite, photograph())
-    commanded = previous.track.advance_for(bite)
+    commanded = previous.track.advance_for(bite, plan)
     advance(commanded)
     after = photograph()
-    measured = measure_advance(previous.photograph, after, commanded_mm=commanded,
+    measured, source = measure_bite_advance(previous, after, commanded_mm=commanded,
+                                            lattice=lattice, mm_per_px=mm_per_px)
+    bite = replace(bite, advance_commanded_mm=commanded,
+                   advance_measured_mm=measured.advance_mm if measured.along_measured
+                   else None,
+                   skew_deg=None if "skew" in measured.unmeasured else measured.skew_deg)
+    return BiteStep(previous.track.follow(measured), bite, after, source=source,
+                    unmeasured=measured.unmeasured)
+
+
+def measure_bite_advance(previous: BiteStep, after: np.ndarray, *, commanded_mm: float,
+                         lattice: np.ndarray | None, mm_per_px: float = 1.0
+                         ) -> tuple[Advance, str]:
+    """The roll's motion from the previous bite's photograph to ``after``, and how it was
+    measured (`ADVANCE_SOURCES`): from the print; where the print says nothing along the
+    roll, from the kerfs of the previous bite (its photograph after the cut) across the
+    shared strip; where neither does, the commanded advance, the print's drift and skew
+    kept where it measured them."""
+    by_print = measure_advance(previous.photograph, after, commanded_mm=commanded_mm,
                                mm_per_px=mm_per_px, lattice=lattice)
-    bite = replace(bite, advance_commanded_mm=commanded).measured(measured.advance_mm,
-                                                                  measured.skew_deg)
-    return BiteStep(previous.track.follow(measured), bite, after)
+    if by_print.along_measured:
+        return by_print, "print"
+    if previous.cut_photograph is not None:
+        by_cut = measure_advance(previous.cut_photograph, after, commanded_mm=commanded_mm,
+                                 mm_per_px=mm_per_px, lattice=lattice)
+        if by_cut.along_measured:
+            return by_cut, "cut edges"
+    return by_print, "commanded"
 
 
-def bites_report(bites: list[Bite]) -> list[dict[str, Any]]:
+def bites_report(bites: list[Bite], how: dict[int, dict[str, Any]] | None = None
+                 ) -> list[dict[str, Any]]:
     """The report's ``summary.bites``: per bite the commanded and measured advance, the
-    skew and the pieces it cut."""
-    return [b.to_dict() for b in bites]
+    skew and the pieces it cut; with ``how`` (`BiteStep.how` by bite index), how each
+    advance was measured (None: no advance, the first bite)."""
+    rows = [b.to_dict() for b in bites]
+    if how is not None:
+        for row in rows:
+            row.update(how.get(row["index"], {"advance_source": None,
+                                              "advance_unmeasured": []}))
+    return rows
 
 
 def save_bites(plan: BitePlan, path: Path) -> None:

@@ -3,10 +3,13 @@
 For each bite in order: bring it onto the table (`station.steps.bites.find_bite`: the
 roll advanced by the machine profile's conveyor, or by the operator while the job waits
 at "advance the fabric N mm" until `station resume`; the window photographed; the real
-advance and skew measured from the print), then cut its pieces where the cloth now lies
-(`station.steps.cut.cut_job`, restricted to the bite). The journal of the bites
-(``bites-state.json`` and the last photograph, ``bite-photo.npy``, in the job's folder)
-is written before every advance and after every measurement, so a job paused, stopped
+advance and skew measured from the print, or from the last bite's kerfs where the
+print says nothing along the roll), then cut its pieces where the cloth now lies
+(`station.steps.cut.cut_job`, restricted to the bite), and photograph the window again
+with the bite's kerfs in it. The journal of the bites (``bites-state.json``, the last
+photograph ``bite-photo.npy`` and the one after its cut ``bite-cut-photo.npy``, in the
+job's folder) is written before every advance, after every measurement and after every
+photograph of a cut, so a job paused, stopped
 or killed between bites resumes at the right bite, without advancing the roll twice;
 each piece is recorded cut in the job store at its sync point as ever, with its bite.
 
@@ -46,6 +49,9 @@ from vision.advance import Advance, measure_advance
 
 STATE_FILE = "bites-state.json"
 PHOTO_FILE = "bite-photo.npy"
+#: the window photographed again once the bite was cut: its kerfs measure the next
+#: advance where the print cannot (`station.steps.bites.measure_bite_advance`)
+CUT_PHOTO_FILE = "bite-cut-photo.npy"
 #: each bite as handed to the cut: ``{"track": (2, 3) marker -> window mm, "pieces":
 #: {piece id: (2, 3) pattern -> window mm}}`` (local maps included)
 BITE_PIECES_FILE = "bite-{index}-pieces.json"
@@ -89,12 +95,14 @@ LocalMaps = Callable[[RollTrack, Bite, np.ndarray], RollTrack]
 @dataclass
 class BiteJournal:
     """What the job's folder remembers of the bites: the last one brought onto the table
-    (its track and photograph), the bites measured so far, and the bite whose advance was
+    (its track, photograph and, once cut, its photograph after the cut), the bites
+    measured so far and how (`BiteStep.how`, by index), and the bite whose advance was
     asked for (of the operator, or sent to the conveyor) but not yet measured."""
 
     step: BiteStep | None
     measured: list[Bite]
     advancing: int | None = None
+    how: dict[int, dict] = field(default_factory=dict)
 
     @classmethod
     def load(cls, job_dir: Path, plan: BitePlan) -> BiteJournal:
@@ -106,24 +114,40 @@ class BiteJournal:
                             advance_commanded_mm=float(b["advance_commanded_mm"]),
                             advance_measured_mm=b["advance_measured_mm"],
                             skew_deg=b["skew_deg"]) for b in data["measured"]]
+        how = {int(b["index"]): {"advance_source": b.get("advance_source"),
+                                 "advance_unmeasured": b.get("advance_unmeasured", [])}
+               for b in data["measured"]}
         step = None
         if measured:
             track = RollTrack(np.asarray(data["track"], float).reshape(2, 3))
-            step = BiteStep(track, measured[-1], np.load(job_dir / PHOTO_FILE))
-        return cls(step, measured, data.get("advancing"))
+            cut = job_dir / CUT_PHOTO_FILE
+            step = BiteStep(track, measured[-1], np.load(job_dir / PHOTO_FILE),
+                            np.load(cut) if data.get("cut_photo_bite") == measured[-1].index
+                            and cut.is_file() else None)
+        return cls(step, measured, data.get("advancing"), how)
 
     def save(self, job_dir: Path) -> None:
         """Written whole, then renamed: a kill mid-write leaves the previous journal."""
+        cut_bite = None
         if self.step is not None:
-            tmp = job_dir / (PHOTO_FILE + ".tmp.npy")
-            np.save(tmp, self.step.photograph)
-            tmp.replace(job_dir / PHOTO_FILE)
-        data = {"measured": bites_report(self.measured), "advancing": self.advancing,
+            _save_array(job_dir / PHOTO_FILE, self.step.photograph)
+            if self.step.cut_photograph is not None:
+                _save_array(job_dir / CUT_PHOTO_FILE, self.step.cut_photograph)
+                cut_bite = self.step.bite.index
+        data = {"measured": bites_report(self.measured, self.how),
+                "advancing": self.advancing, "cut_photo_bite": cut_bite,
                 "track": None if self.step is None
                 else self.step.track.marker_to_window.tolist()}
         tmp = job_dir / (STATE_FILE + ".tmp")
         tmp.write_text(json.dumps(data, indent=1))
         tmp.replace(job_dir / STATE_FILE)
+
+
+def _save_array(path: Path, array: np.ndarray) -> None:
+    """``array`` to ``path``, written whole, then renamed."""
+    tmp = path.with_suffix(".tmp.npy")
+    np.save(tmp, array)
+    tmp.replace(path)
 
 
 @dataclass
@@ -163,9 +187,10 @@ def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
         if bite.index > reached:
             control.checkpoint()
             named.start_step("finding the print")
-            journal = _bring(journal, bite, roll, lattice, job_dir, lambda text, b=named.bite:
+            journal = _bring(journal, bite, plan, roll, lattice, job_dir,
+                             lambda text, b=named.bite:
                              store.log(job.id, "bite", f"bite {b}: {text}"))
-            _write_bites(job_dir, journal.measured)
+            _write_bites(job_dir, journal)
         left = {p["name"] for p in store.pieces(job.id) if p["state"] != "cut"}
         todo = left & set(bite.pieces)
         if todo:
@@ -175,11 +200,17 @@ def cut_in_bites(job: Job, job_dir: Path, plan: BitePlan, store: JobStore,
             marker = machine_marker(track, bite)
             _record_pieces(job_dir, bite, marker, track)
             cut_bite(marker, todo, named)
+        if bite.index + 1 < len(plan.bites) and journal.step.cut_photograph is None:
+            # the bite's kerfs, for the next advance where the print cannot measure it
+            journal = replace(journal, step=replace(journal.step,
+                                                    cut_photograph=roll.photograph()))
+            journal.save(job_dir)
     return journal.measured
 
 
-def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | None,
-           job_dir: Path, log: Callable[[str], None]) -> BiteJournal:
+def _bring(journal: BiteJournal, bite: Bite, plan: BitePlan, roll: Roll,
+           lattice: np.ndarray | None, job_dir: Path, log: Callable[[str], None]
+           ) -> BiteJournal:
     """``bite`` on the table and measured, journalled. Without a conveyor the job first
     waits for the operator (JobInterrupted, paused); `station resume` comes back here
     with the roll advanced. An advance already asked for is asked for again only when
@@ -190,8 +221,8 @@ def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | N
                          lattice=lattice, mm_per_px=roll.mm_per_px)
         step = BiteStep(step.track, replace(bite, advance_commanded_mm=0.0), step.photograph)
     else:
-        commanded = previous.track.advance_for(bite)
-        photo = _advanced_photograph(journal, previous, bite, roll, lattice, log)
+        commanded = previous.track.advance_for(bite, plan)
+        photo = _advanced_photograph(journal, previous, bite, plan, roll, lattice, log)
         if photo is None:  # not asked for yet, or asked for and never run
             again = journal.advancing == bite.index
             journal = replace(journal, advancing=bite.index)
@@ -203,19 +234,29 @@ def _bring(journal: BiteJournal, bite: Bite, roll: Roll, lattice: np.ndarray | N
             log(f"advancing the roll {commanded:.3f} mm")
             roll.feed(commanded)
             photo = roll.photograph()
-        step = find_bite(previous, bite, advance=_already_advanced,
-                         photograph=lambda: photo, lattice=lattice, mm_per_px=roll.mm_per_px)
-    journal = BiteJournal(step, [*journal.measured, step.bite], None)
+        step = find_bite(previous, bite, advance=_already_advanced, photograph=lambda: photo,
+                         lattice=lattice, mm_per_px=roll.mm_per_px, plan=plan)
+    journal = BiteJournal(step, [*journal.measured, step.bite], None,
+                          {**journal.how, bite.index: step.how()})
     journal.save(job_dir)
     if previous is not None:  # logged once journalled: a restart now does not measure again
-        log(f"advance {step.bite.advance_commanded_mm:.3f} mm commanded, "
-            f"{step.bite.advance_measured_mm:.3f} mm measured, skew {step.bite.skew_deg:.4f} deg")
+        log(_advance_line(step))
     return journal
 
 
-def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite, roll: Roll,
-                         lattice: np.ndarray | None, log: Callable[[str], None]
-                         ) -> np.ndarray | None:
+def _advance_line(step: BiteStep) -> str:
+    """The job log's line of one advance: commanded, measured (and from what) or not."""
+    b = step.bite
+    measured = ("not measured: the print says nothing along the roll and no cut lay in "
+                "the strip" if b.advance_measured_mm is None
+                else f"{b.advance_measured_mm:.3f} mm measured from the {step.source}")
+    skew = "not measured" if b.skew_deg is None else f"{b.skew_deg:.4f} deg"
+    return f"advance {b.advance_commanded_mm:.3f} mm commanded, {measured}, skew {skew}"
+
+
+def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite,
+                         plan: BitePlan, roll: Roll, lattice: np.ndarray | None,
+                         log: Callable[[str], None]) -> np.ndarray | None:
     """The window's photograph when the advance to ``bite`` was asked for before this
     turn and the roll really made it; None when it was not asked for yet, or when the
     print shows the roll where it was (the advance never ran). A print that cannot tell
@@ -224,9 +265,9 @@ def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite, r
         return None
     roll.settle()  # a conveyor the last daemon started may still be moving
     photo = roll.photograph()
-    commanded = previous.track.advance_for(bite)
+    commanded = previous.track.advance_for(bite, plan)
     moved = roll_moved(previous.photograph, photo, commanded_mm=commanded, lattice=lattice,
-                       mm_per_px=roll.mm_per_px)
+                       mm_per_px=roll.mm_per_px, cut=previous.cut_photograph)
     if moved is None:
         raise JobInterrupted("paused", f"bite {bite.index + 1}: the print cannot tell "
                              f"whether the roll advanced "
@@ -241,35 +282,51 @@ def _advanced_photograph(journal: BiteJournal, previous: BiteStep, bite: Bite, r
 
 
 def roll_moved(before: np.ndarray, after: np.ndarray, *, commanded_mm: float,
-               lattice: np.ndarray | None, mm_per_px: float) -> bool | None:
+               lattice: np.ndarray | None, mm_per_px: float,
+               cut: np.ndarray | None = None) -> bool | None:
     """Whether the roll advanced by about ``commanded_mm`` between the two photographs
     (True), did not move (False), or the print cannot tell (None: it moved part of the
     way, or the print repeats too perfectly). Both explanations are measured; the one
     that shows the same cloth leaves the smaller residual (`SAME_CLOTH_SHARE`); "not
     moved" also needs the motion found near zero to be nil (`AT_REST_MM`), "advanced"
     a slip within the room kept for one (`ROLL_MARGIN_MM`): a print matched whole
-    repeats from where the roll really lies measures a slip of up to half a repeat."""
-    still = _explained(before, after, 0.0, lattice, mm_per_px)
-    moved = _explained(before, after, commanded_mm, lattice, mm_per_px)
+    repeats from where the roll really lies measures a slip of up to half a repeat.
+    The motion found near zero is no rival when it lies beyond that room from rest: the
+    print matched whole repeats away, so the roll moved. (A stop within the room of a
+    whole number of repeats short of the advance then looks advanced: a print that
+    repeats that perfectly cannot tell it.) Where the print says nothing along the roll,
+    each explanation is measured on ``cut`` instead (the window photographed after the
+    last bite's cut, None: none), from the kerfs."""
+    still = _explained(before, after, 0.0, lattice, mm_per_px, cut)
+    moved = _explained(before, after, commanded_mm, lattice, mm_per_px, cut)
     at_rest = still is not None and max(abs(still.advance_mm), abs(still.across_mm)) \
         < AT_REST_MM and abs(still.skew_deg) < AT_REST_DEG
     if at_rest and (moved is None or still.residual < SAME_CLOTH_SHARE * moved.residual):
         return False
+    rival = still is not None and abs(still.advance_mm) <= ROLL_MARGIN_MM
     if not at_rest and moved is not None and abs(moved.slip_mm) <= ROLL_MARGIN_MM and (
-            still is None or moved.residual < SAME_CLOTH_SHARE * still.residual):
+            not rival or moved.residual < SAME_CLOTH_SHARE * still.residual):
         return True
     return None
 
 
 def _explained(before: np.ndarray, after: np.ndarray, commanded_mm: float,
-               lattice: np.ndarray | None, mm_per_px: float) -> Advance | None:
-    """The motion measured near ``commanded_mm``; None where the photographs do not
-    match near it at all."""
-    try:
-        return measure_advance(before, after, commanded_mm=commanded_mm, mm_per_px=mm_per_px,
-                               lattice=lattice)
-    except ValueError:
-        return None
+               lattice: np.ndarray | None, mm_per_px: float, cut: np.ndarray | None = None
+               ) -> Advance | None:
+    """The motion measured near ``commanded_mm``, from the print, else from the kerfs of
+    ``cut`` (the photograph after the last cut); None where the photographs do not match
+    near it at all, or neither measures the advance along the roll."""
+    for first in (before, cut):
+        if first is None:
+            continue
+        try:
+            found = measure_advance(first, after, commanded_mm=commanded_mm,
+                                    mm_per_px=mm_per_px, lattice=lattice)
+        except ValueError:
+            return None
+        if found.along_measured:
+            return found
+    return None
 
 
 def _record_pieces(job_dir: Path, bite: Bite, marker: MachineLayout, track: RollTrack
@@ -293,12 +350,12 @@ def _already_advanced(_mm: float) -> None:
     conveyor before a restart): only measure it."""
 
 
-def _write_bites(job_dir: Path, measured: list[Bite]) -> None:
-    """The job's report.json gains the bites measured so far (`bites_report`)."""
+def _write_bites(job_dir: Path, journal: BiteJournal) -> None:
+    """The job's report.json gains the bites measured so far, and how (`bites_report`)."""
     path = job_dir / "report.json"
     try:
         report = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError):
         report = {}
-    report["bites"] = bites_report(measured)
+    report["bites"] = bites_report(journal.measured, journal.how)
     path.write_text(json.dumps(report, indent=2, default=float))

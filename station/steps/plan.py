@@ -199,6 +199,11 @@ def reshape_step(aligned: Pattern, placement: Placement, config: Config, path: P
     ``path`` as an OBJ in mm for the operator and whatever reads the plan back; its fit),
     and the reshape's report: one garment's, or one style and size of an order's."""
     new, reshaped = reshape_placed(aligned.garment, placement, config)
+    if reshaped.seams_out_of_reach:  # the report's seams say what each would take
+        log.warning("reshape: no change within %g mm fits the print across %s: their ideal "
+                    "lines turn up to %.0f deg away (see report.json, reshape.seams)",
+                    config["reshape"]["max_move_mm"], ", ".join(reshaped.seams_out_of_reach),
+                    max(s["ideal_turn_deg"] for s in reshaped.seams if not s["within_reach"]))
     save_obj(new, path)
     return Pattern(new, path, fit_report(new, placement), "mm"), reshaped
 

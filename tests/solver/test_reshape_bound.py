@@ -85,6 +85,18 @@ def test_reshaping_never_moves_a_vertex_beyond_the_bound(bound):
     assert report.ease_change_max_mm <= 1.0
     assert report.roughness_max_mm <= 1.0  # the outlines stay fair
     assert [p["piece"] for p in report.pieces] == list(g.piece_names)
+    # a set-in sleeve's cap runs tens of degrees off its armhole's direction under every
+    # symmetry of a plaid: no reshape within the bound fits it, and the report says so
+    sleeves = {s.piece_a for s in g.seam_lines if s.piece_a == s.piece_b}
+    armholes = [s for s, line in zip(report.seams, g.seam_lines)
+                if (line.piece_a in sleeves) != (line.piece_b in sleeves)]
+    assert len(sleeves) == 2 and len(armholes) == 4
+    for seam in armholes:
+        assert seam["ideal_turn_deg"] > 30.0 and not seam["within_reach"]
+        assert seam["seam"] in report.seams_out_of_reach
+    body = [s for s, line in zip(report.seams, g.seam_lines)
+            if line.piece_a not in sleeves and line.piece_b not in sleeves]
+    assert all(s["ideal_turn_deg"] < 5.0 for s in body)
 
 
 def test_a_bound_of_zero_is_refused():

@@ -14,7 +14,7 @@ from solver.garment import load_garment
 from solver.garment.refine import refined, subdivided
 from solver.placement import Placement
 from solver.reshape import ideal_seams, matched_seams, reshape
-from solver.reshape.ideal import UNIT_MM, initial_targets
+from solver.reshape.ideal import UNIT_MM, ideal_move_rms, initial_targets
 from solver.reshape.outline import OutlineGuard
 from solver.wallpaper import Wallpaper
 
@@ -83,6 +83,33 @@ def test_ideal_lines_beyond_the_covering_radius_start_from_matched_targets(short
     longest = fit_report(g, tiny).length.max()
     assert move.max() <= 0.5 * (tiny.fabric.covering_radius + 2 * longest)
     assert move.max() < ideal_move.max()
+
+
+def test_ideal_lines_beyond_the_move_bound_start_matched_and_the_fit_gains(skirt):
+    """An ideal line within the covering radius but beyond the move bound cannot be
+    reached: it starts from matched targets, and the skirt on a plaid fits better for it
+    (main pulled towards those lines and stopped at E_fit 0.611 of the aligned)."""
+    from solver.align.driver import align
+
+    plaid = Wallpaper("pmm", (80.0, 0.0), (0.0, 60.0))
+    placement = align(skirt, plaid, method="global", restarts=4, seed=0)
+    ideal = ideal_seams(skirt, placement)
+    rms = ideal_move_rms(skirt, ideal)
+    beyond = (rms > 10.0) & (rms <= plaid.covering_radius)  # the rule's new case
+    assert beyond.any() and (rms <= 10.0).any()
+    start = initial_targets(skirt, placement, ideal, max_move_mm=10.0)
+    matched = matched_seams(skirt, placement)
+    for line in range(len(skirt.seam_lines)):
+        a, b = start.line == line, (matched if rms[line] > 10.0 else ideal).line == line
+        np.testing.assert_array_equal(start.target[a],
+                                      (matched if rms[line] > 10.0 else ideal).target[b])
+    new, report = reshape(skirt, placement)  # the station's bound: 10 mm
+    assert report.e_fit_ratio < 0.56
+    assert report.max_displacement_mm <= 10.0 and report.area_change_max_pct <= 1.0
+    for seam in report.seams:  # each seam says whether it could be fitted within the bound
+        assert seam["within_reach"] == (seam["ideal_move_rms_mm"] <= 10.0)
+        assert (seam["seam"] in report.seams_out_of_reach) != seam["within_reach"]
+    assert report.seams_out_of_reach
 
 
 def test_outline_guard_names_the_vertices_near_a_crossing(skirt):

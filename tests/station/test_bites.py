@@ -4,17 +4,21 @@ and the rest of the marker is carried onto the cloth as it really lies."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from simulators.classics import classic_print
 from simulators.fabric import random_print
 from simulators.roll import Conveyor, RollCamera, RollPrint
 from solver.nest import NestProblem, Piece
 from solver.nest.layout import build_layout
 from station.steps.bites import (
+    CUT_IN_VIEW_MM,
     OPERATOR_ADVANCE,
     ROLL_MARGIN_MM,
+    BiteStep,
     RollTrack,
     bites_report,
     find_bite,
@@ -102,3 +106,44 @@ def test_a_marker_that_begins_into_the_window_keeps_its_first_bite_and_advance_i
     assert max(p.outline[:, 0].max() for p in first) <= WINDOW.length - ROLL_MARGIN_MM
     advance = RollTrack().advance_for(plan.bites[1])
     assert WINDOW.length - advance >= MIN_OVERLAP_MM
+
+
+def _stripes_along_the_roll():
+    """Stripes running along the roll: the print cannot give the advance."""
+    conv = Conveyor(pivot=(399.5, 249.5), seed=8)
+    camera = RollCamera(RollPrint(classic_print("stripes", 20.0, rotation=90.0),
+                                  width=WINDOW.width), conv,
+                        (WINDOW.x0, WINDOW.y0, WINDOW.x1, WINDOW.y1))
+    return camera, conv
+
+
+def _cut(camera: RollCamera, step, plan) -> BiteStep:
+    """Burn the cut lines of ``step``'s bite where the track puts them, and photograph
+    the window again, as the station does after each bite."""
+    rings = [p.outline for p in step.track.bite_layout(plan, step.bite).pieces]
+    camera.burn(np.concatenate([np.column_stack([r, np.roll(r, -1, axis=0)]) for r in rings]))
+    return replace(step, cut_photograph=camera.photograph())
+
+
+@pytest.mark.parametrize("keep_cut_in_view", [True, False])
+def test_on_stripes_along_the_roll_the_advance_is_measured_from_the_last_cut_or_not_at_all(
+        keep_cut_in_view):
+    camera, conv = _stripes_along_the_roll()
+    plan = plan_job_bites(_marker(), WINDOW, None)
+    first = _cut(camera, find_bite(None, plan.bites[0], advance=conv.advance,
+                                   photograph=camera.photograph, lattice=None), plan)
+    step = find_bite(first, plan.bites[1], lattice=None, photograph=camera.photograph,
+                     advance=lambda mm: conv.advance(mm, slip=3.0, skew=0.2),
+                     plan=plan if keep_cut_in_view else None)
+    along = conv.poses[-1].along - conv.poses[-2].along
+    row = bites_report([first.bite, step.bite], {1: step.how()})[1]
+    assert row["advance_commanded_mm"] == pytest.approx(along - 3.0, abs=1e-3)
+    if keep_cut_in_view:  # the first bite's cut ends CUT_IN_VIEW_MM into the window
+        assert step.bite.advance_commanded_mm == pytest.approx(
+            plan.bites[0].end_mm - CUT_IN_VIEW_MM)
+        assert row["advance_source"] == "cut edges" and row["advance_unmeasured"] == []
+        assert abs(row["advance_measured_mm"] - along) < 0.3
+    else:  # the advance the plan asks for leaves the cut at the strip's edge, then off it
+        assert row["advance_source"] == "commanded" and row["advance_unmeasured"] == ["along"]
+        assert row["advance_measured_mm"] is None  # not a false "measured" value
+    assert abs(row["skew_deg"] - 0.2) < 0.05  # the stripes give the skew either way

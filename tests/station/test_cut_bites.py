@@ -12,6 +12,7 @@ import serial
 
 import simulators.grbl  # noqa: F401  (the emulator's grblsim:// URLs)
 from gcode.machine import machine_from_dict
+from simulators.classics import classic_print
 from simulators.fabric import random_print
 from simulators.grbl.registry import forget, lookup
 from simulators.roll import Conveyor, RollCamera, RollPrint
@@ -21,7 +22,12 @@ from station.config import load_config
 from station.daemon import JobControl, JobInterrupted, wait_until
 from station.jobstore import JobStore
 from station.progress import follow
-from station.steps.bites import ROLL_MARGIN_MM, operator_advance_mm, plan_job_bites
+from station.steps.bites import (
+    CUT_IN_VIEW_MM,
+    ROLL_MARGIN_MM,
+    operator_advance_mm,
+    plan_job_bites,
+)
 from station.steps.capture import real_camera
 from station.steps.cutbites import BiteJournal, cut_in_bites, roll_moved
 from station.steps.roll import CameraRoll
@@ -119,7 +125,9 @@ def test_without_a_conveyor_the_job_waits_for_the_operator(tmp_path):
         _run(tmp_path, store, job, plan, roll, calls)
     assert waiting.value.state == "paused"
     mm = operator_advance_mm(waiting.value.reason)
-    assert mm == pytest.approx(plan.bites[1].start_mm - ROLL_MARGIN_MM, abs=0.05)
+    # the second bite leaves room: the first bite's cut is kept in view across the advance
+    assert mm == pytest.approx(plan.bites[0].end_mm - CUT_IN_VIEW_MM, abs=0.05)
+    assert mm < plan.bites[1].start_mm - ROLL_MARGIN_MM
     assert [pieces for _, pieces in calls] == [set(plan.bites[0].pieces)]
     roll.conveyor.advance(mm)  # the operator's hands, slip included
     measured = _run(tmp_path, store, job, plan, roll, calls)  # `station resume`
@@ -218,8 +226,10 @@ def test_a_roll_found_moved_part_way_leaves_the_job_paused_saying_why(tmp_path):
     store, job = _job(tmp_path, plan)
     roll, calls = SimRoll(), []
 
-    def power_cut(mm: float) -> None:  # the conveyor stops half way, the daemon dies
-        roll.conveyor.advance(mm / 2)
+    def power_cut(mm: float) -> None:  # the conveyor stops part way, the daemon dies
+        # half a repeat (25 mm) off any whole number of repeats short of the advance: a
+        # stop within the slip of one would look advanced to the print alone
+        roll.conveyor.advance(mm - 275.0)
         raise KeyboardInterrupt
 
     roll.feed = power_cut
@@ -281,3 +291,25 @@ def test_a_restarted_station_waits_for_the_relay_conveyor_a_dead_daemon_left_run
     finally:
         dead.close()
         forget(name)
+
+
+def test_on_stripes_along_the_roll_the_last_cut_tells_an_advance_from_none():
+    conveyor = Conveyor(pivot=(199.5, 149.5), seed=8)
+    camera = RollCamera(RollPrint(classic_print("stripes", 20.0, rotation=90.0),
+                                  width=300.0), conveyor, (0.0, 0.0, 400.0, 300.0))
+    before = camera.photograph()
+    t = np.linspace(0.0, 2 * np.pi, 90, endpoint=False)
+    ring = np.column_stack([360.0 + 30.0 * np.cos(t), 150.0 + 100.0 * np.sin(t)])
+    camera.burn(np.column_stack([ring, np.roll(ring, -1, axis=0)]))  # the last bite's cut
+    cut = camera.photograph()
+    judged = {}
+    for name, moved_mm in (("still", 0.0), ("advanced", 330.0)):
+        conveyor.poses[1:] = []
+        if moved_mm:
+            conveyor.advance(moved_mm)
+        judged[name] = roll_moved(before, camera.photograph(), commanded_mm=330.0,
+                                  lattice=None, mm_per_px=1.0, cut=cut)
+    assert judged == {"still": False, "advanced": True}  # told by the kerfs
+    # the stripes alone cannot tell
+    assert roll_moved(before, camera.photograph(), commanded_mm=330.0, lattice=None,
+                      mm_per_px=1.0) is None

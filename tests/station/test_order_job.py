@@ -21,13 +21,15 @@ from station.steps.capture import Captured
 from station.steps.plan_order import plan_order
 from tests.station.test_daemon_defence import StationChecked, config_file
 from tests.station.test_order import P4M_60, TEE_JSON, graded_export
+from tests.station.unsure_seams import without_notches
 
 
 @pytest.fixture(scope="module")
 def tee_order(tmp_path_factory):
     folder = tmp_path_factory.mktemp("order-job")
     (folder / "patterns").mkdir()
-    graded_export(TEE_JSON, folder / "patterns" / "tee.dxf", {"S": 1.0, "M": 1.06})
+    without_notches(graded_export(TEE_JSON, folder / "patterns" / "tee.dxf",
+                                  {"S": 1.0, "M": 1.06}))  # unsure seams: asked to confirm
     order = folder / "order.toml"
     order.write_text('name = "PO-7"\n[[garment]]\npattern = "patterns/tee.dxf"\n'
                      'sizes = { "S" = 1, "M" = 1 }\n')
