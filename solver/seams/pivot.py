@@ -18,6 +18,7 @@ from solver.seams.shape import fit_and_overlap
 
 __all__ = ["pivot_shares", "reflex_corners", "shape_by_parts"]
 
+SAME_SHARE = 0.02  # pivots this close (share of the seam) are one: both sides turn there
 
 
 def reflex_corners(piece: SewPiece, tip_deg: float) -> np.ndarray:
@@ -61,7 +62,10 @@ def shape_by_parts(line_a: np.ndarray, poly_a: shapely.Polygon, line_b: np.ndarr
                    ) -> tuple[float, float, float, float]:
     """(difference in straightness, RMS distance / length, overlapping share, mirror IoU) of
     the two sides compared part by part between the pivots at ``shares`` of ``line_a``
-    (``line_b`` runs the other way: a's share u meets b's 1 - u), weighted by length."""
+    (sorted; ``line_b`` runs the other way: a's share u meets b's 1 - u), weighted by
+    length."""
+    shares = [u for k, u in enumerate(shares) if SAME_SHARE < u < 1 - SAME_SHARE
+              and (k == 0 or u - shares[k - 1] > SAME_SHARE)]
     parts_a = _cut(line_a, shares)
     parts_b = _cut(line_b, [1.0 - s for s in reversed(shares)])[::-1]
     weight = np.diff([0.0, *shares, 1.0])
