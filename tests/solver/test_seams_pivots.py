@@ -49,7 +49,7 @@ def test_a_flared_panels_seam_is_sewn_past_its_pivot(tmp_path):
 
 def test_sides_are_compared_part_by_part_either_side_of_the_pivot():
     """An L-shaped side (a pivot at its middle) against a straight one as long: whole, they
-    differ in straightness by 0.29 and lie 10 % of their length apart; part by part, each
+    differ in straightness by 0.29 and lie 14 % of their length apart; part by part, each
     leg is as straight as its partner's half and lies on it."""
     bent = np.array([[0, 0], [100, 0], [100, 100]], float)
     straight = np.array([[0, 300], [100, 300], [200, 300]], float)
@@ -57,5 +57,5 @@ def test_sides_are_compared_part_by_part_either_side_of_the_pivot():
     poly_b = shapely.box(0, 300, 200, 400)
     rms_whole = fit_and_overlap(bent, poly_a, straight, poly_b)[0]
     straightness, rms, _, _ = shape_by_parts(bent, poly_a, straight, poly_b, [0.5])
-    assert rms_whole > 0.05
+    assert rms_whole > 0.1
     assert straightness < 1e-6 and rms < 1e-6
