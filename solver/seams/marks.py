@@ -27,7 +27,9 @@ BEND_DEG = CORNER_DEG - 2.0  # a line turning less than this at a turn point run
 # smoothly there: the turn point is no corner, it marks a seam's end (a corner may read a
 # degree or two less once offset and read back; 15 degrees kept GC dress_circle's waistband
 # ends, turning 26 degrees, inside its waist seam) ...
-BEND_NEAR_MM = 8.0  # ... within this of the turn point (simplified, offset)
+BEND_NEAR_MM = 12.0  # ... within this of the turn point (simplified, offset: a corner turning
+# t moves allowance x tan(t / 2) along the line inset, 8.4 mm for a flared skirt's 80-degree
+# pivot at 10 mm; 8 read that pivot's turn point as a seam's end on a smooth line)
 SMOOTH_EXTRA = 2  # a piece marks a seam's end on a smooth line at most this many times
 # more often than it turns a corner; one that marks more marks points along its curves
 UNMARKED_END = 0.3  # per end of either side at no turn point (at a notch) ...

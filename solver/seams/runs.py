@@ -1,6 +1,7 @@
 """Candidate seam sides: runs of consecutive edges of one piece's sew line.
 
-A run ends where the line turns a sharp corner, except at a dart: a waist or side seam is
+A run ends where the line turns a sharp convex corner, but runs on past a reflex one (a
+flared panel's seam pivots there: :mod:`solver.seams.pivot`), and a dart: a waist or side seam is
 sewn across the darts on it with the darts closed, so a run may hold whole darts, which it
 skips (its sewn length, notches and line leave them out). A dart's mouth notches mark its
 legs, not where two pieces meet, so they are no balance notches of any run.
@@ -12,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.seams.outline import MERGE_MM, SewPiece, sewn_line
+from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sewn_line
 
 __all__ = ["Run", "candidate_runs", "run_line"]
 
@@ -97,8 +98,8 @@ def run_line(piece: SewPiece, run: Run) -> np.ndarray:
 
 def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]:
     """Every run of 1..:data:`MAX_RUN` edges of every piece that turns no sharp corner
-    (a seam ends where the outline turns by more than :data:`SHARP_DEG`) but at the darts
-    it holds whole, and each piece's breakpoints."""
+    (a seam ends where the outline turns out by more than :data:`SHARP_DEG`, or in as
+    sharply as a dart's tip) but at the darts it holds whole, and each piece's breakpoints."""
     runs, cuts = [], []
     for i, p in enumerate(pieces):
         b = p.breakpoints()
@@ -106,7 +107,8 @@ def candidate_runs(pieces: list[SewPiece]) -> tuple[list[Run], list[np.ndarray]]
         n = len(b)
         if n == 0:
             continue
-        sharp = p.corners(SHARP_DEG)[0]
+        sharp, turn = p.corners(SHARP_DEG)
+        sharp = sharp[(turn > 0) | (turn < -DART_TIP_DEG)]  # a seam pivots at a reflex corner
         corner = p.corners()[0]
         darts = p.darts()
         groups = _balance_notches(p, darts)

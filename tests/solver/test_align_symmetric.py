@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +14,7 @@ from solver.garment import load_garment
 from solver.garment.symmetry import mirror_pairs
 from solver.placement import Placement
 from solver.wallpaper import Wallpaper
+from station.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 TSHIRT = REPO / "examples" / "tshirt-iso.obj"
@@ -113,22 +112,22 @@ def test_flat_pattern_pairs_mirror() -> None:
         assert _sampled_mirror_mismatch(g, placement, i, j, by_pieces[(i, j)]) < 0.1
 
 
-def test_station_align_records_pairs_and_their_price(tmp_path: Path) -> None:
+def test_station_align_records_pairs_and_their_price(tmp_path: Path, capsys) -> None:
+    """`station align`, run in this process as the executable runs it."""
     fabric = tmp_path / "fabric.json"
     fabric.write_text(json.dumps(PRINTS["pmm"].to_dict()))
     out = tmp_path / "placement.json"
-    base = [sys.executable, "-m", "station.cli", "align", str(TSHIRT), "--units", "m",
-            "--fabric", str(fabric), "--restarts", "2", "--grain", "1", "-o", str(out)]
-    run = subprocess.run(base + ["--json"], capture_output=True, text=True, cwd=REPO)
-    assert run.returncode == 0, run.stderr
-    rep = json.loads(run.stdout)
+    base = ["align", str(TSHIRT), "--units", "m", "--fabric", str(fabric), "--restarts", "2",
+            "--grain", "1", "-o", str(out)]
+    assert main(base + ["--json"]) == 0, capsys.readouterr().err
+    rep = json.loads(capsys.readouterr().out)
     saved = json.loads(out.read_text())
     assert sorted(map(tuple, saved["pairs"])) == [(0, 3, "mirror"), (1, 2, "mirror"),
                                                   (4, 5, "mirror")]
     assert rep["symmetry"]["e_fit_unconstrained_mm2"] > 0
     assert Placement.load(out).pairs == saved["pairs"]
-    run = subprocess.run(base + ["--no-symmetry"], capture_output=True, text=True, cwd=REPO)
-    assert run.returncode == 0 and json.loads(out.read_text())["pairs"] == []
+    assert main(base + ["--no-symmetry"]) == 0
+    assert json.loads(out.read_text())["pairs"] == []
 
 
 def test_front_view_shows_each_pair_mirrored(tshirt, tmp_path: Path) -> None:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +16,7 @@ from solver.garment.symmetry import (
     mirror_pairs,
     read_pairs_file,
 )
+from station.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = REPO / "tests" / "data" / "garments"
@@ -108,21 +107,20 @@ def test_declared_and_vetoed_pairs(tmp_path: Path) -> None:
         read_pairs_file(f, g)
 
 
-def test_inspect_json_lists_pairs_and_centre_seams(tmp_path: Path) -> None:
+def test_inspect_json_lists_pairs_and_centre_seams(tmp_path: Path, capsys) -> None:
+    """`station inspect`, run in this process as the executable runs it (no interpreter
+    start per command)."""
     garment = REPO / "examples" / "tshirt-iso.obj"
-    out = subprocess.run([sys.executable, "-m", "station.cli", "inspect", str(garment),
-                          "--units", "m", "--json"], capture_output=True, text=True, cwd=REPO)
-    assert out.returncode == 0, out.stderr
-    s = json.loads(out.stdout)
+    assert main(["inspect", str(garment), "--units", "m", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
     assert sorted(map(tuple, s["mirror_pairs"])) == [(0, 3), (1, 2), (4, 5)]
     names = {s["seam_line_list"][k]["name"] for k in s["centre_seams"]}
     assert names == {"piece1~piece2", "piece4~piece5"}
     bad = tmp_path / "p.json"
     bad.write_text("[1, 2]")
-    out = subprocess.run([sys.executable, "-m", "station.cli", "inspect", str(garment),
-                          "--units", "m", "--pairs", str(bad)], capture_output=True, text=True,
-                         cwd=REPO)
-    assert out.returncode == 2 and out.stderr.count("\n") == 1 and str(bad) in out.stderr
+    assert main(["inspect", str(garment), "--units", "m", "--pairs", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(bad) in err
 
 
 def test_shared_berkeley_pairs_are_mirrored_across_the_body(shared_data: Path) -> None:

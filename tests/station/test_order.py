@@ -137,7 +137,7 @@ def test_an_order_of_two_sizes_is_aligned_and_nested_in_one_labelled_marker(fold
                for g in placements for p in g["placement"]["pieces"])
 
     layout_path, png = folder / "layout.json", folder / "marker.png"
-    assert main(["nest", str(aligned), "--time", "4", "-o", str(layout_path),
+    assert main(["nest", str(aligned), "--time", "2", "-o", str(layout_path),
                  "--png", str(png), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     layout = json.loads(layout_path.read_text())
@@ -179,7 +179,7 @@ def test_the_gerber_tee_as_an_order_of_three_sizes_on_a_p4m_print(shared_data, t
     ratios = [g["e_fit_aligned_mm2"] / g["e_fit_random_mm2"] for g in rep["garments"]]
     assert len(ratios) == 3 and max(ratios) <= 0.7  # measured 0.49, 0.45, 0.41 (seed 0)
     layout_path = tmp_path / "layout.json"
-    assert main(["nest", str(aligned), "--time", "8", "-o", str(layout_path), "--json"]) == 0
+    assert main(["nest", str(aligned), "--time", "3", "-o", str(layout_path), "--json"]) == 0
     capsys.readouterr()
     layout = json.loads(layout_path.read_text())
     for size in ("44", "50", "56"):

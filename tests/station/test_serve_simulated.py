@@ -31,7 +31,9 @@ FABRIC = {"group": "p4m", "w1": [60, 0], "w2": [0, 60], "origin": [0, 0], "units
 
 @pytest.fixture
 def served(tmp_path):
-    port = EMULATOR_PORT
+    # Twice the default emulator speed: the cut still lasts seconds, ample for the pause,
+    # the Hold and the abort below, and the retried cut watched to the end halves.
+    port = EMULATOR_PORT.replace("speed=50", "speed=100")
     config = tmp_path / "station.toml"
     config.write_text(
         f'[serial]\nport = "{port}"\n'
