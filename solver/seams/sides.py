@@ -114,8 +114,10 @@ def mirror_twins(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray,
         if partner[p] < 0 or partner[q] < 0 or partner[p] == q:
             continue
         a, b = runs[pairs[k, 0]], runs[pairs[k, 1]]
-        for m in np.flatnonzero((ends[:, 0] == partner[p]) & (ends[:, 1] == partner[q])):
+        for m in np.flatnonzero(np.isin(ends[:, 0], partner[[p, q]])
+                                & np.isin(ends[:, 1], partner[[p, q]])):
             c, d = runs[pairs[m, 0]], runs[pairs[m, 1]]
+            c, d = (c, d) if c.piece == partner[p] else (d, c)  # either order in a pair
             if m > k and _alike(a, c) and _alike(b, d) and \
                     min(a.length, b.length) >= TWIN_MIN_MM:
                 out.append((k, int(m)))
