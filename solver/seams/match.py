@@ -36,6 +36,7 @@ from solver.seams.outline import DART_TIP_DEG, MERGE_MM, SewPiece, sub_loop
 from solver.seams.pivot import pivot_shares, reflex_corners, shape_by_parts
 from solver.seams.runs import Run, candidate_runs, run_line
 from solver.seams.shape import fit_and_overlap
+from solver.seams.sides import TwinRows, twin_rows
 
 __all__ = ["Run", "Seam", "candidate_runs", "choose_seams"]
 
@@ -359,7 +360,9 @@ def _solve(pieces: list[SewPiece], runs: list[Run], cuts: list[np.ndarray],
     x = _program(a, weight, [junction_conflicts(pieces, runs, pairs),
                              order_conflicts(pieces, runs, pairs),
                              split_conflicts(pieces, runs, pairs),
-                             _one_band_meeting(runs, pairs, band, triples)], triples, couple)
+                             _one_band_meeting(runs, pairs, band, triples)],
+                 triples, couple,
+                 twin_rows(pieces, runs, pairs))
     if x is None:
         return []
     chosen = np.flatnonzero(x[:len(pairs)] > 0.5)
@@ -409,12 +412,14 @@ def _one_band_meeting(runs: list[Run], pairs: np.ndarray, band: np.ndarray,
 
 
 def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
-             groups: list[np.ndarray], couple: np.ndarray) -> np.ndarray | None:
+             groups: list[np.ndarray], couple: np.ndarray, twins: TwinRows
+             ) -> np.ndarray | None:
     """Solve: maximise the chosen candidates' weights plus :data:`MEETING_MM` per meeting
     all chosen (one variable per meeting, at most each of its members; ``groups``: (m,k)
     arrays of members), less :data:`PAIR_COST_MM` per two pieces sewn (one variable per
     ``couple`` index, at least each of its candidates), each edge sewn at most once (``a``:
-    edges x candidates), never all k of a row of ``conflicts`` ((r,k) arrays)."""
+    edges x candidates), never all k of a row of ``conflicts`` ((r,k) arrays), plus the
+    ``twins``' rewards (:mod:`solver.seams.sides`)."""
     n = len(weight)
     member = np.concatenate([g.reshape(-1) for g in groups]) if groups else np.zeros(0, int)
     meeting = np.concatenate([np.repeat(np.arange(len(g)), g.shape[1]) + sum(
@@ -422,7 +427,7 @@ def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
     m = sum(len(g) for g in groups)
     sewn = np.flatnonzero(couple >= 0)
     q = int(couple.max()) + 1 if len(sewn) else 0
-    width = n + m + q
+    width = n + m + q + twins.n_twins
     c = np.zeros((sum(len(x) for x in conflicts), width))
     bound = np.concatenate([np.full(len(x), x.shape[1] - 1.0) for x in conflicts])
     rows = np.concatenate([np.repeat(np.arange(len(x)), x.shape[1]) + sum(
@@ -435,11 +440,14 @@ def _program(a: np.ndarray, weight: np.ndarray, conflicts: list[np.ndarray],
     rows = len(member) + np.arange(len(sewn))
     t[rows, sewn] = 1.0
     t[rows, n + m + couple[sewn]] = -1.0
-    edges = np.hstack([a, np.zeros((len(a), m + q))])
-    res = milp(-np.concatenate([weight, np.full(m, MEETING_MM), np.full(q, -PAIR_COST_MM)]),
-               integrality=np.ones(width), bounds=Bounds(0, 1),
+    edges = np.hstack([a, np.zeros((len(a), width - n))])
+    twin = np.hstack([twins.on_candidates, np.zeros((len(twins.upper), m + q)),
+                      twins.on_twins])
+    cost = [weight, np.full(m, MEETING_MM), np.full(q, -PAIR_COST_MM), twins.reward]
+    res = milp(-np.concatenate(cost), integrality=np.ones(width), bounds=Bounds(0, 1),
                constraints=[LinearConstraint(edges, 0, 1), LinearConstraint(c, 0, bound),
-                            LinearConstraint(t, -1, 0)],
+                            LinearConstraint(t, -1, 0),
+                            LinearConstraint(twin, -np.inf, twins.upper)],
                options={"time_limit": 20.0})
     return res.x
 
