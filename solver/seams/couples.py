@@ -12,14 +12,12 @@ same seam: never both halves, the whole is a candidate of its own.
 
 from __future__ import annotations
 
-from collections import defaultdict
-
 import numpy as np
 
 from solver.garment.symmetry import mirror_misfit
 from solver.seams.names import front_or_back, name_parts
 from solver.seams.outline import MERGE_MM, SewPiece
-from solver.seams.runs import SHARP_DEG, Run
+from solver.seams.runs import SHARP_DEG, Run, by_couple
 
 __all__ = ["PAIR_COST_MM", "piece_couples", "split_conflicts"]
 
@@ -79,14 +77,8 @@ def split_conflicts(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray
     corner."""
     sharp = [p.corners(SHARP_DEG)[0] for p in pieces]
     lengths = [p.length for p in pieces]
-    by_couple: dict[tuple[int, int], list[tuple[int, Run, Run]]] = defaultdict(list)
-    for k, (i, j) in enumerate(pairs.tolist()):
-        a, b = runs[i], runs[j]
-        if a.piece != b.piece:
-            a, b = (a, b) if a.piece < b.piece else (b, a)
-            by_couple[(a.piece, b.piece)].append((k, a, b))
     out = []
-    for (pa, pb), cands in by_couple.items():
+    for (pa, pb), cands in by_couple(runs, pairs).items():
         la, lb = lengths[pa], lengths[pb]
         for k1, a1, b1 in cands:
             for k2, a2, b2 in cands:

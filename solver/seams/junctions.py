@@ -26,7 +26,7 @@ from collections import defaultdict
 import numpy as np
 
 from solver.seams.outline import MERGE_MM, SewPiece
-from solver.seams.runs import SHARP_DEG, Run
+from solver.seams.runs import SHARP_DEG, Run, by_couple
 
 __all__ = ["junction_conflicts", "meeting_triples", "order_conflicts", "tube_meetings"]
 
@@ -193,14 +193,8 @@ def order_conflicts(pieces: list[SewPiece], runs: list[Run], pairs: np.ndarray) 
     face to face meet along their seams in reverse order (a front's side seam, shoulder,
     shoulder, side seam are the back's side seam, shoulder, shoulder, side seam the other way
     round); the same order would cross them (a right shoulder sewn to the left one)."""
-    groups: dict[tuple[int, int], list[tuple[int, Run, Run]]] = defaultdict(list)
-    for k, (i, j) in enumerate(pairs.tolist()):
-        a, b = runs[i], runs[j]
-        if a.piece != b.piece:
-            a, b = (a, b) if a.piece < b.piece else (b, a)
-            groups[(a.piece, b.piece)].append((k, a, b))
     out = []
-    for (pa, pb), cands in groups.items():
+    for (pa, pb), cands in by_couple(runs, pairs).items():
         la, lb = pieces[pa].length, pieces[pb].length
         for (k1, a1, b1), (k2, a2, b2), (k3, a3, b3) in itertools.combinations(cands, 3):
             if not all(_apart(x, y, la) for x, y in ((a1, a2), (a1, a3), (a2, a3))) or \

@@ -9,6 +9,7 @@ legs, not where two pieces meet, so they are no balance notches of any run.
 
 from __future__ import annotations
 
+from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
@@ -153,3 +154,18 @@ def _run_notches(groups: list[tuple[float, int]], start: float, end: float, leng
                 u = at - start - sum(d1 - d0 for d0, d1 in skips if d1 <= at)
                 inner.append((round(u / sewn, 4), c))
     return tuple(sorted(inner)), (at_ends[0], at_ends[1])
+
+
+Couples = dict[tuple[int, int], list[tuple[int, Run, Run]]]  # (piece a, piece b) -> candidates
+
+
+def by_couple(runs: list[Run], pairs: np.ndarray) -> Couples:
+    """The candidates (index, run on the lower piece, run on the higher) that join two
+    different pieces, grouped by those two pieces (lower first)."""
+    out: Couples = defaultdict(list)
+    for k, (i, j) in enumerate(pairs.tolist()):
+        a, b = runs[i], runs[j]
+        if a.piece != b.piece:
+            a, b = (a, b) if a.piece < b.piece else (b, a)
+            out[(a.piece, b.piece)].append((k, a, b))
+    return out
