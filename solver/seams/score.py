@@ -57,8 +57,11 @@ def sample_seams(seams: list[Seam], pieces: list[SewPiece]) -> Correspondence:
         pa, pb = pieces[s.piece_a], pieces[s.piece_b]
         n = max(int(np.ceil(s.length_mm / STEP_MM)), 1)
         u = (np.arange(n) + 0.5) / n
-        a = point_at(pa, s.a_start + u * (s.a_end - s.a_start))
-        b = point_at(pb, s.b_end - u * (s.b_end - s.b_start))
+        arc_a = s.a_start + u * (s.a_end - s.a_start)
+        knots_a = [s.a_start, *(x for x, _ in s.matched), s.a_end]
+        knots_b = [s.b_end, *(y for _, y in s.matched), s.b_start]  # b runs backwards
+        a = point_at(pa, arc_a)
+        b = point_at(pb, np.interp(arc_a, knots_a, knots_b))  # matched notches meet
         parts.append(Correspondence(np.tile([s.piece_a, s.piece_b], (n, 1)), a, b,
                                     np.full(n, s.length_mm / n)))
     return Correspondence.join(parts)
