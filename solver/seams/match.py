@@ -103,6 +103,13 @@ class Seam:
     matched: tuple[tuple[float, float], ...] = ()  # (arc on a, arc on b) of the notches
     # matched inside the seam: points sewn together, where lengths alone would put them apart
 
+    def b_at(self, arc_a: np.ndarray) -> np.ndarray:
+        """The arc of piece b sewn to each arc of piece a: in proportion between the
+        seam's ends and the notches matched inside it (an eased side is not eased evenly)."""
+        knots_a = [self.a_start, *(x for x, _ in self.matched), self.a_end]
+        knots_b = [self.b_end, *(y for _, y in self.matched), self.b_start]  # b backwards
+        return np.interp(arc_a, knots_a, knots_b)
+
 
 def _notch_score(a: Run, b: Run) -> float:
     """Up to +1 when the notch groups match (b read backwards), -1 when they disagree, 0
