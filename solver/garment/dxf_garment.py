@@ -44,38 +44,39 @@ def sew_pieces(pieces: list[DxfPiece]) -> list[SewPiece]:
             for p in pieces]
 
 
-def _boundary_samples(piece: SewPiece, spans: list[tuple[float, float, int]]
+def _boundary_samples(piece: SewPiece, spans: list[tuple[float, float, np.ndarray]]
                       ) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """Arc positions sampling the loop: each seam span (start, end, count) with exactly
-    ``count`` segments, the rest at :data:`RESOLUTION_MM`; and each span's first sample
-    index. Spans are disjoint intervals on the loop."""
-    spans = sorted(spans)
+    """Arc positions sampling the loop: each seam span (start, end, its count + 1 sample
+    positions, ends included), the rest at :data:`RESOLUTION_MM`; and each span's first
+    sample index and count. Spans are disjoint intervals on the loop."""
+    spans = sorted(spans, key=lambda span: span[0])
     s: list[float] = []
     firsts = []
     cursor = spans[0][0] if spans else 0.0
     origin = cursor
-    for start, end, count in spans:
+    for start, end, positions in spans:
         if start > cursor + 1e-6:
             n = max(int(np.ceil((start - cursor) / RESOLUTION_MM)), 1)
             s += list(np.linspace(cursor, start, n + 1)[:-1])
         firsts.append(len(s))
-        s += list(np.linspace(start, end, count + 1)[:-1])
+        s += list(positions[:-1])
         cursor = end
     end_all = origin + piece.length
     if end_all > cursor + 1e-6:
         n = max(int(np.ceil((end_all - cursor) / RESOLUTION_MM)), 1)
         s += list(np.linspace(cursor, end_all, n + 1)[:-1])
-    return np.array(s), [(k, spans[j][2]) for j, k in enumerate(firsts)]
+    return np.array(s), [(k, len(spans[j][2]) - 1) for j, k in enumerate(firsts)]
 
 
 def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
     """(uv, faces, point ids, grain lines, each piece's shift into the pattern plane) of
     the pieces with the seams' twins shared."""
-    spans: list[list[tuple[float, float, int]]] = [[] for _ in pieces]
-    for s in seams:
-        count = max(int(np.ceil(s.length_mm / RESOLUTION_MM)), 1)
-        spans[s.piece_a].append((s.a_start, s.a_end, count))
-        spans[s.piece_b].append((s.b_start, s.b_end, count))
+    spans: list[list[tuple[float, float, np.ndarray]]] = [[] for _ in pieces]
+    for s in seams:  # B's samples are those sewn to A's (through its matched notches)
+        on_a = np.linspace(s.a_start, s.a_end, max(int(np.ceil(s.length_mm / RESOLUTION_MM)),
+                                                   1) + 1)
+        spans[s.piece_a].append((s.a_start, s.a_end, on_a))
+        spans[s.piece_b].append((s.b_start, s.b_end, s.b_at(on_a)[::-1]))
     uv, faces, point_ids, offset, first_of, grains, shifts = [], [], [], 0, {}, {}, []
     x = 0.0
     for i, p in enumerate(pieces):
@@ -90,7 +91,8 @@ def _mesh(pieces: list[SewPiece], seams: list[Seam], source: Path):
         uv.append(verts)
         faces.append(tris + offset)
         point_ids.append(np.arange(offset, offset + len(verts)))
-        for (start, _, _), (k, _) in zip(sorted(spans[i]), firsts, strict=True):
+        for (start, _, _), (k, _) in zip(sorted(spans[i], key=lambda span: span[0]), firsts,
+                                         strict=True):
             first_of[(i, round(start, 6))] = (offset, k, len(s))
         offset += len(verts)
         x += float(np.ptp(loop[:, 0])) + GAP_MM

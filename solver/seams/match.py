@@ -100,6 +100,15 @@ class Seam:
     length_mm: float
     confidence: float
     source: str = "inferred"
+    matched: tuple[tuple[float, float], ...] = ()  # (arc on a, arc on b) of the notches
+    # matched inside the seam: points sewn together, where lengths alone would put them apart
+
+    def b_at(self, arc_a: np.ndarray) -> np.ndarray:
+        """The arc of piece b sewn to each arc of piece a: in proportion between the
+        seam's ends and the notches matched inside it (an eased side is not eased evenly)."""
+        knots_a = [self.a_start, *(x for x, _ in self.matched), self.a_end]
+        knots_b = [self.b_end, *(y for _, y in self.matched), self.b_start]  # b backwards
+        return np.interp(arc_a, knots_a, knots_b)
 
 
 def _notch_score(a: Run, b: Run) -> float:
@@ -485,6 +494,7 @@ def _seams(a: Run, b: Run, score: float, rival: float) -> list[Seam]:
     over the best rival for the same edges (a near tie between two partners is unsure)."""
     margin = max(score - rival, 0.0)
     confidence = round(float(np.clip(score / 2.0, 0, 1) * np.clip(0.5 + margin, 0, 1)), 3)
+    notches = _matched_notches(a, b)
     shares = sorted({0.0, 1.0, *(u / a.length for u in a.skip_offsets()),
                      *(1.0 - u / b.length for u in b.skip_offsets())})
     out = []
@@ -495,5 +505,17 @@ def _seams(a: Run, b: Run, score: float, rival: float) -> list[Seam]:
                         a.arc_at(t1 * a.length, after=False),
                         b.piece, b.arc_at((1 - t1) * b.length, after=True),
                         b.arc_at((1 - t0) * b.length, after=False),
-                        0.5 * (t1 - t0) * (a.length + b.length), confidence))
+                        0.5 * (t1 - t0) * (a.length + b.length), confidence,
+                        matched=tuple((a.arc_at(u * a.length, after=True),
+                                       b.arc_at((1 - v) * b.length, after=True))
+                                      for u, v in notches if t0 < u < t1 and t0 < v < t1)))
     return out
+
+
+def _matched_notches(a: Run, b: Run) -> list[tuple[float, float]]:
+    """(share of a, share of b read backwards) of each notch inside the seam matched on
+    both sides: a sewer pins them together, so the seam's points between follow them."""
+    if a.piece == b.piece or not a.notches or _notch_score(a, b) < 0:
+        return []
+    return list(zip((s for s, _ in a.notches), sorted(1.0 - s for s, _ in b.notches),
+                    strict=True))

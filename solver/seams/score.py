@@ -51,14 +51,15 @@ class SeamScore:
 
 
 def sample_seams(seams: list[Seam], pieces: list[SewPiece]) -> Correspondence:
-    """Point correspondences along inferred seams (``a_start`` meets ``b_end``)."""
+    """Point correspondences along inferred seams (``a_start`` meets ``b_end``, matched
+    notches meet: :meth:`Seam.b_at`)."""
     parts = []
     for s in seams:
         pa, pb = pieces[s.piece_a], pieces[s.piece_b]
         n = max(int(np.ceil(s.length_mm / STEP_MM)), 1)
         u = (np.arange(n) + 0.5) / n
-        a = point_at(pa, s.a_start + u * (s.a_end - s.a_start))
-        b = point_at(pb, s.b_end - u * (s.b_end - s.b_start))
+        arc_a = s.a_start + u * (s.a_end - s.a_start)
+        a, b = point_at(pa, arc_a), point_at(pb, s.b_at(arc_a))
         parts.append(Correspondence(np.tile([s.piece_a, s.piece_b], (n, 1)), a, b,
                                     np.full(n, s.length_mm / n)))
     return Correspondence.join(parts)
