@@ -17,6 +17,8 @@ import shapely
 PLAIN_STEPS = 48
 #: overlap tolerance, as a fraction of the fabric's width
 OVERLAP_TOL = 1e-7
+#: candidate slides tested together (most pieces stop in the first few)
+CHUNK = 32
 
 
 def pull_back(polygons: list[shapely.Polygon], offsets: np.ndarray, movable: np.ndarray,
@@ -33,22 +35,41 @@ def pull_back(polygons: list[shapely.Polygon], offsets: np.ndarray, movable: np.
         moves = _slides(room, gap - bounds[j, 1], width - gap - bounds[j, 3], lattice)
         near = np.flatnonzero((bounds[:, 2] + gap >= bounds[j, 0] - room - eps)
                               & (bounds[:, 0] - gap <= bounds[j, 2]))
-        near = near[near != j]
-        others = np.array([shapely.affinity.translate(polygons[i], *offsets[i]) for i in near],
-                          dtype=object)
-        for move in moves:  # the furthest back first
-            shifted = shapely.affinity.translate(polygons[j], *(offsets[j] + move))
-            if not len(others) or _clear(shifted, others, gap, eps):
-                offsets[j] += move
-                bounds[j] += np.tile(move, 2)
-                break
+        others = _moved([polygons[i] for i in near[near != j]], offsets[near[near != j]])
+        move = _furthest_clear(_moved([polygons[j]], offsets[j:j + 1])[0], moves, others,
+                               gap, eps)
+        if move is not None:
+            offsets[j] += move
+            bounds[j] += np.tile(move, 2)
 
 
-def _clear(piece: shapely.Polygon, others: np.ndarray, gap: float, eps: float) -> bool:
-    """Whether ``piece`` keeps the gap to every one of ``others`` and overlaps none."""
-    if gap > 0:
-        return bool(np.all(shapely.distance(piece, others) >= gap - eps))
-    return not bool(np.any(shapely.intersects(piece.buffer(-eps), others)))
+def _moved(polygons: list[shapely.Polygon], moves: np.ndarray) -> np.ndarray:
+    """Each polygon translated by its row of ``moves`` (m, 2), in one pass over the
+    coordinates (a Python call per polygon costs more than the geometry)."""
+    geoms = np.array(polygons, dtype=object).reshape(-1)
+    per_coord = np.repeat(np.asarray(moves, float).reshape(-1, 2),
+                          shapely.get_num_coordinates(geoms), axis=0)
+    return shapely.transform(geoms, lambda xy: xy + per_coord)
+
+
+def _furthest_clear(piece: shapely.Polygon, moves: np.ndarray, others: np.ndarray,
+                    gap: float, eps: float) -> np.ndarray | None:
+    """The first of ``moves`` (furthest first) at which ``piece`` keeps the gap to every
+    one of ``others`` and overlaps none; None if none does."""
+    if not len(others):
+        return moves[0] if len(moves) else None
+    if gap <= 0:
+        piece = piece.buffer(-eps)  # touching is allowed: test the piece shrunk by eps
+    for k in range(0, len(moves), CHUNK):
+        chunk = moves[k:k + CHUNK]
+        shifted = _moved([piece] * len(chunk), chunk)[:, None]
+        if gap > 0:
+            ok = np.all(shapely.distance(shifted, others[None, :]) >= gap - eps, axis=1)
+        else:
+            ok = ~np.any(shapely.intersects(shifted, others[None, :]), axis=1)
+        if ok.any():
+            return chunk[int(np.argmax(ok))]
+    return None
 
 
 def _slides(room: float, dy_min: float, dy_max: float, lattice: np.ndarray | None
