@@ -7,6 +7,7 @@ a few common ones are enough to prefer a sleeve-to-body seam over a sleeve-to-sl
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 
 __all__ = ["front_or_back", "name_affinity", "name_parts"]
 
@@ -33,7 +34,8 @@ _USUAL = {frozenset(p) for p in [("front", "back"), ("sleeve", "front"), ("sleev
                                  ("back",), ("sleeve",)]}
 
 
-def _tokens(name: str) -> list[str]:
+@lru_cache(maxsize=4096)  # asked for every candidate seam: a pattern has few names
+def _tokens(name: str) -> tuple[str, ...]:
     spaced = re.sub(r"([a-z])([A-Z])", r"\1 \2", name)
     words = [w for w in re.split(r"[^0-9A-Za-zÀ-ÿ]+", spaced.lower()) if w]
     out = []
@@ -46,16 +48,17 @@ def _tokens(name: str) -> list[str]:
             head = w[:-len(word)]
             if w.endswith(word) and head and len(head) <= 2 and set(head) <= set("lrfb"):
                 out += [word, *head]
-    return out
+    return tuple(out)
 
 
-def _raw_kinds(name: str) -> set[str]:
+@lru_cache(maxsize=4096)
+def _raw_kinds(name: str) -> frozenset[str]:
     """Every kind a word of the name says, a sleeve's front or back half included."""
     toks = _tokens(name)
-    return {k for k, words in _KINDS.items() for t in toks if t in words}
+    return frozenset(k for k, words in _KINDS.items() for t in toks if t in words)
 
 
-def name_parts(name: str) -> tuple[set[str], str | None]:
+def name_parts(name: str) -> tuple[frozenset[str], str | None]:
     """(kinds, side) the name says: kinds from :data:`_KINDS`, side "left"/"right"/None."""
     toks = _tokens(name)
     kinds = _raw_kinds(name)
@@ -65,7 +68,7 @@ def name_parts(name: str) -> tuple[set[str], str | None]:
     return kinds, (sides.pop() if len(sides) == 1 else None)
 
 
-def _role(name: str) -> tuple[set[str], str | None]:
+def _role(name: str) -> tuple[frozenset[str], str | None]:
     """(what the piece is, which half it joins): a sleeve, collar, waistband or cuff is what
     it is, its "front"/"back" only says where it sits ("wb_back": a waistband of the back);
     a piece with no such kind is a front or a back."""
