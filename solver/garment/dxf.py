@@ -42,6 +42,7 @@ class DxfPiece:
     cut: np.ndarray  # (n,2) cut line, counter-clockwise
     sew: np.ndarray | None = None  # (m,2) sew line, counter-clockwise
     sew_source: str = ""
+    sew_guessed_mm: float = 0.0  # the sew line is the cut line inset by a guessed allowance
     grain: np.ndarray | None = None  # (2,2)
     fold: np.ndarray | None = None  # (2,2) the mirror line the piece was unfolded about
     notches: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
@@ -340,9 +341,10 @@ def _graded(p: DxfPiece, sample: DxfPiece) -> DxfPiece:
 
 
 def _with_sew(p: DxfPiece, allowance_mm: float | None, allowance_from: str,
-              where: str) -> DxfPiece:
-    """The sew line a piece without layer 14 implies: its cut line inset by the allowance.
-    A piece narrower than twice the allowance (a binding strip) has none, and that is said."""
+              where: str, guessed: bool = True) -> DxfPiece:
+    """The sew line a piece without layer 14 implies: its cut line inset by the allowance
+    (``guessed``: not the file's own). A piece narrower than twice the allowance (a binding
+    strip) has none, and that is said."""
     if p.sew is not None or not allowance_mm:
         return p
     inner = shapely.Polygon(p.cut).buffer(-allowance_mm, join_style="mitre", mitre_limit=2.0)
@@ -357,7 +359,8 @@ def _with_sew(p: DxfPiece, allowance_mm: float | None, allowance_from: str,
     # a CAD's cut line runs across a dart's mouth: the notches and drill hole open it again
     ring, darts = open_darts(ring, np.array([a for a, _ in p.notches]), p.drills)
     return replace(p, sew=ring, sew_source=f"the cut line inset by {allowance_mm:g} mm "
-                   f"({allowance_from})" + (f", {darts} dart(s) opened" if darts else ""))
+                   f"({allowance_from})" + (f", {darts} dart(s) opened" if darts else ""),
+                   sew_guessed_mm=allowance_mm if guessed else 0.0)
 
 
 def _file_allowance(doc, scale: float) -> float | None:
@@ -429,6 +432,7 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
     file_allowance = _file_allowance(doc, scale)
     if file_allowance is not None:
         allowance_mm, allowance_from = file_allowance, "the file's Seam Allowance"
+    guessed = file_allowance is None
     pieces = []
     for p in raw:
         if wanted is not None and p.size not in wanted:
@@ -436,6 +440,6 @@ def read_dxf_pattern(path: str | Path, *, size: str | list[str] | None = None,
         p = _graded(p, by_name[p.name])  # before unfolding: graded sizes share vertices
         p = unfold(p) if unfold_folds else p
         p = replace(p, quantity=1) if p.quantity < 0 else p
-        pieces.append(_with_sew(p, allowance_mm, allowance_from, str(path)))
+        pieces.append(_with_sew(p, allowance_mm, allowance_from, str(path), guessed))
     notes = [f"units: {unit_note}", *_decisions(pieces, sample), *_line_notes(pieces)]
     return DxfPattern(pieces, sizes, sample, unit_note.split()[0], str(path), notes)

@@ -22,10 +22,12 @@ from solver.garment.errors import GarmentError
 from solver.garment.model import Garment, build_garment
 from solver.garment.spec import _triangulate
 from solver.seams import Seam, SewPiece, infer_seams
+from solver.seams.darts import open_darts
 from solver.seams.declared import SeamsWord, read_seams_file
 from solver.seams.outline import point_at
+from solver.seams.readings import infer_on_either
 
-__all__ = ["garment_of_pattern", "load_dxf", "sew_pieces"]
+__all__ = ["garment_of_pattern", "infer_pattern_seams", "load_dxf", "sew_pieces"]
 
 RESOLUTION_MM = 20.0  # boundary sample spacing of the mesh
 DEFAULT_ALLOWANCE_MM = 10.0  # a sew line the file lacks: its cut line inset by this
@@ -33,15 +35,46 @@ SEW_INSIDE_MM = 0.5  # a sew line may touch its cut line (no allowance), not cro
 GAP_MM = 100.0  # between pieces laid side by side in the pattern plane
 
 
-def sew_pieces(pieces: list[DxfPiece]) -> list[SewPiece]:
+def sew_pieces(pieces: list[DxfPiece], *, drawn: bool = False) -> list[SewPiece]:
     """The pieces as the seam inference reads them: sew line (else the cut line), the
     file's turn points and notches; names with their spaces made ``_`` (G-code piece
-    markers and job files carry a name as one word)."""
-    return [SewPiece(re.sub(r"\s+", "_", p.name.strip()),
-                     p.sew if p.sew is not None else p.cut, p.turns,
-                     np.array([a for a, _ in p.notches], float).reshape(-1, 2), p.grain,
-                     p.family)
+    markers and job files carry a name as one word). ``drawn``: a sew line that is a guess
+    (`DxfPiece.sew_guessed_mm`) replaced by the drawn line, its darts opened, the other
+    reading of :mod:`solver.seams.readings`."""
+    return [SewPiece(re.sub(r"\s+", "_", p.name.strip()), _line(p, drawn), p.turns,
+                     _notch_points(p), p.grain, p.family)
             for p in pieces]
+
+
+def _notch_points(p: DxfPiece) -> np.ndarray:
+    return np.array([a for a, _ in p.notches], float).reshape(-1, 2)
+
+
+def _line(p: DxfPiece, drawn: bool) -> np.ndarray:
+    if p.sew is None:
+        return p.cut
+    if drawn and p.sew_guessed_mm:
+        return open_darts(p.cut, _notch_points(p), p.drills)[0]
+    return p.sew
+
+
+def infer_pattern_seams(cut: list[DxfPiece], word: SeamsWord | None = None
+                        ) -> tuple[list[Seam], list[SewPiece], str | None]:
+    """(the seams of the cut list's pieces, those pieces as sewn, a note when the seams
+    were read on the drawn line): what the operator's ``word`` declares, vetoes, and the
+    rest inferred, on the drawn line too where the sew line is a guess."""
+    pieces = sew_pieces(cut)
+    word = word or SeamsWord()
+    if not word.infer_others:
+        return list(word.declared), pieces, None
+    if not any(p.sew_guessed_mm for p in cut):
+        return infer_seams(pieces, declared=word.declared, vetoed=word.vetoed), pieces, None
+    seams, on_drawn = infer_on_either(pieces, sew_pieces(cut, drawn=True),
+                                      declared=word.declared, vetoed=word.vetoed)
+    inset = max(p.sew_guessed_mm for p in cut)
+    note = (f"seams read on the drawn line: they agree there, not {inset:g} mm inside it "
+            "(the pattern may be net: give its allowance with --seam-allowance)")
+    return seams, pieces, note if on_drawn else None
 
 
 def _boundary_samples(piece: SewPiece, spans: list[tuple[float, float, np.ndarray]]
@@ -116,10 +149,10 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
     cut = pattern.cut_list()
     if not cut:
         raise GarmentError(pattern.source, "no piece to cut (every Quantity is 0)")
-    pieces = sew_pieces(cut)
-    word = read_seams_file(seams_file, pieces) if seams_file else SeamsWord()
-    seams = (infer_seams(pieces, declared=word.declared, vetoed=word.vetoed)
-             if word.infer_others else word.declared)
+    word = read_seams_file(seams_file, sew_pieces(cut)) if seams_file else None
+    seams, pieces, note = infer_pattern_seams(cut, word)
+    if note and note not in pattern.notes:
+        pattern.notes.append(note)
     uv, faces, ids, grains, shifts = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
                       units_in_file=pattern.units,

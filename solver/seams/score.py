@@ -15,9 +15,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from solver.seams.match import Seam
-from solver.seams.outline import SewPiece, point_at
+from solver.seams.outline import SewPiece, arc_position, point_at
 
-__all__ = ["Correspondence", "SeamScore", "sample_seams", "score_seams"]
+__all__ = ["Correspondence", "SeamScore", "onto", "sample_seams", "score_seams"]
 
 STEP_MM = 5.0
 TOL_MM = 10.0
@@ -63,6 +63,17 @@ def sample_seams(seams: list[Seam], pieces: list[SewPiece]) -> Correspondence:
         parts.append(Correspondence(np.tile([s.piece_a, s.piece_b], (n, 1)), a, b,
                                     np.full(n, s.length_mm / n)))
     return Correspondence.join(parts)
+
+
+def onto(c: Correspondence, pieces: list[SewPiece]) -> Correspondence:
+    """``c`` drawn on other lines of the same pieces (a net pattern's sew line, read
+    inset) carried to the nearest point of each piece's line."""
+    a, b = c.a.copy(), c.b.copy()
+    for side, pts in ((0, a), (1, b)):
+        for k in np.unique(c.pieces[:, side]):
+            rows = c.pieces[:, side] == k
+            pts[rows] = point_at(pieces[k], arc_position(pieces[k], pts[rows]))
+    return Correspondence(c.pieces, a, b, c.weight)
 
 
 def _covered(c: Correspondence, ref: Correspondence) -> np.ndarray:
