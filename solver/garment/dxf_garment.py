@@ -73,7 +73,8 @@ def infer_pattern_seams(cut: list[DxfPiece], word: SeamsWord | None = None
                                       declared=word.declared, vetoed=word.vetoed)
     inset = max(p.sew_guessed_mm for p in cut)
     note = (f"seams read on the drawn line: they agree there, not {inset:g} mm inside it "
-            "(the pattern may be net: give its allowance with --seam-allowance)")
+            "(the pattern may be net, drawn on its sew line: then its cut line carries no "
+            "allowance)")
     return seams, pieces, note if on_drawn else None
 
 
