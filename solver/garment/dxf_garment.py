@@ -64,7 +64,7 @@ def infer_pattern_seams(cut: list[DxfPiece], word: SeamsWord | None = None
     were read on the drawn line): what the operator's ``word`` declares, vetoes, and the
     rest inferred, on the drawn line too where the sew line is a guess."""
     pieces = sew_pieces(cut)
-    word = word or SeamsWord()
+    word = word if word is not None else SeamsWord()
     if not word.infer_others:
         return list(word.declared), pieces, None
     if not any(p.sew_guessed_mm for p in cut):
