@@ -152,8 +152,9 @@ def garment_of_pattern(pattern: DxfPattern, seams_file: str | Path | None = None
         raise GarmentError(pattern.source, "no piece to cut (every Quantity is 0)")
     word = read_seams_file(seams_file, sew_pieces(cut)) if seams_file else None
     seams, pieces, note = infer_pattern_seams(cut, word)
-    if note and note not in pattern.notes:
-        pattern.notes.append(note)
+    if note and note not in pattern.notes:  # said where the reader's warnings go too (the
+        pattern.notes.append(note)  # job log, the command's stderr): the cut may lack allowance
+        warnings.warn(f"{pattern.source}: {note}", stacklevel=2)
     uv, faces, ids, grains, shifts = _mesh(pieces, seams, Path(pattern.source))
     g = build_garment(uv, faces, ids, xyz=None, source=pattern.source, kind="dxf",
                       units_in_file=pattern.units,

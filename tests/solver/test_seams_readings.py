@@ -11,7 +11,7 @@ import pytest
 
 from solver.garment import load_garment
 from solver.garment.dxf import read_dxf_pattern
-from solver.garment.dxf_garment import infer_pattern_seams, sew_pieces
+from solver.garment.dxf_garment import garment_of_pattern, infer_pattern_seams, sew_pieces
 from solver.seams import infer_seams
 from solver.seams.export import export_cad_dxf
 from solver.seams.outline import point_at
@@ -48,6 +48,9 @@ def test_a_net_pattern_read_10_mm_in_has_its_seams_read_on_the_drawn_line(export
     guessed_only = score_seams(onto(truth, pieces), sample_seams(infer_seams(pieces), pieces))
     assert guessed_only.recall < 0.8  # the case this reading is for
     assert found.recall >= 0.95 and found.precision >= 0.95, found
+    with pytest.warns(UserWarning, match="seams read on the drawn line"):  # to the job log
+        garment_of_pattern(pattern)
+    assert any("drawn line" in n for n in pattern.notes)  # and to `inspect --json`
 
 
 def test_a_pattern_read_at_its_own_allowance_keeps_the_guessed_line(exports):
